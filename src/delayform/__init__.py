@@ -1,0 +1,66 @@
+"""delayform: formation control of robot teams under two communication delays.
+
+Exact CTCR stability maps in the (tau1, tau2) plane, dominant characteristic
+roots and delay scheduling, formation design and simulation of
+double-integrator agents and differential-drive robots, following
+Cepeda-Gomez and Perico, "Formation Control of Non-holonomic Vehicles under
+Time Delayed Communications".
+
+The public names below are imported lazily, so ``import delayform`` stays
+cheap and the command line starts fast.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+__version__ = "0.1.0"
+
+#: public name -> module that defines it
+_EXPORTS: dict[str, str] = {
+    # topology
+    "Topology": "topology",
+    "EigenvalueGroup": "topology",
+    "paper_six": "topology",
+    "ring": "topology",
+    "complete": "topology",
+    "star": "topology",
+    "random_digraph": "topology",
+    # characteristic equation
+    "TwoDelayQuasiPolynomial": "characteristic",
+    "CharacteristicFactor": "characteristic",
+    "factors": "characteristic",
+    "full_characteristic": "characteristic",
+    # CTCR
+    "stability_map": "ctcr",
+    "crossing_map": "ctcr",
+    "StabilityMap": "ctcr",
+    # spectrum
+    "roots_in": "spectrum",
+    "rightmost_root": "spectrum",
+    "dominant_root": "spectrum",
+    "dominant_root_map": "spectrum",
+    "schedule_delays": "spectrum",
+    # formation and simulation
+    "formation_forcing": "formation",
+    "simulate": "simulation",
+    "Trajectory": "simulation",
+}
+
+__all__ = sorted(_EXPORTS) + ["errors", "__version__"]
+
+
+def __getattr__(name: str) -> Any:
+    module = _EXPORTS.get(name)
+    if module is None:
+        if name == "errors":
+            return importlib.import_module("delayform.errors")
+        raise AttributeError(f"module 'delayform' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"delayform.{module}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return __all__

@@ -1,0 +1,106 @@
+"""The exceptions of delayform.
+
+Every error the library raises on purpose is a subclass of
+:class:`DelayformError` and of the built-in exception a user would expect
+(``ValueError`` for bad input, ``RuntimeError`` for a computation that did
+not succeed), so ``except ValueError`` keeps working for users who do not
+know this module.
+
+The tree::
+
+    DelayformError
+    +-- InputError (ValueError)            bad argument of any kind
+    |   +-- TopologyError                  adjacency, informers, sizes
+    |   |   +-- NoSpanningTreeError        Lemma 3: consensus impossible
+    |   +-- GainError                      P, D not finite and positive
+    |   +-- DelayError                     tau1, tau2 negative or not finite
+    |   +-- QuasiPolynomialError           malformed coefficients
+    |   |   +-- NeutralQuasiPolynomialError  not retarded: CTCR and roots refuse
+    |   +-- FormationError                 desired shape of the wrong size
+    |   +-- SimulationInputError           dt, duration, initial states
+    |   +-- ScenarioError                  a TOML scenario file
+    +-- NotConvergedError (RuntimeError)   carries the partial result
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+__all__ = [
+    "DelayformError",
+    "InputError",
+    "TopologyError",
+    "NoSpanningTreeError",
+    "GainError",
+    "DelayError",
+    "QuasiPolynomialError",
+    "NeutralQuasiPolynomialError",
+    "FormationError",
+    "SimulationInputError",
+    "ScenarioError",
+    "NotConvergedError",
+]
+
+
+class DelayformError(Exception):
+    """Base class of every error raised on purpose by delayform."""
+
+
+class InputError(DelayformError, ValueError):
+    """An argument that delayform cannot work with."""
+
+
+class TopologyError(InputError):
+    """A communication topology that is malformed for protocol (eq. protocol).
+
+    Raised for a non-square or non-binary adjacency matrix, self-loops, and
+    agents without informers (the protocol divides by the in-degree).
+    """
+
+
+class NoSpanningTreeError(TopologyError):
+    """The topology has no spanning tree, so consensus is impossible (Lemma 3)."""
+
+
+class GainError(InputError):
+    """A control gain P or D that is not a finite positive number."""
+
+
+class DelayError(InputError):
+    """A delay tau1 or tau2 that is negative or not finite."""
+
+
+class QuasiPolynomialError(InputError):
+    """Coefficients of a quasi-polynomial (eq. genfactor) that are malformed."""
+
+
+class NeutralQuasiPolynomialError(QuasiPolynomialError):
+    """A quasi-polynomial of neutral type, outside what CTCR here treats."""
+
+
+class FormationError(InputError):
+    """A desired formation that does not fit the team."""
+
+
+class SimulationInputError(InputError):
+    """A time step, duration or initial state that cannot be simulated."""
+
+
+class ScenarioError(InputError):
+    """A scenario file that is missing a field, has an unknown key or a wrong value."""
+
+
+class NotConvergedError(DelayformError, RuntimeError):
+    """An iterative computation that did not reach its tolerance.
+
+    Parameters
+    ----------
+    message
+        What did not converge and how far it got.
+    partial
+        The partial result, for callers that can use it.
+    """
+
+    def __init__(self, message: str, partial: Any = None) -> None:
+        super().__init__(message)
+        self.partial = partial

@@ -1,0 +1,422 @@
+"""Communication topologies, the matrix C and its eigenvalues.
+
+Conventions (as in the paper, Section "Consensus Protocol"):
+
+* Row i of the adjacency matrix is what agent i receives: ``a_ik = 1`` when
+  agent i receives from agent k (k is an *informer* of i). No self-loops.
+* An edge ``(k, i)`` in an edge list or a networkx digraph points from the
+  informer k to the receiver i, the direction information flows.
+* The in-degree of agent i is the row sum ``delta_i``; the protocol averages
+  over informers, so every agent needs at least one.
+* ``C = Delta^-1 A`` is row-stochastic: it always has the eigenvalue 1, the
+  *centroid* (rigid-body) eigenvalue of eq. factor1.
+
+Agents are labelled 0..n-1 unless the topology came from a networkx graph or
+a named builder that uses the paper's labels (``paper_six`` uses 1..6);
+error messages name agents by label.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Hashable, Iterable, Sequence
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+import scipy.sparse as sp
+from numpy.typing import ArrayLike, NDArray
+from scipy.sparse import csgraph
+
+from delayform.errors import NoSpanningTreeError, TopologyError
+
+__all__ = [
+    "Topology",
+    "EigenvalueGroup",
+    "paper_six",
+    "ring",
+    "complete",
+    "star",
+    "random_digraph",
+    "DENSE_LIMIT",
+]
+
+#: Above this many agents, :attr:`Topology.C` and :attr:`Topology.adjacency`
+#: are scipy.sparse arrays; at or below it, dense NumPy arrays.
+DENSE_LIMIT = 1000
+
+#: Eigenvalues of C closer than this are one group. Numerical eigenvalues of
+#: a defective C split like eps**(1/k) for a Jordan block of size k, so the
+#: tolerance must be far above eps; the mean of a split cluster is accurate
+#: to about eps (the trace is preserved), and that mean is what we keep.
+EIGENVALUE_CLUSTER_TOL = 1e-5
+
+
+@dataclass(frozen=True)
+class EigenvalueGroup:
+    """One distinct eigenvalue of C, or one complex-conjugate pair.
+
+    Attributes
+    ----------
+    lam
+        The eigenvalue; for a pair, the member with positive imaginary part.
+    multiplicity
+        Algebraic multiplicity of ``lam`` (of each member of a pair).
+    is_complex_pair
+        True when ``lam`` and its conjugate form one fourth-order factor of
+        eq. factorized.
+    is_centroid
+        True for lam = 1, the eigenvalue of the centroid factor (eq. factor1).
+    """
+
+    lam: complex
+    multiplicity: int
+    is_complex_pair: bool
+    is_centroid: bool
+
+    @property
+    def factor_order(self) -> int:
+        """Order in s of the factor this group makes in eq. factorized (2 or 4)."""
+        return 4 if self.is_complex_pair else 2
+
+
+def _as_label_tuple(labels: Sequence[Hashable] | None, n: int) -> tuple[Hashable, ...]:
+    if labels is None:
+        return tuple(range(n))
+    out = tuple(labels)
+    if len(out) != n:
+        raise TopologyError(f"labels has {len(out)} entries for {n} agents")
+    if len(set(out)) != n:
+        raise TopologyError("labels must be distinct")
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class Topology:
+    """A directed communication topology of n agents (eq. protocol).
+
+    Build one with :meth:`from_adjacency`, :meth:`from_edges`,
+    :meth:`from_networkx` or a named builder (:func:`paper_six`, :func:`ring`,
+    :func:`complete`, :func:`star`, :func:`random_digraph`).
+
+    Examples
+    --------
+    >>> from delayform.topology import ring
+    >>> ring(3).C
+    array([[0., 0., 1.],
+           [1., 0., 0.],
+           [0., 1., 0.]])
+    """
+
+    adjacency_sparse: sp.csr_array
+    labels: tuple[Hashable, ...] = field(default=())
+    name: str = "custom"
+
+    def __post_init__(self) -> None:
+        n = self.adjacency_sparse.shape[0]
+        object.__setattr__(self, "labels", _as_label_tuple(self.labels or None, n))
+
+    # ------------------------------------------------------------------ build
+    @classmethod
+    def from_adjacency(
+        cls,
+        A: ArrayLike | sp.sparray | sp.spmatrix,
+        *,
+        labels: Sequence[Hashable] | None = None,
+        name: str = "custom",
+    ) -> Topology:
+        """Topology from a binary adjacency matrix, ``a_ik = 1`` when i receives from k.
+
+        Raises
+        ------
+        TopologyError
+            For a matrix that is not square, not binary, has self-loops, or
+            leaves an agent without informers.
+        """
+        if sp.issparse(A):
+            mat = sp.csr_array(A, dtype=np.float64)
+        else:
+            try:
+                dense = np.asarray(A, dtype=np.float64)
+            except (TypeError, ValueError) as exc:
+                raise TopologyError("adjacency must be a numeric square matrix") from exc
+            if dense.ndim != 2:
+                raise TopologyError(f"adjacency must be a 2-D matrix, got {dense.ndim} dimension(s)")
+            mat = sp.csr_array(dense)
+        rows, cols = mat.shape
+        if rows != cols:
+            raise TopologyError(f"adjacency must be square, got shape {rows}x{cols}")
+        if rows == 0:
+            raise TopologyError("adjacency must describe at least one agent")
+        mat.eliminate_zeros()
+        data = mat.data
+        if not np.all(np.isfinite(data)) or not np.all(data == 1.0):
+            bad = data[~(data == 1.0)][:3]
+            raise TopologyError(f"adjacency must be binary (0 or 1), found entries {bad.tolist()}")
+        label_tuple = _as_label_tuple(labels, rows)
+        diag = mat.diagonal()
+        if np.any(diag != 0):
+            agents = [label_tuple[i] for i in np.flatnonzero(diag)]
+            raise TopologyError(f"self-loops are not allowed (a_ii = 1 for agents {agents})")
+        indeg = np.asarray(mat.sum(axis=1)).ravel()
+        if np.any(indeg == 0):
+            agents = [label_tuple[i] for i in np.flatnonzero(indeg == 0)]
+            raise TopologyError(
+                f"agents {agents} have no informer; protocol (eq. protocol) averages over informers"
+            )
+        mat.sort_indices()
+        return cls(adjacency_sparse=mat, labels=label_tuple, name=name)
+
+    @classmethod
+    def from_edges(
+        cls,
+        edges: Iterable[tuple[int, int]],
+        n: int | None = None,
+        *,
+        name: str = "custom",
+    ) -> Topology:
+        """Topology from pairs ``(informer, receiver)`` of agent indices 0..n-1.
+
+        ``n`` defaults to one more than the largest index. Duplicate edges
+        are one edge.
+        """
+        try:
+            arr = np.asarray(list(edges), dtype=np.int64)
+        except (TypeError, ValueError) as exc:
+            raise TopologyError("edges must be pairs of integer agent indices") from exc
+        if arr.size == 0:
+            raise TopologyError("edges is empty: every agent needs an informer")
+        if arr.ndim != 2 or arr.shape[1] != 2:
+            raise TopologyError("edges must be pairs (informer, receiver)")
+        if np.any(arr < 0):
+            raise TopologyError("agent indices in edges must be non-negative")
+        size = int(arr.max()) + 1 if n is None else int(n)
+        if arr.max() >= size:
+            raise TopologyError(f"edge names agent {int(arr.max())} but n = {size}")
+        informer, receiver = arr[:, 0], arr[:, 1]
+        mat = sp.csr_array(
+            (np.ones(len(arr)), (receiver, informer)), shape=(size, size), dtype=np.float64
+        )
+        mat.data[:] = 1.0  # duplicates were summed
+        return cls.from_adjacency(mat, name=name)
+
+    @classmethod
+    def from_networkx(cls, G: object, *, name: str = "networkx") -> Topology:
+        """Topology from a networkx graph; an edge u -> v means v receives from u.
+
+        An undirected graph is taken as bidirectional links. Node labels are kept.
+        """
+        import networkx as nx
+
+        if not isinstance(G, nx.Graph):
+            raise TopologyError(f"expected a networkx graph, got {type(G).__name__}")
+        nodes = list(G.nodes)
+        # networkx rows are sources; protocol rows are receivers: transpose.
+        out_adj = nx.to_scipy_sparse_array(G, nodelist=nodes, weight=None, format="csr")
+        return cls.from_adjacency(sp.csr_array(out_adj.T), labels=nodes, name=name)
+
+    # -------------------------------------------------------------- matrices
+    @property
+    def n(self) -> int:
+        """Number of agents."""
+        return int(self.adjacency_sparse.shape[0])
+
+    @property
+    def adjacency(self) -> NDArray[np.float64] | sp.csr_array:
+        """Adjacency matrix A, dense up to :data:`DENSE_LIMIT` agents, sparse above."""
+        if self.n <= DENSE_LIMIT:
+            return self.adjacency_sparse.toarray()
+        return self.adjacency_sparse
+
+    @cached_property
+    def in_degree(self) -> NDArray[np.float64]:
+        """In-degrees delta_i (number of informers of each agent)."""
+        return np.asarray(self.adjacency_sparse.sum(axis=1), dtype=np.float64).ravel()
+
+    @cached_property
+    def C_sparse(self) -> sp.csr_array:
+        """C = Delta^-1 A as a scipy.sparse CSR array, at any size."""
+        return sp.csr_array(sp.diags_array(1.0 / self.in_degree) @ self.adjacency_sparse)
+
+    @property
+    def C(self) -> NDArray[np.float64] | sp.csr_array:
+        """C = Delta^-1 A (eq. protocolss), dense up to :data:`DENSE_LIMIT` agents."""
+        if self.n <= DENSE_LIMIT:
+            return self.C_sparse.toarray()
+        return self.C_sparse
+
+    def informers(self, agent: int) -> tuple[int, ...]:
+        """Indices of the agents that ``agent`` (an index) receives from."""
+        row = self.adjacency_sparse.indices[
+            self.adjacency_sparse.indptr[agent] : self.adjacency_sparse.indptr[agent + 1]
+        ]
+        return tuple(int(k) for k in row)
+
+    def edges(self) -> list[tuple[int, int]]:
+        """Edges as pairs (informer, receiver) of agent indices."""
+        coo = self.adjacency_sparse.tocoo()
+        return sorted(zip(coo.col.tolist(), coo.row.tolist(), strict=True))
+
+    def to_networkx(self) -> object:
+        """The topology as a networkx DiGraph, edges from informer to receiver."""
+        import networkx as nx
+
+        G = nx.DiGraph()
+        G.add_nodes_from(self.labels)
+        G.add_edges_from((self.labels[k], self.labels[i]) for k, i in self.edges())
+        return G
+
+    # ---------------------------------------------------------- graph facts
+    def has_spanning_tree(self) -> bool:
+        """True when some agent's information reaches every agent (a rooted spanning tree).
+
+        Equivalent: the condensation of the information-flow graph has
+        exactly one strongly connected component without incoming edges.
+        """
+        n_comp, comp = csgraph.connected_components(
+            self.adjacency_sparse, directed=True, connection="strong"
+        )
+        if n_comp == 1:
+            return True
+        coo = self.adjacency_sparse.tocoo()
+        # edge informer (col) -> receiver (row); a component fed from outside is not a source.
+        fed = comp[coo.row][comp[coo.row] != comp[coo.col]]
+        sources = n_comp - np.unique(fed).size
+        return bool(sources == 1)
+
+    def require_spanning_tree(self) -> None:
+        """Raise :class:`NoSpanningTreeError` unless :meth:`has_spanning_tree`."""
+        if not self.has_spanning_tree():
+            raise NoSpanningTreeError(
+                f"topology '{self.name}' has no spanning tree: the protocol cannot reach "
+                "consensus or formation for any gains or delays (Lemma 3)"
+            )
+
+    # ----------------------------------------------------------- eigenvalues
+    @cached_property
+    def eigenvalues(self) -> NDArray[np.complex128]:
+        """All n eigenvalues of C, sorted by decreasing real part then imaginary part."""
+        C = self.C_sparse.toarray()
+        vals = np.linalg.eigvals(C).astype(np.complex128)
+        order = np.lexsort((-vals.imag, -vals.real))
+        return vals[order]
+
+    @cached_property
+    def eigenvalue_groups(self) -> tuple[EigenvalueGroup, ...]:
+        """Eigenvalues of C grouped as eq. factorized groups them.
+
+        Real eigenvalues each give a second-order factor, complex-conjugate
+        pairs a fourth-order one; equal eigenvalues are one group with a
+        multiplicity. Order: centroid (lam = 1) first, then real groups by
+        decreasing value, then pairs by decreasing real part.
+        """
+        return _group_eigenvalues(self.eigenvalues)
+
+    def __repr__(self) -> str:
+        return f"Topology(name={self.name!r}, n={self.n}, edges={self.adjacency_sparse.nnz})"
+
+
+def _cluster(values: NDArray[np.complex128], tol: float) -> list[NDArray[np.complex128]]:
+    """Split ``values`` into clusters whose members chain within ``tol``."""
+    if values.size == 0:
+        return []
+    from scipy.spatial import cKDTree
+
+    points = np.column_stack([values.real, values.imag])
+    pairs = cKDTree(points).query_pairs(tol, output_type="ndarray")
+    graph = sp.csr_array(
+        (np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(values.size, values.size)
+    )
+    n_comp, labels = csgraph.connected_components(graph, directed=False)
+    return [values[labels == k] for k in range(n_comp)]
+
+
+def _group_eigenvalues(vals: NDArray[np.complex128]) -> tuple[EigenvalueGroup, ...]:
+    tol = EIGENVALUE_CLUSTER_TOL
+    scale = max(1.0, float(np.max(np.abs(vals)))) if vals.size else 1.0
+    groups: list[EigenvalueGroup] = []
+    upper = vals[vals.imag > tol * scale]
+    realish = vals[np.abs(vals.imag) <= tol * scale]
+    for cluster in _cluster(realish, tol * scale):
+        lam = complex(cluster.real.mean(), 0.0)
+        centroid = abs(lam - 1.0) <= tol
+        if centroid:
+            lam = 1.0 + 0.0j  # exactly: C is row-stochastic
+        groups.append(EigenvalueGroup(lam, int(cluster.size), False, centroid))
+    for cluster in _cluster(upper, tol * scale):
+        lam = complex(cluster.mean())
+        groups.append(EigenvalueGroup(lam, int(cluster.size), True, False))
+    groups.sort(
+        key=lambda g: (not g.is_centroid, g.is_complex_pair, -g.lam.real, -g.lam.imag)
+    )
+    return tuple(groups)
+
+
+# ---------------------------------------------------------------- builders
+def paper_six() -> Topology:
+    """The six-agent topology of the paper's Fig. topol.
+
+    Informers: 1:{2,5}, 2:{1,5}, 3:{1,5,6}, 4:{2,6}, 5:{1,4}, 6:{3,4}.
+    C has eigenvalues {1, 0.46, -0.5, -0.64, -0.16 +- 0.21j}.
+    Labels are the paper's 1..6.
+    """
+    informers = {1: (2, 5), 2: (1, 5), 3: (1, 5, 6), 4: (2, 6), 5: (1, 4), 6: (3, 4)}
+    A = np.zeros((6, 6))
+    for i, ks in informers.items():
+        for k in ks:
+            A[i - 1, k - 1] = 1.0
+    return Topology.from_adjacency(A, labels=range(1, 7), name="paper_six")
+
+
+def _check_count(n: object, minimum: int, what: str) -> int:
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < minimum:
+        raise TopologyError(f"{what} needs an integer number of agents >= {minimum}, got {n!r}")
+    return int(n)
+
+
+def ring(n: int) -> Topology:
+    """Directed cycle: agent i receives from agent i-1 (mod n)."""
+    n = _check_count(n, 2, "ring")
+    idx = np.arange(n)
+    return Topology.from_edges(zip((idx - 1) % n, idx, strict=True), n, name=f"ring({n})")
+
+
+def complete(n: int) -> Topology:
+    """Every agent receives from every other; C has eigenvalues 1 and -1/(n-1)."""
+    n = _check_count(n, 2, "complete")
+    A = np.ones((n, n)) - np.eye(n)
+    return Topology.from_adjacency(A, name=f"complete({n})")
+
+
+def star(n: int) -> Topology:
+    """Hub 0 linked both ways with each of the leaves 1..n-1."""
+    n = _check_count(n, 2, "star")
+    leaves = np.arange(1, n)
+    edges = [(0, int(k)) for k in leaves] + [(int(k), 0) for k in leaves]
+    return Topology.from_edges(edges, n, name=f"star({n})")
+
+
+def random_digraph(n: int, p: float, seed: int | np.random.Generator | None = None) -> Topology:
+    """Random digraph with a spanning tree: a directed ring plus each other edge with probability p.
+
+    The ring guarantees every agent an informer and a spanning tree, so the
+    result is always a valid formation topology; ``p`` sets how dense it is.
+    For large n the extra edges are drawn sparsely (expected n*(n-1)*p of them).
+    """
+    n = _check_count(n, 2, "random_digraph")
+    if not (isinstance(p, (int, float, np.floating)) and 0.0 <= float(p) <= 1.0):
+        raise TopologyError(f"random_digraph needs a probability 0 <= p <= 1, got {p!r}")
+    rng = np.random.default_rng(seed)
+    if n <= 2000:
+        mask = rng.random((n, n)) < p
+        receiver, informer = np.nonzero(mask)
+    else:
+        count = rng.binomial(n * (n - 1), float(p))
+        receiver = rng.integers(0, n, size=count)
+        informer = rng.integers(0, n, size=count)
+    keep = receiver != informer
+    idx = np.arange(n)
+    rows = np.concatenate([receiver[keep], idx])
+    cols = np.concatenate([informer[keep], (idx - 1) % n])
+    mat = sp.csr_array((np.ones(rows.size), (rows, cols)), shape=(n, n))
+    mat.data[:] = 1.0
+    return Topology.from_adjacency(mat, name=f"random_digraph({n}, {float(p):g})")
