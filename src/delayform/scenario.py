@@ -1,0 +1,704 @@
+"""Scenario files: one TOML file describes a team, its gains and delays, and what to compute.
+
+A scenario is the input of every ``delayform`` subcommand. The schema (every
+table and key; anything else is an error)::
+
+    name = "paper"                      # optional, default: the file's stem
+    description = "..."                 # optional
+
+    [topology]                          # required; exactly one of name / adjacency / edges
+    name = "ring"                       # paper_six | ring | complete | star | random_digraph
+    n = 12                              # agents (named builders except paper_six; optional with edges)
+    p = 0.05                            # random_digraph only: probability of each extra edge
+    seed = 1                            # random_digraph only
+    # adjacency = [[0, 1], [1, 0]]      # a_ik = 1 when agent i receives from agent k
+    # edges = [[0, 1], [1, 0]]          # pairs (informer, receiver), agents 0..n-1
+
+    [gains]                             # required
+    P = 1.0
+    D = 0.5
+
+    [delays]                            # required: the operating point
+    tau1 = 0.3                          # seconds, on positions
+    tau2 = 0.2                          # seconds, on velocities
+
+    [formation]                         # required; exactly one of shape / positions
+    shape = "polygon"                   # a named shape of delayform.formation
+    scale = 2.0                         # optional, size of the named shape
+    # positions = [[x, y], ...]         # one desired position per agent
+
+    [simulation]                        # optional
+    model = "unicycle"                  # unicycle | double_integrator
+    duration = 150.0                    # seconds
+    dt = 0.01                           # seconds
+
+    [initial]                           # optional; random positions and headings from seed
+    seed = 0
+    speed = 1e-3                        # the paper's small initial speed (eq. transform2)
+    # positions = [[x, y], ...]         # explicit initial positions, one per agent
+    # headings = [...]                  # explicit initial headings (radians), one per agent
+
+    [chart]                             # optional: the CTCR window and marked points
+    tau1_max = 8.0
+    tau2_max = 8.0
+    points = { a = [0.3, 0.2] }         # label -> [tau1, tau2]
+
+    [map]                               # optional: the dominant-root grid
+    tau1 = [0.0, 8.0]                   # [first, last]
+    tau2 = [0.0, 8.0]
+    size = [81, 81]                     # grid points along tau1, tau2
+
+    [schedule]                          # optional: delay scheduling bounds
+    tau_min = [0.3, 0.2]                # what the hardware gives (defaults to [delays])
+    tau_max = [8.0, 8.0]                # defaults to the chart window
+
+Validation happens on load: an unknown key, a value of the wrong type, a
+missing field or sizes that do not agree raise :class:`ScenarioError` with
+one line naming the file, the key and what was expected.
+
+Examples
+--------
+>>> s = parse_scenario({"topology": {"name": "ring", "n": 4}, "gains": {"P": 1, "D": 0.5},
+...                     "delays": {"tau1": 0.1, "tau2": 0.2}, "formation": {"shape": "line"}})
+>>> s.topology.n, s.P, s.tau2, s.simulation.model
+(4, 1.0, 0.2, 'unicycle')
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from delayform.errors import InputError, ScenarioError
+from delayform.topology import Topology, complete, paper_six, random_digraph, ring, star
+
+__all__ = [
+    "Scenario",
+    "TopologySpec",
+    "FormationSpec",
+    "SimulationSpec",
+    "InitialSpec",
+    "ChartSpec",
+    "MapSpec",
+    "ScheduleSpec",
+    "load_scenario",
+    "parse_scenario",
+    "paper_scenario",
+    "PAPER_TOML",
+    "TOPOLOGY_NAMES",
+    "MODELS",
+]
+
+TOPOLOGY_NAMES = ("paper_six", "ring", "complete", "star", "random_digraph")
+MODELS = ("unicycle", "double_integrator")
+
+#: The paper's example (Section "Simulation Examples"): the six robots of
+#: Fig. topol, P = 1, D = 0.5, point a, a hexagon, the chart window [0, 8]^2
+#: with points a..e. ``delayform paper`` and examples/paper.toml use it.
+PAPER_TOML = """\
+name = "paper"
+description = "Cepeda-Gomez and Perico: six robots of Fig. topol, P = 1, D = 0.5, point a, hexagon"
+
+[topology]
+name = "paper_six"
+
+[gains]
+P = 1.0
+D = 0.5
+
+[delays]
+tau1 = 0.3
+tau2 = 0.2
+
+[formation]
+shape = "hexagon"
+scale = 2.0
+
+[simulation]
+model = "unicycle"
+duration = 150.0
+dt = 0.01
+
+[initial]
+seed = 0
+speed = 1e-3
+
+[chart]
+tau1_max = 8.0
+tau2_max = 8.0
+points = { a = [0.3, 0.2], b = [2.0, 1.0], c = [1.0, 2.0], d = [1.0, 5.5], e = [3.5, 2.0] }
+
+[map]
+tau1 = [0.0, 8.0]
+tau2 = [0.0, 8.0]
+size = [81, 81]
+
+[schedule]
+tau_min = [0.3, 0.2]
+tau_max = [8.0, 8.0]
+"""
+
+
+# ---------------------------------------------------------------- the result
+@dataclass(frozen=True)
+class TopologySpec:
+    """How the topology was given, kept for reports (the built one is ``Scenario.topology``)."""
+
+    name: str | None = None
+    n: int | None = None
+    p: float | None = None
+    seed: int | None = None
+    adjacency: tuple[tuple[int, ...], ...] | None = None
+    edges: tuple[tuple[int, int], ...] | None = None
+
+    def describe(self) -> str:
+        """One line for tables: the builder and its arguments."""
+        if self.adjacency is not None:
+            return f"adjacency matrix, {len(self.adjacency)} agents"
+        if self.edges is not None:
+            return f"edge list, {len(self.edges)} edges"
+        args = [f"n={self.n}"] if self.n is not None and self.name != "paper_six" else []
+        args += [f"p={self.p:g}"] if self.p is not None else []
+        args += [f"seed={self.seed}"] if self.seed is not None else []
+        return f"{self.name}({', '.join(args)})"
+
+
+@dataclass(frozen=True)
+class FormationSpec:
+    """The desired formation: a named shape (with a scale) or explicit positions."""
+
+    shape: str | None = None
+    scale: float = 1.0
+    positions: tuple[tuple[float, float], ...] | None = None
+
+    def describe(self) -> str:
+        """One line for tables."""
+        if self.positions is not None:
+            return f"{len(self.positions)} explicit positions"
+        return f"{self.shape} (scale {self.scale:g})"
+
+
+@dataclass(frozen=True)
+class SimulationSpec:
+    """Agent model and integration grid of a simulation."""
+
+    model: str = "unicycle"
+    duration: float = 100.0
+    dt: float = 0.01
+
+
+@dataclass(frozen=True)
+class InitialSpec:
+    """Initial conditions: random from ``seed`` unless positions / headings are given."""
+
+    seed: int = 0
+    speed: float = 1e-3
+    positions: tuple[tuple[float, float], ...] | None = None
+    headings: tuple[float, ...] | None = None
+
+
+@dataclass(frozen=True)
+class ChartSpec:
+    """The CTCR window [0, tau1_max] x [0, tau2_max] and labelled points to mark."""
+
+    tau1_max: float = 8.0
+    tau2_max: float = 8.0
+    points: tuple[tuple[str, float, float], ...] = ()
+
+
+@dataclass(frozen=True)
+class MapSpec:
+    """A rectangular grid of delay pairs for the dominant-root map."""
+
+    tau1: tuple[float, float] = (0.0, 8.0)
+    tau2: tuple[float, float] = (0.0, 8.0)
+    size: tuple[int, int] = (81, 81)
+
+    def tau1_values(self) -> np.ndarray:
+        """The grid along tau1."""
+        return np.linspace(self.tau1[0], self.tau1[1], self.size[0])
+
+    def tau2_values(self) -> np.ndarray:
+        """The grid along tau2."""
+        return np.linspace(self.tau2[0], self.tau2[1], self.size[1])
+
+
+@dataclass(frozen=True)
+class ScheduleSpec:
+    """Bounds of delay scheduling: delays may only grow from ``tau_min`` up to ``tau_max``."""
+
+    tau_min: tuple[float, float]
+    tau_max: tuple[float, float]
+
+
+@dataclass(frozen=True, eq=False)
+class Scenario:
+    """A validated scenario: everything a ``delayform`` subcommand needs.
+
+    Attributes
+    ----------
+    name, description
+        For titles and reports.
+    topology
+        The built communication topology.
+    P, D
+        Gains of eq. protocol.
+    tau1, tau2
+        The operating delays (seconds).
+    formation, simulation, initial, chart, map, schedule
+        The optional tables, with their defaults filled in.
+    topology_spec
+        How the topology was described in the file.
+    source
+        The file it came from (or ``"<paper>"`` for the embedded default).
+    """
+
+    name: str
+    description: str
+    topology: Topology
+    P: float
+    D: float
+    tau1: float
+    tau2: float
+    formation: FormationSpec
+    simulation: SimulationSpec
+    initial: InitialSpec
+    chart: ChartSpec
+    map: MapSpec
+    schedule: ScheduleSpec
+    topology_spec: TopologySpec = field(default_factory=TopologySpec)
+    source: str = "<scenario>"
+
+    def summary(self) -> dict[str, Any]:
+        """The scenario as plain JSON-ready values, for summaries and report tables."""
+        return {
+            "name": self.name,
+            "description": self.description,
+            "source": self.source,
+            "topology": self.topology_spec.describe(),
+            "agents": self.topology.n,
+            "P": self.P,
+            "D": self.D,
+            "tau1": self.tau1,
+            "tau2": self.tau2,
+            "formation": self.formation.describe(),
+            "model": self.simulation.model,
+            "duration": self.simulation.duration,
+            "dt": self.simulation.dt,
+            "seed": self.initial.seed,
+            "chart_window": [self.chart.tau1_max, self.chart.tau2_max],
+            "map_grid": {"tau1": list(self.map.tau1), "tau2": list(self.map.tau2), "size": list(self.map.size)},
+            "schedule": {"tau_min": list(self.schedule.tau_min), "tau_max": list(self.schedule.tau_max)},
+        }
+
+    def with_changes(
+        self,
+        *,
+        topology: Topology | None = None,
+        P: float | None = None,
+        D: float | None = None,
+        tau1: float | None = None,
+        tau2: float | None = None,
+    ) -> Scenario:
+        """A copy with command-line overrides applied and checked like the file was.
+
+        Raises
+        ------
+        ScenarioError
+            When an override is invalid or no longer fits the formation or
+            initial conditions (e.g. a topology of another size).
+        """
+        reader = _Reader(self.source)
+        new = replace(
+            self,
+            topology=self.topology if topology is None else topology,
+            P=self.P if P is None else reader.gain("gains.P", P),
+            D=self.D if D is None else reader.gain("gains.D", D),
+            tau1=self.tau1 if tau1 is None else reader.non_negative("delays.tau1", tau1),
+            tau2=self.tau2 if tau2 is None else reader.non_negative("delays.tau2", tau2),
+        )
+        if topology is not None:
+            new = replace(new, topology_spec=TopologySpec(name=topology.name, n=topology.n))
+            _check_sizes(reader, new.topology.n, new.formation, new.initial)
+        return new
+
+
+# -------------------------------------------------------------- validation
+class _Reader:
+    """Typed access to parsed TOML that raises one-line ScenarioErrors naming file and key."""
+
+    def __init__(self, source: str) -> None:
+        self.source = source
+
+    def error(self, key: str, expected: str, got: object = ...) -> ScenarioError:
+        tail = "" if got is ... else f", got {_show(got)}"
+        return ScenarioError(f"{self.source}: {key}: expected {expected}{tail}")
+
+    def table(self, data: Mapping[str, Any], key: str, *, required: bool) -> Mapping[str, Any] | None:
+        value = data.get(key.rsplit(".", 1)[-1])
+        if value is None:
+            if required:
+                raise ScenarioError(f"{self.source}: [{key}]: missing required table")
+            return None
+        if not isinstance(value, Mapping):
+            raise self.error(key, "a table", value)
+        return value
+
+    def keys(self, data: Mapping[str, Any], prefix: str, allowed: tuple[str, ...]) -> None:
+        for key in data:
+            if key not in allowed:
+                where = f"{prefix}.{key}" if prefix else key
+                raise ScenarioError(
+                    f"{self.source}: {where}: unknown key (expected one of: {', '.join(allowed)})"
+                )
+
+    def string(self, key: str, value: object, choices: tuple[str, ...] | None = None) -> str:
+        if not isinstance(value, str):
+            raise self.error(key, "a string" if choices is None else f"one of {', '.join(choices)}", value)
+        if choices is not None and value not in choices:
+            raise self.error(key, f"one of {', '.join(choices)}", value)
+        return value
+
+    def integer(self, key: str, value: object, *, minimum: int | None = None) -> int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise self.error(key, "an integer", value)
+        if minimum is not None and value < minimum:
+            raise self.error(key, f"an integer >= {minimum}", value)
+        return value
+
+    def number(self, key: str, value: object) -> float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise self.error(key, "a number", value)
+        out = float(value)
+        if not math.isfinite(out):
+            raise self.error(key, "a finite number", value)
+        return out
+
+    def gain(self, key: str, value: object) -> float:
+        out = self.number(key, value)
+        if out <= 0.0:
+            raise self.error(key, "a positive number (eq. protocol)", value)
+        return out
+
+    def positive(self, key: str, value: object) -> float:
+        out = self.number(key, value)
+        if out <= 0.0:
+            raise self.error(key, "a positive number", value)
+        return out
+
+    def non_negative(self, key: str, value: object) -> float:
+        out = self.number(key, value)
+        if out < 0.0:
+            raise self.error(key, "a non-negative number (seconds)", value)
+        return out
+
+    def pair(self, key: str, value: object, *, what: str = "number") -> tuple[float, float]:
+        if not isinstance(value, list) or len(value) != 2:
+            raise self.error(key, f"an array of two {what}s", value)
+        return (self.non_negative(f"{key}[0]", value[0]), self.non_negative(f"{key}[1]", value[1]))
+
+    def points(self, key: str, value: object, n: int | None) -> tuple[tuple[float, float], ...]:
+        if not isinstance(value, list) or not value:
+            raise self.error(key, "a non-empty array of [x, y] pairs", value)
+        out = []
+        for i, row in enumerate(value):
+            if not isinstance(row, list) or len(row) != 2:
+                raise self.error(f"{key}[{i}]", "a pair [x, y]", row)
+            out.append((self.number(f"{key}[{i}][0]", row[0]), self.number(f"{key}[{i}][1]", row[1])))
+        if n is not None and len(out) != n:
+            raise self.error(key, f"{n} rows, one per agent", f"{len(out)} rows")
+        return tuple(out)
+
+
+def _show(value: object) -> str:
+    """A short rendering of a TOML value for an error message."""
+    text = repr(value)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+def _topology(reader: _Reader, data: Mapping[str, Any]) -> tuple[Topology, TopologySpec]:
+    reader.keys(data, "topology", ("name", "n", "p", "seed", "adjacency", "edges"))
+    given = [k for k in ("name", "adjacency", "edges") if k in data]
+    if len(given) != 1:
+        raise ScenarioError(
+            f"{reader.source}: topology: expected exactly one of name, adjacency, edges"
+            + (f", got {', '.join(given)}" if given else "")
+        )
+    kind = given[0]
+    extra = {"adjacency": ("n", "p", "seed"), "edges": ("p", "seed")}.get(kind, ())
+    for key in extra:
+        if key in data:
+            raise ScenarioError(f"{reader.source}: topology.{key}: not allowed with topology.{kind}")
+    try:
+        if kind == "adjacency":
+            topo, spec = _adjacency(reader, data["adjacency"])
+        elif kind == "edges":
+            topo, spec = _edges(reader, data["edges"], data.get("n"))
+        else:
+            topo, spec = _named(reader, data)
+        # Lemma 3: without a spanning tree no gains or delays give a formation.
+        topo.require_spanning_tree()
+        return topo, spec
+    except ScenarioError:
+        raise
+    except InputError as exc:
+        # The topology module names the problem; we add the file and the key.
+        raise ScenarioError(f"{reader.source}: topology.{kind}: {exc}") from None
+
+
+def _adjacency(reader: _Reader, value: object) -> tuple[Topology, TopologySpec]:
+    key = "topology.adjacency"
+    if not isinstance(value, list) or not value:
+        raise reader.error(key, "a non-empty array of rows of 0/1", value)
+    n = len(value)
+    rows = []
+    for i, row in enumerate(value):
+        if not isinstance(row, list):
+            raise reader.error(f"{key}[{i}]", "a row of 0/1", row)
+        if len(row) != n:
+            raise reader.error(f"{key}[{i}]", f"{n} entries (a square matrix)", f"{len(row)} entries")
+        for k, entry in enumerate(row):
+            if isinstance(entry, bool) or entry not in (0, 1):
+                raise reader.error(f"{key}[{i}][{k}]", "0 or 1", entry)
+        rows.append(tuple(int(e) for e in row))
+    topo = Topology.from_adjacency(np.array(rows, dtype=np.float64), name="adjacency")
+    return topo, TopologySpec(adjacency=tuple(rows))
+
+
+def _edges(reader: _Reader, value: object, n_value: object) -> tuple[Topology, TopologySpec]:
+    key = "topology.edges"
+    if not isinstance(value, list) or not value:
+        raise reader.error(key, "a non-empty array of [informer, receiver] pairs", value)
+    edges = []
+    for i, pair in enumerate(value):
+        if not isinstance(pair, list) or len(pair) != 2:
+            raise reader.error(f"{key}[{i}]", "a pair [informer, receiver]", pair)
+        a = reader.integer(f"{key}[{i}][0]", pair[0], minimum=0)
+        b = reader.integer(f"{key}[{i}][1]", pair[1], minimum=0)
+        edges.append((a, b))
+    n = None if n_value is None else reader.integer("topology.n", n_value, minimum=2)
+    largest = max(max(e) for e in edges)
+    if n is not None and largest >= n:
+        raise reader.error(key, f"agent indices 0..{n - 1} (topology.n = {n})", largest)
+    topo = Topology.from_edges(edges, n, name="edges")
+    return topo, TopologySpec(n=topo.n, edges=tuple(edges))
+
+
+def _named(reader: _Reader, data: Mapping[str, Any]) -> tuple[Topology, TopologySpec]:
+    name = reader.string("topology.name", data["name"], TOPOLOGY_NAMES)
+    allowed = {"paper_six": (), "random_digraph": ("n", "p", "seed")}.get(name, ("n",))
+    for key in ("n", "p", "seed"):
+        if key in data and key not in allowed:
+            raise ScenarioError(f"{reader.source}: topology.{key}: not used by topology '{name}'")
+    if name == "paper_six":
+        return paper_six(), TopologySpec(name=name, n=6)
+    if "n" not in data:
+        raise ScenarioError(f"{reader.source}: topology.n: missing (topology '{name}' needs a size)")
+    n = reader.integer("topology.n", data["n"], minimum=2)
+    if name == "random_digraph":
+        if "p" not in data:
+            raise ScenarioError(f"{reader.source}: topology.p: missing (random_digraph needs a probability)")
+        p = reader.number("topology.p", data["p"])
+        if not 0.0 <= p <= 1.0:
+            raise reader.error("topology.p", "a probability in [0, 1]", data["p"])
+        seed = reader.integer("topology.seed", data.get("seed", 0), minimum=0)
+        return random_digraph(n, p, seed=seed), TopologySpec(name=name, n=n, p=p, seed=seed)
+    builder = {"ring": ring, "complete": complete, "star": star}[name]
+    return builder(n), TopologySpec(name=name, n=n)
+
+
+def _formation(reader: _Reader, data: Mapping[str, Any], n: int) -> FormationSpec:
+    reader.keys(data, "formation", ("shape", "scale", "positions"))
+    if ("shape" in data) == ("positions" in data):
+        raise ScenarioError(f"{reader.source}: formation: expected exactly one of shape, positions")
+    if "positions" in data:
+        if "scale" in data:
+            raise ScenarioError(f"{reader.source}: formation.scale: only for a named shape")
+        return FormationSpec(positions=reader.points("formation.positions", data["positions"], n))
+    shapes = _known_shapes()
+    shape = reader.string("formation.shape", data["shape"], shapes)
+    scale = reader.positive("formation.scale", data.get("scale", 1.0))
+    return FormationSpec(shape=shape, scale=scale)
+
+
+def _known_shapes() -> tuple[str, ...] | None:
+    """Named shapes offered by :mod:`delayform.formation`, or None before it exists."""
+    try:
+        from delayform import formation
+    except ImportError:
+        return None
+    names = getattr(formation, "SHAPES", None)
+    return tuple(names) if names else None
+
+
+def _simulation(reader: _Reader, data: Mapping[str, Any]) -> SimulationSpec:
+    reader.keys(data, "simulation", ("model", "duration", "dt"))
+    default = SimulationSpec()
+    model = reader.string("simulation.model", data.get("model", default.model), MODELS)
+    duration = reader.positive("simulation.duration", data.get("duration", default.duration))
+    dt = reader.positive("simulation.dt", data.get("dt", default.dt))
+    if dt >= duration:
+        raise reader.error("simulation.dt", f"a step smaller than simulation.duration = {duration:g}", dt)
+    return SimulationSpec(model=model, duration=duration, dt=dt)
+
+
+def _initial(reader: _Reader, data: Mapping[str, Any], n: int) -> InitialSpec:
+    reader.keys(data, "initial", ("seed", "speed", "positions", "headings"))
+    seed = reader.integer("initial.seed", data.get("seed", 0), minimum=0)
+    speed = reader.positive("initial.speed", data.get("speed", 1e-3))
+    positions = None
+    if "positions" in data:
+        positions = reader.points("initial.positions", data["positions"], n)
+    headings = None
+    if "headings" in data:
+        value = data["headings"]
+        if not isinstance(value, list):
+            raise reader.error("initial.headings", f"an array of {n} angles (radians)", value)
+        if len(value) != n:
+            raise reader.error("initial.headings", f"{n} angles, one per agent", f"{len(value)} angles")
+        headings = tuple(reader.number(f"initial.headings[{i}]", h) for i, h in enumerate(value))
+    return InitialSpec(seed=seed, speed=speed, positions=positions, headings=headings)
+
+
+def _chart(reader: _Reader, data: Mapping[str, Any]) -> ChartSpec:
+    reader.keys(data, "chart", ("tau1_max", "tau2_max", "points"))
+    tau1_max = reader.positive("chart.tau1_max", data.get("tau1_max", 8.0))
+    tau2_max = reader.positive("chart.tau2_max", data.get("tau2_max", 8.0))
+    points_value = data.get("points", {})
+    if not isinstance(points_value, Mapping):
+        raise reader.error("chart.points", "a table label = [tau1, tau2]", points_value)
+    points = tuple(
+        (label, *reader.pair(f"chart.points.{label}", value)) for label, value in points_value.items()
+    )
+    return ChartSpec(tau1_max=tau1_max, tau2_max=tau2_max, points=points)
+
+
+def _map(reader: _Reader, data: Mapping[str, Any], chart: ChartSpec) -> MapSpec:
+    reader.keys(data, "map", ("tau1", "tau2", "size"))
+    tau1 = reader.pair("map.tau1", data.get("tau1", [0.0, chart.tau1_max]))
+    tau2 = reader.pair("map.tau2", data.get("tau2", [0.0, chart.tau2_max]))
+    for key, (lo, hi) in (("map.tau1", tau1), ("map.tau2", tau2)):
+        if hi <= lo:
+            raise reader.error(key, "[first, last] with first < last", [lo, hi])
+    size_value = data.get("size", [81, 81])
+    if not isinstance(size_value, list) or len(size_value) != 2:
+        raise reader.error("map.size", "an array of two integers", size_value)
+    size = (
+        reader.integer("map.size[0]", size_value[0], minimum=2),
+        reader.integer("map.size[1]", size_value[1], minimum=2),
+    )
+    return MapSpec(tau1=tau1, tau2=tau2, size=size)
+
+
+def _schedule(
+    reader: _Reader, data: Mapping[str, Any], tau: tuple[float, float], chart: ChartSpec
+) -> ScheduleSpec:
+    reader.keys(data, "schedule", ("tau_min", "tau_max"))
+    tau_min = reader.pair("schedule.tau_min", data.get("tau_min", list(tau)))
+    tau_max = reader.pair("schedule.tau_max", data.get("tau_max", [chart.tau1_max, chart.tau2_max]))
+    if tau_max[0] < tau_min[0] or tau_max[1] < tau_min[1]:
+        raise reader.error("schedule.tau_max", f"bounds >= schedule.tau_min = {list(tau_min)}", list(tau_max))
+    return ScheduleSpec(tau_min=tau_min, tau_max=tau_max)
+
+
+def _check_sizes(reader: _Reader, n: int, formation: FormationSpec, initial: InitialSpec) -> None:
+    if formation.positions is not None and len(formation.positions) != n:
+        raise reader.error("formation.positions", f"{n} rows, one per agent", f"{len(formation.positions)} rows")
+    if initial.positions is not None and len(initial.positions) != n:
+        raise reader.error("initial.positions", f"{n} rows, one per agent", f"{len(initial.positions)} rows")
+    if initial.headings is not None and len(initial.headings) != n:
+        raise reader.error("initial.headings", f"{n} angles, one per agent", f"{len(initial.headings)} angles")
+
+
+_TOP_KEYS = (
+    "name", "description", "topology", "gains", "delays", "formation",
+    "simulation", "initial", "chart", "map", "schedule",
+)  # fmt: skip
+
+
+def parse_scenario(data: Mapping[str, Any], *, source: str = "<scenario>", default_name: str = "scenario") -> Scenario:
+    """Validate parsed TOML (a mapping) into a :class:`Scenario`.
+
+    Parameters
+    ----------
+    data
+        The mapping ``tomllib`` returns.
+    source
+        Named in every error message (the file path).
+    default_name
+        The scenario's name when the data has none.
+
+    Raises
+    ------
+    ScenarioError
+        One line: ``<source>: <key>: expected ...``.
+    """
+    reader = _Reader(source)
+    reader.keys(data, "", _TOP_KEYS)
+    name = reader.string("name", data.get("name", default_name))
+    description = reader.string("description", data.get("description", ""))
+
+    topology, spec = _topology(reader, reader.table(data, "topology", required=True))
+    n = topology.n
+
+    gains = reader.table(data, "gains", required=True)
+    reader.keys(gains, "gains", ("P", "D"))
+    for key in ("P", "D"):
+        if key not in gains:
+            raise ScenarioError(f"{source}: gains.{key}: missing (a positive gain of eq. protocol)")
+    P, D = reader.gain("gains.P", gains["P"]), reader.gain("gains.D", gains["D"])
+
+    delays = reader.table(data, "delays", required=True)
+    reader.keys(delays, "delays", ("tau1", "tau2"))
+    for key in ("tau1", "tau2"):
+        if key not in delays:
+            raise ScenarioError(f"{source}: delays.{key}: missing (a non-negative delay in seconds)")
+    tau1 = reader.non_negative("delays.tau1", delays["tau1"])
+    tau2 = reader.non_negative("delays.tau2", delays["tau2"])
+
+    formation = _formation(reader, reader.table(data, "formation", required=True), n)
+    simulation = _simulation(reader, reader.table(data, "simulation", required=False) or {})
+    initial = _initial(reader, reader.table(data, "initial", required=False) or {}, n)
+    chart = _chart(reader, reader.table(data, "chart", required=False) or {})
+    grid = _map(reader, reader.table(data, "map", required=False) or {}, chart)
+    schedule = _schedule(reader, reader.table(data, "schedule", required=False) or {}, (tau1, tau2), chart)
+    return Scenario(
+        name=name, description=description, topology=topology, P=P, D=D, tau1=tau1, tau2=tau2,
+        formation=formation, simulation=simulation, initial=initial, chart=chart, map=grid,
+        schedule=schedule, topology_spec=spec, source=source,
+    )  # fmt: skip
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Read and validate a TOML scenario file.
+
+    Raises
+    ------
+    ScenarioError
+        When the file cannot be read, is not TOML, or does not fit the
+        schema of this module; the one-line message names the file and key.
+    """
+    path = Path(path)
+    source = str(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ScenarioError(f"{source}: cannot read scenario file ({exc.strerror or exc})") from None
+    except UnicodeDecodeError:
+        raise ScenarioError(f"{source}: not a UTF-8 text file") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f"{source}: not valid TOML: {exc}") from None
+    return parse_scenario(data, source=source, default_name=path.stem)
+
+
+def paper_scenario() -> Scenario:
+    """The paper's example (:data:`PAPER_TOML`), the default of every subcommand."""
+    return parse_scenario(tomllib.loads(PAPER_TOML), source="<paper>", default_name="paper")
