@@ -40,7 +40,7 @@ def _edit(old: str, new: str) -> str:
 
 #: (case id, file text, the key the one-line message must name)
 MALFORMED: list[tuple[str, str, str]] = [
-    ("unknown top-level key", BASE + "colour = 1\n", "colour"),
+    ("unknown top-level key", "colour = 1\n" + BASE, "colour"),
     ("unknown key in gains", _edit("D = 0.5", "D = 0.5\nK = 2"), "gains.K"),
     ("missing gains table", _edit("[gains]\nP = 1.0\nD = 0.5\n", ""), "[gains]"),
     ("missing P", _edit("P = 1.0\n", ""), "gains.P"),

@@ -336,8 +336,9 @@ class _Reader:
     def __init__(self, source: str) -> None:
         self.source = source
 
-    def error(self, key: str, expected: str, got: object = ...) -> ScenarioError:
-        tail = "" if got is ... else f", got {_show(got)}"
+    def error(self, key: str, expected: str, got: object = ..., *, found: str | None = None) -> ScenarioError:
+        """``<file>: <key>: expected <expected>, got <value>`` (``found`` is said as is)."""
+        tail = f", got {found}" if found is not None else ("" if got is ... else f", got {_show(got)}")
         return ScenarioError(f"{self.source}: {key}: expected {expected}{tail}")
 
     def table(self, data: Mapping[str, Any], key: str, *, required: bool) -> Mapping[str, Any] | None:
@@ -412,7 +413,7 @@ class _Reader:
                 raise self.error(f"{key}[{i}]", "a pair [x, y]", row)
             out.append((self.number(f"{key}[{i}][0]", row[0]), self.number(f"{key}[{i}][1]", row[1])))
         if n is not None and len(out) != n:
-            raise self.error(key, f"{n} rows, one per agent", f"{len(out)} rows")
+            raise self.error(key, f"{n} rows, one per agent", found=f"{len(out)} rows")
         return tuple(out)
 
 
@@ -462,7 +463,7 @@ def _adjacency(reader: _Reader, value: object) -> tuple[Topology, TopologySpec]:
         if not isinstance(row, list):
             raise reader.error(f"{key}[{i}]", "a row of 0/1", row)
         if len(row) != n:
-            raise reader.error(f"{key}[{i}]", f"{n} entries (a square matrix)", f"{len(row)} entries")
+            raise reader.error(f"{key}[{i}]", f"{n} entries (a square matrix)", found=f"{len(row)} entries")
         for k, entry in enumerate(row):
             if isinstance(entry, bool) or entry not in (0, 1):
                 raise reader.error(f"{key}[{i}][{k}]", "0 or 1", entry)
@@ -561,7 +562,7 @@ def _initial(reader: _Reader, data: Mapping[str, Any], n: int) -> InitialSpec:
         if not isinstance(value, list):
             raise reader.error("initial.headings", f"an array of {n} angles (radians)", value)
         if len(value) != n:
-            raise reader.error("initial.headings", f"{n} angles, one per agent", f"{len(value)} angles")
+            raise reader.error("initial.headings", f"{n} angles, one per agent", found=f"{len(value)} angles")
         headings = tuple(reader.number(f"initial.headings[{i}]", h) for i, h in enumerate(value))
     return InitialSpec(seed=seed, speed=speed, positions=positions, headings=headings)
 
@@ -609,11 +610,11 @@ def _schedule(
 
 def _check_sizes(reader: _Reader, n: int, formation: FormationSpec, initial: InitialSpec) -> None:
     if formation.positions is not None and len(formation.positions) != n:
-        raise reader.error("formation.positions", f"{n} rows, one per agent", f"{len(formation.positions)} rows")
+        raise reader.error("formation.positions", f"{n} rows, one per agent", found=f"{len(formation.positions)} rows")
     if initial.positions is not None and len(initial.positions) != n:
-        raise reader.error("initial.positions", f"{n} rows, one per agent", f"{len(initial.positions)} rows")
+        raise reader.error("initial.positions", f"{n} rows, one per agent", found=f"{len(initial.positions)} rows")
     if initial.headings is not None and len(initial.headings) != n:
-        raise reader.error("initial.headings", f"{n} angles, one per agent", f"{len(initial.headings)} angles")
+        raise reader.error("initial.headings", f"{n} angles, one per agent", found=f"{len(initial.headings)} angles")
 
 
 _TOP_KEYS = (
