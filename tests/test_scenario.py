@@ -112,13 +112,13 @@ def test_malformed_scenario_names_file_and_key(tmp_path: Path, text: str, key: s
 
 
 def test_unknown_formation_shape_is_an_error(tmp_path: Path) -> None:
-    from delayform.scenario import _known_shapes
-
-    if _known_shapes() is None:
-        pytest.skip("delayform.formation does not list its named shapes (SHAPES) yet")
     path = tmp_path / "bad.toml"
     path.write_text(BASE.replace("positions = [[0, 0], [1, 0], [1, 1], [0, 1]]", 'shape = "blob"'))
     with pytest.raises(ScenarioError, match="formation.shape"):
+        load_scenario(path)
+    # a known shape that does not fit the team: a hexagon of four
+    path.write_text(BASE.replace("positions = [[0, 0], [1, 0], [1, 1], [0, 1]]", 'shape = "hexagon"'))
+    with pytest.raises(ScenarioError, match="formation.shape: .*hexagon"):
         load_scenario(path)
 
 

@@ -24,7 +24,7 @@ table and key; anything else is an error)::
 
     [formation]                         # required; exactly one of shape / positions
     shape = "polygon"                   # a named shape of delayform.formation
-    scale = 2.0                         # optional, size of the named shape
+    spacing = 2.0                       # optional: distance between neighbours in the shape
     # positions = [[x, y], ...]         # one desired position per agent
 
     [simulation]                        # optional
@@ -118,7 +118,7 @@ tau2 = 0.2
 
 [formation]
 shape = "hexagon"
-scale = 2.0
+spacing = 2.0
 
 [simulation]
 model = "unicycle"
@@ -166,22 +166,22 @@ class TopologySpec:
         args = [f"n={self.n}"] if self.n is not None and self.name != "paper_six" else []
         args += [f"p={self.p:g}"] if self.p is not None else []
         args += [f"seed={self.seed}"] if self.seed is not None else []
-        return f"{self.name}({', '.join(args)})"
+        return f"{self.name}({', '.join(args)})" if args else str(self.name)
 
 
 @dataclass(frozen=True)
 class FormationSpec:
-    """The desired formation: a named shape (with a scale) or explicit positions."""
+    """The desired formation: a named shape (with its spacing) or explicit positions."""
 
     shape: str | None = None
-    scale: float = 1.0
+    spacing: float = 1.0
     positions: tuple[tuple[float, float], ...] | None = None
 
     def describe(self) -> str:
         """One line for tables."""
         if self.positions is not None:
             return f"{len(self.positions)} explicit positions"
-        return f"{self.shape} (scale {self.scale:g})"
+        return f"{self.shape} (spacing {self.spacing:g})"
 
 
 @dataclass(frozen=True)
@@ -324,9 +324,29 @@ class Scenario:
             tau2=self.tau2 if tau2 is None else reader.non_negative("delays.tau2", tau2),
         )
         if topology is not None:
-            new = replace(new, topology_spec=TopologySpec(name=topology.name, n=topology.n))
+            new = replace(new, topology_spec=TopologySpec(name=topology.name))
             _check_sizes(reader, new.topology.n, new.formation, new.initial)
         return new
+
+    def desired_positions(self) -> np.ndarray:
+        """The desired formation as an ``(n, 2)`` array (named shapes built for this team)."""
+        from delayform.formation import named_formation
+
+        if self.formation.positions is not None:
+            return np.array(self.formation.positions, dtype=np.float64)
+        return named_formation(self.formation.shape, self.topology.n, spacing=self.formation.spacing)
+
+    def initial_positions(self) -> np.ndarray | None:
+        """Explicit initial positions, or None for random ones drawn from ``initial.seed``."""
+        if self.initial.positions is None:
+            return None
+        return np.array(self.initial.positions, dtype=np.float64)
+
+    def initial_headings(self) -> np.ndarray | None:
+        """Explicit initial headings, or None for random ones drawn from ``initial.seed``."""
+        if self.initial.headings is None:
+            return None
+        return np.array(self.initial.headings, dtype=np.float64)
 
 
 # -------------------------------------------------------------- validation
@@ -515,27 +535,22 @@ def _named(reader: _Reader, data: Mapping[str, Any]) -> tuple[Topology, Topology
 
 
 def _formation(reader: _Reader, data: Mapping[str, Any], n: int) -> FormationSpec:
-    reader.keys(data, "formation", ("shape", "scale", "positions"))
+    reader.keys(data, "formation", ("shape", "spacing", "positions"))
     if ("shape" in data) == ("positions" in data):
         raise ScenarioError(f"{reader.source}: formation: expected exactly one of shape, positions")
     if "positions" in data:
-        if "scale" in data:
-            raise ScenarioError(f"{reader.source}: formation.scale: only for a named shape")
+        if "spacing" in data:
+            raise ScenarioError(f"{reader.source}: formation.spacing: only for a named shape")
         return FormationSpec(positions=reader.points("formation.positions", data["positions"], n))
-    shapes = _known_shapes()
-    shape = reader.string("formation.shape", data["shape"], shapes)
-    scale = reader.positive("formation.scale", data.get("scale", 1.0))
-    return FormationSpec(shape=shape, scale=scale)
+    from delayform.formation import SHAPES, named_formation
 
-
-def _known_shapes() -> tuple[str, ...] | None:
-    """Named shapes offered by :mod:`delayform.formation`, or None before it exists."""
+    shape = reader.string("formation.shape", data["shape"], tuple(SHAPES))
+    spacing = reader.positive("formation.spacing", data.get("spacing", 1.0))
     try:
-        from delayform import formation
-    except ImportError:
-        return None
-    names = getattr(formation, "SHAPES", None)
-    return tuple(names) if names else None
+        named_formation(shape, n, spacing=spacing)  # e.g. a hexagon needs six agents
+    except InputError as exc:
+        raise ScenarioError(f"{reader.source}: formation.shape: {exc}") from None
+    return FormationSpec(shape=shape, spacing=spacing)
 
 
 def _simulation(reader: _Reader, data: Mapping[str, Any]) -> SimulationSpec:
@@ -609,6 +624,13 @@ def _schedule(
 
 
 def _check_sizes(reader: _Reader, n: int, formation: FormationSpec, initial: InitialSpec) -> None:
+    if formation.shape is not None:
+        from delayform.formation import named_formation
+
+        try:
+            named_formation(formation.shape, n, spacing=formation.spacing)
+        except InputError as exc:
+            raise ScenarioError(f"{reader.source}: formation.shape: {exc}") from None
     if formation.positions is not None and len(formation.positions) != n:
         raise reader.error("formation.positions", f"{n} rows, one per agent", found=f"{len(formation.positions)} rows")
     if initial.positions is not None and len(initial.positions) != n:
