@@ -1,0 +1,329 @@
+"""Formation design: desired shapes, the forcing term of eq. formation, the final formation.
+
+Conventions (paper, Section "Formation Control"):
+
+* A formation is an ``(n, 2)`` array of desired positions, row i for agent i
+  (the order of :attr:`Topology.labels`), columns x and y.
+* The coordinates are decoupled (Section "Consensus Protocol"), so every
+  per-coordinate quantity of the paper is a column here.
+* The forcing of eq. formation enters only the velocity rows of
+  ``z = [x_1, xdot_1, ..., x_n, xdot_n]``; :func:`formation_forcing` returns
+  those velocity rows, one column per coordinate: agent i receives the
+  constant acceleration ``F[i]`` on top of protocol eq. protocol.
+* The forcing leaves the centroid factor (eq. factor1, lam = 1) untouched, so
+  the team reaches the desired shape shifted by a common offset that the
+  centroid dynamics and the initial history decide; see
+  :func:`predicted_final_positions` for the derivation.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+from numpy.typing import ArrayLike, NDArray
+
+from delayform._validation import check_delay, check_gain, check_positive
+from delayform.errors import FormationError
+from delayform.topology import DENSE_LIMIT, Topology
+
+__all__ = [
+    "SHAPES",
+    "polygon",
+    "hexagon",
+    "line",
+    "grid",
+    "v_shape",
+    "named_formation",
+    "check_formation",
+    "formation_forcing",
+    "centroid_weights",
+    "weighted_centroid",
+    "final_centroid",
+    "predicted_final_positions",
+]
+
+
+# ------------------------------------------------------------------ shapes
+def _count(n: object) -> int:
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+        raise FormationError(f"a formation needs a positive integer number of agents, got {n!r}")
+    return int(n)
+
+
+def polygon(n: int, *, spacing: float = 1.0) -> NDArray[np.float64]:
+    """Regular polygon with n vertices, neighbouring vertices ``spacing`` apart, centred at 0.
+
+    >>> polygon(4).round(3)
+    array([[ 0.707,  0.   ],
+           [ 0.   ,  0.707],
+           [-0.707,  0.   ],
+           [-0.   , -0.707]])
+    """
+    n = _count(n)
+    spacing = check_positive("spacing", spacing, FormationError)
+    if n == 1:
+        return np.zeros((1, 2))
+    # circumradius of a regular n-gon with side length `spacing`
+    radius = spacing / (2.0 * np.sin(np.pi / n))
+    angle = 2.0 * np.pi * np.arange(n) / n
+    return radius * np.column_stack([np.cos(angle), np.sin(angle)])
+
+
+def hexagon(n: int = 6, *, spacing: float = 1.0) -> NDArray[np.float64]:
+    """The hexagon of the demo: six agents on a regular hexagon (n must be 6)."""
+    if _count(n) != 6:
+        raise FormationError(f"a hexagon has 6 agents, the team has {n}")
+    return polygon(6, spacing=spacing)
+
+
+def line(n: int, *, spacing: float = 1.0) -> NDArray[np.float64]:
+    """Agents on the x axis, ``spacing`` apart, centred at 0."""
+    n = _count(n)
+    spacing = check_positive("spacing", spacing, FormationError)
+    x = spacing * (np.arange(n) - (n - 1) / 2.0)
+    return np.column_stack([x, np.zeros(n)])
+
+
+def grid(n: int, *, spacing: float = 1.0) -> NDArray[np.float64]:
+    """Agents row by row on a square-ish grid (ceil(sqrt(n)) columns), centred at 0."""
+    n = _count(n)
+    spacing = check_positive("spacing", spacing, FormationError)
+    cols = int(np.ceil(np.sqrt(n)))
+    idx = np.arange(n)
+    pts = spacing * np.column_stack([idx % cols, -(idx // cols)]).astype(np.float64)
+    return pts - pts.mean(axis=0)
+
+
+def v_shape(n: int, *, spacing: float = 1.0, angle: float = np.pi / 6) -> NDArray[np.float64]:
+    """A V (flock) opening to -x: leader at the tip, the others alternating on two arms.
+
+    ``angle`` is the half-angle of the V in radians, ``spacing`` the distance
+    along an arm between consecutive agents.
+    """
+    n = _count(n)
+    spacing = check_positive("spacing", spacing, FormationError)
+    angle = check_positive("angle", angle, FormationError)
+    k = (np.arange(n) + 1) // 2  # position along the arm: 0, 1, 1, 2, 2, ...
+    side = np.where(np.arange(n) % 2 == 1, 1.0, -1.0)
+    pts = spacing * np.column_stack([-k * np.cos(angle), side * k * np.sin(angle)])
+    return pts - pts.mean(axis=0)
+
+
+#: named shapes accepted wherever a formation may be given by name
+SHAPES = {
+    "polygon": polygon,
+    "hexagon": hexagon,
+    "line": line,
+    "grid": grid,
+    "v": v_shape,
+}
+
+
+def named_formation(name: str, n: int, *, spacing: float = 1.0) -> NDArray[np.float64]:
+    """The named shape (one of :data:`SHAPES`) for n agents.
+
+    Raises
+    ------
+    FormationError
+        For an unknown name, or a hexagon for a team that is not six.
+    """
+    try:
+        builder = SHAPES[str(name).lower()]
+    except KeyError:
+        raise FormationError(
+            f"unknown formation shape {name!r}; known shapes: {', '.join(sorted(SHAPES))}"
+        ) from None
+    return builder(n, spacing=spacing)
+
+
+def check_formation(formation: ArrayLike | str, n: int) -> NDArray[np.float64]:
+    """A desired formation as a finite ``(n, 2)`` float array, built from a name if given one.
+
+    Raises
+    ------
+    FormationError
+        For a wrong shape, a wrong number of agents or non-finite entries.
+    """
+    if isinstance(formation, str):
+        return named_formation(formation, n)
+    try:
+        arr = np.asarray(formation, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise FormationError("formation must be an (n, 2) array of positions or a shape name") from exc
+    if arr.ndim != 2 or arr.shape[1] != 2:
+        raise FormationError(f"formation must have shape (n, 2), got {arr.shape}")
+    if arr.shape[0] != n:
+        raise FormationError(f"formation has {arr.shape[0]} agents, the topology has {n}")
+    if not np.all(np.isfinite(arr)):
+        raise FormationError("formation positions must be finite")
+    return arr
+
+
+# ----------------------------------------------------------------- forcing
+def formation_forcing(topology: Topology, P: float, desired: ArrayLike | str) -> NDArray[np.float64]:
+    """The forcing term F of eq. formation that holds the team in the desired shape.
+
+    At a constant formation, velocities vanish and the delayed positions equal
+    the current ones, so eq. formation reduces to ``0 = P (C - I) z + F`` per
+    coordinate; hence ``F = P (I - C) z_desired``. This holds for any C,
+    diagonalizable or not, and equals the paper's construction through the
+    Jordan transform T (eq. subsystems, eq. xiss, ``F = (T (x) I_2) phi``):
+    ``T diag(P (I - J_i)) T^-1 = P (I - C)``. Its centroid component is zero
+    (``w^T (I - C) = 0`` for the left eigenvector w of lam = 1), as the paper
+    requires: the forcing acts only on the disagreement dynamics.
+
+    Parameters
+    ----------
+    topology
+        The communication topology (C = Delta^-1 A).
+    P
+        Proportional gain of eq. protocol.
+    desired
+        ``(n, 2)`` desired positions, or a shape name from :data:`SHAPES`.
+
+    Returns
+    -------
+    ndarray, shape (n, 2)
+        The velocity rows of F: agent i adds ``F[i]`` to its acceleration.
+        F is determined by the shape only up to a common translation of
+        ``desired`` (translations lie in the kernel of I - C).
+
+    Examples
+    --------
+    >>> from delayform.topology import ring
+    >>> formation_forcing(ring(3), 1.0, [[0, 0], [1, 0], [0, 1]])
+    array([[ 0., -1.],
+           [ 1.,  0.],
+           [-1.,  1.]])
+    """
+    P = check_gain("P", P)
+    z = check_formation(desired, topology.n)
+    return P * (z - topology.C_sparse @ z)
+
+
+# ------------------------------------------------------- centroid dynamics
+def centroid_weights(topology: Topology) -> NDArray[np.float64]:
+    """The left eigenvector w of C for lam = 1, normalised to ``sum(w) = 1``.
+
+    ``w^T x`` is the *weighted centroid* whose dynamics is the centroid factor
+    eq. factor1. With a spanning tree the eigenvalue 1 is simple, so
+    ``(I - C)^T w = 0`` has a one-dimensional solution space; the n equations
+    sum to zero (rows of C sum to one), so one of them is replaced by the
+    normalisation and the system solved directly (sparse LU above
+    :data:`~delayform.topology.DENSE_LIMIT` agents).
+    """
+    topology.require_spanning_tree()
+    n = topology.n
+    M = (sp.identity(n, format="csr") - topology.C_sparse).T.tolil()
+    M[n - 1, :] = np.ones(n)
+    rhs = np.zeros(n)
+    rhs[-1] = 1.0
+    if n <= DENSE_LIMIT:
+        w = np.linalg.solve(M.toarray(), rhs)
+    else:
+        w = spla.spsolve(sp.csc_matrix(M), rhs)
+    return np.asarray(w, dtype=np.float64)
+
+
+def weighted_centroid(topology: Topology, positions: ArrayLike) -> NDArray[np.float64]:
+    """``w^T x`` for ``(..., n, 2)`` positions: the weighted centroid of eq. factor1."""
+    w = centroid_weights(topology)
+    return np.einsum("i,...ik->...k", w, np.asarray(positions, dtype=np.float64))
+
+
+def final_centroid(
+    topology: Topology,
+    P: float,
+    D: float,
+    tau1: float,
+    tau2: float,
+    initial_positions: ArrayLike,
+    initial_velocities: ArrayLike,
+) -> NDArray[np.float64]:
+    """Where the weighted centroid comes to rest, for a constant initial history.
+
+    Derivation. Multiply eq. formation by ``w^T`` (left eigenvector of C for
+    lam = 1, ``w^T 1 = 1``). Since ``w^T C = w^T`` and ``w^T F = 0``, the
+    weighted centroid ``c = w^T x`` (one coordinate) obeys the centroid factor
+    eq. factor1 as a delay equation::
+
+        c'' + D c' + P c = P c(t - tau1) + D c'(t - tau2),
+
+    with the constant history ``c = c0, c' = d0`` for ``t <= 0`` (the state
+    ``z`` of eq. protocolss is constant before 0, velocities included).
+    In the Laplace domain the history enters through
+    ``L{c(t - tau)} = e^{-tau s} C(s) + c0 (1 - e^{-tau s}) / s`` and
+    ``L{c'(t - tau)} = e^{-tau s} (s C(s) - c0) + d0 (1 - e^{-tau s}) / s``, so::
+
+        q1(s) C(s) = N(s) = (s + D - D e^{-tau2 s}) c0 + d0
+                            + P c0 (1 - e^{-tau1 s}) / s + D d0 (1 - e^{-tau2 s}) / s
+
+    with ``q1`` the centroid factor eq. factor1. ``q1`` has the simple root
+    ``s = 0`` (``q1'(0) = P tau1``); when every other root lies in the left
+    half plane the final-value theorem gives
+    ``c_inf = lim_{s->0} s N(s) / q1(s) = N(0) / q1'(0)`` with
+    ``N(0) = d0 (1 + D tau2) + P tau1 c0``, so::
+
+        c_inf = c0 + d0 (1 + D tau2) / (P tau1).
+
+    The same follows by integrating the delay equation over ``[0, inf)``.
+    Without a position delay (``tau1 = 0``) the zero root is double and the
+    centroid drifts at speed ``d0``; there is then no final position unless
+    ``d0 = 0``.
+
+    Returns
+    -------
+    ndarray, shape (2,)
+        The final weighted centroid (x, y).
+
+    Raises
+    ------
+    FormationError
+        When ``tau1 = 0`` and the initial centroid velocity is not zero.
+    """
+    P = check_gain("P", P)
+    D = check_gain("D", D)
+    tau1 = check_delay("tau1", tau1)
+    tau2 = check_delay("tau2", tau2)
+    n = topology.n
+    x0 = check_formation(initial_positions, n)
+    v0 = check_formation(initial_velocities, n)
+    w = centroid_weights(topology)
+    c0, d0 = w @ x0, w @ v0
+    if tau1 == 0.0:
+        if np.any(d0 != 0.0):
+            raise FormationError(
+                "with tau1 = 0 the centroid factor eq. factor1 has a double zero root: "
+                "the weighted centroid drifts at its initial velocity and never settles"
+            )
+        return c0
+    return c0 + d0 * (1.0 + D * tau2) / (P * tau1)
+
+
+def predicted_final_positions(
+    topology: Topology,
+    P: float,
+    D: float,
+    tau1: float,
+    tau2: float,
+    desired: ArrayLike | str,
+    initial_positions: ArrayLike,
+    initial_velocities: ArrayLike,
+) -> NDArray[np.float64]:
+    """The final formation: the desired shape plus the common offset the centroid sets.
+
+    At rest, eq. formation gives ``(I - C)(x - z_desired) = 0``, so
+    ``x = z_desired + 1 a`` for a common offset ``a`` (the kernel of ``I - C``
+    is spanned by 1 when there is a spanning tree). The weighted centroid
+    ``w^T x = w^T z_desired + a`` must equal :func:`final_centroid`, which fixes
+    ``a``. Valid only where the disagreement factors are stable.
+
+    Returns
+    -------
+    ndarray, shape (n, 2)
+    """
+    z = check_formation(desired, topology.n)
+    c_inf = final_centroid(topology, P, D, tau1, tau2, initial_positions, initial_velocities)
+    offset = c_inf - centroid_weights(topology) @ z
+    return z + offset
