@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 OUT ?= out/paper
 
-.PHONY: demo test install install-test bench clean
+.PHONY: demo test install install-test browser bench clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -22,10 +22,19 @@ install: $(VENV)/.installed
 
 install-test: $(VENV)/.installed-test
 
-demo: install
-	$(BIN)/delayform factors --topology paper_six --P 1 --D 0.5
+# Headless Chromium for tests/test_report_browser.py. Installed only when missing,
+# only as root and only where apt-get exists; otherwise that test skips and says why.
+browser:
+	@command -v chromium >/dev/null 2>&1 || { \
+	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
+	    (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null) \
+	      || echo "note: could not install chromium; the browser test will be skipped"; \
+	  else echo "note: chromium missing and not installable here; the browser test will be skipped"; fi; }
 
-test: install-test
+demo: install
+	$(BIN)/delayform paper --out $(OUT)
+
+test: install-test browser
 	$(BIN)/python -m pytest -q src tests
 
 bench: install

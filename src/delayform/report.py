@@ -1,0 +1,655 @@
+"""Reports: the analyses of a scenario written as files, and one self-contained HTML page.
+
+Each ``*_section`` function runs one analysis of the library on a
+:class:`~delayform.scenario.Scenario`, writes its figures (PNG and SVG), data
+(CSV and NPZ) into an output directory and returns a :class:`Section`: a
+title, a short text, the figures with a caption each, a table of numbers and
+the JSON-ready summary. :func:`write_report` turns sections into
+``index.html`` (figures embedded as base64 data URIs, so the page is one
+file that opens anywhere) and ``summary.json``.
+
+The ``delayform`` subcommands call these functions one at a time; ``report``
+and ``paper`` call them all. Figures are drawn with the Agg backend: nothing
+here opens a window.
+"""
+
+from __future__ import annotations
+
+import base64
+import csv
+import html
+import json
+import time
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from delayform.scenario import Scenario
+
+__all__ = [
+    "Figure",
+    "Section",
+    "jsonable",
+    "factors_section",
+    "chart_section",
+    "roots_section",
+    "map_section",
+    "schedule_section",
+    "simulation_section",
+    "settling_section",
+    "scenario_sections",
+    "paper_sections",
+    "write_report",
+]
+
+#: Called with a short description before each step of a long computation.
+Progress = Callable[[str], None]
+
+#: The paper's delay points of Fig. stability (Section "Simulation Examples").
+PAPER_POINTS = (("a", 0.3, 0.2), ("b", 2.0, 1.0), ("c", 1.0, 2.0), ("d", 1.0, 5.5), ("e", 3.5, 2.0))
+
+
+@dataclass(frozen=True)
+class Figure:
+    """A figure written as ``<stem>.png`` and ``<stem>.svg``, with its caption."""
+
+    stem: str
+    title: str
+    text: str
+
+
+@dataclass(frozen=True)
+class Section:
+    """One analysis as the report shows it.
+
+    Attributes
+    ----------
+    key
+        Short identifier, the key of this section in ``summary.json``.
+    title, text
+        Heading and a paragraph saying what was computed.
+    figures
+        Figures written into the output directory.
+    table
+        Rows ``(quantity, value)`` shown as the table of numbers.
+    summary
+        JSON-ready numbers (what ``--json`` prints).
+    files
+        Every file written, relative to the output directory.
+    """
+
+    key: str
+    title: str
+    text: str
+    figures: tuple[Figure, ...] = ()
+    table: tuple[tuple[str, str], ...] = ()
+    summary: Mapping[str, Any] = field(default_factory=dict)
+    files: tuple[str, ...] = ()
+
+
+# ------------------------------------------------------------------ helpers
+def jsonable(value: Any) -> Any:
+    """``value`` with NumPy scalars and arrays, complex numbers and tuples made JSON-ready.
+
+    Complex numbers become ``{"re": ..., "im": ...}``; non-finite floats
+    become ``None`` (JSON has no infinity).
+
+    >>> jsonable({"s": 1 - 2j, "v": np.arange(2)})
+    {'s': {'re': 1.0, 'im': -2.0}, 'v': [0, 1]}
+    """
+    if isinstance(value, Mapping):
+        return {str(k): jsonable(v) for k, v in value.items()}
+    if isinstance(value, np.ndarray):
+        return jsonable(value.tolist())
+    if isinstance(value, (list, tuple)):
+        return [jsonable(v) for v in value]
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (complex, np.complexfloating)):
+        return {"re": jsonable(float(value.real)), "im": jsonable(float(value.imag))}
+    if isinstance(value, (float, np.floating)):
+        return float(value) if np.isfinite(value) else None
+    return value
+
+
+def _fmt(value: float, digits: int = 4) -> str:
+    if value is None or not np.isfinite(value):
+        return "n/a"
+    return f"{value:.{digits}g}"
+
+
+def _fmt_complex(value: complex) -> str:
+    return f"{value.real:.5g} {'+' if value.imag >= 0 else '-'} {abs(value.imag):.5g}j"
+
+
+def _save(fig: Any, out: Path, stem: str) -> tuple[str, str]:
+    """Write ``fig`` as PNG and SVG and close it; return the two file names."""
+    import matplotlib.pyplot as plt
+
+    fig.savefig(out / f"{stem}.png", dpi=120, bbox_inches="tight")
+    fig.savefig(out / f"{stem}.svg", bbox_inches="tight")
+    plt.close(fig)
+    return f"{stem}.png", f"{stem}.svg"
+
+
+def _pyplot() -> Any:
+    """pyplot on the Agg backend (reports are written, never shown)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _write_csv(path: Path, header: Sequence[str], rows: Iterable[Sequence[Any]]) -> str:
+    with path.open("w", newline="") as fh:
+        writer = csv.writer(fh)
+        writer.writerow(header)
+        writer.writerows(rows)
+    return path.name
+
+
+def _step(progress: Progress | None, text: str) -> None:
+    if progress is not None:
+        progress(text)
+
+
+# ------------------------------------------------------------ the sections
+def factors_section(scenario: Scenario, out: Path) -> Section:
+    """Eigenvalues of C and the factors of the characteristic equation (Lemma 1)."""
+    from delayform.characteristic import factors
+
+    team = scenario.topology
+    fs = factors(team, scenario.P, scenario.D)
+    rows = [
+        (i, f.lam.real, f.lam.imag, f.order, f.multiplicity, f.is_centroid, f.quasi_polynomial.describe())
+        for i, f in enumerate(fs, start=1)
+    ]
+    name = _write_csv(
+        out / "factors.csv",
+        ("factor", "lam_re", "lam_im", "order", "multiplicity", "centroid", "quasi_polynomial"),
+        rows,
+    )
+    eig = team.eigenvalues
+    summary = {
+        "agents": team.n,
+        "eigenvalues": [complex(v) for v in eig],
+        "factors": [
+            {"lam": complex(f.lam), "order": f.order, "multiplicity": f.multiplicity,
+             "centroid": f.is_centroid, "description": f.describe()}
+            for f in fs
+        ],
+    }  # fmt: skip
+    shown = ", ".join(_fmt_complex(v) if abs(v.imag) > 1e-12 else f"{v.real:.4g}" for v in eig[:12])
+    table = [("agents", str(team.n)), ("eigenvalues of C", shown + (" ..." if eig.size > 12 else ""))]
+    table += [(f"factor q{i}", f.describe()) for i, f in enumerate(fs, start=1)][:20]
+    return Section(
+        key="factors",
+        title="Eigenvalues of C and the factors of the characteristic equation",
+        text=(
+            f"C = Delta^-1 A of the topology {scenario.topology_spec.describe()} has {eig.size} eigenvalues; "
+            f"each real one gives a second-order factor and each complex pair a fourth-order factor "
+            f"(eq. factorized). The factor of lam = 1 is the centroid factor with its root s = 0 at "
+            f"every delay; the others are the disagreement dynamics. Gains P = {scenario.P:g}, D = {scenario.D:g}."
+        ),
+        table=tuple(table),
+        summary=summary,
+        files=(name,),
+    )
+
+
+def _chart_points(scenario: Scenario) -> tuple[tuple[str, float, float], ...]:
+    points = scenario.chart.points
+    if not points:
+        points = (("operating", scenario.tau1, scenario.tau2),)
+    return points
+
+
+def chart_section(scenario: Scenario, out: Path) -> Section:
+    """The exact CTCR stability map over the chart window, its figure, curves and the marked points."""
+    from delayform.ctcr import stability_map
+
+    plt = _pyplot()
+    cs = scenario.chart
+    smap = stability_map(scenario.topology, scenario.P, scenario.D, cs.tau1_max, cs.tau2_max)
+    points = _chart_points(scenario)
+    t1 = np.array([p[1] for p in points])
+    t2 = np.array([p[2] for p in points])
+    counts = np.asarray(smap.unstable_count(t1, t2))
+    stable = np.asarray(smap.is_stable(t1, t2))
+    fig, ax = plt.subplots(figsize=(6.4, 5.6))
+    smap.plot(ax=ax, points={label: (a, b) for label, a, b in points})
+    ax.set_title(f"Stability chart: {scenario.name}, P = {scenario.P:g}, D = {scenario.D:g}")
+    files = list(_save(fig, out, "stability_chart"))
+    curve_rows, arrays = _curve_rows(smap)
+    files.append(_write_csv(out / "ctcr_curves.csv", ("curve", "factor", "kind", "tau1", "tau2", "omega"), curve_rows))
+    np.savez_compressed(out / "ctcr_curves.npz", **arrays)
+    files.append("ctcr_curves.npz")
+    fraction = float(smap.stable_fraction())
+    summary = {
+        "window": [cs.tau1_max, cs.tau2_max],
+        "curves": len(smap.curves),
+        "stable_fraction": fraction,
+        "points": [
+            {"label": label, "tau1": a, "tau2": b, "unstable_roots": int(n), "stable": bool(s)}
+            for (label, a, b), n, s in zip(points, counts, stable, strict=True)
+        ],
+    }
+    table = [("window", f"[0, {cs.tau1_max:g}] x [0, {cs.tau2_max:g}] s"),
+             ("crossing curves", str(len(smap.curves))),
+             ("stable fraction of the window", f"{fraction:.3f}")]  # fmt: skip
+    table += [
+        (f"point {label} ({a:g}, {b:g})", f"{'stable' if s else 'unstable'}, NU = {int(n)}")
+        for (label, a, b), n, s in zip(points, counts, stable, strict=True)
+    ]
+    return Section(
+        key="chart",
+        title="Stability chart in the delay plane (CTCR)",
+        text=(
+            "Kernel and offspring curves of every factor are the delay pairs with an imaginary root; "
+            "crossing one changes the number of unstable roots NU by twice its root tendency. "
+            "The shaded region, NU = 0, is exactly the set of delays that give convergence to the formation."
+        ),
+        figures=(
+            Figure("stability_chart", "Stability chart",
+                   "Kernel curves (red), offspring curves (blue) and the stable region (shaded) "
+                   f"in [0, {cs.tau1_max:g}] x [0, {cs.tau2_max:g}] s, with the marked delay points."),
+        ),  # fmt: skip
+        table=tuple(table),
+        summary=summary,
+        files=tuple(files),
+    )
+
+
+def _curve_rows(smap: Any) -> tuple[list[tuple[Any, ...]], dict[str, np.ndarray]]:
+    """Curve points as CSV rows and as flat arrays for NPZ (one row per point)."""
+    rows: list[tuple[Any, ...]] = []
+    for index, curve in enumerate(smap.curves):
+        tau1 = np.asarray(curve.tau1, dtype=float)
+        tau2 = np.asarray(curve.tau2, dtype=float)
+        omega = np.asarray(curve.omega, dtype=float)
+        factor = getattr(curve, "factor_index", "")
+        kind = "kernel" if getattr(curve, "is_kernel", False) else "offspring"
+        rows.extend((index, factor, kind, a, b, w) for a, b, w in zip(tau1, tau2, omega, strict=True))
+    arr = np.array([r[3:] for r in rows], dtype=float).reshape(-1, 3)
+    return rows, {
+        "curve": np.array([r[0] for r in rows], dtype=np.int64),
+        "tau1": arr[:, 0],
+        "tau2": arr[:, 1],
+        "omega": arr[:, 2],
+    }
+
+
+def roots_section(
+    scenario: Scenario, out: Path, *, region: tuple[float, float, float, float] | None = None
+) -> Section:
+    """Dominant root at the operating delays, at the chart points, and each factor's roots in a region."""
+    from delayform.characteristic import factors
+    from delayform.spectrum import dominant_root, roots_in
+
+    team, P, D = scenario.topology, scenario.P, scenario.D
+    dom = dominant_root(team, P, D, scenario.tau1, scenario.tau2)
+    s_dom = complex(dom.root)
+    region = region or (min(-2.0, 2.0 * s_dom.real), 1.0, 0.0, 10.0)
+    rows = []
+    for i, f in enumerate(factors(team, P, D), start=1):
+        for s in np.atleast_1d(roots_in(f.quasi_polynomial, scenario.tau1, scenario.tau2, region)):
+            rows.append((i, complex(f.lam).real, complex(f.lam).imag, float(s.real), float(s.imag)))
+    files = [_write_csv(out / "roots.csv", ("factor", "lam_re", "lam_im", "re", "im"), rows)]
+    at_points = []
+    for label, a, b in _chart_points(scenario):
+        d = dominant_root(team, P, D, a, b)
+        at_points.append({"label": label, "tau1": a, "tau2": b, "root": complex(d.root),
+                          "time_constant": _time_constant(complex(d.root))})  # fmt: skip
+    summary = {
+        "tau1": scenario.tau1,
+        "tau2": scenario.tau2,
+        "dominant_root": s_dom,
+        "time_constant": _time_constant(s_dom),
+        "region": list(region),
+        "roots_in_region": [{"factor": r[0], "root": complex(r[3], r[4])} for r in rows],
+        "points": at_points,
+    }
+    table = [
+        (f"dominant root at ({scenario.tau1:g}, {scenario.tau2:g})", _fmt_complex(s_dom)),
+        ("time constant 1/|Re|", f"{_fmt(_time_constant(s_dom))} s"),
+        (f"roots in Re [{region[0]:g}, {region[1]:g}], Im [{region[2]:g}, {region[3]:g}]", str(len(rows))),
+    ]
+    table += [(f"dominant root at {p['label']} ({p['tau1']:g}, {p['tau2']:g})", _fmt_complex(p["root"]))
+              for p in at_points]  # fmt: skip
+    return Section(
+        key="roots",
+        title="Characteristic roots and the dominant root",
+        text=(
+            "The dominant root is the rightmost characteristic root over all factors, the centroid "
+            "factor's persistent root s = 0 excluded; its real part sets how fast the formation converges "
+            "(time constant 1/|Re|). A positive real part means the delays are unstable."
+        ),
+        table=tuple(table),
+        summary=summary,
+        files=tuple(files),
+    )
+
+
+def _time_constant(s: complex) -> float:
+    return float(1.0 / abs(s.real)) if s.real < 0 else float("inf")
+
+
+def map_section(scenario: Scenario, out: Path, *, progress: Callable[..., Any] | None = None) -> Section:
+    """Real part of the dominant root over the map grid: surface, contour, NPZ and CSV."""
+    from delayform.spectrum import dominant_root_map
+
+    plt = _pyplot()
+    grid = scenario.map
+    t1, t2 = grid.tau1_values(), grid.tau2_values()
+    dmap = dominant_root_map(scenario.topology, scenario.P, scenario.D, t1, t2, progress=progress)
+    re = np.asarray(dmap.real_part, dtype=float)
+    files = []
+    fig = plt.figure(figsize=(7.0, 5.6))
+    ax = fig.add_subplot(projection="3d")
+    dmap.plot_surface(ax=ax)
+    files += _save(fig, out, "dominant_surface")
+    fig, ax = plt.subplots(figsize=(6.4, 5.6))
+    dmap.plot_contour(ax=ax)
+    files += _save(fig, out, "dominant_contour")
+    roots = np.asarray(dmap.roots, dtype=complex)
+    np.savez_compressed(out / "dominant_map.npz", tau1=t1, tau2=t2, real_part=re, roots=roots)
+    files.append("dominant_map.npz")
+    T1, T2 = np.meshgrid(t1, t2, indexing="ij")
+    files.append(_write_csv(
+        out / "dominant_map.csv", ("tau1", "tau2", "re", "im"),
+        zip(T1.ravel(), T2.ravel(), roots.real.ravel(), roots.imag.ravel(), strict=True),
+    ))  # fmt: skip
+    best = np.unravel_index(np.nanargmin(re), re.shape)
+    summary = {
+        "tau1": [float(t1[0]), float(t1[-1]), int(t1.size)],
+        "tau2": [float(t2[0]), float(t2[-1]), int(t2.size)],
+        "stable_fraction": float(np.mean(re < 0)),
+        "min_real_part": float(re[best]),
+        "argmin": [float(t1[best[0]]), float(t2[best[1]])],
+    }
+    table = (
+        ("grid", f"{t1.size} x {t2.size} over [{t1[0]:g}, {t1[-1]:g}] x [{t2[0]:g}, {t2[-1]:g}] s"),
+        ("fraction with Re < 0", f"{summary['stable_fraction']:.3f}"),
+        ("most negative Re on the grid", f"{re[best]:.4g} at ({t1[best[0]]:g}, {t2[best[1]]:g})"),
+    )
+    return Section(
+        key="map",
+        title="Dominant root over the delay plane",
+        text=(
+            "The real part of the dominant root at every grid point. Where it crosses zero lies the "
+            "CTCR stability boundary; its deepest valleys are the fastest delays (delay scheduling)."
+        ),
+        figures=(
+            Figure("dominant_surface", "Dominant-root surface",
+                   "Re of the dominant root as a surface over (tau1, tau2), with the plane Re = 0."),
+            Figure("dominant_contour", "Dominant-root contour",
+                   "Contour map of the same surface; the zero level is the stability boundary."),
+        ),  # fmt: skip
+        table=table,
+        summary=summary,
+        files=tuple(files),
+    )
+
+
+def schedule_section(scenario: Scenario, out: Path) -> Section:
+    """Delay scheduling: the fastest stable delays reachable by increasing the hardware delays."""
+    from delayform.spectrum import schedule_delays
+
+    sch = scenario.schedule
+    result = schedule_delays(scenario.topology, scenario.P, scenario.D, tau_min=sch.tau_min, tau_max=sch.tau_max)
+    root = complex(result.root)
+    summary = {
+        "tau_min": list(sch.tau_min),
+        "tau_max": list(sch.tau_max),
+        "tau1": float(result.tau1),
+        "tau2": float(result.tau2),
+        "root": root,
+        "settling_time": float(result.settling_time),
+    }
+    (out / "schedule.json").write_text(json.dumps(jsonable(summary), indent=2))
+    return Section(
+        key="schedule",
+        title="Delay scheduling: the best delays",
+        text=(
+            "Delays can only be increased from what the hardware gives. Within "
+            f"[{sch.tau_min[0]:g}, {sch.tau_max[0]:g}] x [{sch.tau_min[1]:g}, {sch.tau_max[1]:g}] s, the "
+            "delays below give the most negative dominant root, hence the fastest convergence."
+        ),
+        table=(
+            ("hardware delays (tau1, tau2)", f"({sch.tau_min[0]:g}, {sch.tau_min[1]:g}) s"),
+            ("best delays (tau1, tau2)", f"({result.tau1:.4g}, {result.tau2:.4g}) s"),
+            ("dominant root there", _fmt_complex(root)),
+            ("predicted settling time", f"{_fmt(float(result.settling_time))} s"),
+        ),
+        summary=summary,
+        files=("schedule.json",),
+    )
+
+
+def simulation_section(
+    scenario: Scenario,
+    out: Path,
+    *,
+    label: str = "operating",
+    tau1: float | None = None,
+    tau2: float | None = None,
+    traces: bool = True,
+    gif: bool = False,
+) -> Section:
+    """Simulate the team at one delay pair: x/y versus time, traces, CSV and NPZ, optional GIF."""
+    from delayform.simulation import simulate
+
+    plt = _pyplot()
+    tau1 = scenario.tau1 if tau1 is None else tau1
+    tau2 = scenario.tau2 if tau2 is None else tau2
+    sim = scenario.simulation
+    traj = simulate(
+        scenario.topology, scenario.P, scenario.D, tau1, tau2, scenario.desired_positions(),
+        model=sim.model, initial_positions=scenario.initial_positions(),
+        initial_headings=scenario.initial_headings(), initial_speed=scenario.initial.speed,
+        seed=scenario.initial.seed, duration=sim.duration, dt=sim.dt,
+    )  # fmt: skip
+    stem = f"sim_{label}"
+    files: list[str] = []
+    figures = []
+    fig, axes = plt.subplots(2, 1, figsize=(7.0, 6.0), sharex=True)
+    traj.plot_xy(ax=axes)
+    fig.suptitle(f"Positions versus time at {label} (tau1, tau2) = ({tau1:g}, {tau2:g})")
+    files += _save(fig, out, f"{stem}_xy")
+    figures.append(Figure(f"{stem}_xy", f"x and y versus time at {label}",
+                          f"Positions of the {scenario.topology.n} agents in x (top) and y (bottom) "
+                          f"at (tau1, tau2) = ({tau1:g}, {tau2:g}) s."))  # fmt: skip
+    if traces:
+        fig, ax = plt.subplots(figsize=(6.4, 6.0))
+        traj.plot_traces(ax=ax)
+        ax.set_title(f"Traces at {label} (tau1, tau2) = ({tau1:g}, {tau2:g})")
+        files += _save(fig, out, f"{stem}_traces")
+        figures.append(Figure(f"{stem}_traces", f"Traces at {label}",
+                              "Paths of the agents into the formation; short lines mark headings at snapshots."))  # fmt: skip
+    traj.to_csv(out / f"{stem}.csv")
+    files.append(f"{stem}.csv")
+    np.savez_compressed(out / f"{stem}.npz", times=traj.times, positions=traj.positions,
+                        headings=traj.headings, speeds=traj.speeds)  # fmt: skip
+    files.append(f"{stem}.npz")
+    if gif:
+        traj.save_gif(out / f"{stem}.gif")
+        files.append(f"{stem}.gif")
+    settling = float(traj.settling_time())
+    summary = {
+        "label": label, "tau1": tau1, "tau2": tau2, "model": sim.model,
+        "duration": sim.duration, "dt": sim.dt,
+        "settling_time": settling,
+        "final_error": float(traj.formation_error()[-1]),
+        "min_distance": float(traj.min_distance()),
+        "final_centroid": np.asarray(traj.final_centroid()),
+    }  # fmt: skip
+    table = (
+        ("delays (tau1, tau2)", f"({tau1:g}, {tau2:g}) s"),
+        ("model", sim.model),
+        ("settling time (2 %)", f"{_fmt(settling)} s" if np.isfinite(settling) else f"not within {sim.duration:g} s"),
+        ("final formation error", _fmt(summary["final_error"])),
+        ("closest approach of two agents", _fmt(summary["min_distance"])),
+    )
+    return Section(
+        key=f"simulation_{label}",
+        title=f"Simulation at {label}: (tau1, tau2) = ({tau1:g}, {tau2:g}) s",
+        text=(
+            f"{scenario.topology.n} {'differential-drive robots (unicycle, feedback linearization eq. transform2)' if sim.model == 'unicycle' else 'double-integrator agents'} "
+            f"start from {'random' if scenario.initial.positions is None else 'given'} positions "
+            f"(seed {scenario.initial.seed}) with speed {scenario.initial.speed:g} and move into the "
+            f"{scenario.formation.describe()} formation over {sim.duration:g} s (step {sim.dt:g} s)."
+        ),
+        figures=tuple(figures),
+        table=table,
+        summary=summary,
+        files=tuple(files),
+    )
+
+
+def settling_section(sims: Sequence[Section]) -> Section:
+    """A table of the settling times of the simulations run for the report."""
+    rows = tuple(
+        (f"{s.summary['label']} ({s.summary['tau1']:g}, {s.summary['tau2']:g})",
+         f"{_fmt(s.summary['settling_time'])} s" if np.isfinite(s.summary["settling_time"]) else "did not settle")
+        for s in sims
+    )  # fmt: skip
+    return Section(
+        key="settling",
+        title="Settling times",
+        text="First time after which the formation error stays below 2 % of its initial value.",
+        table=rows,
+        summary={s.summary["label"]: s.summary["settling_time"] for s in sims},
+    )
+
+
+# ------------------------------------------------------------ whole reports
+def scenario_sections(
+    scenario: Scenario, out: Path, *, progress: Progress | None = None, map_progress: Callable[..., Any] | None = None
+) -> list[Section]:
+    """Every analysis of one scenario, in the order of the data flow."""
+    steps: list[tuple[str, Callable[[], Section]]] = [
+        ("factors", lambda: factors_section(scenario, out)),
+        ("stability chart", lambda: chart_section(scenario, out)),
+        ("roots", lambda: roots_section(scenario, out)),
+        ("dominant-root map", lambda: map_section(scenario, out, progress=map_progress)),
+        ("delay scheduling", lambda: schedule_section(scenario, out)),
+        ("simulation", lambda: simulation_section(scenario, out)),
+    ]
+    sections = []
+    for text, run in steps:
+        _step(progress, text)
+        sections.append(run())
+    sections.append(settling_section([sections[-1]]))
+    return sections
+
+
+def paper_sections(
+    scenario: Scenario, out: Path, *, progress: Progress | None = None, map_progress: Callable[..., Any] | None = None
+) -> list[Section]:
+    """The paper's Section "Simulation Examples" end to end, on the given (paper) scenario.
+
+    Eigenvalues and factors, the stability chart with points a..e, x/y
+    versus time at a and b, traces at a, the dominant-root surface and
+    contour, the best delays, and the settling times.
+    """
+    points = dict((p[0], p[1:]) for p in scenario.chart.points)
+    a = points.get("a", (scenario.tau1, scenario.tau2))
+    b = points.get("b", PAPER_POINTS[1][1:])
+    steps: list[tuple[str, Callable[[], Section]]] = [
+        ("eigenvalues and factors", lambda: factors_section(scenario, out)),
+        ("stability chart", lambda: chart_section(scenario, out)),
+        ("simulation at a", lambda: simulation_section(scenario, out, label="a", tau1=a[0], tau2=a[1])),
+        ("simulation at b", lambda: simulation_section(scenario, out, label="b", tau1=b[0], tau2=b[1], traces=False)),
+        ("roots", lambda: roots_section(scenario, out)),
+        ("dominant-root map", lambda: map_section(scenario, out, progress=map_progress)),
+        ("delay scheduling", lambda: schedule_section(scenario, out)),
+    ]  # fmt: skip
+    sections = []
+    for text, run in steps:
+        _step(progress, text)
+        sections.append(run())
+    sections.append(settling_section([s for s in sections if s.key.startswith("simulation_")]))
+    return sections
+
+
+_CSS = """
+body { font-family: system-ui, sans-serif; max-width: 60rem; margin: 2rem auto; padding: 0 1rem; color: #222; }
+h1 { font-size: 1.6rem; } h2 { font-size: 1.25rem; margin-top: 2.2rem; border-bottom: 1px solid #ccc; }
+figure { margin: 1rem 0; } figure img { max-width: 100%; border: 1px solid #ddd; }
+figcaption { font-size: 0.92rem; color: #444; }
+table { border-collapse: collapse; margin: 0.6rem 0; } td, th { border: 1px solid #ccc; padding: 0.25rem 0.6rem; text-align: left; }
+.files { font-size: 0.85rem; color: #555; }
+"""
+
+
+def _figure_html(out: Path, figure: Figure) -> str:
+    data = base64.b64encode((out / f"{figure.stem}.png").read_bytes()).decode("ascii")
+    return (
+        f'<figure id="{html.escape(figure.stem)}"><img alt="{html.escape(figure.title)}" '
+        f'src="data:image/png;base64,{data}">'
+        f"<figcaption><b>{html.escape(figure.title)}.</b> {html.escape(figure.text)} "
+        f'(<a href="{html.escape(figure.stem)}.svg">SVG</a>)</figcaption></figure>'
+    )
+
+
+def _table_html(rows: Iterable[tuple[str, str]]) -> str:
+    body = "".join(f"<tr><th>{html.escape(k)}</th><td>{html.escape(v)}</td></tr>" for k, v in rows)
+    return f"<table>{body}</table>" if body else ""
+
+
+def write_report(
+    sections: Sequence[Section], out: Path, *, title: str, intro: str, scenario: Scenario, seconds: float | None = None
+) -> Path:
+    """Write ``index.html`` (self-contained: PNGs embedded) and ``summary.json`` into ``out``.
+
+    Returns
+    -------
+    Path
+        The HTML file.
+    """
+    parts = [
+        "<!DOCTYPE html>",
+        '<html lang="en"><head><meta charset="utf-8">',
+        f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>",
+        f"<h1>{html.escape(title)}</h1>",
+        f"<p>{html.escape(intro)}</p>",
+        "<h2>Scenario</h2>",
+        _table_html((k, json.dumps(jsonable(v)) if not isinstance(v, str) else v)
+                    for k, v in scenario.summary().items()),
+    ]  # fmt: skip
+    for section in sections:
+        parts.append(f'<section id="{html.escape(section.key)}"><h2>{html.escape(section.title)}</h2>')
+        parts.append(f"<p>{html.escape(section.text)}</p>")
+        parts.extend(_figure_html(out, f) for f in section.figures)
+        parts.append(_table_html(section.table))
+        if section.files:
+            links = ", ".join(f'<a href="{html.escape(f)}">{html.escape(f)}</a>' for f in section.files)
+            parts.append(f'<p class="files">Files: {links}</p>')
+        parts.append("</section>")
+    footer = "Generated by delayform" + (f" in {seconds:.1f} s" if seconds is not None else "") + "."
+    parts.append(f'<p class="files">{html.escape(footer)}</p></body></html>')
+    index = out / "index.html"
+    index.write_text("\n".join(parts), encoding="utf-8")
+    summary = {
+        "title": title,
+        "scenario": scenario.summary(),
+        "seconds": seconds,
+        "sections": {s.key: s.summary for s in sections},
+        "files": sorted({f for s in sections for f in s.files} | {"index.html", "summary.json"}),
+    }
+    (out / "summary.json").write_text(json.dumps(jsonable(summary), indent=2), encoding="utf-8")
+    return index
+
+
+def timed(run: Callable[[], list[Section]]) -> tuple[list[Section], float]:
+    """Run ``run`` and return its sections with the wall time in seconds."""
+    start = time.perf_counter()
+    sections = run()
+    return sections, time.perf_counter() - start
