@@ -1,0 +1,243 @@
+"""The ``delayform`` command line, run as users run it: in a subprocess.
+
+* every malformed scenario file gives exit code 2 and one line naming the problem;
+* bad options do the same;
+* ``--json`` output parses and equals the library's numbers, computed here directly;
+* ``paper`` writes every file it lists.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from test_scenario import MALFORMED  # the same malformed files as the in-process tests
+
+ROOT = Path(__file__).resolve().parents[1]
+COMMANDS = ("chart", "roots", "map", "schedule", "simulate", "report")
+
+
+def run(*args: str, cwd: Path | None = None, timeout: float = 600) -> subprocess.CompletedProcess[str]:
+    """``python -m delayform ARGS`` with captured text output."""
+    return subprocess.run(
+        [sys.executable, "-m", "delayform", *args],
+        capture_output=True, text=True, cwd=cwd, timeout=timeout,
+        env={"MPLBACKEND": "Agg", "PATH": "/usr/bin:/bin", "HOME": str(cwd or ROOT)},
+    )  # fmt: skip
+
+
+def assert_one_line_error(proc: subprocess.CompletedProcess[str], *needles: str) -> None:
+    assert proc.returncode == 2, (proc.returncode, proc.stderr)
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1, proc.stderr
+    assert lines[0].startswith("delayform: error: ")
+    assert "Traceback" not in proc.stderr
+    for needle in needles:
+        assert needle in lines[0], (needle, lines[0])
+    assert proc.stdout == ""
+
+
+# ------------------------------------------------------------ input errors
+@pytest.mark.parametrize(
+    ("index", "text", "key"),
+    [(i, c[1], c[2]) for i, c in enumerate(MALFORMED)],
+    ids=[c[0] for c in MALFORMED],
+)
+def test_malformed_scenario_exits_2_with_one_line(tmp_path: Path, index: int, text: str, key: str) -> None:
+    assert len(MALFORMED) >= 20
+    path = tmp_path / f"bad{index}.toml"
+    path.write_text(text)
+    command = COMMANDS[index % len(COMMANDS)]  # every subcommand meets some of them
+    proc = run(command, str(path), "--out", str(tmp_path / "out"), cwd=tmp_path)
+    assert_one_line_error(proc, str(path), key)
+    assert not (tmp_path / "out").exists()  # nothing computed, nothing written
+
+
+@pytest.mark.parametrize(
+    ("args", "needle"),
+    [
+        (("chart", "--tau1-max", "-1"), "--tau1-max"),
+        (("chart", "--point", "a=0.3"), "--point"),
+        (("roots", "--region", "1,2"), "--region"),
+        (("roots", "--region", "1,0,0,1"), "--region"),
+        (("map", "--size", "1,5"), "--size"),
+        (("map", "--tau1-range", "2,1"), "--tau1-range"),
+        (("schedule", "--tau-min", "1,1", "--tau-max", "0.5,2"), "--tau-max"),
+        (("simulate", "--dt", "0"), "--dt"),
+        (("simulate", "--model", "tank"), "--model"),
+        (("simulate", "--duration", "1", "--dt", "2"), "--dt"),
+        (("chart", "--P", "-1"), "--P"),
+        (("chart", "--topology", "ring"), "--n"),
+        (("chart", "--colour", "red"), "--colour"),
+        (("chart", "no/such/file.toml"), "no/such/file.toml"),
+        (("frobnicate",), "frobnicate"),
+        (("factors", "--P", "0"), "P"),
+    ],
+    ids=lambda v: " ".join(v) if isinstance(v, tuple) else None,
+)
+def test_bad_option_exits_2_with_one_line(tmp_path: Path, args: tuple[str, ...], needle: str) -> None:
+    assert_one_line_error(run(*args, cwd=tmp_path), needle)
+
+
+def test_override_that_does_not_fit_the_scenario(tmp_path: Path) -> None:
+    # the paper's hexagon cannot hold a ring of five
+    proc = run("chart", "--topology", "ring", "--n", "5", cwd=tmp_path)
+    assert_one_line_error(proc, "formation.shape", "hexagon")
+
+
+# -------------------------------------------------------------- --help
+def test_every_option_has_help() -> None:
+    from delayform.cli import cli
+
+    assert set(cli.commands) >= {"factors", *COMMANDS, "paper"}
+    for name, command in cli.commands.items():
+        assert command.help and len(command.help.split()) >= 8, name
+        for param in command.params:
+            if param.param_type_name == "option":
+                assert param.help, (name, param.name)
+
+
+@pytest.mark.parametrize("command", ["factors", *COMMANDS, "paper"])
+def test_help_runs(command: str) -> None:
+    proc = run(command, "--help")
+    assert proc.returncode == 0
+    assert proc.stdout.startswith(f"Usage: delayform {command}")
+    assert proc.stderr == ""
+
+
+# ------------------------------------------------------- --json = library
+def _json(proc: subprocess.CompletedProcess[str]) -> dict:
+    assert proc.returncode == 0, proc.stderr
+    return json.loads(proc.stdout)
+
+
+def _complex(value: dict) -> complex:
+    return complex(value["re"], value["im"])
+
+
+def test_chart_json_matches_library(tmp_path: Path) -> None:
+    from delayform.ctcr import stability_map
+    from delayform.topology import paper_six
+
+    out = _json(run("chart", "--json", "--out", str(tmp_path), "--tau1-max", "6", "--tau2-max", "7", cwd=tmp_path))
+    smap = stability_map(paper_six(), 1.0, 0.5, 6.0, 7.0)
+    assert out["window"] == [6.0, 7.0]
+    assert out["curves"] == len(smap.curves)
+    assert out["stable_fraction"] == pytest.approx(smap.stable_fraction(), rel=1e-12)
+    labels = {p["label"]: p for p in out["points"]}
+    assert sorted(labels) == ["a", "b", "c", "d", "e"]
+    for label, point in labels.items():
+        assert point["unstable_roots"] == int(smap.unstable_count(point["tau1"], point["tau2"])), label
+    # the paper: a, b, d, e stable; c unstable
+    assert [labels[k]["stable"] for k in "abcde"] == [True, True, False, True, True]
+    for name in ("stability_chart.png", "stability_chart.svg", "ctcr_curves.csv", "ctcr_curves.npz"):
+        assert (tmp_path / name).stat().st_size > 0
+
+
+def test_roots_json_matches_library(tmp_path: Path) -> None:
+    from delayform.spectrum import dominant_root, roots_in
+    from delayform.characteristic import factors
+    from delayform.topology import ring
+
+    args = ("roots", "--json", "--topology", "ring", "--n", "5", "--P", "0.5", "--D", "1.5",
+            "--tau1", "0.4", "--tau2", "0.1", "--region", "-3,1,0,6", "--out", str(tmp_path))  # fmt: skip
+    # ring(5) cannot take the paper's hexagon: give the scenario a line instead
+    scenario = tmp_path / "ring5.toml"
+    scenario.write_text('[topology]\nname = "ring"\nn = 5\n[gains]\nP = 0.5\nD = 1.5\n'
+                        '[delays]\ntau1 = 0.4\ntau2 = 0.1\n[formation]\nshape = "line"\n')  # fmt: skip
+    out = _json(run(*args[:2], str(scenario), *args[6:], cwd=tmp_path))
+    team = ring(5)
+    expected = dominant_root(team, 0.5, 1.5, 0.4, 0.1)
+    assert _complex(out["dominant_root"]) == pytest.approx(complex(expected.root), abs=1e-9)
+    listed = sorted((_complex(r["root"]) for r in out["roots_in_region"]), key=lambda s: (s.real, s.imag))
+    direct = sorted(
+        (complex(s) for f in factors(team, 0.5, 1.5) for s in roots_in(f, 0.4, 0.1, (-3, 1, 0, 6))),
+        key=lambda s: (s.real, s.imag),
+    )
+    np.testing.assert_allclose(listed, direct, atol=1e-9)
+
+
+def test_schedule_json_matches_library(tmp_path: Path) -> None:
+    from delayform.spectrum import schedule_delays
+    from delayform.topology import paper_six
+
+    out = _json(run("schedule", "--json", "--tau-min", "0.3,0.2", "--tau-max", "2,2", "--out", str(tmp_path), cwd=tmp_path))
+    direct = schedule_delays(paper_six(), 1.0, 0.5, tau_min=(0.3, 0.2), tau_max=(2.0, 2.0))
+    assert (out["tau1"], out["tau2"]) == pytest.approx((direct.tau1, direct.tau2), abs=1e-12)
+    assert _complex(out["root"]) == pytest.approx(complex(direct.root), abs=1e-12)
+    assert out["tau1"] >= 0.3 and out["tau2"] >= 0.2 and out["root"]["re"] < 0
+
+
+def test_map_json_matches_library(tmp_path: Path) -> None:
+    from delayform.spectrum import dominant_root_map
+    from delayform.topology import paper_six
+
+    out = _json(run("map", "--json", "--tau1-range", "0,4", "--tau2-range", "0,3", "--size", "9,7",
+                    "--out", str(tmp_path), cwd=tmp_path))  # fmt: skip
+    t1, t2 = np.linspace(0, 4, 9), np.linspace(0, 3, 7)
+    direct = np.asarray(dominant_root_map(paper_six(), 1.0, 0.5, t1, t2).real_part)
+    saved = np.load(tmp_path / "dominant_map.npz")
+    np.testing.assert_allclose(saved["real_part"], direct, atol=1e-12)
+    assert out["min_real_part"] == pytest.approx(direct.min(), abs=1e-12)
+    assert out["stable_fraction"] == pytest.approx(np.mean(direct < 0))
+    for name in ("dominant_surface.png", "dominant_contour.svg", "dominant_map.csv"):
+        assert (tmp_path / name).stat().st_size > 0
+
+
+def test_simulate_json_matches_library(tmp_path: Path) -> None:
+    from delayform.formation import named_formation
+    from delayform.simulation import simulate
+    from delayform.topology import paper_six
+
+    out = _json(run("simulate", "--json", "--duration", "20", "--dt", "0.05", "--seed", "3",
+                    "--out", str(tmp_path), cwd=tmp_path))  # fmt: skip
+    traj = simulate(paper_six(), 1.0, 0.5, 0.3, 0.2, named_formation("hexagon", 6, spacing=2.0),
+                    seed=3, duration=20.0, dt=0.05)  # fmt: skip
+    assert out["settling_time"] == (None if not np.isfinite(traj.settling_time) else pytest.approx(traj.settling_time))
+    assert out["final_error"] == pytest.approx(traj.formation_error[-1], rel=1e-9)
+    assert out["min_distance"] == pytest.approx(traj.min_distance, rel=1e-9)
+    saved = np.load(tmp_path / "sim_operating.npz")
+    np.testing.assert_allclose(saved["positions"], traj.positions, atol=1e-12)
+    for name in ("sim_operating_xy.png", "sim_operating_traces.svg", "sim_operating.csv"):
+        assert (tmp_path / name).stat().st_size > 0
+
+
+# ------------------------------------------------------------------ paper
+PAPER_FILES = (
+    "index.html", "summary.json", "factors.csv",
+    "stability_chart.png", "stability_chart.svg", "ctcr_curves.csv", "ctcr_curves.npz",
+    "sim_a_xy.png", "sim_a_xy.svg", "sim_a_traces.png", "sim_a_traces.svg", "sim_a.csv", "sim_a.npz",
+    "sim_b_xy.png", "sim_b_xy.svg", "sim_b.csv", "sim_b.npz",
+    "roots.csv", "dominant_surface.png", "dominant_surface.svg", "dominant_contour.png",
+    "dominant_contour.svg", "dominant_map.npz", "dominant_map.csv", "schedule.json",
+)  # fmt: skip
+
+
+@pytest.mark.slow
+def test_paper_writes_every_file_it_lists(tmp_path: Path) -> None:
+    out = tmp_path / "paper"
+    proc = run("paper", "--out", str(out), "--json", cwd=tmp_path)
+    printed = _json(proc)
+    summary = json.loads((out / "summary.json").read_text())
+    listed = summary["files"]
+    assert set(PAPER_FILES) <= set(listed)
+    for name in listed:
+        assert (out / name).stat().st_size > 0, name
+    assert printed["index"] == str(out / "index.html")
+    sections = summary["sections"]
+    # the paper's numbers: eigenvalues of C, points a..e, settling at a (~30 s) and b (> 100 s)
+    eig = sorted((_complex(v) for v in sections["factors"]["eigenvalues"]), key=lambda s: (s.real, s.imag))
+    np.testing.assert_allclose(
+        eig, [-0.64, -0.5, -0.16 - 0.21j, -0.16 + 0.21j, 0.46, 1.0], atol=0.006
+    )
+    assert [p["stable"] for p in sections["chart"]["points"]] == [True, True, False, True, True]
+    assert sections["simulation_a"]["settling_time"] < sections["simulation_b"]["settling_time"]
+    assert sections["schedule"]["root"]["re"] < 0
+    html = (out / "index.html").read_text()
+    assert html.count("<img ") == sum(1 for n in listed if n.endswith(".png"))
+    assert "data:image/png;base64," in html
