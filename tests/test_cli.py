@@ -218,11 +218,24 @@ PAPER_FILES = (
 )  # fmt: skip
 
 
+def paper_output(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
+    """Run ``delayform paper`` once per test session; return its directory and printed JSON.
+
+    The browser test reuses the same output, so the slowest command runs once.
+    """
+    base = tmp_path_factory.getbasetemp() / "paper-run"
+    done = base / "stdout.json"
+    if not done.exists():
+        base.mkdir(exist_ok=True)
+        proc = run("paper", "--out", str(base / "paper"), "--json", cwd=base)
+        printed = _json(proc)
+        done.write_text(json.dumps(printed))
+    return base / "paper", json.loads(done.read_text())
+
+
 @pytest.mark.slow
-def test_paper_writes_every_file_it_lists(tmp_path: Path) -> None:
-    out = tmp_path / "paper"
-    proc = run("paper", "--out", str(out), "--json", cwd=tmp_path)
-    printed = _json(proc)
+def test_paper_writes_every_file_it_lists(tmp_path_factory: pytest.TempPathFactory) -> None:
+    out, printed = paper_output(tmp_path_factory)
     summary = json.loads((out / "summary.json").read_text())
     listed = summary["files"]
     assert set(PAPER_FILES) <= set(listed)
