@@ -24,16 +24,16 @@ from typing import Any, TypeVar
 
 import click
 
-from delayform.errors import InputError
+from delayform.errors import DelayformError, InputError
 
 TOPOLOGY_NAMES = ("paper_six", "ring", "complete", "star")
 
 F = TypeVar("F", bound=Callable[..., Any])
 
 
-def _fail(message: str) -> None:
+def _fail(message: str, *, code: int = 2) -> None:
     click.echo(f"delayform: error: {message}", err=True)
-    sys.exit(2)
+    sys.exit(code)
 
 
 def _named_topology(name: str, n: int):
@@ -276,7 +276,7 @@ def chart_command(scenario: Path | None, tau1_max: float | None, tau2_max: float
 @scenario_options
 @click.option("--region", type=FloatTuple(4),
               help="Rectangle RE_MIN,RE_MAX,IM_MIN,IM_MAX of the s-plane in which to list every root "
-                   "[default: from min(-2, 2 Re(dominant)) to 1, Im 0 to 10].")  # fmt: skip
+                   "[default: Re from min(-2, 2 Re(dominant)) to 1, Im from -0.01 to 10].")  # fmt: skip
 def roots_command(scenario: Path | None, region: tuple[float, float, float, float] | None,
                   out: Path | None, as_json: bool, **overrides: Any) -> None:  # fmt: skip
     """Dominant root and characteristic roots at one delay pair.
@@ -466,4 +466,6 @@ def main(argv: list[str] | None = None) -> None:
         sys.exit(130)
     except InputError as exc:
         _fail(str(exc).replace("\n", " "))
+    except DelayformError as exc:  # a computation that did not succeed: not the user's input
+        _fail(str(exc).replace("\n", " "), code=1)
     sys.exit(code if isinstance(code, int) else 0)

@@ -48,6 +48,9 @@ __all__ = [
 #: Called with a short description before each step of a long computation.
 Progress = Callable[[str], None]
 
+#: Called with (grid points done, grid points in all) while a map is computed.
+MapProgress = Callable[[int, int], None]
+
 #: The paper's delay points of Fig. stability (Section "Simulation Examples").
 PAPER_POINTS = (("a", 0.3, 0.2), ("b", 2.0, 1.0), ("c", 1.0, 2.0), ("d", 1.0, 5.5), ("e", 3.5, 2.0))
 
@@ -296,10 +299,11 @@ def roots_section(
     team, P, D = scenario.topology, scenario.P, scenario.D
     dom = dominant_root(team, P, D, scenario.tau1, scenario.tau2)
     s_dom = complex(dom.root)
-    region = region or (min(-2.0, 2.0 * s_dom.real), 1.0, 0.0, 10.0)
+    # Im from just below 0, so real roots lie inside and not on the boundary
+    region = region or (min(-2.0, 2.0 * s_dom.real), 1.0, -0.01, 10.0)
     rows = []
     for i, f in enumerate(factors(team, P, D), start=1):
-        for s in np.atleast_1d(roots_in(f.quasi_polynomial, scenario.tau1, scenario.tau2, region)):
+        for s in np.atleast_1d(roots_in(f, scenario.tau1, scenario.tau2, region)):
             rows.append((i, complex(f.lam).real, complex(f.lam).imag, float(s.real), float(s.imag)))
     files = [_write_csv(out / "roots.csv", ("factor", "lam_re", "lam_im", "re", "im"), rows)]
     at_points = []
@@ -341,15 +345,37 @@ def _time_constant(s: complex) -> float:
     return float(1.0 / abs(s.real)) if s.real < 0 else float("inf")
 
 
-def map_section(scenario: Scenario, out: Path, *, progress: Callable[..., Any] | None = None) -> Section:
-    """Real part of the dominant root over the map grid: surface, contour, NPZ and CSV."""
-    from delayform.spectrum import dominant_root_map
+def _chunked_map(scenario: Scenario, t1: np.ndarray, t2: np.ndarray, progress: MapProgress | None) -> Any:
+    """:func:`~delayform.spectrum.dominant_root_map` in blocks of tau1 rows, reporting progress.
 
+    Every grid point is solved on its own, so blocks give the same roots as
+    one call; blocks let the command line show a progress bar on stderr.
+    """
+    from delayform.spectrum import DominantRootMap, dominant_root_map
+
+    team, P, D = scenario.topology, scenario.P, scenario.D
+    if progress is None:
+        return dominant_root_map(team, P, D, t1, t2)
+    block = max(1, t1.size // 20)
+    parts = []
+    for start in range(0, t1.size, block):
+        parts.append(dominant_root_map(team, P, D, t1[start : start + block], t2))
+        progress(min(start + block, t1.size) * t2.size, t1.size * t2.size)
+    return DominantRootMap(
+        t1, t2,
+        np.concatenate([p.roots for p in parts], axis=0),
+        np.concatenate([p.factor_index for p in parts], axis=0),
+        parts[0].factors,
+    )  # fmt: skip
+
+
+def map_section(scenario: Scenario, out: Path, *, progress: MapProgress | None = None) -> Section:
+    """Real part of the dominant root over the map grid: surface, contour, NPZ and CSV."""
     plt = _pyplot()
     grid = scenario.map
     t1, t2 = grid.tau1_values(), grid.tau2_values()
-    dmap = dominant_root_map(scenario.topology, scenario.P, scenario.D, t1, t2, progress=progress)
-    re = np.asarray(dmap.real_part, dtype=float)
+    dmap = _chunked_map(scenario, t1, t2, progress)
+    re = np.asarray(dmap.real, dtype=float)
     files = []
     fig = plt.figure(figsize=(7.0, 5.6))
     ax = fig.add_subplot(projection="3d")
@@ -411,7 +437,9 @@ def schedule_section(scenario: Scenario, out: Path) -> Section:
         "tau1": float(result.tau1),
         "tau2": float(result.tau2),
         "root": root,
+        "time_constant": float(result.time_constant),
         "settling_time": float(result.settling_time),
+        "hardware_root": complex(result.hardware_root),
     }
     (out / "schedule.json").write_text(json.dumps(jsonable(summary), indent=2))
     return Section(
@@ -424,9 +452,10 @@ def schedule_section(scenario: Scenario, out: Path) -> Section:
         ),
         table=(
             ("hardware delays (tau1, tau2)", f"({sch.tau_min[0]:g}, {sch.tau_min[1]:g}) s"),
+            ("dominant root at the hardware delays", _fmt_complex(complex(result.hardware_root))),
             ("best delays (tau1, tau2)", f"({result.tau1:.4g}, {result.tau2:.4g}) s"),
             ("dominant root there", _fmt_complex(root)),
-            ("predicted settling time", f"{_fmt(float(result.settling_time))} s"),
+            ("predicted settling time ln(50)/|Re|", f"{_fmt(float(result.settling_time))} s"),
         ),
         summary=summary,
         files=("schedule.json",),
@@ -481,14 +510,16 @@ def simulation_section(
     if gif:
         traj.save_gif(out / f"{stem}.gif")
         files.append(f"{stem}.gif")
-    settling = float(traj.settling_time())
+    settling = float(traj.settling_time)
     summary = {
         "label": label, "tau1": tau1, "tau2": tau2, "model": sim.model,
         "duration": sim.duration, "dt": sim.dt,
         "settling_time": settling,
-        "final_error": float(traj.formation_error()[-1]),
-        "min_distance": float(traj.min_distance()),
-        "final_centroid": np.asarray(traj.final_centroid()),
+        "initial_error": float(traj.formation_error[0]),
+        "final_error": float(traj.formation_error[-1]),
+        "min_distance": float(traj.min_distance),
+        "final_centroid": np.asarray(traj.final_centroid),
+        "regularised_steps": int(traj.regularisation_count),
     }  # fmt: skip
     table = (
         ("delays (tau1, tau2)", f"({tau1:g}, {tau2:g}) s"),
@@ -531,7 +562,7 @@ def settling_section(sims: Sequence[Section]) -> Section:
 
 # ------------------------------------------------------------ whole reports
 def scenario_sections(
-    scenario: Scenario, out: Path, *, progress: Progress | None = None, map_progress: Callable[..., Any] | None = None
+    scenario: Scenario, out: Path, *, progress: Progress | None = None, map_progress: MapProgress | None = None
 ) -> list[Section]:
     """Every analysis of one scenario, in the order of the data flow."""
     steps: list[tuple[str, Callable[[], Section]]] = [
@@ -551,7 +582,7 @@ def scenario_sections(
 
 
 def paper_sections(
-    scenario: Scenario, out: Path, *, progress: Progress | None = None, map_progress: Callable[..., Any] | None = None
+    scenario: Scenario, out: Path, *, progress: Progress | None = None, map_progress: MapProgress | None = None
 ) -> list[Section]:
     """The paper's Section "Simulation Examples" end to end, on the given (paper) scenario.
 
