@@ -231,13 +231,15 @@ def chart_section(scenario: Scenario, out: Path) -> Section:
     ax.set_title(f"Stability chart: {scenario.name}, P = {scenario.P:g}, D = {scenario.D:g}")
     files = list(_save(fig, out, "stability_chart"))
     curve_rows, arrays = _curve_rows(smap)
-    files.append(_write_csv(out / "ctcr_curves.csv", ("curve", "factor", "kind", "tau1", "tau2", "omega"), curve_rows))
+    files.append(_write_csv(out / "ctcr_curves.csv", ("curve", "source", "kind", "tau1", "tau2", "omega"), curve_rows))
     np.savez_compressed(out / "ctcr_curves.npz", **arrays)
     files.append("ctcr_curves.npz")
     fraction = float(smap.stable_fraction())
     summary = {
         "window": [cs.tau1_max, cs.tau2_max],
         "curves": len(smap.curves),
+        "kernel_curves": len(smap.kernel_curves),
+        "delay_free_unstable_roots": int(smap.delay_free_count),
         "stable_fraction": fraction,
         "points": [
             {"label": label, "tau1": a, "tau2": b, "unstable_roots": int(n), "stable": bool(s)}
@@ -277,12 +279,11 @@ def _curve_rows(smap: Any) -> tuple[list[tuple[Any, ...]], dict[str, np.ndarray]
         tau1 = np.asarray(curve.tau1, dtype=float)
         tau2 = np.asarray(curve.tau2, dtype=float)
         omega = np.asarray(curve.omega, dtype=float)
-        factor = getattr(curve, "factor_index", "")
-        kind = "kernel" if getattr(curve, "is_kernel", False) else "offspring"
-        rows.extend((index, factor, kind, a, b, w) for a, b, w in zip(tau1, tau2, omega, strict=True))
+        rows.extend((index, curve.source, curve.kind, a, b, w) for a, b, w in zip(tau1, tau2, omega, strict=True))
     arr = np.array([r[3:] for r in rows], dtype=float).reshape(-1, 3)
     return rows, {
         "curve": np.array([r[0] for r in rows], dtype=np.int64),
+        "kernel": np.array([r[2] == "kernel" for r in rows], dtype=bool),
         "tau1": arr[:, 0],
         "tau2": arr[:, 1],
         "omega": arr[:, 2],
