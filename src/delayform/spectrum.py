@@ -1,0 +1,1377 @@
+"""Characteristic roots, dominant roots, dominant-root maps and delay scheduling.
+
+The paper closes (Section "Simulation", Figs. dominant and contour) with
+*delay scheduling*: inside the stable region of the CTCR chart, pick the
+delays whose dominant (rightmost) characteristic root lies furthest left,
+because that root sets how fast the team settles into formation. This module
+computes those roots for any retarded quasi-polynomial of eq. genfactor and
+for the factors of eq. factorized.
+
+Method
+------
+1. **Global approximation.** The infinitesimal generator of the DDE
+   ``dx/dt = A x + sum_k B_k x(t - h_k)`` is discretized by Chebyshev
+   collocation on ``[-h_max, 0]`` (Breda, Maset and Vermiglio, "Pseudospectral
+   differencing methods for characteristic roots of delay differential
+   equations", SIAM J. Sci. Comput. 27, 2005). Its eigenvalues approximate
+   the characteristic roots. A factor of eq. factorized is realized by its own
+   subsystem eq. subsystems (eq. matrices2; a conjugate pair, eq. matrices4,
+   splits into the complex second-order factor of ``lam`` and its mirror image,
+   which halves the work); a general retarded quasi-polynomial of degree N is
+   realized in companion form with the delays tau1, tau2, 2 tau1, 2 tau2 and
+   tau1 + tau2 of eq. genfactor.
+2. **Newton polishing** on the quasi-polynomial itself. A root is accepted
+   when its *relative residual*
+   ``|q(s)| / sum_k sum_i |g_k,i| |s|^i |e^{-h_k s}|`` (the modulus of q over
+   the sum of the moduli of its monomial terms, i.e. a backward error) is at
+   most :data:`RESIDUAL_TOL` = 1e-10.
+3. **Certificate by the argument principle.** No root may be missed. The
+   number of roots inside a contour is computed from the winding of q along
+   it, with a *certified* sampling: between two samples ``s_j, s_j+1`` the
+   change of q is bounded by a Lipschitz bound ``L_j |s_j+1 - s_j|`` built
+   from the moduli of the coefficients, and the sampling is refined until
+   ``min(|q(s_j)|, |q(s_j+1)|) > L_j |s_j+1 - s_j| / 2``, which keeps each
+   arg increment below pi, so the unwrapped phase, hence the count, is exact
+   (up to floating-point rounding in evaluating q). For a right half-plane
+   ``Re s > c`` the contour is the line ``Re s = c`` closed at infinity: a
+   Cauchy-type bound ``Omega`` gives ``|g1(s)| > sum_k |g_k(s) e^{-h_k s}|``
+   for ``|Im s| >= Omega`` on the line (Rouche), so the tails contribute the
+   arg change of g1 in closed form. When the count differs from the number of
+   polished roots found, the discretization degree is raised and the step
+   repeated; after :data:`MAX_DEGREE`, :class:`~delayform.errors.NotConvergedError`
+   carries the roots found so far.
+
+Guarantee
+---------
+:func:`roots_in` returns every root in the rectangle (the count inside the
+rectangle is certified). :func:`rightmost_root` and everything built on it
+(:func:`dominant_root`, :func:`dominant_root_map`, :func:`schedule_delays`)
+return a root such that the certified number of roots in ``Re s > c`` equals
+the number of polished roots found there, for a line ``c`` placed in a gap
+left of the returned root: no root to its right is missed.
+
+Conventions: coefficients in increasing powers of s; delays in seconds,
+``tau1`` on positions and ``tau2`` on velocities (eq. protocol); the
+centroid factor's persistent root s = 0 (eq. factor1) is deflated with
+Maehly's correction and excluded from dominant roots (its other roots count).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from functools import lru_cache
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import numpy.polynomial.polynomial as npoly
+from numpy.typing import ArrayLike, NDArray
+
+from delayform._validation import check_delay, check_gains
+from delayform.characteristic import CharacteristicFactor, TwoDelayQuasiPolynomial, factors
+from delayform.errors import DelayError, InputError, NotConvergedError
+from delayform.topology import Topology
+
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    from matplotlib.axes import Axes
+
+__all__ = [
+    "RESIDUAL_TOL",
+    "MAX_DEGREE",
+    "SETTLING_FACTOR",
+    "roots_in",
+    "rightmost_root",
+    "count_roots_right_of",
+    "relative_residual",
+    "dominant_root",
+    "dominant_root_map",
+    "schedule_delays",
+    "DominantRoot",
+    "DominantRootMap",
+    "DelaySchedule",
+    "NoStableDelaysError",
+]
+
+#: Acceptance threshold of the relative residual of a polished root.
+RESIDUAL_TOL = 1e-10
+#: Largest Chebyshev discretization degree tried before giving up.
+MAX_DEGREE = 192
+#: Settling time (2 % criterion) = ln(50) / |Re s_dom| ~ 3.9 time constants.
+SETTLING_FACTOR = math.log(50.0)
+
+_NEWTON_MAXITER = 50
+#: Most sample points spent on one certified contour before giving up.
+_MAX_SAMPLES = 400_000
+
+Region = tuple[float, float, float, float]
+_Terms = tuple[tuple[NDArray[np.complex128], int, int], ...]
+
+
+class NoStableDelaysError(DelayError):
+    """No delay pair in the scheduling box gives a stable formation."""
+
+
+# =====================================================================
+# the problem: a quasi-polynomial and a DDE whose characteristic function it is
+# =====================================================================
+@dataclass(frozen=True, eq=False)
+class _Problem:
+    """What the solvers work on.
+
+    ``terms`` is the quasi-polynomial polished and counted (eq. genfactor
+    terms as (coefficients, multiple of tau1, multiple of tau2)); ``A`` and
+    ``delayed`` a DDE realization whose characteristic function is q up to a
+    constant; ``mirror`` adds complex conjugates of the roots (a conjugate
+    pair factor solved through its complex second-order factor of lam);
+    ``deflate_zero`` removes the persistent root s = 0 of eq. factor1.
+    """
+
+    terms: _Terms
+    A: NDArray[np.complex128]
+    delayed: tuple[tuple[NDArray[np.complex128], int, int], ...]
+    mirror: bool = False
+    deflate_zero: bool = False
+
+    @property
+    def degree(self) -> int:
+        return int(self.terms[0][0].size - 1)
+
+    @property
+    def d(self) -> int:
+        return int(self.A.shape[0])
+
+    @property
+    def is_real(self) -> bool:
+        mats = [self.A] + [b for b, _, _ in self.delayed]
+        return all(np.all(m.imag == 0.0) for m in mats)
+
+
+def _problem_of_qp(qp: TwoDelayQuasiPolynomial) -> _Problem:
+    """Companion-form DDE of a retarded quasi-polynomial (eq. genfactor).
+
+    With x = (y, y', ..., y^(N-1)) and g1 made monic, the last row carries
+    -g1's lower coefficients (undelayed) and -g_k (delayed by h_k); the
+    characteristic function det(sI - A - sum B_k e^{-h_k s}) is q / lead(g1).
+    """
+    qp.require_retarded()
+    terms = qp.terms()
+    g1 = terms[0][0]
+    n = g1.size - 1
+    lead = g1[-1]
+    A = np.zeros((n, n), dtype=np.complex128)
+    A[np.arange(n - 1), np.arange(1, n)] = 1.0
+    A[-1, :] = -g1[:n] / lead
+    delayed = []
+    for c, a, b in terms[1:]:
+        B = np.zeros((n, n), dtype=np.complex128)
+        B[-1, : c.size] = -c / lead
+        delayed.append((B, a, b))
+    return _Problem(terms=terms, A=A, delayed=tuple(delayed))
+
+
+def _problem_of_factor(factor: CharacteristicFactor) -> _Problem:
+    """Subsystem of a factor (eq. subsystems); a pair is solved via lam alone.
+
+    The fourth-order factor of (lam, conj lam) is q_lam(s) q_conj(lam)(s) with
+    q_lam = s^2 + D s + P - lam (D s e^{-tau2 s} + P e^{-tau1 s}), and the roots
+    of q_conj(lam) are the conjugates of those of q_lam.
+    """
+    P, D, lam = factor.P, factor.D, complex(factor.lam)
+    if factor.group.is_complex_pair:
+        terms: _Terms = (
+            (np.array([P, D, 1.0], dtype=np.complex128), 0, 0),
+            (np.array([-lam * P], dtype=np.complex128), 1, 0),
+            (np.array([0.0, -lam * D], dtype=np.complex128), 0, 1),
+        )
+        A = np.array([[0.0, 1.0], [-P, -D]], dtype=np.complex128)
+        B1 = lam * np.array([[0.0, 0.0], [P, 0.0]], dtype=np.complex128)
+        B2 = lam * np.array([[0.0, 0.0], [0.0, D]], dtype=np.complex128)
+        return _Problem(terms=terms, A=A, delayed=((B1, 1, 0), (B2, 0, 1)), mirror=True)
+    A, B1, B2 = (np.asarray(m, dtype=np.complex128) for m in factor.state_matrices())
+    return _Problem(
+        terms=factor.quasi_polynomial.terms(),
+        A=A,
+        delayed=((B1, 1, 0), (B2, 0, 1)),
+        deflate_zero=factor.is_centroid,
+    )
+
+
+def _problem(qp: TwoDelayQuasiPolynomial | CharacteristicFactor) -> _Problem:
+    if isinstance(qp, CharacteristicFactor):
+        return _problem_of_factor(qp)
+    if isinstance(qp, TwoDelayQuasiPolynomial):
+        return _problem_of_qp(qp)
+    raise InputError(
+        f"expected a TwoDelayQuasiPolynomial or CharacteristicFactor, got {type(qp).__name__}"
+    )
+
+
+# =====================================================================
+# evaluation of q, q' and the term magnitudes (vectorized)
+# =====================================================================
+def _horner(c: NDArray[np.complex128], s: NDArray[Any]) -> NDArray[Any]:
+    out = np.zeros(np.shape(s), dtype=np.result_type(c, s)) + c[-1]
+    for coef in c[-2::-1]:
+        out = out * s + coef
+    return out
+
+
+def _evaluate(
+    terms: _Terms, s: NDArray[np.complex128], t1: NDArray[np.float64], t2: NDArray[np.float64]
+) -> tuple[NDArray[np.complex128], NDArray[np.complex128], NDArray[np.float64]]:
+    """q(s), dq/ds and sum of |monomial terms| (the residual's scale), broadcasting."""
+    q = np.zeros(np.broadcast_shapes(s.shape, t1.shape, t2.shape), dtype=np.complex128)
+    dq = np.zeros_like(q)
+    mag = np.zeros(q.shape)
+    abs_s = np.abs(s)
+    with np.errstate(all="ignore"):  # far-left spurious seeds overflow; filtered by callers
+        for c, a, b in terms:
+            p = _horner(c, s)
+            dp = _horner(npoly.polyder(c), s) if c.size > 1 else np.zeros_like(s)
+            m = _horner(np.abs(c).astype(np.complex128), abs_s).real
+            if a or b:
+                h = a * t1 + b * t2
+                e = np.exp(-h * s)
+                q = q + p * e
+                dq = dq + (dp - h * p) * e
+                mag = mag + m * np.abs(e)
+            else:
+                q = q + p
+                dq = dq + dp
+                mag = mag + m
+    return q, dq, mag
+
+
+def relative_residual(
+    qp: TwoDelayQuasiPolynomial, s: ArrayLike, tau1: ArrayLike, tau2: ArrayLike
+) -> NDArray[np.float64]:
+    """|q(s)| over the sum of the moduli of its monomial terms (a backward error).
+
+    This is the "relative" of the acceptance test ``<= RESIDUAL_TOL`` for
+    every root this module returns.
+
+    >>> q = TwoDelayQuasiPolynomial([-1.0, 1.0])
+    >>> float(relative_residual(q, 1.0, 0.0, 0.0))
+    0.0
+    """
+    s_arr = np.asarray(s, dtype=np.complex128)
+    q, _, mag = _evaluate(
+        qp.terms(), s_arr, np.asarray(tau1, dtype=float), np.asarray(tau2, dtype=float)
+    )
+    return np.abs(q) / mag
+
+
+# =====================================================================
+# spectral discretization of the infinitesimal generator (batched)
+# =====================================================================
+@lru_cache(maxsize=64)
+def _chebyshev(N: int) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Chebyshev points cos(j pi / N), differentiation matrix and barycentric weights."""
+    j = np.arange(N + 1)
+    x = np.cos(np.pi * j / N)
+    c = np.where((j == 0) | (j == N), 2.0, 1.0) * (-1.0) ** j
+    dx = x[:, None] - x[None, :]
+    Dm = np.outer(c, 1.0 / c) / (dx + np.eye(N + 1))
+    Dm = Dm - np.diag(Dm.sum(axis=1))  # negative-sum trick (Trefethen, Spectral Methods in MATLAB)
+    w = (-1.0) ** j * np.where((j == 0) | (j == N), 0.5, 1.0)
+    return x, Dm, w
+
+
+def _lagrange_rows(N: int, xq: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Values of the N+1 Lagrange basis polynomials at points xq (barycentric formula)."""
+    x, _, w = _chebyshev(N)
+    diff = xq[..., None] - x
+    hit = np.abs(diff) < 1e-15
+    safe = np.where(hit, 1.0, diff)
+    t = w / safe
+    rows = t / t.sum(axis=-1, keepdims=True)
+    on_node = hit.any(axis=-1)
+    return np.where(on_node[..., None], hit.astype(float), rows)
+
+
+def _igd_eigenvalues(
+    prob: _Problem, N: int, t1: NDArray[np.float64], t2: NDArray[np.float64]
+) -> NDArray[np.complex128]:
+    """Eigenvalues of the degree-N discretized generator at each delay pair (shape (B, d(N+1))).
+
+    Rows 1..N collocate u' = d/dtheta u at the Chebyshev points of
+    [-h_max, 0]; row 0 is the DDE itself, the delayed states read off the
+    interpolating polynomial at theta = -h_k. All pairs must have h_max > 0.
+    """
+    d = prob.d
+    x, Dm, _ = _chebyshev(N)
+    Bstack = np.stack([b for b, _, _ in prob.delayed])  # (K, d, d)
+    h = np.stack([a * t1 + b * t2 for _, a, b in prob.delayed], axis=-1)  # (B, K)
+    hmax = h.max(axis=-1)
+    L = _lagrange_rows(N, 1.0 - 2.0 * h / hmax[:, None])  # (B, K, N+1)
+    real = prob.is_real
+    dtype = np.float64 if real else np.complex128
+    Bm = Bstack.real if real else Bstack
+    M = np.zeros((t1.size, N + 1, d, N + 1, d), dtype=dtype)
+    M[:, 0] = np.einsum("bkj,kpq->bpjq", L, Bm)
+    M[:, 0, :, 0, :] += prob.A.real if real else prob.A
+    M[:, 1:] = (2.0 / hmax)[:, None, None, None, None] * np.einsum(
+        "ij,pq->ipjq", Dm[1:], np.eye(d)
+    )
+    size = (N + 1) * d
+    return np.linalg.eigvals(M.reshape(t1.size, size, size)).astype(np.complex128)
+
+
+def _delay_free_eigenvalues(prob: _Problem) -> NDArray[np.complex128]:
+    """Roots at tau1 = tau2 = 0: eigenvalues of A + sum B_k."""
+    total = prob.A + sum(b for b, _, _ in prob.delayed)
+    return np.linalg.eigvals(total)
+
+
+def _max_delay(prob: _Problem, t1: float, t2: float) -> float:
+    return max([a * t1 + b * t2 for _, a, b in prob.delayed] + [0.0])
+
+
+# =====================================================================
+# Newton polishing
+# =====================================================================
+def _polish(
+    prob: _Problem, s0: NDArray[np.complex128], t1: NDArray[np.float64], t2: NDArray[np.float64]
+) -> tuple[NDArray[np.complex128], NDArray[np.bool_]]:
+    """Newton's method on q from the seeds s0 (broadcasting with t1, t2).
+
+    With ``deflate_zero`` the step is Maehly's q / (q' - q/s), Newton on q(s)/s,
+    so seeds are not drawn into the persistent root 0. Returns the roots and
+    a mask of those whose relative residual is <= RESIDUAL_TOL.
+    """
+    s = np.array(s0, dtype=np.complex128)
+    active = np.isfinite(s)
+    s = np.where(active, s, 0.0)
+    for _ in range(_NEWTON_MAXITER):
+        q, dq, _ = _evaluate(prob.terms, s, t1, t2)
+        with np.errstate(all="ignore"):
+            denom = dq - q / s if prob.deflate_zero else dq
+            step = q / denom
+        bad = ~np.isfinite(step)
+        step = np.where(bad | ~active, 0.0, step)
+        if prob.deflate_zero:
+            step = np.where(s == 0.0, 0.0, step)  # s = 0 hit exactly: a root of q(s)/s only if double
+        s = s - step
+        active &= ~bad & (np.abs(step) > 4e-16 * (1.0 + np.abs(s)))
+        if not active.any():
+            break
+    if prob.deflate_zero:
+        s, zero_ok = _deflated_zero(prob, s, t1, t2)
+    q, _, mag = _evaluate(prob.terms, s, t1, t2)
+    with np.errstate(all="ignore"):
+        ok = np.isfinite(s) & np.isfinite(mag) & (np.abs(q) <= RESIDUAL_TOL * mag)
+    if prob.deflate_zero:
+        ok &= zero_ok
+    return s, ok
+
+
+def _deflated_zero(
+    prob: _Problem, s: NDArray[np.complex128], t1: NDArray[np.float64], t2: NDArray[np.float64]
+) -> tuple[NDArray[np.complex128], NDArray[np.bool_]]:
+    """Settle seeds that reached s ~ 0 after deflating the persistent root of eq. factor1.
+
+    Such a seed is a root of q(s)/s only when 0 is a double root (q'(0) = 0,
+    e.g. tau1 = 0 for eq. factor1); it is then snapped to exactly 0, which
+    q(s)/s cannot resolve better than sqrt(eps) by Newton. Otherwise it is
+    rejected.
+    """
+    near = np.abs(s) < 1e-6
+    if not near.any():
+        return s, np.ones(s.shape, dtype=bool)
+    shape = np.broadcast_shapes(s.shape, np.shape(t1), np.shape(t2))
+    zero = np.zeros(shape, dtype=np.complex128)
+    _, dq0, _ = _evaluate(prob.terms, zero, np.broadcast_to(t1, shape), np.broadcast_to(t2, shape))
+    scale = sum(float(np.abs(c).sum()) for c, _, _ in prob.terms)
+    double = np.abs(dq0) <= 1e-12 * scale
+    return np.where(near & double, 0.0, s), ~near | double
+
+
+def _cluster(roots: NDArray[np.complex128]) -> NDArray[np.complex128]:
+    """The distinct roots among polished seeds (many seeds may reach the same root)."""
+    if roots.size == 0:
+        return roots
+    order = np.lexsort((roots.imag, roots.real))
+    out: list[complex] = []
+    for z in roots[order]:
+        if not any(abs(z - y) <= 1e-7 * (1.0 + abs(y)) for y in out):
+            out.append(complex(z))
+    return np.asarray(out, dtype=np.complex128)
+
+
+def _nth_derivative(terms: _Terms, s: NDArray[np.complex128], t1: float, t2: float, k: int) -> tuple[NDArray[np.complex128], NDArray[np.float64]]:
+    """d^k q / ds^k and the sum of the moduli of its terms (Leibniz rule on p(s) e^{-h s})."""
+    val = np.zeros(s.shape, dtype=np.complex128)
+    mag = np.zeros(s.shape)
+    for c, a, b in terms:
+        h = a * t1 + b * t2
+        e = np.exp(-h * s)
+        for j in range(k + 1):
+            dj = npoly.polyder(c, j) if j else c
+            if dj.size == 0:
+                continue
+            w = math.comb(k, j) * (-h) ** (k - j)
+            if w == 0.0:
+                continue
+            p = _horner(dj, s)
+            val = val + w * p * e
+            mag = mag + abs(w) * _abs_poly(dj, np.abs(s)) * np.abs(e)
+    return val, mag
+
+
+def _multiplicity(prob: _Problem, roots: NDArray[np.complex128], t1: float, t2: float) -> NDArray[np.int64]:
+    """Multiplicity of each polished root: the first derivative of q that is not negligible.
+
+    A root of multiplicity m is only accurate to about eps^(1/m), so the
+    derivatives below m are "negligible" at 1e-5 of their terms' scale; the
+    certified count catches a wrong call, which then triggers a finer pass.
+    """
+    mult = np.ones(roots.shape, dtype=np.int64)
+    if roots.size == 0:
+        return mult
+    undecided = np.ones(roots.shape, dtype=bool)
+    for k in range(1, 5):
+        val, mag = _nth_derivative(prob.terms, roots, t1, t2, k)
+        small = undecided & (np.abs(val) <= 1e-5 * mag)
+        mult = np.where(small, k + 1, mult)
+        undecided = small
+        if not undecided.any():
+            break
+    if prob.deflate_zero:  # the persistent zero is counted apart; q(s)/s has one less at 0
+        mult = np.where(np.abs(roots) < 1e-7, mult - 1, mult)
+    return mult
+
+
+# =====================================================================
+# argument principle with certified sampling
+# =====================================================================
+def _abs_poly(c: NDArray[np.complex128], rho: NDArray[np.float64]) -> NDArray[np.float64]:
+    return _horner(np.abs(c).astype(np.complex128), rho.astype(np.complex128)).real
+
+
+def _abs_poly_der(c: NDArray[np.complex128], rho: NDArray[np.float64]) -> NDArray[np.float64]:
+    if c.size < 2:
+        return np.zeros(np.shape(rho))
+    return _abs_poly(npoly.polyder(np.abs(c).astype(np.complex128)), rho)
+
+
+def _lipschitz(
+    terms: _Terms, rho: NDArray[np.float64], re_min: NDArray[np.float64], t1: Any, t2: Any
+) -> NDArray[np.float64]:
+    """Bound of |q'(s)| over |s| <= rho, Re s >= re_min (moduli of coefficients)."""
+    out = np.zeros(np.broadcast_shapes(np.shape(rho), np.shape(re_min), np.shape(t1), np.shape(t2)))
+    for c, a, b in terms:
+        h = a * np.asarray(t1) + b * np.asarray(t2)
+        with np.errstate(over="ignore"):
+            w = np.exp(-h * re_min)
+        out = out + w * (_abs_poly_der(c, rho) + h * _abs_poly(c, rho))
+    return out
+
+
+def _segment_winding(
+    terms: _Terms, t1: float, t2: float, s0: complex, s1: complex, *, budget: int
+) -> tuple[float, int] | None:
+    """Certified change of arg q along the segment s0 -> s1, and samples used.
+
+    Segments of the sampling are bisected until every one satisfies the
+    Lipschitz condition of the module docstring; None when ``budget`` samples
+    do not suffice (a root on or extremely close to the segment).
+    """
+    length = abs(s1 - s0)
+    t = np.linspace(0.0, 1.0, 65)
+    a1, a2 = np.asarray(t1), np.asarray(t2)
+    for _ in range(64):  # 64 bisections: segments far below rounding of s
+        if t.size > budget:
+            return None
+        s = s0 + t * (s1 - s0)
+        q, _, _ = _evaluate(terms, s, a1, a2)
+        absq = np.abs(q)
+        if not np.all(np.isfinite(absq)) or np.any(absq == 0.0):
+            return None
+        rho = np.maximum(np.abs(s[:-1]), np.abs(s[1:]))
+        re_min = np.minimum(s[:-1].real, s[1:].real)
+        L = _lipschitz(terms, rho, re_min, t1, t2) * length * np.diff(t)
+        bad = np.minimum(absq[:-1], absq[1:]) <= 0.5 * L
+        if not bad.any():
+            return float(np.angle(q[1:] / q[:-1]).sum()), int(t.size)
+        mids = 0.5 * (t[:-1] + t[1:])[bad]
+        t = np.sort(np.concatenate([t, mids]))
+    return None
+
+
+def _region_count(
+    prob: _Problem, t1: float, t2: float, region: Region, *, budget: int = _MAX_SAMPLES
+) -> int | None:
+    """Certified number of roots of q inside the rectangle (multiplicity counted)."""
+    x0, x1, y0, y1 = region
+    corners = [complex(x0, y0), complex(x1, y0), complex(x1, y1), complex(x0, y1)]
+    total = 0.0
+    for k in range(4):
+        piece = _segment_winding(prob.terms, t1, t2, corners[k], corners[(k + 1) % 4], budget=budget)
+        if piece is None:
+            return None
+        total += piece[0]
+    count = total / (2.0 * np.pi)
+    return int(round(count)) if abs(count - round(count)) < 0.1 else None
+
+
+def _cauchy_radius(
+    terms: _Terms, c: NDArray[np.float64], t1: NDArray[np.float64], t2: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """Omega with |g1(s)| > sum_k |g_k(s)| e^{-h_k c} whenever |s| >= Omega (Rouche on Re s = c).
+
+    The positive root of |a_N| r^N - sum_{i<N} (|a_i| + sum_k e^{-h_k c} |b_k,i|) r^i
+    (one sign change, so exactly one), found by bisection; the upper end is
+    returned, where the polynomial is strictly positive.
+    """
+    g1 = np.abs(terms[0][0])
+    n = g1.size - 1
+    shape = np.broadcast_shapes(c.shape, t1.shape, t2.shape)
+    low = np.zeros(shape + (n,))
+    low[...] = g1[:n]
+    for coef, a, b in terms[1:]:
+        with np.errstate(over="ignore"):
+            w = np.exp(-(a * t1 + b * t2) * c)
+        low[..., : coef.size] += w[..., None] * np.abs(coef)
+    lead = g1[n]
+    hi = np.maximum(1.0, low.sum(axis=-1) / lead) * (1.0 + 1e-12)
+    lo = np.zeros(shape)
+    powers = np.arange(n)
+
+    def p(r: NDArray[np.float64]) -> NDArray[np.float64]:
+        return lead * r**n - (low * r[..., None] ** powers).sum(axis=-1)
+
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        pos = p(mid) > 0.0
+        hi = np.where(pos, mid, hi)
+        lo = np.where(pos, lo, mid)
+    return hi * (1.0 + 1e-9) + 1e-12
+
+
+def _tail_winding(
+    terms: _Terms, g1_roots: NDArray[np.complex128], s_end: NDArray[np.complex128],
+    t1: NDArray[np.float64], t2: NDArray[np.float64], *, upper: bool,
+) -> NDArray[np.float64]:
+    """Arg change of q from c + i Omega up to c + i inf (upper) or from c - i inf to c - i Omega.
+
+    There |q/g1 - 1| < 1, so arg q = arg g1 + Arg(q/g1), with Arg(q/g1) -> 0
+    at infinity and arg g1 moving by sum over its roots z of the angle of s - z.
+    """
+    q, _, _ = _evaluate(terms, s_end, t1, t2)
+    g1 = _horner(terms[0][0], s_end)
+    ratio = np.angle(q / g1)
+    ang = np.angle(s_end[..., None] - g1_roots)
+    if upper:
+        return (np.pi / 2 - ang).sum(axis=-1) - ratio
+    return (ang + np.pi / 2).sum(axis=-1) + ratio
+
+
+def _g1_roots(terms: _Terms) -> NDArray[np.complex128]:
+    g1 = terms[0][0]
+    return np.roots(g1[::-1]) if g1.size > 1 else np.zeros(0, dtype=np.complex128)
+
+
+def _count_right_single(prob: _Problem, t1: float, t2: float, c: float) -> int | None:
+    """Certified number of roots of q with Re s > c (None if not certifiable)."""
+    a1, a2, cc = np.asarray(t1), np.asarray(t2), np.asarray(c, dtype=float)
+    omega = float(_cauchy_radius(prob.terms, cc, a1, a2))
+    piece = _segment_winding(
+        prob.terms, t1, t2, complex(c, -omega), complex(c, omega), budget=_MAX_SAMPLES
+    )
+    if piece is None:
+        return None
+    roots = _g1_roots(prob.terms)
+    top = _tail_winding(prob.terms, roots, np.asarray(complex(c, omega)), a1, a2, upper=True)
+    bottom = _tail_winding(prob.terms, roots, np.asarray(complex(c, -omega)), a1, a2, upper=False)
+    delta = piece[0] + float(top) + float(bottom)
+    count = prob.degree / 2.0 - delta / (2.0 * np.pi)
+    return int(round(count)) if abs(count - round(count)) < 0.1 else None
+
+
+def _count_right_batch(
+    prob: _Problem, t1: NDArray[np.float64], t2: NDArray[np.float64], c: NDArray[np.float64],
+    samples: int,
+) -> NDArray[np.float64]:
+    """Certified counts in Re s > c for many delay pairs with ``samples`` uniform samples each.
+
+    NaN where the uniform sampling does not pass the certificate (the caller
+    then falls back to the adaptive single-point count).
+    """
+    omega = _cauchy_radius(prob.terms, c, t1, t2)
+    u = np.linspace(-1.0, 1.0, samples)
+    s = c[:, None] + 1j * omega[:, None] * u
+    q, _, _ = _evaluate(prob.terms, s, t1[:, None], t2[:, None])
+    absq = np.abs(q)
+    rho = np.maximum(np.abs(s[:, :-1]), np.abs(s[:, 1:]))
+    L = _lipschitz(prob.terms, rho, c[:, None], t1[:, None], t2[:, None])
+    step = omega * (u[1] - u[0])
+    ok = np.all(np.minimum(absq[:, :-1], absq[:, 1:]) > 0.5 * L * step[:, None], axis=1)
+    with np.errstate(all="ignore"):
+        mid = np.angle(q[:, 1:] / q[:, :-1]).sum(axis=1)
+    roots = _g1_roots(prob.terms)
+    top = _tail_winding(prob.terms, roots, c + 1j * omega, t1, t2, upper=True)
+    bottom = _tail_winding(prob.terms, roots, c - 1j * omega, t1, t2, upper=False)
+    count = prob.degree / 2.0 - (mid + top + bottom) / (2.0 * np.pi)
+    good = ok & (np.abs(count - np.round(count)) < 0.1)
+    return np.where(good, np.round(count), np.nan)
+
+
+# =====================================================================
+# choosing the discretization and the certifying line
+# =====================================================================
+def _initial_degree(hmax: float, radius: float) -> int:
+    """Chebyshev degree resolving roots up to |s| = radius over a delay interval hmax.
+
+    A root s needs e^{s theta} resolved on [-hmax, 0]; Chebyshev interpolation
+    of it converges once N exceeds about |s| hmax / 2 (Bernstein ellipse), so
+    a margin of twice that plus a floor keeps the rightmost roots accurate
+    enough to seed Newton.
+    """
+    return int(min(MAX_DEGREE, max(12, math.ceil(1.2 * radius * hmax + 10))))
+
+
+def _root_scale(prob: _Problem) -> float:
+    """Radius of the delay-free roots plus the delayed gains: scale of the rightmost roots."""
+    total = prob.A + sum(b for b, _, _ in prob.delayed)
+    return float(max(1.0, np.max(np.abs(np.linalg.eigvals(total))), np.linalg.norm(prob.A, 2)))
+
+
+def _choose_line(reals: NDArray[np.float64], top: float) -> float:
+    """A line Re s = c in a gap left of ``top`` (reals: known root real parts, descending).
+
+    Roots whose real parts are within 1e-3 of each other stay on the same
+    side, so the line is never closer than 5e-4 to a known root. ``top`` is
+    the real part of the rightmost root wanted (the deflated zero of eq.
+    factor1 may lie right of it and is then simply counted).
+    """
+    k0 = int(np.argmax(reals <= top))
+    for k in range(k0, min(reals.size - 1, k0 + 8)):
+        gap = reals[k] - reals[k + 1]
+        if gap > 1e-3 * (1.0 + abs(reals[k])):
+            return float(reals[k] - 0.5 * min(gap, 1.0))
+    return float(reals[min(reals.size - 1, k0 + 8)] - 0.5)
+
+
+def _known_reals(prob: _Problem, roots: NDArray[np.complex128], mult: NDArray[np.int64]) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Real parts (descending) and multiplicities of the roots of q, incl. the deflated zero."""
+    if prob.deflate_zero:
+        roots = np.concatenate([roots, [0.0]])
+        mult = np.concatenate([mult, [1]])
+    order = np.argsort(-roots.real)
+    return roots.real[order], mult[order]
+
+
+@dataclass(frozen=True)
+class _SolveResult:
+    roots: NDArray[np.complex128]  # roots of the solved q (no mirror images), deflated
+    mult: NDArray[np.int64]
+    line: float
+    degree: int
+
+
+def _solve_rightmost(prob: _Problem, t1: float, t2: float) -> _SolveResult:
+    """All roots right of a certified line, for one delay pair (the robust path)."""
+    hmax = _max_delay(prob, t1, t2)
+    a1, a2 = np.asarray(t1), np.asarray(t2)
+    N = _initial_degree(hmax, _root_scale(prob))
+    partial: NDArray[np.complex128] = np.zeros(0, dtype=np.complex128)
+    while True:
+        if hmax == 0.0:
+            eig = _delay_free_eigenvalues(prob)
+        else:
+            eig = _igd_eigenvalues(prob, N, a1.reshape(1), a2.reshape(1))[0]
+        if prob.deflate_zero:
+            eig = np.delete(eig, np.argmin(np.abs(eig)))
+        roots, ok = _polish(prob, eig, a1, a2)
+        roots = _cluster(roots[ok])
+        mult = _multiplicity(prob, roots, t1, t2)
+        partial = roots
+        if roots.size:
+            reals, m = _known_reals(prob, roots, mult)
+            c = _choose_line(reals, float(roots.real.max()))
+            expected = int(m[reals > c].sum())
+            if _count_right_single(prob, t1, t2, c) == expected:
+                keep = roots.real > c
+                return _SolveResult(roots[keep], mult[keep], c, N)
+        if hmax == 0.0 or N >= MAX_DEGREE:
+            raise NotConvergedError(
+                f"rightmost root at (tau1, tau2) = ({t1:g}, {t2:g}) not certified up to degree {N}",
+                partial=partial,
+            )
+        N = min(MAX_DEGREE, 2 * N)
+
+
+# =====================================================================
+# public: roots of one quasi-polynomial
+# =====================================================================
+def _check_region(region: object) -> Region:
+    try:
+        vals = tuple(float(v) for v in region)  # type: ignore[union-attr]
+    except (TypeError, ValueError) as exc:
+        raise InputError("region must be (re_min, re_max, im_min, im_max)") from exc
+    if len(vals) != 4 or not all(math.isfinite(v) for v in vals):
+        raise InputError("region must be four finite numbers (re_min, re_max, im_min, im_max)")
+    if not (vals[0] < vals[1] and vals[2] < vals[3]):
+        raise InputError(f"region must have re_min < re_max and im_min < im_max, got {vals}")
+    return vals  # type: ignore[return-value]
+
+
+def _with_mirror(prob: _Problem, roots: NDArray[np.complex128]) -> NDArray[np.complex128]:
+    if not prob.mirror:
+        return roots
+    return _cluster(np.concatenate([roots, np.conj(roots)]))
+
+
+def roots_in(
+    qp: TwoDelayQuasiPolynomial | CharacteristicFactor, tau1: float, tau2: float, region: Region
+) -> NDArray[np.complex128]:
+    """All characteristic roots in a rectangle of the complex plane.
+
+    Parameters
+    ----------
+    qp
+        A retarded quasi-polynomial of eq. genfactor, or a factor of
+        eq. factorized (for the centroid factor eq. factor1 the persistent
+        root 0 is *included*: this is the plain root set of q).
+    tau1, tau2
+        Non-negative delays.
+    region
+        (re_min, re_max, im_min, im_max).
+
+    Returns
+    -------
+    ndarray of complex
+        The distinct roots in the rectangle, sorted by decreasing real part,
+        each with relative residual <= RESIDUAL_TOL (:func:`relative_residual`).
+        The count, with multiplicity, is certified by the argument principle
+        on the rectangle's boundary.
+
+    Raises
+    ------
+    NeutralQuasiPolynomialError
+        For a quasi-polynomial of neutral type.
+    NotConvergedError
+        When the count is not reached up to :data:`MAX_DEGREE` or a root lies
+        on the boundary; ``.partial`` holds the roots found.
+
+    Examples
+    --------
+    >>> from delayform.characteristic import TwoDelayQuasiPolynomial
+    >>> q = TwoDelayQuasiPolynomial([2.0, 3.0, 1.0])  # (s + 1)(s + 2)
+    >>> roots_in(q, 0.0, 0.0, (-3, 0, -1, 1)).real.round(12)
+    array([-1., -2.])
+    """
+    region = _check_region(region)
+    t1, t2 = check_delay("tau1", tau1), check_delay("tau2", tau2)
+    prob = _problem(qp)
+    base = prob if not prob.deflate_zero else _Problem(prob.terms, prob.A, prob.delayed, prob.mirror)
+    x0, x1, y0, y1 = region
+    hmax = _max_delay(base, t1, t2)
+    radius = max(abs(complex(x, y)) for x in (x0, x1) for y in (y0, y1))
+    # when mirroring, roots of the lam-factor in the mirrored region are needed too
+    yy = max(abs(y0), abs(y1))
+    count_regions = [region] if not base.mirror else [(x0, x1, -yy, yy)]
+    expected = _region_count(base, t1, t2, count_regions[0])
+    if expected is None:
+        raise NotConvergedError(
+            f"roots_in: a root lies on (or within rounding of) the boundary of {region}",
+            partial=np.zeros(0, dtype=np.complex128),
+        )
+    N = _initial_degree(hmax, max(radius, _root_scale(base)))
+    a1, a2 = np.asarray(t1), np.asarray(t2)
+    found = np.zeros(0, dtype=np.complex128)
+    while True:
+        if hmax == 0.0:
+            eig = _delay_free_eigenvalues(base)
+        else:
+            eig = _igd_eigenvalues(base, N, a1.reshape(1), a2.reshape(1))[0]
+        polished, ok = _polish(base, eig, a1, a2)
+        roots = _cluster(polished[ok])
+        mult = _multiplicity(base, roots, t1, t2)
+        rx0, rx1, ry0, ry1 = count_regions[0]
+        inside = (roots.real > rx0) & (roots.real < rx1) & (roots.imag > ry0) & (roots.imag < ry1)
+        found = roots[inside]
+        if int(mult[inside].sum()) == expected:
+            break
+        if hmax == 0.0 or N >= MAX_DEGREE:
+            raise NotConvergedError(
+                f"roots_in: found {found.size} roots, the argument principle counts {expected} (degree {N})",
+                partial=_in_region(_with_mirror(base, found), region),
+            )
+        N = min(MAX_DEGREE, 2 * N)
+    return _in_region(_with_mirror(base, found), region)
+
+
+def _in_region(roots: NDArray[np.complex128], region: Region) -> NDArray[np.complex128]:
+    x0, x1, y0, y1 = region
+    keep = (roots.real > x0) & (roots.real < x1) & (roots.imag > y0) & (roots.imag < y1)
+    out = roots[keep]
+    return out[np.lexsort((-out.imag, -out.real))]
+
+
+def count_roots_right_of(
+    qp: TwoDelayQuasiPolynomial | CharacteristicFactor, tau1: float, tau2: float, c: float
+) -> int:
+    """Certified number of roots with Re s > c (multiplicity counted, persistent zero included).
+
+    The argument principle along Re s = c closed at infinity (module
+    docstring). Raises NotConvergedError when a root lies on the line.
+    """
+    t1, t2 = check_delay("tau1", tau1), check_delay("tau2", tau2)
+    prob = _problem(qp)
+    base = _Problem(prob.terms, prob.A, prob.delayed, prob.mirror)
+    n = _count_right_single(base, t1, t2, float(c))
+    if n is None:
+        raise NotConvergedError(f"a root lies on (or within rounding of) the line Re s = {c:g}")
+    if base.mirror:
+        n += _count_right_single(_mirror_problem(base), t1, t2, float(c)) or 0
+    return n
+
+
+def _mirror_problem(prob: _Problem) -> _Problem:
+    terms = tuple((np.conj(c), a, b) for c, a, b in prob.terms)
+    delayed = tuple((np.conj(m), a, b) for m, a, b in prob.delayed)
+    return _Problem(terms, np.conj(prob.A), delayed, False, prob.deflate_zero)
+
+
+def rightmost_root(
+    qp: TwoDelayQuasiPolynomial | CharacteristicFactor, tau1: float, tau2: float
+) -> complex:
+    """The rightmost characteristic root (for a factor, the centroid's zero excluded).
+
+    Parameters
+    ----------
+    qp
+        A retarded quasi-polynomial of eq. genfactor or a factor of
+        eq. factorized. For the centroid factor (eq. factor1) the persistent
+        root s = 0 is deflated; its other roots count (a second root at 0,
+        as at tau1 = 0, is returned).
+    tau1, tau2
+        Non-negative delays.
+
+    Returns
+    -------
+    complex
+        The root with the largest real part (of a conjugate pair, the one
+        with Im >= 0), relative residual <= RESIDUAL_TOL, certified as in the
+        module docstring.
+
+    Examples
+    --------
+    >>> from delayform.characteristic import TwoDelayQuasiPolynomial
+    >>> q = TwoDelayQuasiPolynomial([1.0, 1.0], [1.0])  # s + 1 + e^{-s}
+    >>> s = rightmost_root(q, 1.0, 0.0)
+    >>> round(s.real, 6), round(s.imag, 6)
+    (-0.605021, 1.788188)
+    """
+    t1, t2 = check_delay("tau1", tau1), check_delay("tau2", tau2)
+    prob = _problem(qp)
+    res = _solve_rightmost(prob, t1, t2)
+    return _pick_rightmost(prob, res.roots)
+
+
+def _pick_rightmost(prob: _Problem, roots: NDArray[np.complex128]) -> complex:
+    if roots.size == 0:
+        raise NotConvergedError("no root right of the certified line", partial=roots)
+    top = roots[np.argmax(roots.real)]
+    # of a conjugate pair (or the mirror image), report the member with Im >= 0
+    if prob.mirror or prob.is_real or np.all([np.all(c.imag == 0) for c, _, _ in prob.terms]):
+        top = complex(top.real, abs(top.imag))
+    return complex(top)
+
+
+# =====================================================================
+# batched rightmost roots over many delay pairs (for maps)
+# =====================================================================
+#: Seeds per delay pair polished in the batched path (the rightmost eigenvalues).
+_BATCH_SEEDS = 8
+#: Delay pairs per batched eigenvalue call (bounds memory).
+_CHUNK = 2048
+
+
+def _map_degree(hmax: NDArray[np.float64], radius: float) -> NDArray[np.int64]:
+    """Degree for the batched pass: enough to seed Newton at the rightmost roots.
+
+    Lower than :func:`_initial_degree` on purpose: the certificate decides,
+    and the few pairs it rejects go through the robust single-pair path.
+    """
+    return np.clip(np.ceil(0.8 * radius * hmax + 6), 8, MAX_DEGREE).astype(np.int64)
+
+
+def _batch_distinct(
+    roots: NDArray[np.complex128], ok: NDArray[np.bool_]
+) -> NDArray[np.complex128]:
+    """Per row, NaN for failed seeds and for repeats of an earlier seed's root."""
+    r = np.where(ok, roots, np.nan)
+    k = r.shape[1]
+    close = np.abs(r[:, :, None] - r[:, None, :]) <= 1e-7 * (1.0 + np.abs(r[:, None, :]))
+    earlier = np.tril(np.ones((k, k), dtype=bool), -1)  # [i, j]: j < i
+    dup = np.any(close & earlier[None], axis=2)
+    return np.where(dup, np.nan, r)
+
+
+def _batch_lines(
+    prob: _Problem, roots: NDArray[np.complex128]
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Vectorized :func:`_choose_line`: the line c, the expected count and the rightmost real part."""
+    reals = roots.real  # NaN for missing
+    top = np.nanmax(np.where(np.isnan(reals), -np.inf, reals), axis=1)
+    if prob.deflate_zero:
+        reals = np.concatenate([reals, np.zeros((reals.shape[0], 1))], axis=1)
+    srt = -np.sort(np.where(np.isnan(reals), np.inf, -reals), axis=1)  # descending, -inf for missing
+    n_known = np.sum(np.isfinite(srt), axis=1)
+    c = np.full(srt.shape[0], np.nan)
+    k0 = np.argmax(srt <= top[:, None], axis=1)
+    for step in range(8):
+        k = k0 + step
+        valid = (k + 1 < n_known) & np.isnan(c)
+        kk = np.minimum(k, srt.shape[1] - 2)
+        hi = np.take_along_axis(srt, kk[:, None], 1)[:, 0]
+        lo = np.take_along_axis(srt, (kk + 1)[:, None], 1)[:, 0]
+        with np.errstate(invalid="ignore"):  # -inf - -inf where fewer roots are known
+            gap = hi - lo
+        take = valid & (gap > 1e-3 * (1.0 + np.abs(hi)))
+        c = np.where(take, hi - 0.5 * np.minimum(gap, 1.0), c)
+    last = np.take_along_axis(srt, np.clip(np.minimum(k0 + 8, n_known - 1), 0, None)[:, None], 1)[:, 0]
+    c = np.where(np.isnan(c), last - 0.5, c)
+    expected = np.sum(srt > c[:, None], axis=1).astype(float)
+    return c, expected, top
+
+
+def _rightmost_batch(
+    prob: _Problem, t1: NDArray[np.float64], t2: NDArray[np.float64],
+    advance: Callable[[int], None] | None = None,
+) -> NDArray[np.complex128]:
+    """Certified rightmost root of one factor at every delay pair (1-D arrays t1, t2).
+
+    Chebyshev discretizations of a few degrees (one per bucket of h_max) are
+    solved as stacks by one np.linalg.eigvals call, the rightmost eigenvalues
+    of every pair Newton-polished together, and the lines Re s = c certified
+    together by the uniform-sampling argument principle; pairs failing any
+    step take the robust :func:`_solve_rightmost` path.
+    """
+    out = np.full(t1.shape, np.nan + 0j, dtype=np.complex128)
+    hmax = np.maximum.reduce([a * t1 + b * t2 for _, a, b in prob.delayed])
+    degree = _map_degree(hmax, _root_scale(prob))
+    pending: list[int] = list(np.flatnonzero(hmax == 0.0))
+    for N in np.unique(degree[hmax > 0.0]):
+        idx_all = np.flatnonzero((degree == N) & (hmax > 0.0))
+        for start in range(0, idx_all.size, _CHUNK):
+            idx = idx_all[start : start + _CHUNK]
+            a1, a2 = t1[idx], t2[idx]
+            eig = _igd_eigenvalues(prob, int(N), a1, a2)
+            if prob.deflate_zero:  # the discretization keeps the persistent 0 exactly
+                drop = np.argmin(np.abs(eig), axis=1)
+                eig[np.arange(idx.size), drop] = -np.inf
+            order = np.argsort(-eig.real, axis=1)[:, :_BATCH_SEEDS]
+            seeds = np.take_along_axis(eig, order, 1)
+            roots, ok = _polish(prob, seeds, a1[:, None], a2[:, None])
+            roots = _batch_distinct(roots, ok)
+            c, expected, top = _batch_lines(prob, roots)
+            good = np.isfinite(top) & np.isfinite(c)
+            counts = np.full(idx.size, np.nan)
+            todo = np.flatnonzero(good)
+            for samples in (256, 2048):
+                if todo.size == 0:
+                    break
+                counts[todo] = _count_right_batch(prob, a1[todo], a2[todo], c[todo], samples)
+                todo = todo[np.isnan(counts[todo])]
+            certified = good & (counts == expected)
+            best = np.argmax(np.where(np.isnan(roots.real), -np.inf, roots.real), axis=1)
+            out[idx[certified]] = roots[np.arange(idx.size), best][certified]
+            pending.extend(idx[~certified].tolist())
+            if advance is not None:
+                advance(int(idx.size))
+    for i in pending:
+        res = _solve_rightmost(prob, float(t1[i]), float(t2[i]))
+        out[i] = _pick_rightmost(prob, res.roots)
+    if prob.mirror or prob.is_real:
+        out = out.real + 1j * np.abs(out.imag)
+    return out
+
+
+# =====================================================================
+# public: dominant root of the formation, maps, scheduling
+# =====================================================================
+@dataclass(frozen=True)
+class DominantRoot:
+    """The dominant (rightmost) characteristic root of the formation at one delay pair.
+
+    Attributes
+    ----------
+    root
+        The rightmost root over all factors of eq. factorized, the centroid
+        factor's persistent root 0 (eq. factor1) excluded; of a conjugate pair
+        the member with Im >= 0.
+    factor
+        The factor it belongs to.
+    tau1, tau2
+        The delays.
+    """
+
+    root: complex
+    factor: CharacteristicFactor
+    tau1: float
+    tau2: float
+
+    @property
+    def time_constant(self) -> float:
+        """1 / |Re root| (inf when the root is on the imaginary axis)."""
+        re = abs(self.root.real)
+        return math.inf if re == 0.0 else 1.0 / re
+
+    @property
+    def is_stable(self) -> bool:
+        """True when Re root < 0: the disagreement dynamics decay (Lemma 2)."""
+        return self.root.real < 0.0
+
+
+def _checked_factors(topology: Topology, P: float, D: float) -> tuple[CharacteristicFactor, ...]:
+    if not isinstance(topology, Topology):
+        raise InputError(f"topology must be a Topology, got {type(topology).__name__}")
+    topology.require_spanning_tree()
+    P, D = check_gains(P, D)
+    return factors(topology, P, D)
+
+
+def dominant_root(topology: Topology, P: float, D: float, tau1: float, tau2: float) -> DominantRoot:
+    """The dominant root of the formation and its time constant.
+
+    Parameters
+    ----------
+    topology
+        Communication topology; it must have a spanning tree (Lemma 3).
+    P, D
+        Positive gains of eq. protocol.
+    tau1, tau2
+        Non-negative delays on positions and velocities.
+
+    Returns
+    -------
+    DominantRoot
+        The rightmost root over the factors of eq. factorized, excluding the
+        persistent root 0 of eq. factor1 (its other roots count).
+
+    Examples
+    --------
+    >>> from delayform.topology import paper_six
+    >>> r = dominant_root(paper_six(), 1.0, 0.5, 1.0, 2.0)  # point c of Fig. stability
+    >>> r.is_stable, round(r.root.real, 4)
+    (False, 0.0836)
+    """
+    t1, t2 = check_delay("tau1", tau1), check_delay("tau2", tau2)
+    best: tuple[complex, CharacteristicFactor] | None = None
+    for f in _checked_factors(topology, P, D):
+        r = rightmost_root(f, t1, t2)
+        if best is None or r.real > best[0].real:
+            best = (r, f)
+    assert best is not None  # a topology has at least the centroid factor
+    return DominantRoot(best[0], best[1], t1, t2)
+
+
+@dataclass(frozen=True, eq=False)
+class DominantRootMap:
+    """Dominant roots over a grid of delays (paper Figs. dominant and contour).
+
+    Attributes
+    ----------
+    tau1_values, tau2_values
+        The grid axes; ``roots[i, j]`` is at (tau1_values[i], tau2_values[j]).
+    roots
+        Dominant root at each grid point (complex array).
+    factor_index
+        Index into ``factors`` of the factor the dominant root belongs to.
+    factors
+        The factors of eq. factorized.
+    """
+
+    tau1_values: NDArray[np.float64]
+    tau2_values: NDArray[np.float64]
+    roots: NDArray[np.complex128]
+    factor_index: NDArray[np.int64]
+    factors: tuple[CharacteristicFactor, ...]
+
+    @property
+    def real(self) -> NDArray[np.float64]:
+        """Re(dominant root) at each grid point, the surface of Fig. dominant."""
+        return self.roots.real
+
+    @property
+    def stable(self) -> NDArray[np.bool_]:
+        """True where Re(dominant root) < 0."""
+        return self.roots.real < 0.0
+
+    @property
+    def time_constant(self) -> NDArray[np.float64]:
+        """1 / |Re(dominant root)| at each grid point."""
+        with np.errstate(divide="ignore"):
+            return 1.0 / np.abs(self.roots.real)
+
+    def best(self) -> tuple[float, float, complex]:
+        """The grid point with the leftmost dominant root: (tau1, tau2, root)."""
+        i, j = np.unravel_index(int(np.argmin(self.roots.real)), self.roots.shape)
+        return float(self.tau1_values[i]), float(self.tau2_values[j]), complex(self.roots[i, j])
+
+    def plot_surface(self, ax: Axes | None = None) -> Axes:
+        """Surface of Re(dominant root) with the plane Re s = 0 (paper Fig. dominant)."""
+        from delayform.plots import plot_dominant_surface
+
+        return plot_dominant_surface(self, ax=ax)
+
+    def plot_contour(self, ax: Axes | None = None) -> Axes:
+        """Contour map of Re(dominant root) (paper Fig. contour)."""
+        from delayform.plots import plot_dominant_contour
+
+        return plot_dominant_contour(self, ax=ax)
+
+
+def _grid_axis(name: str, values: ArrayLike) -> NDArray[np.float64]:
+    try:
+        arr = np.atleast_1d(np.asarray(values, dtype=np.float64))
+    except (TypeError, ValueError) as exc:
+        raise DelayError(f"{name} must be a sequence of delays") from exc
+    if arr.ndim != 1 or arr.size == 0:
+        raise DelayError(f"{name} must be a non-empty 1-D sequence of delays")
+    if not np.all(np.isfinite(arr)) or np.any(arr < 0.0):
+        raise DelayError(f"{name} must hold finite non-negative delays")
+    return arr
+
+
+def dominant_root_map(
+    topology: Topology,
+    P: float,
+    D: float,
+    tau1_values: ArrayLike,
+    tau2_values: ArrayLike,
+    *,
+    progress: bool = False,
+) -> DominantRootMap:
+    """Dominant root at every point of a delay grid (paper Figs. dominant and contour).
+
+    Fast by design: per factor, every grid point's discretized generator is
+    solved in stacked eigenvalue calls (one degree per bucket of the largest
+    delay), the rightmost eigenvalues of all points are Newton-polished
+    together and certified together by the argument principle; only the
+    points the certificate rejects are redone one by one at higher degree.
+    A conjugate-pair factor is solved through its second-order factor of lam.
+
+    Parameters
+    ----------
+    topology
+        Communication topology with a spanning tree.
+    P, D
+        Positive gains.
+    tau1_values, tau2_values
+        Non-empty 1-D grids of non-negative delays.
+    progress
+        Show a Rich progress bar.
+
+    Returns
+    -------
+    DominantRootMap
+
+    Examples
+    --------
+    >>> from delayform.topology import paper_six
+    >>> m = dominant_root_map(paper_six(), 1.0, 0.5, [0.3, 1.0], [0.2, 2.0])
+    >>> m.stable.tolist()
+    [[True, True], [True, False]]
+    """
+    fs = _checked_factors(topology, P, D)
+    ax1 = _grid_axis("tau1_values", tau1_values)
+    ax2 = _grid_axis("tau2_values", tau2_values)
+    T1, T2 = np.meshgrid(ax1, ax2, indexing="ij")
+    t1, t2 = T1.ravel(), T2.ravel()
+    per_factor = np.empty((len(fs), t1.size), dtype=np.complex128)
+    with _progress(progress, len(fs) * t1.size) as advance:
+        for k, f in enumerate(fs):
+            per_factor[k] = _rightmost_batch(_problem_of_factor(f), t1, t2, advance)
+    index = np.argmax(per_factor.real, axis=0)
+    roots = per_factor[index, np.arange(t1.size)]
+    return DominantRootMap(ax1, ax2, roots.reshape(T1.shape), index.reshape(T1.shape), fs)
+
+
+class _progress:
+    """Context manager yielding an ``advance(n)`` callback; a Rich bar when enabled."""
+
+    def __init__(self, enabled: bool, total: int) -> None:
+        self.enabled, self.total = enabled, total
+        self._bar: Any = None
+
+    def __enter__(self) -> Callable[[int], None] | None:
+        if not self.enabled:
+            return None
+        from rich.progress import Progress
+
+        self._bar = Progress(transient=True)
+        self._bar.start()
+        task = self._bar.add_task("dominant roots", total=self.total)
+        return lambda n: self._bar.advance(task, n)
+
+    def __exit__(self, *exc: object) -> None:
+        if self._bar is not None:
+            self._bar.stop()
+
+
+@dataclass(frozen=True)
+class DelaySchedule:
+    """Delays chosen by delay scheduling (paper Section "Simulation", Fig. contour).
+
+    Attributes
+    ----------
+    tau1, tau2
+        The scheduled delays, each at least its hardware value.
+    root
+        The dominant root there (Re < 0).
+    factor
+        The factor it belongs to.
+    hardware_root
+        The dominant root at the hardware delays ``tau_min`` (for comparison;
+        may be unstable).
+    """
+
+    tau1: float
+    tau2: float
+    root: complex
+    factor: CharacteristicFactor
+    hardware_root: complex
+
+    @property
+    def time_constant(self) -> float:
+        """1 / |Re root|."""
+        return 1.0 / abs(self.root.real)
+
+    @property
+    def settling_time(self) -> float:
+        """Predicted 2 % settling time ln(50) / |Re root| (about 3.9 time constants).
+
+        The disagreement decays like e^{Re(root) t}; it is below 2 % of its
+        initial size after ln(50) / |Re root| seconds (the dominant root alone,
+        constant factors of the other modes ignored).
+        """
+        return SETTLING_FACTOR / abs(self.root.real)
+
+
+def _delay_pair(name: str, value: object) -> tuple[float, float]:
+    try:
+        a, b = value  # type: ignore[misc]
+    except (TypeError, ValueError) as exc:
+        raise DelayError(f"{name} must be a pair (tau1, tau2)") from exc
+    return check_delay(f"{name}[0]", a), check_delay(f"{name}[1]", b)
+
+
+def schedule_delays(
+    topology: Topology,
+    P: float,
+    D: float,
+    *,
+    tau_min: tuple[float, float],
+    tau_max: tuple[float, float],
+    grid: int = 41,
+) -> DelaySchedule:
+    """Delays within ``tau_min <= tau <= tau_max`` that minimise Re(dominant root).
+
+    Delays can only be increased from the hardware ones (delay scheduling,
+    paper Section "Simulation"): a ``grid x grid`` dominant-root map of the box
+    finds the basins, then Nelder-Mead (derivative-free, since the dominant
+    real part is a max of smooth branches) refines the three best stable grid
+    points inside the box.
+
+    Parameters
+    ----------
+    topology
+        Communication topology with a spanning tree.
+    P, D
+        Positive gains.
+    tau_min
+        Hardware delays (t1, t2): the smallest allowed.
+    tau_max
+        Largest allowed delays (T1, T2).
+    grid
+        Points per axis of the coarse map (>= 2).
+
+    Returns
+    -------
+    DelaySchedule
+        Never an unstable pair.
+
+    Raises
+    ------
+    NoStableDelaysError
+        When no grid point of the box is stable.
+    DelayError
+        For negative delays or tau_min > tau_max.
+
+    Examples
+    --------
+    >>> from delayform.topology import paper_six
+    >>> s = schedule_delays(paper_six(), 1.0, 0.5, tau_min=(1.0, 2.0), tau_max=(4.0, 6.0), grid=9)
+    >>> s.root.real < 0 and s.tau1 >= 1.0 and s.tau2 >= 2.0
+    True
+    """
+    lo = _delay_pair("tau_min", tau_min)
+    hi = _delay_pair("tau_max", tau_max)
+    if lo[0] > hi[0] or lo[1] > hi[1]:
+        raise DelayError(f"tau_min {lo} must not exceed tau_max {hi}")
+    if isinstance(grid, bool) or not isinstance(grid, (int, np.integer)) or grid < 2:
+        raise InputError(f"grid must be an integer >= 2, got {grid!r}")
+    fs = _checked_factors(topology, P, D)
+    ax1 = np.linspace(lo[0], hi[0], grid) if hi[0] > lo[0] else np.array([lo[0]])
+    ax2 = np.linspace(lo[1], hi[1], grid) if hi[1] > lo[1] else np.array([lo[1]])
+    coarse = dominant_root_map(topology, P, D, ax1, ax2)
+    if not coarse.stable.any():
+        raise NoStableDelaysError(
+            f"no stable delay pair in the box tau1 in [{lo[0]:g}, {hi[0]:g}], "
+            f"tau2 in [{lo[1]:g}, {hi[1]:g}] (grid {grid} x {grid})"
+        )
+
+    def objective(x: NDArray[np.float64]) -> float:
+        t = np.clip(x, lo, hi)
+        return max(rightmost_root(f, float(t[0]), float(t[1])).real for f in fs)
+
+    flat = np.argsort(coarse.real, axis=None)[:3]
+    candidates = [coarse.best()[:2]]
+    for k in flat:
+        i, j = np.unravel_index(int(k), coarse.real.shape)
+        if coarse.real[i, j] < 0.0:
+            candidates.append((float(ax1[i]), float(ax2[j])))
+    best_x, best_f = np.array(candidates[0]), float(coarse.real.min())
+    for x0 in candidates[1:]:
+        x, fx = _refine(objective, np.array(x0), np.array(lo), np.array(hi), grid)
+        if fx < best_f:
+            best_x, best_f = x, fx
+    final = dominant_root(topology, P, D, float(best_x[0]), float(best_x[1]))
+    if not final.is_stable:  # cannot happen (best_f <= a stable grid value); guard anyway
+        raise NoStableDelaysError("delay scheduling ended on an unstable pair")
+    hardware = dominant_root(topology, P, D, lo[0], lo[1])
+    return DelaySchedule(final.tau1, final.tau2, final.root, final.factor, hardware.root)
+
+
+def _refine(
+    objective: Callable[[NDArray[np.float64]], float],
+    x0: NDArray[np.float64], lo: NDArray[np.float64], hi: NDArray[np.float64], grid: int,
+) -> tuple[NDArray[np.float64], float]:
+    """Nelder-Mead from a grid point over the free axes of the box (a flat axis stays fixed)."""
+    from scipy.optimize import minimize
+
+    free = hi > lo
+    if not free.any():
+        return x0, objective(x0)
+
+    def along(y: NDArray[np.float64]) -> float:
+        x = x0.copy()
+        x[free] = y
+        return objective(x)
+
+    step = (hi - lo)[free] / grid
+    y0 = x0[free]
+    simplex = np.vstack([y0] + [y0 + np.eye(y0.size)[k] * step[k] for k in range(y0.size)])
+    res = minimize(
+        along, y0, method="Nelder-Mead", bounds=list(zip(lo[free], hi[free], strict=True)),
+        options={"initial_simplex": np.clip(simplex, lo[free], hi[free]), "xatol": 1e-6,
+                 "fatol": 1e-10, "maxfev": 80},
+    )
+    x = x0.copy()
+    x[free] = np.clip(res.x, lo[free], hi[free])
+    return x, float(res.fun)
