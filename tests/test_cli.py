@@ -214,7 +214,7 @@ PAPER_FILES = (
     "sim_a_xy.png", "sim_a_xy.svg", "sim_a_traces.png", "sim_a_traces.svg", "sim_a.csv", "sim_a.npz",
     "sim_b_xy.png", "sim_b_xy.svg", "sim_b.csv", "sim_b.npz",
     "roots.csv", "dominant_surface.png", "dominant_surface.svg", "dominant_contour.png",
-    "dominant_contour.svg", "dominant_map.npz", "dominant_map.csv", "schedule.json",
+    "dominant_contour.svg", "dominant_map.npz", "dominant_map.csv", "schedule.json", "schedule_c.json",
 )  # fmt: skip
 
 
@@ -251,6 +251,9 @@ def test_paper_writes_every_file_it_lists(tmp_path_factory: pytest.TempPathFacto
     assert [p["stable"] for p in sections["chart"]["points"]] == [True, True, False, True, True]
     assert sections["simulation_a"]["settling_time"] < sections["simulation_b"]["settling_time"]
     assert sections["schedule"]["root"]["re"] < 0
+    # from the unstable point c, scheduling finds stable delays no smaller than c
+    assert sections["schedule_c"]["hardware_root"]["re"] > 0 > sections["schedule_c"]["root"]["re"]
+    assert sections["schedule_c"]["tau1"] >= 1.0 and sections["schedule_c"]["tau2"] >= 2.0
     html = (out / "index.html").read_text()
     assert html.count("<img ") == sum(1 for n in listed if n.endswith(".png"))
     assert "data:image/png;base64," in html

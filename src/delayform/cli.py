@@ -397,7 +397,7 @@ def _write_full_report(sc: Any, directory: Path, *, paper: bool, as_json: bool) 
     from delayform.report import jsonable, paper_sections, scenario_sections, write_report
 
     build = paper_sections if paper else scenario_sections
-    steps = 8 if paper else 7
+    steps = 9 if paper else 7
     start = time.perf_counter()
     with _progress(steps, title="paper" if paper else "report") as step:
         sections = build(sc, directory, progress=step)

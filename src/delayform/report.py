@@ -425,41 +425,57 @@ def map_section(scenario: Scenario, out: Path, *, progress: MapProgress | None =
     )
 
 
-def schedule_section(scenario: Scenario, out: Path) -> Section:
-    """Delay scheduling: the fastest stable delays reachable by increasing the hardware delays."""
+def schedule_section(
+    scenario: Scenario,
+    out: Path,
+    *,
+    tau_min: tuple[float, float] | None = None,
+    tau_max: tuple[float, float] | None = None,
+    label: str = "",
+) -> Section:
+    """Delay scheduling: the fastest stable delays reachable by increasing the hardware delays.
+
+    ``tau_min`` and ``tau_max`` default to the scenario's ``[schedule]``;
+    ``label`` names the hardware point (e.g. ``"c"``) in titles and file names.
+    """
     from delayform.spectrum import schedule_delays
 
-    sch = scenario.schedule
-    result = schedule_delays(scenario.topology, scenario.P, scenario.D, tau_min=sch.tau_min, tau_max=sch.tau_max)
-    root = complex(result.root)
+    lo = scenario.schedule.tau_min if tau_min is None else tau_min
+    hi = scenario.schedule.tau_max if tau_max is None else tau_max
+    result = schedule_delays(scenario.topology, scenario.P, scenario.D, tau_min=lo, tau_max=hi)
+    root, hardware = complex(result.root), complex(result.hardware_root)
     summary = {
-        "tau_min": list(sch.tau_min),
-        "tau_max": list(sch.tau_max),
+        "tau_min": list(lo),
+        "tau_max": list(hi),
         "tau1": float(result.tau1),
         "tau2": float(result.tau2),
         "root": root,
         "time_constant": float(result.time_constant),
         "settling_time": float(result.settling_time),
-        "hardware_root": complex(result.hardware_root),
+        "hardware_root": hardware,
     }
-    (out / "schedule.json").write_text(json.dumps(jsonable(summary), indent=2))
+    suffix = f"_{label}" if label else ""
+    name = f"schedule{suffix}.json"
+    (out / name).write_text(json.dumps(jsonable(summary), indent=2))
+    where = f"point {label} " if label else ""
+    verdict = "unstable" if hardware.real > 0 else "stable"
     return Section(
-        key="schedule",
-        title="Delay scheduling: the best delays",
+        key=f"schedule{suffix}",
+        title=f"Delay scheduling from {where}({lo[0]:g}, {lo[1]:g}) s: the best delays",
         text=(
             "Delays can only be increased from what the hardware gives. Within "
-            f"[{sch.tau_min[0]:g}, {sch.tau_max[0]:g}] x [{sch.tau_min[1]:g}, {sch.tau_max[1]:g}] s, the "
-            "delays below give the most negative dominant root, hence the fastest convergence."
+            f"[{lo[0]:g}, {hi[0]:g}] x [{lo[1]:g}, {hi[1]:g}] s, the delays below give the most "
+            f"negative dominant root, hence the fastest convergence. At the hardware delays the team is {verdict}."
         ),
         table=(
-            ("hardware delays (tau1, tau2)", f"({sch.tau_min[0]:g}, {sch.tau_min[1]:g}) s"),
-            ("dominant root at the hardware delays", _fmt_complex(complex(result.hardware_root))),
+            ("hardware delays (tau1, tau2)", f"({lo[0]:g}, {lo[1]:g}) s"),
+            ("dominant root at the hardware delays", f"{_fmt_complex(hardware)} ({verdict})"),
             ("best delays (tau1, tau2)", f"({result.tau1:.4g}, {result.tau2:.4g}) s"),
             ("dominant root there", _fmt_complex(root)),
             ("predicted settling time ln(50)/|Re|", f"{_fmt(float(result.settling_time))} s"),
         ),
         summary=summary,
-        files=("schedule.json",),
+        files=(name,),
     )
 
 
@@ -594,6 +610,8 @@ def paper_sections(
     points = dict((p[0], p[1:]) for p in scenario.chart.points)
     a = points.get("a", (scenario.tau1, scenario.tau2))
     b = points.get("b", PAPER_POINTS[1][1:])
+    c = points.get("c", PAPER_POINTS[2][1:])
+    window = (scenario.chart.tau1_max, scenario.chart.tau2_max)
     steps: list[tuple[str, Callable[[], Section]]] = [
         ("eigenvalues and factors", lambda: factors_section(scenario, out)),
         ("stability chart", lambda: chart_section(scenario, out)),
@@ -602,6 +620,8 @@ def paper_sections(
         ("roots", lambda: roots_section(scenario, out)),
         ("dominant-root map", lambda: map_section(scenario, out, progress=map_progress)),
         ("delay scheduling", lambda: schedule_section(scenario, out)),
+        # the paper's point c is unstable; increasing the delays recovers stability (points d, e)
+        ("delay scheduling from c", lambda: schedule_section(scenario, out, tau_min=c, tau_max=window, label="c")),
     ]  # fmt: skip
     sections = []
     for text, run in steps:
