@@ -1,0 +1,347 @@
+"""Tests of delayform.simulation: against scipy's solve_ivp by the method of steps,
+the stated order, exact feedback linearization, the predicted final formation, and
+the paper's settling times checked against independently computed dominant roots."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.integrate import solve_ivp
+
+from delayform.characteristic import factors
+from delayform.errors import (
+    DelayError,
+    FormationError,
+    GainError,
+    InputError,
+    SimulationInputError,
+)
+from delayform.formation import formation_forcing, named_formation, predicted_final_positions
+from delayform.simulation import Trajectory, paper_simulations, simulate, stated_order
+from delayform.topology import paper_six, random_digraph, ring
+
+P, D = 1.0, 0.5
+POINT_A, POINT_B, POINT_C = (0.3, 0.2), (2.0, 1.0), (1.0, 2.0)
+
+
+# --------------------------------------------------- independent reference
+def method_of_steps(topology, tau1, tau2, desired, x0, theta0, speed0, T, model):
+    """eq. formation integrated with solve_ivp (DOP853) interval by interval.
+
+    Each interval ends before the delayed arguments can reach into it and at
+    every breakpoint a tau1 + b tau2 (where the solution loses smoothness),
+    so each piece is a smooth ODE whose delayed terms come from the dense
+    output of earlier pieces. Returns a function t -> positions (n, 2).
+    """
+    n = topology.n
+    C = topology.C
+    F = formation_forcing(topology, P, desired)
+    v0 = speed0[:, None] * np.column_stack([np.cos(theta0), np.sin(theta0)])
+    taus = [t for t in (tau1, tau2) if t > 0]
+    h = min(taus)
+    marks = [k * h for k in range(int(T / h) + 2)] + [T]
+    for a in range(int(T / tau1) + 2 if tau1 else 1):
+        for b in range(int(T / tau2) + 2 if tau2 else 1):
+            marks.append(a * tau1 + b * tau2)
+    marks = [m for m in sorted(marks) if 0 <= m <= T]
+    # breakpoints closer than 1e-9 are one (keep the exact value of the first)
+    marks = [m for i, m in enumerate(marks) if i == 0 or m - marks[i - 1] > 1e-9]
+    if marks[-1] < T:
+        marks.append(T)
+    pieces: list = []
+
+    def split(y):
+        if model == "double_integrator":
+            return y[: 2 * n].reshape(n, 2), y[2 * n :].reshape(n, 2)
+        X, th, v = y[: 2 * n].reshape(n, 2), y[2 * n : 3 * n], y[3 * n :]
+        return X, v[:, None] * np.column_stack([np.cos(th), np.sin(th)])
+
+    def past(t):
+        if t <= 0:
+            return x0, v0
+        for t0, t1, sol in pieces:
+            if t0 - 1e-9 <= t <= t1 + 1e-9:  # merged breakpoints are within 1e-9
+                return split(sol(t))
+        raise AssertionError(f"no piece covers {t}")
+
+    def rhs(t, y):
+        X, V = split(y)
+        xd = past(t - tau1)[0] if tau1 else X
+        vd = past(t - tau2)[1] if tau2 else V
+        u = P * (C @ xd - X) + D * (C @ vd - V) + F
+        if model == "double_integrator":
+            return np.concatenate([V.ravel(), u.ravel()])
+        th, v = y[2 * n : 3 * n], y[3 * n :]
+        c, s = np.cos(th), np.sin(th)
+        return np.concatenate(
+            [V.ravel(), (-s * u[:, 0] + c * u[:, 1]) / v, c * u[:, 0] + s * u[:, 1]]
+        )
+
+    if model == "double_integrator":
+        y = np.concatenate([x0.ravel(), v0.ravel()])
+    else:
+        y = np.concatenate([x0.ravel(), theta0, speed0])
+    for t0, t1 in zip(marks[:-1], marks[1:]):
+        sol = solve_ivp(rhs, (t0, t1), y, method="DOP853", rtol=1e-12, atol=1e-13, dense_output=True)
+        assert sol.success
+        pieces.append((t0, t1, sol.sol))
+        y = sol.y[:, -1]
+    return lambda t: past(t)[0]
+
+
+def moving_start(n, seed, speed=3.0):
+    """Positions near a hexagon-sized ring, headings close to one direction, speeds well above 0."""
+    rng = np.random.default_rng(seed)
+    x0 = rng.uniform(-3, 3, size=(n, 2))
+    theta0 = 0.4 + rng.uniform(-0.3, 0.3, size=n)
+    speed0 = speed + rng.uniform(0, 0.5, size=n)
+    return x0, theta0, speed0
+
+
+# ----------------------------------------------------- against reference
+@pytest.mark.parametrize("model", ["double_integrator", "unicycle"])
+def test_matches_solve_ivp_method_of_steps(model):
+    topo = paper_six()
+    desired = named_formation("hexagon", 6, spacing=2.0)
+    x0, th0, v0 = moving_start(6, seed=3)
+    T = 2.0
+    ref = method_of_steps(topo, *POINT_A, desired, x0, th0, v0, T, model)
+    traj = simulate(topo, P, D, *POINT_A, desired, model=model, initial_positions=x0,
+                    initial_headings=th0, initial_speed=v0, duration=T, dt=0.01)
+    assert traj.regularisation_count == 0 and np.abs(traj.speeds).min() > 0.3
+    for k in (50, 100, 150, 200):
+        assert np.allclose(traj.positions[k], ref(traj.times[k]), rtol=0, atol=1e-7)
+
+
+def _observed_order(model, tau1, tau2, dts, T=2.0):
+    """Least-squares slope of log(error at T) against log(dt), error against method_of_steps."""
+    topo = paper_six()
+    desired = named_formation("hexagon", 6, spacing=2.0)
+    x0, th0, v0 = moving_start(6, seed=5, speed=2.0)
+    ref = method_of_steps(topo, tau1, tau2, desired, x0, th0, v0, T, model)(T)
+    errors = []
+    for dt in dts:
+        traj = simulate(topo, P, D, tau1, tau2, desired, model=model, initial_positions=x0,
+                        initial_headings=th0, initial_speed=v0, duration=T, dt=dt)
+        assert traj.regularisation_count == 0 and math.isclose(traj.times[-1], T)
+        errors.append(np.abs(traj.positions[-1] - ref).max())
+    return np.polyfit(np.log(dts), np.log(errors), 1)[0], traj.stated_order
+
+
+@pytest.mark.parametrize("model", ["double_integrator", "unicycle"])
+def test_observed_order_is_stated_order_four(model):
+    # both delays multiples of every dt: stated order 4 (module doc of simulation)
+    order, stated = _observed_order(model, 0.3, 0.2, [0.05, 0.025, 0.0125])
+    assert stated == 4
+    assert abs(order - stated) < 0.25, order
+
+
+def test_observed_order_off_grid_delays_at_least_stated_two():
+    # tau2 = 0.2 sqrt(2) is no multiple of dt: the kink of u at tau2 lies inside a step
+    dts = 0.04 / 2.0 ** np.arange(6)
+    order, stated = _observed_order("double_integrator", 0.3, 0.2 * math.sqrt(2), dts)
+    assert stated == 2
+    # the error falls unevenly (it depends on where the kink sits in its step)
+    assert stated - 0.25 < order < 4 - 0.25, order
+
+
+def test_stated_order_rule():
+    assert stated_order(0.3, 0.2, 0.05) == 4
+    assert stated_order(0.0, 0.0, 0.07) == 4
+    assert stated_order(0.3, 0.21, 0.05) == 2
+    assert stated_order(0.31, 0.2, 0.05) == 2
+
+
+# ------------------------------------------------- feedback linearization
+@settings(max_examples=4)
+@given(seed=st.integers(0, 10_000), point=st.sampled_from([POINT_A, (0.5, 0.5), (0.1, 0.4)]))
+def test_unicycle_positions_equal_double_integrator(seed, point):
+    topo = paper_six()
+    x0, th0, v0 = moving_start(6, seed)
+    runs = [
+        simulate(topo, P, D, *point, "hexagon", model=m, initial_positions=x0,
+                 initial_headings=th0, initial_speed=v0, duration=1.5, dt=0.005)
+        for m in ("double_integrator", "unicycle")
+    ]
+    uni = runs[1]
+    assert uni.regularisation_count == 0 and np.abs(uni.speeds).min() > 0.1
+    assert np.abs(runs[0].positions - uni.positions).max() < 1e-6
+    # the linear agents' speeds are |xdot|, the robots' v: the same where v > 0
+    assert np.allclose(runs[0].speeds, uni.speeds, atol=1e-6)
+
+
+# ---------------------------------------------------------- final formation
+def test_final_formation_is_predicted_at_point_a():
+    topo = paper_six()
+    desired = named_formation("hexagon", 6, spacing=2.0)
+    x0, th0, v0 = moving_start(6, seed=11, speed=1.0)
+    traj = simulate(topo, P, D, *POINT_A, desired, model="double_integrator", initial_positions=x0,
+                    initial_headings=th0, initial_speed=v0, duration=200.0, dt=0.05)
+    vel0 = v0[:, None] * np.column_stack([np.cos(th0), np.sin(th0)])
+    predicted = predicted_final_positions(topo, P, D, *POINT_A, desired, x0, vel0)
+    # the offset is not trivial: the initial velocities move the centroid
+    assert np.abs(predicted - desired).max() > 0.5
+    assert np.abs(traj.final_positions - predicted).max() < 1e-6
+    assert np.allclose(traj.final_centroid, np.average(predicted, axis=0, weights=_w(topo)), atol=1e-6)
+
+
+def test_unicycle_regularisation_error_vanishes_as_dt_shrinks():
+    # Where a robot's velocity passes close to zero (|v| < |u| dt), eq. transform2 is
+    # regularised and the robot leaves the double-integrator path; the band shrinks with dt.
+    topo = paper_six()
+    desired = named_formation("hexagon", 6, spacing=2.0)
+    x0, th0, v0 = moving_start(6, seed=11, speed=1.0)
+    devs = []
+    for dt in (0.01, 0.0025):
+        kw = dict(initial_positions=x0, initial_headings=th0, initial_speed=v0, duration=30.0, dt=dt)
+        uni = simulate(topo, P, D, *POINT_A, desired, **kw)
+        lin = simulate(topo, P, D, *POINT_A, desired, model="double_integrator", **kw)
+        assert uni.regularisation_count > 0
+        devs.append(np.abs(uni.positions - lin.positions).max())
+    assert devs[0] > 1e-3 and devs[1] < 0.05 * devs[0], devs
+
+
+def _w(topo):
+    vals, vecs = np.linalg.eig(topo.C.T)
+    w = np.real(vecs[:, np.argmin(np.abs(vals - 1))])
+    return w / w.sum()
+
+
+# ------------------------------------------- paper: settling and instability
+def rightmost_disagreement_root(topology, tau1, tau2):
+    """Rightmost root over the non-centroid factors by Newton from a grid of starts (independent of spectrum)."""
+    re, im = np.meshgrid(np.linspace(-3, 1, 41), np.linspace(0, 6, 61))
+    best = -np.inf + 0j
+    for f in factors(topology, P, D):
+        if f.is_centroid:
+            continue
+        s = (re + 1j * im).ravel()
+        for _ in range(80):
+            s = s - f.evaluate(s, tau1, tau2) / f.derivative(s, tau1, tau2)
+            s = np.where(np.isfinite(s) & (np.abs(s) < 50), s, 0)
+        ok = np.abs(f.evaluate(s, tau1, tau2)) < 1e-10
+        if ok.any():
+            cand = s[ok][np.argmax(s[ok].real)]
+            best = cand if cand.real > best.real else best
+    return best
+
+
+@pytest.mark.parametrize("point, paper_range", [(POINT_A, (20.0, 40.0)), (POINT_B, (100.0, 200.0))])
+def test_settling_time_of_paper_robots(point, paper_range):
+    topo = paper_six()
+    traj = simulate(topo, P, D, *point, named_formation("hexagon", 6, spacing=2.0),
+                    duration=300.0, dt=0.05, seed=1)
+    assert paper_range[0] <= traj.settling_time <= paper_range[1]
+    sigma = rightmost_disagreement_root(topo, *point).real
+    assert sigma < 0
+    # an error decaying like exp(sigma t) falls to 2 % after ln(50) / |sigma|
+    expected = math.log(50.0) / -sigma
+    assert 0.7 < traj.settling_time / expected < 1.5, (traj.settling_time, expected)
+
+
+def test_error_grows_at_unstable_point_c_at_the_dominant_rate():
+    topo = paper_six()
+    traj = simulate(topo, P, D, *POINT_C, "hexagon", model="double_integrator",
+                    duration=150.0, dt=0.05, seed=2)
+    assert math.isinf(traj.settling_time)
+    assert traj.formation_error[-1] > 100 * traj.formation_error[0]
+    sigma = rightmost_disagreement_root(topo, *POINT_C).real
+    late = traj.times > 75.0
+    slope = np.polyfit(traj.times[late], np.log(traj.formation_error[late]), 1)[0]
+    assert sigma > 0 and abs(slope - sigma) < 0.2 * sigma, (slope, sigma)
+
+
+# -------------------------------------------------------- regularisation
+def test_paper_start_never_produces_nan_and_counts_regularisation():
+    traj = simulate(paper_six(), P, D, *POINT_A, "hexagon", initial_speed=0.0,
+                    duration=20.0, dt=0.05, seed=4)
+    assert traj.regularisation_count > 0
+    for arr in (traj.positions, traj.headings, traj.speeds, traj.inputs):
+        assert np.all(np.isfinite(arr))
+    # the robots still move towards the hexagon
+    assert traj.formation_error[-1] < 0.3 * traj.formation_error[0]
+
+
+def test_paper_simulations_points_a_and_b():
+    a, b = paper_simulations(seed=0, duration=150.0, dt=0.05)
+    assert isinstance(a, Trajectory) and (a.tau1, a.tau2, b.tau1, b.tau2) == (0.3, 0.2, 2.0, 1.0)
+    assert a.model == "unicycle" and a.settling_time < b.settling_time
+    assert np.array_equal(a.positions[0], b.positions[0])  # same seeded start
+
+
+# ------------------------------------------------------------- metrics
+def test_min_distance_matches_brute_force_for_large_team():
+    topo = ring(90)
+    traj = simulate(topo, P, D, 0.1, 0.1, "polygon", model="double_integrator",
+                    duration=0.5, dt=0.1, seed=7)
+    pos = traj.positions
+    diff = np.linalg.norm(pos[:, :, None] - pos[:, None, :], axis=-1)
+    diff[:, np.arange(90), np.arange(90)] = np.inf
+    assert traj.min_distance == pytest.approx(diff.min(), rel=1e-12)
+
+
+def test_sparse_team_and_saving_stride():
+    topo = random_digraph(1500, 2.0 / 1500, seed=1)
+    traj = simulate(topo, P, D, 0.2, 0.2, "grid", duration=2.0, dt=0.1, save_every=5)
+    assert traj.positions.shape == (5, 1500, 2)
+    assert np.allclose(traj.times, [0, 0.5, 1.0, 1.5, 2.0])
+    assert np.all(np.isfinite(traj.positions))
+
+
+def test_formation_error_removes_common_offset():
+    desired = named_formation("hexagon", 6)
+    traj = simulate(paper_six(), P, D, 0.0, 0.0, desired, model="double_integrator",
+                    initial_positions=desired + [3.0, -2.0], initial_speed=0.0,
+                    duration=1.0, dt=0.1)
+    # a translated formation at rest is already the formation and stays there
+    assert np.abs(traj.formation_error).max() < 1e-12 and traj.settling_time == 0.0
+
+
+def test_csv_plots_and_gif(tmp_path):
+    traj = simulate(paper_six(), P, D, *POINT_A, "hexagon", duration=2.0, dt=0.1)
+    path = traj.to_csv(tmp_path / "run.csv")
+    table = np.loadtxt(path, delimiter=",", skiprows=1)
+    assert table.shape == (21 * 6, 8)
+    assert np.allclose(table[:, 2:4], traj.positions.reshape(-1, 2))
+    assert open(path).readline().strip() == "time,agent,x,y,heading,speed,dv_dt,omega"
+    axes = traj.plot_xy()
+    assert len(axes) == 2 and len(axes[0].lines) == 6
+    ax = traj.plot_traces()
+    assert len(ax.lines) >= 6
+    gif = traj.save_gif(tmp_path / "run.gif", frames=4, fps=5)
+    assert gif.read_bytes()[:6] in (b"GIF89a", b"GIF87a")
+
+
+# ------------------------------------------------------------- bad input
+@pytest.mark.parametrize(
+    "kwargs, error",
+    [
+        (dict(tau1=-0.1), DelayError),
+        (dict(tau2=float("nan")), DelayError),
+        (dict(P=0.0), GainError),
+        (dict(dt=0.0), SimulationInputError),
+        (dict(dt=-0.1), SimulationInputError),
+        (dict(duration=0.0), SimulationInputError),
+        (dict(dt=0.5), SimulationInputError),  # larger than tau2 = 0.2
+        (dict(model="bicycle"), SimulationInputError),
+        (dict(formation="star-shape"), FormationError),
+        (dict(formation=np.zeros((5, 2))), FormationError),
+        (dict(formation=np.zeros((6, 3))), FormationError),
+        (dict(initial_positions=np.zeros((6, 3))), SimulationInputError),
+        (dict(initial_positions=np.full((6, 2), np.inf)), SimulationInputError),
+        (dict(initial_headings=[0.0, 1.0]), SimulationInputError),
+        (dict(initial_speed=np.nan), SimulationInputError),
+        (dict(save_every=0), SimulationInputError),
+    ],
+)
+def test_bad_input_raises_named_errors(kwargs, error):
+    args = dict(topology=paper_six(), P=P, D=D, tau1=0.3, tau2=0.2, formation="hexagon",
+                duration=1.0, dt=0.1)
+    args.update(kwargs)
+    with pytest.raises(error):
+        simulate(**args)
+    assert issubclass(error, InputError) and issubclass(error, ValueError)
