@@ -507,7 +507,6 @@ def simulation_section(
     figures = []
     fig, axes = plt.subplots(2, 1, figsize=(7.0, 6.0), sharex=True)
     traj.plot_xy(ax=axes)
-    fig.suptitle(f"Positions versus time at {label} (tau1, tau2) = ({tau1:g}, {tau2:g})")
     files += _save(fig, out, f"{stem}_xy")
     figures.append(Figure(f"{stem}_xy", f"x and y versus time at {label}",
                           f"Positions of the {scenario.topology.n} agents in x (top) and y (bottom) "
@@ -515,7 +514,6 @@ def simulation_section(
     if traces:
         fig, ax = plt.subplots(figsize=(6.4, 6.0))
         traj.plot_traces(ax=ax)
-        ax.set_title(f"Traces at {label} (tau1, tau2) = ({tau1:g}, {tau2:g})")
         files += _save(fig, out, f"{stem}_traces")
         figures.append(Figure(f"{stem}_traces", f"Traces at {label}",
                               "Paths of the agents into the formation; short lines mark headings at snapshots."))  # fmt: skip
