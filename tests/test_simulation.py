@@ -307,7 +307,7 @@ def test_csv_plots_and_gif(tmp_path):
     table = np.loadtxt(path, delimiter=",", skiprows=1)
     assert table.shape == (21 * 6, 8)
     assert np.allclose(table[:, 2:4], traj.positions.reshape(-1, 2))
-    assert open(path).readline().strip() == "time,agent,x,y,heading,speed,dv_dt,omega"
+    assert path.read_text().splitlines()[0] == "time,agent,x,y,heading,speed,dv_dt,omega"
     axes = traj.plot_xy()
     assert len(axes) == 2 and len(axes[0].lines) == 6
     ax = traj.plot_traces()

@@ -23,3 +23,89 @@ def _axes(ax: Axes | None, **subplot_kw: object) -> Axes:
 # === section: spectrum, dominant-root maps (issue 4) ===
 
 # === section: formation and simulation figures (issue 5) ===
+from typing import Any  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+
+def plot_trajectory_xy(traj: Any, ax: Any = None) -> Any:
+    """x and y of every agent versus time, two panels (paper Figs. xy1 and xy2).
+
+    ``ax`` is a pair of axes (x panel, y panel) or None for a new figure;
+    returns the pair.
+    """
+    if ax is None:
+        _, ax = plt.subplots(2, 1, sharex=True)
+    ax_x, ax_y = ax
+    for i in range(traj.n):
+        label = f"agent {traj.labels[i]}" if traj.labels else f"agent {i}"
+        ax_x.plot(traj.times, traj.positions[:, i, 0], lw=1, label=label)
+        ax_y.plot(traj.times, traj.positions[:, i, 1], lw=1)
+    ax_x.set_ylabel("x")
+    ax_y.set_ylabel("y")
+    ax_y.set_xlabel("time (s)")
+    ax_x.set_title(f"{traj.model}, (tau1, tau2) = ({traj.tau1:g}, {traj.tau2:g})")
+    if traj.n <= 12:
+        ax_x.legend(fontsize="small", ncol=2)
+    return ax_x, ax_y
+
+
+def _heading_marks(traj: Any, k: int, length: float) -> Any:
+    """Segments from each robot along its heading at sample k (the paper's short blue lines)."""
+    p = traj.positions[k]
+    d = np.column_stack([np.cos(traj.headings[k]), np.sin(traj.headings[k])]) * length
+    return np.stack([p, p + d], axis=1)
+
+
+def plot_trajectory_traces(traj: Any, ax: Axes | None = None, *, snapshots: int = 6) -> Axes:
+    """Paths in the plane with heading marks at ``snapshots`` instants (paper Fig. traces)."""
+    from matplotlib.collections import LineCollection
+
+    ax = _axes(ax)
+    for i in range(traj.n):
+        ax.plot(traj.positions[:, i, 0], traj.positions[:, i, 1], lw=0.8, color="0.6")
+    extent = float(np.ptp(traj.positions.reshape(-1, 2), axis=0).max()) or 1.0
+    for k in np.linspace(0, traj.times.size - 1, max(snapshots, 2)).round().astype(int):
+        ax.add_collection(LineCollection(_heading_marks(traj, k, 0.04 * extent), colors="tab:blue"))
+        ax.plot(traj.positions[k, :, 0], traj.positions[k, :, 1], "k.", ms=3)
+    final = traj.positions[-1]
+    ax.plot(final[:, 0], final[:, 1], "o", mfc="none", color="tab:red", label="final")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("x")
+    ax.set_ylabel("y")
+    ax.set_title(f"traces, (tau1, tau2) = ({traj.tau1:g}, {traj.tau2:g})")
+    return ax
+
+
+def save_trajectory_gif(traj: Any, path: Any, *, frames: int = 80, fps: int = 15) -> Any:
+    """Animated GIF of the robots moving into formation (matplotlib PillowWriter); returns the path."""
+    from pathlib import Path
+
+    from matplotlib.animation import FuncAnimation, PillowWriter
+    from matplotlib.collections import LineCollection
+
+    path = Path(path)
+    fig, ax = plt.subplots(figsize=(4, 4))
+    pts = traj.positions.reshape(-1, 2)
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    pad = 0.05 * float((hi - lo).max() or 1.0)
+    ax.set_xlim(lo[0] - pad, hi[0] + pad)
+    ax.set_ylim(lo[1] - pad, hi[1] + pad)
+    ax.set_aspect("equal")
+    length = 0.04 * float((hi - lo).max() or 1.0)
+    dots = ax.plot([], [], "o", ms=4, color="tab:red")[0]
+    marks = LineCollection([], colors="tab:blue")
+    ax.add_collection(marks)
+    title = ax.set_title("")
+    samples = np.linspace(0, traj.times.size - 1, max(frames, 2)).round().astype(int)
+
+    def draw(k: int) -> list[Any]:
+        dots.set_data(traj.positions[k, :, 0], traj.positions[k, :, 1])
+        marks.set_segments(_heading_marks(traj, k, length))
+        title.set_text(f"t = {traj.times[k]:.1f} s")
+        return [dots, marks, title]
+
+    anim = FuncAnimation(fig, draw, frames=samples, blit=False)
+    anim.save(path, writer=PillowWriter(fps=fps))
+    plt.close(fig)
+    return path
