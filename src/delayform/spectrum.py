@@ -101,6 +101,8 @@ MAX_DEGREE = 192
 SETTLING_FACTOR = math.log(50.0)
 
 _NEWTON_MAXITER = 50
+#: Largest distance of the certifying line Re s = c from the roots it separates.
+_LINE_OFFSET = 0.1
 #: Most sample points spent on one certified contour before giving up.
 _MAX_SAMPLES = 400_000
 
@@ -217,29 +219,41 @@ def _horner(c: NDArray[np.complex128], s: NDArray[Any]) -> NDArray[Any]:
     return out
 
 
+@lru_cache(maxsize=256)
+def _derivative_coefficients(key: bytes, size: int) -> NDArray[np.complex128]:
+    c = np.frombuffer(key, dtype=np.complex128, count=size)
+    return npoly.polyder(c) if size > 1 else np.zeros(1, dtype=np.complex128)
+
+
 def _evaluate(
-    terms: _Terms, s: NDArray[np.complex128], t1: NDArray[np.float64], t2: NDArray[np.float64]
+    terms: _Terms, s: NDArray[np.complex128], t1: NDArray[np.float64], t2: NDArray[np.float64],
+    *, magnitude: bool = True,
 ) -> tuple[NDArray[np.complex128], NDArray[np.complex128], NDArray[np.float64]]:
-    """q(s), dq/ds and sum of |monomial terms| (the residual's scale), broadcasting."""
-    q = np.zeros(np.broadcast_shapes(s.shape, t1.shape, t2.shape), dtype=np.complex128)
-    dq = np.zeros_like(q)
-    mag = np.zeros(q.shape)
-    abs_s = np.abs(s)
+    """q(s), dq/ds and sum of |monomial terms| (the residual's scale), broadcasting.
+
+    With ``magnitude=False`` the third array is empty (Newton iterations skip it).
+    """
+    shape = np.broadcast_shapes(np.shape(s), np.shape(t1), np.shape(t2))
+    q = np.zeros(shape, dtype=np.complex128)
+    dq = np.zeros(shape, dtype=np.complex128)
+    mag = np.zeros(shape if magnitude else (0,))
+    abs_s = np.abs(s) if magnitude else None
     with np.errstate(all="ignore"):  # far-left spurious seeds overflow; filtered by callers
         for c, a, b in terms:
             p = _horner(c, s)
-            dp = _horner(npoly.polyder(c), s) if c.size > 1 else np.zeros_like(s)
-            m = _horner(np.abs(c).astype(np.complex128), abs_s).real
+            dp = _horner(_derivative_coefficients(c.tobytes(), c.size), s)
             if a or b:
                 h = a * t1 + b * t2
                 e = np.exp(-h * s)
-                q = q + p * e
-                dq = dq + (dp - h * p) * e
-                mag = mag + m * np.abs(e)
+                q += p * e
+                dq += (dp - h * p) * e
+                if magnitude:
+                    mag += _abs_poly(c, abs_s) * np.abs(e)
             else:
-                q = q + p
-                dq = dq + dp
-                mag = mag + m
+                q += p
+                dq += dp
+                if magnitude:
+                    mag += _abs_poly(c, abs_s)
     return q, dq, mag
 
 
@@ -337,33 +351,40 @@ def _polish(
     """Newton's method on q from the seeds s0 (broadcasting with t1, t2).
 
     With ``deflate_zero`` the step is Maehly's q / (q' - q/s), Newton on q(s)/s,
-    so seeds are not drawn into the persistent root 0. Returns the roots and
-    a mask of those whose relative residual is <= RESIDUAL_TOL.
+    so seeds are not drawn into the persistent root 0. Only the seeds still
+    moving are iterated. Returns the roots and a mask of those whose relative
+    residual is <= RESIDUAL_TOL.
     """
-    s = np.array(s0, dtype=np.complex128)
-    active = np.isfinite(s)
-    s = np.where(active, s, 0.0)
+    shape = np.broadcast_shapes(np.shape(s0), np.shape(t1), np.shape(t2))
+    s = np.array(np.broadcast_to(s0, shape), dtype=np.complex128).ravel()
+    b1 = np.broadcast_to(t1, shape).ravel()
+    b2 = np.broadcast_to(t2, shape).ravel()
+    finite = np.isfinite(s)
+    s[~finite] = 0.0
+    act = np.flatnonzero(finite)
     for _ in range(_NEWTON_MAXITER):
-        q, dq, _ = _evaluate(prob.terms, s, t1, t2)
-        with np.errstate(all="ignore"):
-            denom = dq - q / s if prob.deflate_zero else dq
-            step = q / denom
-        bad = ~np.isfinite(step)
-        step = np.where(bad | ~active, 0.0, step)
-        if prob.deflate_zero:
-            step = np.where(s == 0.0, 0.0, step)  # s = 0 hit exactly: a root of q(s)/s only if double
-        s = s - step
-        active &= ~bad & (np.abs(step) > 4e-16 * (1.0 + np.abs(s)))
-        if not active.any():
+        if act.size == 0:
             break
+        sa = s[act]
+        q, dq, _ = _evaluate(prob.terms, sa, b1[act], b2[act], magnitude=False)
+        with np.errstate(all="ignore"):
+            step = q / (dq - q / sa) if prob.deflate_zero else q / dq
+        bad = ~np.isfinite(step)
+        if prob.deflate_zero:
+            bad |= sa == 0.0  # s = 0 hit exactly: settled by _deflated_zero
+        step[bad] = 0.0
+        s[act] = sa - step
+        moving = ~bad & (np.abs(step) > 4e-16 * (1.0 + np.abs(sa)))
+        act = act[moving]
+    s = s.reshape(shape)
+    b1, b2 = b1.reshape(shape), b2.reshape(shape)
+    zero_ok = np.ones(shape, dtype=bool)
     if prob.deflate_zero:
-        s, zero_ok = _deflated_zero(prob, s, t1, t2)
-    q, _, mag = _evaluate(prob.terms, s, t1, t2)
+        s, zero_ok = _deflated_zero(prob, s, b1, b2)
+    q, _, mag = _evaluate(prob.terms, s, b1, b2)
     with np.errstate(all="ignore"):
-        ok = np.isfinite(s) & np.isfinite(mag) & (np.abs(q) <= RESIDUAL_TOL * mag)
-    if prob.deflate_zero:
-        ok &= zero_ok
-    return s, ok
+        ok = finite.reshape(shape) & np.isfinite(mag) & (np.abs(q) <= RESIDUAL_TOL * mag)
+    return s, ok & zero_ok
 
 
 def _deflated_zero(
@@ -446,7 +467,12 @@ def _multiplicity(prob: _Problem, roots: NDArray[np.complex128], t1: float, t2: 
 # argument principle with certified sampling
 # =====================================================================
 def _abs_poly(c: NDArray[np.complex128], rho: NDArray[np.float64]) -> NDArray[np.float64]:
-    return _horner(np.abs(c).astype(np.complex128), rho.astype(np.complex128)).real
+    """sum_i |c_i| rho^i, the bound of |c(s)| on |s| <= rho."""
+    absc = np.abs(c)
+    out = np.zeros(np.shape(rho)) + absc[-1]
+    for coef in absc[-2::-1]:
+        out = out * rho + coef
+    return out
 
 
 def _abs_poly_der(c: NDArray[np.complex128], rho: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -591,29 +617,57 @@ def _count_right_single(prob: _Problem, t1: float, t2: float, c: float) -> int |
 
 def _count_right_batch(
     prob: _Problem, t1: NDArray[np.float64], t2: NDArray[np.float64], c: NDArray[np.float64],
-    samples: int,
+    *, initial: int = 33, max_segments: int = 4096,
 ) -> NDArray[np.float64]:
-    """Certified counts in Re s > c for many delay pairs with ``samples`` uniform samples each.
+    """Certified counts of roots in Re s > c for many delay pairs at once (NaN: not certified).
 
-    NaN where the uniform sampling does not pass the certificate (the caller
-    then falls back to the adaptive single-point count).
+    The adaptive sampling of :func:`_segment_winding`, vectorized: all lines'
+    segments live in flat arrays; each round bisects, in one evaluation, the
+    segments of every line that fail the Lipschitz condition, and the arg
+    increments of the segments that pass are summed per line. For a real q
+    only Im s >= 0 is walked (q(conj s) = conj q(s) doubles it).
     """
+    nline = c.size
     omega = _cauchy_radius(prob.terms, c, t1, t2)
-    u = np.linspace(-1.0, 1.0, samples)
-    s = c[:, None] + 1j * omega[:, None] * u
-    q, _, _ = _evaluate(prob.terms, s, t1[:, None], t2[:, None])
-    absq = np.abs(q)
-    rho = np.maximum(np.abs(s[:, :-1]), np.abs(s[:, 1:]))
-    L = _lipschitz(prob.terms, rho, c[:, None], t1[:, None], t2[:, None])
-    step = omega * (u[1] - u[0])
-    ok = np.all(np.minimum(absq[:, :-1], absq[:, 1:]) > 0.5 * L * step[:, None], axis=1)
-    with np.errstate(all="ignore"):
-        mid = np.angle(q[:, 1:] / q[:, :-1]).sum(axis=1)
+    real = all(np.all(cf.imag == 0.0) for cf, _, _ in prob.terms)
+    u = np.linspace(0.0 if real else -1.0, 1.0, initial)
+    w = omega[:, None] * u  # (B, M)
+    q, _, _ = _evaluate(prob.terms, c[:, None] + 1j * w, t1[:, None], t2[:, None], magnitude=False)
+    line = np.repeat(np.arange(nline), initial - 1)
+    wa, wb = w[:, :-1].ravel(), w[:, 1:].ravel()
+    qa, qb = q[:, :-1].ravel(), q[:, 1:].ravel()
+    total = np.zeros(nline)
+    failed = ~np.all(np.isfinite(q) & (q != 0.0), axis=1)
+    for _ in range(48):
+        rho = np.sqrt(c[line] ** 2 + np.maximum(wa * wa, wb * wb))
+        L = _lipschitz(prob.terms, rho, c[line], t1[line], t2[line]) * (wb - wa)
+        bad = np.minimum(np.abs(qa), np.abs(qb)) <= 0.5 * L
+        with np.errstate(all="ignore"):
+            total += np.bincount(line[~bad], np.angle(qb[~bad] / qa[~bad]), minlength=nline)
+        if not bad.any():
+            break
+        line, wa, wb, qa, qb = line[bad], wa[bad], wb[bad], qa[bad], qb[bad]
+        too_many = np.bincount(line, minlength=nline) > max_segments
+        failed |= too_many
+        keep = ~too_many[line]
+        line, wa, wb, qa, qb = line[keep], wa[keep], wb[keep], qa[keep], qb[keep]
+        wm = 0.5 * (wa + wb)
+        qm, _, _ = _evaluate(prob.terms, c[line] + 1j * wm, t1[line], t2[line], magnitude=False)
+        failed[line[~np.isfinite(qm) | (qm == 0.0)]] = True
+        line = np.concatenate([line, line])
+        wa, wb = np.concatenate([wa, wm]), np.concatenate([wm, wb])
+        qa, qb = np.concatenate([qa, qm]), np.concatenate([qm, qb])
+    else:
+        failed[line] = True
     roots = _g1_roots(prob.terms)
     top = _tail_winding(prob.terms, roots, c + 1j * omega, t1, t2, upper=True)
-    bottom = _tail_winding(prob.terms, roots, c - 1j * omega, t1, t2, upper=False)
-    count = prob.degree / 2.0 - (mid + top + bottom) / (2.0 * np.pi)
-    good = ok & (np.abs(count - np.round(count)) < 0.1)
+    if real:
+        delta = 2.0 * (total + top)
+    else:
+        bottom = _tail_winding(prob.terms, roots, c - 1j * omega, t1, t2, upper=False)
+        delta = total + top + bottom
+    count = prob.degree / 2.0 - delta / (2.0 * np.pi)
+    good = ~failed & (np.abs(count - np.round(count)) < 0.1)
     return np.where(good, np.round(count), np.nan)
 
 
@@ -641,7 +695,9 @@ def _choose_line(reals: NDArray[np.float64], top: float) -> float:
     """A line Re s = c in a gap left of ``top`` (reals: known root real parts, descending).
 
     Roots whose real parts are within 1e-3 of each other stay on the same
-    side, so the line is never closer than 5e-4 to a known root. ``top`` is
+    side, so the line is never closer than 5e-4 to a known root; it is at
+    most :data:`_LINE_OFFSET` left of them, because e^{-h c} grows quickly as
+    c moves left and with it the Cauchy radius and the Lipschitz bounds. ``top`` is
     the real part of the rightmost root wanted (the deflated zero of eq.
     factor1 may lie right of it and is then simply counted).
     """
@@ -649,8 +705,8 @@ def _choose_line(reals: NDArray[np.float64], top: float) -> float:
     for k in range(k0, min(reals.size - 1, k0 + 8)):
         gap = reals[k] - reals[k + 1]
         if gap > 1e-3 * (1.0 + abs(reals[k])):
-            return float(reals[k] - 0.5 * min(gap, 1.0))
-    return float(reals[min(reals.size - 1, k0 + 8)] - 0.5)
+            return float(reals[k] - min(0.5 * gap, _LINE_OFFSET))
+    return float(reals[min(reals.size - 1, k0 + 8)] - _LINE_OFFSET)
 
 
 def _known_reals(prob: _Problem, roots: NDArray[np.complex128], mult: NDArray[np.int64]) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
@@ -886,6 +942,8 @@ def _pick_rightmost(prob: _Problem, roots: NDArray[np.complex128]) -> complex:
 # =====================================================================
 #: Seeds per delay pair polished in the batched path (the rightmost eigenvalues).
 _BATCH_SEEDS = 8
+#: Spacing (in grid points) of the coarse sub-grid solved by discretization in maps.
+_STRIDE = 5
 #: Delay pairs per batched eigenvalue call (bounds memory).
 _CHUNK = 2048
 
@@ -932,63 +990,132 @@ def _batch_lines(
         with np.errstate(invalid="ignore"):  # -inf - -inf where fewer roots are known
             gap = hi - lo
         take = valid & (gap > 1e-3 * (1.0 + np.abs(hi)))
-        c = np.where(take, hi - 0.5 * np.minimum(gap, 1.0), c)
+        c = np.where(take, hi - np.minimum(0.5 * gap, _LINE_OFFSET), c)
     last = np.take_along_axis(srt, np.clip(np.minimum(k0 + 8, n_known - 1), 0, None)[:, None], 1)[:, 0]
-    c = np.where(np.isnan(c), last - 0.5, c)
+    c = np.where(np.isnan(c), last - _LINE_OFFSET, c)
     expected = np.sum(srt > c[:, None], axis=1).astype(float)
     return c, expected, top
 
 
-def _rightmost_batch(
-    prob: _Problem, t1: NDArray[np.float64], t2: NDArray[np.float64],
-    advance: Callable[[int], None] | None = None,
+def _igd_seeds(
+    prob: _Problem, t1: NDArray[np.float64], t2: NDArray[np.float64], *, scale: float, k: int
 ) -> NDArray[np.complex128]:
-    """Certified rightmost root of one factor at every delay pair (1-D arrays t1, t2).
+    """The k rightmost eigenvalues of the discretized generator at each pair (NaN-padded).
 
-    Chebyshev discretizations of a few degrees (one per bucket of h_max) are
-    solved as stacks by one np.linalg.eigvals call, the rightmost eigenvalues
-    of every pair Newton-polished together, and the lines Re s = c certified
-    together by the uniform-sampling argument principle; pairs failing any
-    step take the robust :func:`_solve_rightmost` path.
+    One stacked np.linalg.eigvals call per bucket of equal degree; pairs
+    with no delay get the eigenvalues of A + sum B_k. The persistent zero of
+    eq. factor1, which the discretization keeps exactly, is dropped.
     """
-    out = np.full(t1.shape, np.nan + 0j, dtype=np.complex128)
+    out = np.full((t1.size, k), np.nan + 0j, dtype=np.complex128)
     hmax = np.maximum.reduce([a * t1 + b * t2 for _, a, b in prob.delayed])
-    degree = _map_degree(hmax, _root_scale(prob))
-    pending: list[int] = list(np.flatnonzero(hmax == 0.0))
-    for N in np.unique(degree[hmax > 0.0]):
-        idx_all = np.flatnonzero((degree == N) & (hmax > 0.0))
+    degree = np.minimum(MAX_DEGREE, np.ceil(scale * _map_degree(hmax, _root_scale(prob)))).astype(int)
+    groups = [(np.flatnonzero(hmax == 0.0), 0)] + [
+        (np.flatnonzero((degree == N) & (hmax > 0.0)), int(N)) for N in np.unique(degree[hmax > 0.0])
+    ]
+    for idx_all, N in groups:
         for start in range(0, idx_all.size, _CHUNK):
             idx = idx_all[start : start + _CHUNK]
-            a1, a2 = t1[idx], t2[idx]
-            eig = _igd_eigenvalues(prob, int(N), a1, a2)
-            if prob.deflate_zero:  # the discretization keeps the persistent 0 exactly
-                drop = np.argmin(np.abs(eig), axis=1)
-                eig[np.arange(idx.size), drop] = -np.inf
-            order = np.argsort(-eig.real, axis=1)[:, :_BATCH_SEEDS]
-            seeds = np.take_along_axis(eig, order, 1)
-            roots, ok = _polish(prob, seeds, a1[:, None], a2[:, None])
-            roots = _batch_distinct(roots, ok)
-            c, expected, top = _batch_lines(prob, roots)
-            good = np.isfinite(top) & np.isfinite(c)
-            counts = np.full(idx.size, np.nan)
-            todo = np.flatnonzero(good)
-            for samples in (256, 2048):
-                if todo.size == 0:
-                    break
-                counts[todo] = _count_right_batch(prob, a1[todo], a2[todo], c[todo], samples)
-                todo = todo[np.isnan(counts[todo])]
-            certified = good & (counts == expected)
-            best = np.argmax(np.where(np.isnan(roots.real), -np.inf, roots.real), axis=1)
-            out[idx[certified]] = roots[np.arange(idx.size), best][certified]
-            pending.extend(idx[~certified].tolist())
-            if advance is not None:
-                advance(int(idx.size))
-    for i in pending:
+            if N == 0:
+                eig = np.tile(_delay_free_eigenvalues(prob), (idx.size, 1))
+            else:
+                eig = _igd_eigenvalues(prob, N, t1[idx], t2[idx])
+            if prob.deflate_zero:
+                eig[np.arange(idx.size), np.argmin(np.abs(eig), axis=1)] = -np.inf
+            if prob.is_real:  # roots pair up: keep one member, _certify adds the other
+                eig = np.where(eig.imag >= 0.0, eig, -np.inf)
+            order = np.argsort(-eig.real, axis=1)[:, :k]
+            top = np.take_along_axis(eig, order, 1)
+            top[~np.isfinite(top)] = np.nan
+            out[idx, : top.shape[1]] = top
+    return out
+
+
+def _certify(
+    prob: _Problem, t1: NDArray[np.float64], t2: NDArray[np.float64], seeds: NDArray[np.complex128]
+) -> tuple[NDArray[np.complex128], NDArray[np.bool_], NDArray[np.complex128]]:
+    """Polish seeds (B, K) at each pair; certify the rightmost; return (rightmost, certified, roots).
+
+    For a real q only seeds with Im >= 0 are polished and the conjugates of
+    the roots added afterwards (half the Newton work).
+    """
+    if prob.is_real:
+        seeds = np.where(seeds.imag >= 0.0, seeds, np.nan)
+    if prob.deflate_zero:  # a seed at the persistent 0 cannot move under Maehly's step
+        seeds = np.where(np.abs(seeds) < 1e-6, -1e-2, seeds)
+    roots, ok = _polish(prob, seeds, t1[:, None], t2[:, None])
+    ok &= np.isfinite(seeds)
+    if prob.is_real:
+        roots = np.where(ok & (roots.imag < 0.0), np.conj(roots), roots)
+        pair = ok & (roots.imag > 1e-9 * (1.0 + np.abs(roots)))
+        roots = np.concatenate([roots, np.where(pair, np.conj(roots), np.nan)], axis=1)
+        ok = np.concatenate([ok, pair], axis=1)
+    roots = _batch_distinct(roots, ok)
+    c, expected, top = _batch_lines(prob, roots)
+    good = np.isfinite(top) & np.isfinite(c)
+    counts = np.full(t1.size, np.nan)
+    if good.any():
+        counts[good] = _count_right_batch(prob, t1[good], t2[good], c[good])
+    certified = good & (counts == expected)
+    best = np.argmax(np.where(np.isnan(roots.real), -np.inf, roots.real), axis=1)
+    return roots[np.arange(t1.size), best], certified, roots
+
+
+def _coarse_axis(n: int, stride: int) -> NDArray[np.int64]:
+    idx = np.arange(0, n, stride)
+    return idx if idx[-1] == n - 1 else np.append(idx, n - 1)
+
+
+def _rightmost_grid(
+    prob: _Problem, ax1: NDArray[np.float64], ax2: NDArray[np.float64],
+    advance: Callable[[int], None] | None = None, *, stride: int = _STRIDE,
+) -> NDArray[np.complex128]:
+    """Certified rightmost root of one factor at every point of a delay grid (shape (n1, n2)).
+
+    1. A coarse sub-grid (every ``stride``-th point) is solved by the stacked
+       discretization (:func:`_igd_seeds`) and Newton.
+    2. Every other grid point starts Newton from the roots of its nearest
+       coarse point (roots move continuously with the delays), all at once.
+    3. Every point is certified by the argument principle
+       (:func:`_count_right_batch`); points that fail get their own stacked
+       discretization at a higher degree, and the few left the robust
+       single-pair path (:func:`_solve_rightmost`).
+    """
+    n1, n2 = ax1.size, ax2.size
+    T1, T2 = np.meshgrid(ax1, ax2, indexing="ij")
+    t1, t2 = T1.ravel(), T2.ravel()
+    out = np.full(t1.size, np.nan + 0j, dtype=np.complex128)
+    done = np.zeros(t1.size, dtype=bool)
+    c1, c2 = _coarse_axis(n1, stride), _coarse_axis(n2, stride)
+    coarse = (c1[:, None] * n2 + c2[None, :]).ravel()
+    seeds = _igd_seeds(prob, t1[coarse], t2[coarse], scale=1.0, k=_BATCH_SEEDS)
+    root, cert, roots = _certify(prob, t1[coarse], t2[coarse], seeds)
+    out[coarse[cert]], done[coarse[cert]] = root[cert], True
+    if advance is not None:
+        advance(int(coarse.size))
+    # nearest coarse point of every grid point; coarse rows of roots as seeds
+    near1 = np.abs(np.arange(n1)[:, None] - c1[None, :]).argmin(axis=1)
+    near2 = np.abs(np.arange(n2)[:, None] - c2[None, :]).argmin(axis=1)
+    nearest = (near1[:, None] * c2.size + near2[None, :]).ravel()
+    rest = np.flatnonzero(~done)
+    rest = rest[~np.isin(rest, coarse[~cert])]  # failed coarse points go to the fallback
+    for start in range(0, rest.size, 4 * _CHUNK):
+        idx = rest[start : start + 4 * _CHUNK]
+        seed = roots[nearest[idx]]
+        r, ok, _ = _certify(prob, t1[idx], t2[idx], seed)
+        out[idx[ok]], done[idx[ok]] = r[ok], True
+        if advance is not None:
+            advance(int(idx.size))
+    left = np.flatnonzero(~done)
+    if left.size:
+        seeds = _igd_seeds(prob, t1[left], t2[left], scale=2.0, k=2 * _BATCH_SEEDS)
+        r, ok, _ = _certify(prob, t1[left], t2[left], seeds)
+        out[left[ok]], done[left[ok]] = r[ok], True
+    for i in np.flatnonzero(~done):
         res = _solve_rightmost(prob, float(t1[i]), float(t2[i]))
         out[i] = _pick_rightmost(prob, res.roots)
     if prob.mirror or prob.is_real:
         out = out.real + 1j * np.abs(out.imag)
-    return out
+    return out.reshape(n1, n2)
 
 
 # =====================================================================
@@ -1181,15 +1308,13 @@ def dominant_root_map(
     fs = _checked_factors(topology, P, D)
     ax1 = _grid_axis("tau1_values", tau1_values)
     ax2 = _grid_axis("tau2_values", tau2_values)
-    T1, T2 = np.meshgrid(ax1, ax2, indexing="ij")
-    t1, t2 = T1.ravel(), T2.ravel()
-    per_factor = np.empty((len(fs), t1.size), dtype=np.complex128)
-    with _progress(progress, len(fs) * t1.size) as advance:
+    per_factor = np.empty((len(fs), ax1.size, ax2.size), dtype=np.complex128)
+    with _progress(progress, len(fs) * ax1.size * ax2.size) as advance:
         for k, f in enumerate(fs):
-            per_factor[k] = _rightmost_batch(_problem_of_factor(f), t1, t2, advance)
+            per_factor[k] = _rightmost_grid(_problem_of_factor(f), ax1, ax2, advance)
     index = np.argmax(per_factor.real, axis=0)
-    roots = per_factor[index, np.arange(t1.size)]
-    return DominantRootMap(ax1, ax2, roots.reshape(T1.shape), index.reshape(T1.shape), fs)
+    roots = np.take_along_axis(per_factor, index[None], 0)[0]
+    return DominantRootMap(ax1, ax2, roots, index, fs)
 
 
 class _progress:
