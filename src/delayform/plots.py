@@ -21,6 +21,49 @@ def _axes(ax: Axes | None, **subplot_kw: object) -> Axes:
 # === section: CTCR stability charts (issue 3) ===
 
 # === section: spectrum, dominant-root maps (issue 4) ===
+def plot_dominant_surface(result: Any, ax: Axes | None = None) -> Axes:
+    """Surface of Re(dominant root) over the delay plane with the plane Re s = 0 (paper Fig. dominant).
+
+    ``result`` is a :class:`delayform.spectrum.DominantRootMap`; ``ax``, when
+    given, must be a 3-D axes. The stability boundary of the CTCR chart is
+    where the surface cuts the black plane.
+    """
+    import numpy as np
+
+    ax = _axes(ax, projection="3d")
+    T1, T2 = np.meshgrid(result.tau1_values, result.tau2_values, indexing="ij")
+    ax.plot_surface(T1, T2, result.real, cmap="viridis", linewidth=0, antialiased=True, alpha=0.9)
+    ax.plot_surface(T1, T2, np.zeros_like(T1), color="black", alpha=0.35, linewidth=0)
+    ax.set_xlabel(r"$\tau_1$ (s)")
+    ax.set_ylabel(r"$\tau_2$ (s)")
+    ax.set_zlabel(r"Re$(s_{dom})$")
+    ax.set_title("Real part of the dominant root")
+    return ax
+
+
+def plot_dominant_contour(result: Any, ax: Axes | None = None, *, levels: int = 20) -> Axes:
+    """Contour map of Re(dominant root) over the delay plane (paper Fig. contour).
+
+    The thick black line is Re = 0, the stability boundary; the deepest
+    valleys are the fastest-settling delays (delay scheduling).
+    """
+    ax = _axes(ax)
+    T1, T2 = _meshgrid_ij(result.tau1_values, result.tau2_values)
+    filled = ax.contourf(T1, T2, result.real, levels=levels, cmap="viridis")
+    ax.figure.colorbar(filled, ax=ax, label=r"Re$(s_{dom})$")
+    if result.real.min() < 0.0 < result.real.max():
+        ax.contour(T1, T2, result.real, levels=[0.0], colors="black", linewidths=2.0)
+    ax.set_xlabel(r"$\tau_1$ (s)")
+    ax.set_ylabel(r"$\tau_2$ (s)")
+    ax.set_title("Contours of Re(dominant root); black: Re = 0")
+    return ax
+
+
+def _meshgrid_ij(a: Any, b: Any) -> tuple[Any, Any]:
+    import numpy as np
+
+    return np.meshgrid(a, b, indexing="ij")
+
 
 # === section: formation and simulation figures (issue 5) ===
 from typing import Any  # noqa: E402
