@@ -154,7 +154,11 @@ class CrossingCurve:
         Change of NU per unit of root tendency when the curve is crossed
         (2 for a conjugate pair, 1 for one root of a complex qp; times the multiplicity).
     source
-        Index of the factor (or traced half of a complex qp) that made the curve.
+        Index into :attr:`StabilityMap.traced` of the quasi-polynomial whose
+        imaginary roots make the curve (``curve_residual(m.traced[c.source], c)``).
+    factor
+        Index of the characteristic factor (order of :func:`~delayform.characteristic.factors`;
+        0 for :func:`crossing_map`).
     """
 
     tau1: NDArray[np.float64]
@@ -166,6 +170,7 @@ class CrossingCurve:
     shift: tuple[int, int]
     weight: int
     source: int
+    factor: int
 
     @property
     def is_kernel(self) -> bool:
@@ -196,12 +201,17 @@ class StabilityMap:
         The window.
     delay_free_count
         NU just off the origin along the tau2 axis (delay-free count, see module docstring).
+    traced
+        The quasi-polynomials whose imaginary roots were traced for omega > 0
+        (a complex one also as its conjugate; a fourth-order factor as the
+        three-term factors of lam and conj(lam)).
     """
 
     curves: tuple[CrossingCurve, ...]
     tau1_max: float
     tau2_max: float
     delay_free_count: int
+    traced: tuple[TwoDelayQuasiPolynomial, ...] = field(repr=False)
     _start1: int = field(repr=False)
     _axis2: tuple[NDArray[np.float64], NDArray[np.float64]] = field(repr=False)
     _axis1: tuple[NDArray[np.float64], NDArray[np.float64]] = field(repr=False)
@@ -233,7 +243,7 @@ class StabilityMap:
             )
         count = np.full(x.shape, self.delay_free_count, dtype=np.int64)
         count += _axis_sum(self._axis2, y)
-        count += _horizontal_crossings(self._segments, x, y)
+        count += _horizontal_crossings(self._segments, x, y, self.traced, max(self.tau1_max, self.tau2_max))
         on_axis = y == 0.0
         if np.any(on_axis):
             # tau2 = 0: walk along the tau1 axis instead of crossing the curves' ends.
@@ -748,7 +758,8 @@ def _newton_single(
 
 # ===================================================================== embedding in the plane
 def _embed(
-    path: _PhasePath, qp: TwoDelayQuasiPolynomial, window: tuple[float, float], weight: int, source: int
+    path: _PhasePath, qp: TwoDelayQuasiPolynomial, window: tuple[float, float], weight: int, source: int,
+    factor: int,
 ) -> list[CrossingCurve]:
     """All kernel/offspring images (eq. nltrans) of a phase path that meet the window."""
     om, u1, u2 = path.omega, path.theta1, path.theta2
@@ -771,13 +782,13 @@ def _embed(
             inside = in1 & (tau2 >= -margin2) & (tau2 <= t2max + margin2)
             if not np.any(inside):
                 continue
-            curves.extend(_split_runs(om, tau1, tau2, p1, p2, inside, qp, weight, source))
+            curves.extend(_split_runs(om, tau1, tau2, p1, p2, inside, qp, weight, source, factor))
     return curves
 
 
 def _split_runs(
     om: NDArray, tau1: NDArray, tau2: NDArray, p1: NDArray, p2: NDArray, inside: NDArray,
-    qp: TwoDelayQuasiPolynomial, weight: int, source: int,
+    qp: TwoDelayQuasiPolynomial, weight: int, source: int, factor: int,
 ) -> list[CrossingCurve]:
     """Cut one image into runs near the window, each of one kind (kernel/offspring)."""
     # Keep each inside point and its neighbours, so segments crossing the border survive.
@@ -809,6 +820,7 @@ def _split_runs(
                     tau1=tau1[sel], tau2=tau2[sel], omega=om[sel], rt1=rt1, rt2=rt2,
                     kind="kernel" if kinds[a] else "offspring",
                     shift=(int(i1[sel[0]]), int(i2[sel[0]])), weight=weight, source=source,
+                    factor=factor,
                 )
             )
     return out
@@ -816,19 +828,36 @@ def _split_runs(
 
 # ===================================================================== counting helpers
 def _segment_table(curves: tuple[CrossingCurve, ...]) -> NDArray[np.float64]:
-    """Rows (x0, y0, x1, y1, w RT1) of every segment that is not horizontal."""
+    """Rows (x0, y0, x1, y1, w RT1, source, omega0, omega1, w) of every segment that is not horizontal.
+
+    w RT1 is 0 where the root tendency differs at the two ends (the curve turns
+    in tau2 inside the segment): it is then taken at the crossing point itself.
+    """
     rows = []
     for c in curves:
-        rt = np.sign(c.rt1[:-1] + c.rt1[1:])
-        rows.append(np.column_stack([c.tau1[:-1], c.tau2[:-1], c.tau1[1:], c.tau2[1:], c.weight * rt]))
+        a, b = c.rt1[:-1], c.rt1[1:]
+        rt = np.where(a == b, a, 0)
+        src = np.full(rt.shape, float(c.source))
+        w = np.full(rt.shape, float(c.weight))
+        rows.append(np.column_stack([c.tau1[:-1], c.tau2[:-1], c.tau1[1:], c.tau2[1:], c.weight * rt,
+                                     src, c.omega[:-1], c.omega[1:], w]))
     if not rows:
-        return np.zeros((0, 5))
+        return np.zeros((0, 9))
     seg = np.concatenate(rows)
-    return seg[(seg[:, 1] != seg[:, 3]) & (seg[:, 4] != 0)]
+    return seg[seg[:, 1] != seg[:, 3]]
 
 
-def _horizontal_crossings(seg: NDArray[np.float64], x: NDArray[np.float64], y: NDArray[np.float64]) -> NDArray[np.int64]:
-    """Sum of w RT1 over the segments met by each horizontal path (0, y) -> (x, y)."""
+def _horizontal_crossings(
+    seg: NDArray[np.float64], x: NDArray[np.float64], y: NDArray[np.float64],
+    traced: tuple[TwoDelayQuasiPolynomial, ...], scale: float,
+) -> NDArray[np.int64]:
+    """Sum of w RT1 over the curves met by each horizontal path (0, y) -> (x, y).
+
+    The polyline gives where each segment meets the line; when that is within
+    2 % of the window of the query point, the crossing is recomputed exactly,
+    solving ``q(j omega; tau1, y) = 0`` for (omega, tau1) by Newton's method, so
+    points close to a curve are on the right side of it.
+    """
     out = np.zeros(x.size)
     if seg.shape[0] == 0 or x.size == 0:
         return out.astype(np.int64)
@@ -852,12 +881,77 @@ def _horizontal_crossings(seg: NDArray[np.float64], x: NDArray[np.float64], y: N
             sid = np.repeat(np.arange(s0, s1), counts[s0:s1])
             pos = np.arange(n_pairs) - (starts[sid] - starts[s0]) + lo[sid]
             q = order[pos]
-            x0, y0, x1, y1, w = seg[sid].T
-            xc = x0 + (y[q] - y0) * (x1 - x0) / (y1 - y0)
+            x0, y0, x1, y1, w, src, om0, om1, weight = seg[sid].T
+            frac = (y[q] - y0) / (y1 - y0)
+            xc = x0 + frac * (x1 - x0)
+            om = om0 + frac * (om1 - om0)
+            close = np.abs(xc - x[q]) < 0.02 * scale
+            if np.any(close):
+                xc[close] = _exact_crossing(traced, src[close].astype(np.int64), om[close], xc[close], y[q][close])
             hit = (xc > 0.0) & (xc < x[q])
+            turn = hit & (w == 0)
+            if np.any(turn):
+                w = w.copy()
+                w[turn] = weight[turn] * _crossing_tendency(traced, src[turn].astype(np.int64), om[turn], xc[turn], y[q][turn])
             out += np.bincount(q[hit], weights=w[hit], minlength=x.size)
         s0 = s1
     return np.rint(out).astype(np.int64)
+
+
+def _crossing_tendency(
+    traced: tuple[TwoDelayQuasiPolynomial, ...], src: NDArray[np.int64], omega: NDArray[np.float64],
+    tau1: NDArray[np.float64], tau2: NDArray[np.float64],
+) -> NDArray[np.int64]:
+    """RT1 at crossing points (for segments whose ends disagree)."""
+    out = np.zeros(src.shape, np.int64)
+    for k in np.unique(src):
+        sel = src == k
+        out[sel] = _tendency(traced[int(k)], omega[sel], tau1[sel], tau2[sel])[0]
+    return out
+
+
+def _exact_crossing(
+    traced: tuple[TwoDelayQuasiPolynomial, ...], src: NDArray[np.int64], omega: NDArray[np.float64],
+    tau1: NDArray[np.float64], tau2: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """tau1 where the curve meets tau2 = const exactly: Newton on q(j omega; tau1, tau2) = 0.
+
+    Starts from the polyline's interpolation; where Newton does not converge
+    (or runs off), the interpolated value is kept.
+    """
+    out = tau1.copy()
+    for k in np.unique(src):
+        sel = src == k
+        qp = traced[int(k)]
+        om, t1, t2 = omega[sel].copy(), tau1[sel].copy(), tau2[sel]
+        for _ in range(8):
+            s = 1j * om
+            f = np.zeros(s.shape, complex)
+            fs = np.zeros(s.shape, complex)
+            f1 = np.zeros(s.shape, complex)
+            scale = np.zeros(s.shape)
+            for c, a, b in qp.terms():
+                h = a * t1 + b * t2
+                e = np.exp(-h * s)
+                g = npoly.polyval(s, c)
+                f += g * e
+                fs += (npoly.polyval(s, npoly.polyder(c)) - h * g) * e
+                f1 -= a * s * g * e
+                scale += np.abs(g)
+            # Unknowns (omega, tau1): dq/domega = j dq/ds.
+            fo = 1j * fs
+            det = fo.real * f1.imag - f1.real * fo.imag
+            with np.errstate(divide="ignore", invalid="ignore"):
+                d_om = (f.real * f1.imag - f1.real * f.imag) / det
+                d_t1 = (fo.real * f.imag - f.real * fo.imag) / det
+            ok = np.isfinite(d_om) & np.isfinite(d_t1)
+            om = np.where(ok, om - d_om, om)
+            t1 = np.where(ok, t1 - d_t1, t1)
+        s = 1j * om
+        res = np.abs(sum(npoly.polyval(s, c) * np.exp(-(a * t1 + b * t2) * s) for c, a, b in qp.terms()))
+        good = (res <= 1e-10 * np.maximum(scale, 1e-300)) & (np.abs(t1 - tau1[sel]) < 0.05 * (1.0 + np.abs(tau1[sel])))
+        out[sel] = np.where(good, t1, tau1[sel])
+    return out
 
 
 def _axis_sum(axis: tuple[NDArray[np.float64], NDArray[np.float64]], t: NDArray[np.float64]) -> NDArray[np.int64]:
@@ -936,7 +1030,7 @@ class _Part:
 
     qp: TwoDelayQuasiPolynomial
     weight: int
-    source: int
+    factor: int
 
 
 def _conjugate(qp: TwoDelayQuasiPolynomial) -> TwoDelayQuasiPolynomial:
@@ -948,25 +1042,25 @@ def _is_three_term(qp: TwoDelayQuasiPolynomial) -> bool:
     return qp.g4.size == 0 and qp.g5.size == 0 and qp.g6.size == 0
 
 
-def _part_curves(part: _Part, window: tuple[float, float]) -> list[CrossingCurve]:
+def _part_curves(part: _Part, window: tuple[float, float], source: int) -> list[CrossingCurve]:
     qp = part.qp
     has1 = any(c.size for c, a, _ in qp.terms() if a)
     has2 = any(c.size for c, _, b in qp.terms() if b)
     if not has1 and not has2:
         return []
     if not has1 or not has2:
-        return _line_curves(part, window, vertical=has1)
+        return _line_curves(part, window, source, vertical=has1)
     if _is_three_term(qp):
         paths = _three_term_paths(qp, window)
     else:
         paths = _general_paths(qp, window)
     out: list[CrossingCurve] = []
     for p in paths:
-        out.extend(_embed(p, qp, window, part.weight, part.source))
+        out.extend(_embed(p, qp, window, part.weight, source, part.factor))
     return out
 
 
-def _line_curves(part: _Part, window: tuple[float, float], *, vertical: bool) -> list[CrossingCurve]:
+def _line_curves(part: _Part, window: tuple[float, float], source: int, *, vertical: bool) -> list[CrossingCurve]:
     """A qp in one delay only: its crossings are straight lines across the window."""
     qp = part.qp
     if vertical:
@@ -987,7 +1081,7 @@ def _line_curves(part: _Part, window: tuple[float, float], *, vertical: bool) ->
             w = np.array([om, om])
             rt1, rt2 = _tendency(qp, w, t1, t2)
             out.append(CrossingCurve(t1, t2, w, rt1, rt2, "kernel" if i == 0 else "offspring",
-                                     (i, 0) if vertical else (0, i), part.weight, part.source))
+                                     (i, 0) if vertical else (0, i), part.weight, source, part.factor))
     return out
 
 
@@ -1072,10 +1166,11 @@ def _assemble(
         if line is not None:
             lines.append(line)
         parts.extend(qp_parts)
-    for part in parts:
-        curves.extend(_part_curves(part, window))
+    for source, part in enumerate(parts):
+        curves.extend(_part_curves(part, window, source))
     return StabilityMap(
         curves=tuple(curves), tau1_max=tau1_max, tau2_max=tau2_max, delay_free_count=start2,
+        traced=tuple(p.qp for p in parts),
         _start1=start1,
         _axis2=_axis_crossings(parts, window, axis=2),
         _axis1=_axis_crossings(parts, window, axis=1),
