@@ -46,6 +46,9 @@ _EXPORTS: dict[str, str] = {
     "formation_forcing": "formation",
     "simulate": "simulation",
     "Trajectory": "simulation",
+    # scenario files
+    "load_scenario": "scenario",
+    "Scenario": "scenario",
 }
 
 __all__ = sorted(_EXPORTS) + ["errors", "__version__"]
