@@ -19,6 +19,93 @@ def _axes(ax: Axes | None, **subplot_kw: object) -> Axes:
 
 
 # === section: CTCR stability charts (issue 3) ===
+from collections.abc import Mapping, Sequence  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+from matplotlib.collections import LineCollection  # noqa: E402
+from matplotlib.figure import Figure  # noqa: E402
+
+
+def stability_chart(
+    smap: Any,
+    ax: Axes | None = None,
+    points: Mapping[str, tuple[float, float]] | None = None,
+    *,
+    resolution: int = 400,
+    shade: str = "0.78",
+    kernel_color: str = "red",
+    offspring_color: str = "blue",
+) -> Axes:
+    """The CTCR stability chart of a :class:`~delayform.ctcr.StabilityMap` (Fig. stability).
+
+    Kernel curves red, offspring curves blue (Definitions "Kernel curves" and
+    "Offspring curves"), the stable region (NU = 0) shaded, and optional
+    labelled delay pairs such as the paper's points a-e
+    (:data:`delayform.ctcr.PAPER_POINTS`).
+
+    Parameters
+    ----------
+    smap
+        The map to draw.
+    ax
+        Axes to draw on; new ones when None.
+    points
+        Label -> (tau1, tau2) to mark.
+    resolution
+        Grid cells per axis used to shade the stable region.
+
+    Returns
+    -------
+    Axes
+    """
+    ax = _axes(ax)
+    t1 = (np.arange(resolution) + 0.5) * smap.tau1_max / resolution
+    t2 = (np.arange(resolution) + 0.5) * smap.tau2_max / resolution
+    stable = smap.is_stable(t1[None, :], t2[:, None]).astype(float)
+    ax.contourf(t1, t2, stable, levels=[0.5, 1.5], colors=[shade])
+    for kernel, color, label in ((False, offspring_color, "offspring"), (True, kernel_color, "kernel")):
+        lines = [np.column_stack([c.tau1, c.tau2]) for c in smap.curves if c.is_kernel == kernel]
+        if lines:
+            ax.add_collection(LineCollection(lines, colors=color, linewidths=0.9, label=label))
+    for name, (a, b) in (points or {}).items():
+        ax.plot([a], [b], "ko", ms=4)
+        ax.annotate(f"{name}", (a, b), xytext=(4, 4), textcoords="offset points", fontweight="bold")
+    ax.set_xlim(0.0, smap.tau1_max)
+    ax.set_ylim(0.0, smap.tau2_max)
+    ax.set_xlabel(r"$\tau_1$ (s), position delay")
+    ax.set_ylabel(r"$\tau_2$ (s), velocity delay")
+    ax.set_title("CTCR stability chart (shaded: stable)")
+    ax.legend(loc="upper right", fontsize="small")
+    return ax
+
+
+def paper_stability_chart(ax: Axes | None = None, *, tau_max: float = 8.0) -> Axes:
+    """The paper's Fig. stability: paper_six(), P = 1, D = 0.5, points a-e."""
+    from delayform.ctcr import PAPER_POINTS, stability_map
+    from delayform.topology import paper_six
+
+    smap = stability_map(paper_six(), 1.0, 0.5, tau_max, tau_max)
+    return stability_chart(smap, ax=ax, points=PAPER_POINTS)
+
+
+def save_figure(
+    fig_or_ax: Figure | Axes, path_stem: str | Path, *, formats: Sequence[str] = ("png", "svg"), dpi: int = 150
+) -> list[Path]:
+    """Save a figure (or the figure of an axes) as ``path_stem.<fmt>`` for each format.
+
+    Parent directories are created. Returns the written paths, in ``formats`` order.
+    """
+    fig = fig_or_ax if isinstance(fig_or_ax, Figure) else fig_or_ax.figure
+    stem = Path(path_stem)
+    stem.parent.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for fmt in formats:
+        path = stem.with_name(f"{stem.name}.{fmt}")
+        fig.savefig(path, dpi=dpi, bbox_inches="tight")
+        paths.append(path)
+    return paths
+
 
 # === section: spectrum, dominant-root maps (issue 4) ===
 def plot_dominant_surface(result: Any, ax: Axes | None = None) -> Axes:
