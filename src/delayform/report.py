@@ -127,6 +127,9 @@ def _fmt(value: float, digits: int = 4) -> str:
 
 
 def _fmt_complex(value: complex) -> str:
+    # a real root polished in complex arithmetic keeps an imaginary part of rounding size
+    if abs(value.imag) <= 1e-12 * max(1.0, abs(value)):
+        return f"{value.real:.5g}"
     return f"{value.real:.5g} {'+' if value.imag >= 0 else '-'} {abs(value.imag):.5g}j"
 
 
