@@ -103,6 +103,9 @@ MIN_SPEED = 1e-6
 #: settling: the formation error stays below this fraction of its initial value
 SETTLING_FRACTION = 0.02
 
+#: teams up to this size multiply by a dense C, larger ones by the sparse C
+_DENSE_AGENTS = 64
+
 #: at most this many float64 samples (times x agents) are saved by default
 _SAVE_BUDGET = 2_000_000
 
@@ -230,12 +233,13 @@ class _Lookup:
     right: int
     theta: float
     current: bool = False
+    weights: tuple[float, float, float, float] = field(init=False)
 
-    @property
-    def weights(self) -> tuple[float, float, float, float]:
-        """Cubic Hermite basis (h00, h10, h01, h11) at ``theta``."""
+    def __post_init__(self) -> None:
+        # cubic Hermite basis (h00, h10, h01, h11) at theta, computed once per run
         t = self.theta
-        return (2 * t**3 - 3 * t**2 + 1, t**3 - 2 * t**2 + t, -2 * t**3 + 3 * t**2, t**3 - t**2)
+        basis = (2 * t**3 - 3 * t**2 + 1, t**3 - 2 * t**2 + t, -2 * t**3 + 3 * t**2, t**3 - t**2)
+        object.__setattr__(self, "weights", basis)
 
 
 def _lookup(c: float, tau: float, dt: float) -> _Lookup:
@@ -290,61 +294,62 @@ class _History:
 
 # ------------------------------------------------------------ agent models
 class _DoubleIntegrator:
-    """State (X, V): ``X' = V``, ``V' = u`` (Section "Consensus Protocol")."""
+    """State rows (x, y, xdot, ydot): ``x'' = u`` (Section "Consensus Protocol")."""
 
     name = "double_integrator"
 
     def __init__(self, x0: _Array, v0: _Array) -> None:
-        self.state0 = (x0.copy(), v0.copy())
+        self.state0 = np.column_stack([x0, v0])
 
     @staticmethod
-    def velocity(state: tuple[_Array, ...]) -> _Array:
-        return state[1]
+    def velocity(state: _Array) -> _Array:
+        return state[:, 2:]
 
     @staticmethod
-    def rhs(state: tuple[_Array, ...], u: _Array, dt: float, min_speed: float):
-        X, V = state
-        return (V, u), u, u, None
+    def rhs(state: _Array, u: _Array, dt: float, min_speed: float):
+        """(state derivative, inputs, Cartesian acceleration, regularised mask or None)."""
+        return np.concatenate([state[:, 2:], u], axis=1), u, u, None
 
     @staticmethod
-    def outputs(state: tuple[_Array, ...]) -> tuple[_Array, _Array]:
-        V = state[1]
-        return np.arctan2(V[:, 1], V[:, 0]), np.hypot(V[:, 0], V[:, 1])
+    def outputs(state: _Array) -> tuple[_Array, _Array]:
+        vx, vy = state[:, 2], state[:, 3]
+        return np.arctan2(vy, vx), np.hypot(vx, vy)
 
 
 class _Unicycle:
-    """State (X, theta, v) with the dynamic extension and eq. transform2."""
+    """State rows (x, y, theta, v) with the dynamic extension and eq. transform2."""
 
     name = "unicycle"
 
     def __init__(self, x0: _Array, theta0: _Array, speed0: _Array) -> None:
-        self.state0 = (x0.copy(), theta0.copy(), speed0.copy())
+        self.state0 = np.column_stack([x0, theta0, speed0])
 
     @staticmethod
-    def velocity(state: tuple[_Array, ...]) -> _Array:
-        _, th, v = state
-        return v[:, None] * np.column_stack([np.cos(th), np.sin(th)])
+    def velocity(state: _Array) -> _Array:
+        th = state[:, 2]
+        return state[:, 3:4] * np.column_stack([np.cos(th), np.sin(th)])
 
     @staticmethod
-    def rhs(state: tuple[_Array, ...], u: _Array, dt: float, min_speed: float):
-        _, th, v = state
+    def rhs(state: _Array, u: _Array, dt: float, min_speed: float):
+        """(state derivative, inputs, Cartesian acceleration, regularised mask)."""
+        th, v = state[:, 2], state[:, 3]
         c, s = np.cos(th), np.sin(th)
-        vdot = c * u[:, 0] + s * u[:, 1]  # eq. transform2, first row
+        u1, u2 = u[:, 0], u[:, 1]
+        vdot = c * u1 + s * u2  # eq. transform2, first row
         # Regularise 1/v where the heading dynamics would be too stiff for the step (module doc).
-        v_reg = np.maximum(min_speed, dt * np.hypot(u[:, 0], u[:, 1]))
+        v_reg = np.maximum(min_speed, dt * np.hypot(u1, u2))
         small = np.abs(v) < v_reg
         v_div = np.where(small, np.where(v < 0.0, -v_reg, v_reg), v)
-        omega = (-s * u[:, 0] + c * u[:, 1]) / v_div  # eq. transform2, second row
-        cs = np.column_stack([c, s])
-        xdot = v[:, None] * cs
+        omega = (-s * u1 + c * u2) / v_div  # eq. transform2, second row
+        deriv = np.column_stack([v * c, v * s, omega, vdot])
         # Cartesian acceleration actually produced; equals u wherever not regularised.
-        accel = vdot[:, None] * cs + (v * omega)[:, None] * np.column_stack([-s, c])
-        return (xdot, omega, vdot), np.column_stack([vdot, omega]), accel, small
+        vw = v * omega
+        accel = np.column_stack([vdot * c - vw * s, vdot * s + vw * c])
+        return deriv, deriv[:, 3:1:-1], accel, small  # inputs (dv/dt, omega) as a view
 
     @staticmethod
-    def outputs(state: tuple[_Array, ...]) -> tuple[_Array, _Array]:
-        _, th, v = state
-        return np.angle(np.exp(1j * th)), v.copy()
+    def outputs(state: _Array) -> tuple[_Array, _Array]:
+        return np.angle(np.exp(1j * state[:, 2])), state[:, 3].copy()
 
 
 # ----------------------------------------------------------------- checks
@@ -427,7 +432,7 @@ def simulate(
     Parameters
     ----------
     topology
-        Communication topology; C is applied as a sparse product above 1000 agents.
+        Communication topology; C is applied as a sparse product above 64 agents.
     P, D
         Positive gains of eq. protocol.
     tau1, tau2
@@ -495,7 +500,8 @@ def simulate(
         raise SimulationInputError(f"save_every must be a positive integer, got {save_every!r}")
 
     agent = _DoubleIntegrator(x0, v0) if model == "double_integrator" else _Unicycle(x0, th0, speed0)
-    C = topology.C  # dense for small teams (faster), scipy.sparse above 1000 agents
+    # A dense product is faster for a handful of agents; sparse wins long before 1000.
+    C = topology.C_sparse.toarray() if n <= _DENSE_AGENTS else topology.C_sparse
     F = formation_forcing(topology, P, desired)
     out = _integrate(agent, C, F, P, D, tau1, tau2, dt, steps, save_every, min_speed)
     times, pos, head, spd, inp, reg = out
@@ -524,7 +530,7 @@ def _integrate(
     look2 = [_lookup(c, tau2, dt) for c in stage_c]
     deepest = min(lk.right for lk in look1 + look2)
     state = agent.state0
-    cx, cv = C @ state[0], C @ agent.velocity(state)
+    cx, cv = C @ state[:, :2], C @ agent.velocity(state)
     hist = _History(3 - deepest, dt, cx, cv)
 
     n_saved = steps // save_every + 1 + (steps % save_every != 0)
@@ -536,10 +542,21 @@ def _integrate(
     regularised = 0
     saved = 0
 
-    def stage(k: int, j: int, st: tuple[_Array, ...]):
-        X, V = st[0], agent.velocity(st)
-        cxd = C @ X if look1[j].current else hist.read(k, look1[j], positions=True)
-        cvd = C @ V if look2[j].current else hist.read(k, look2[j], positions=False)
+    # Stages 2 and 3 share their time t_k + dt/2, hence their delayed values.
+    midpoint: dict[bool, _Array] = {}
+
+    def delayed(k: int, j: int, lk: _Lookup, positions: bool) -> _Array:
+        if j == 2:
+            return midpoint[positions]
+        value = hist.read(k, lk, positions)
+        if j == 1:
+            midpoint[positions] = value
+        return value
+
+    def stage(k: int, j: int, st: _Array):
+        X, V = st[:, :2], agent.velocity(st)
+        cxd = C @ X if look1[j].current else delayed(k, j, look1[j], True)
+        cvd = C @ V if look2[j].current else delayed(k, j, look2[j], False)
         u = P * (cxd - X) + D * (cvd - V) + F  # eq. protocol + forcing of eq. formation
         return agent.rhs(st, u, dt, min_speed)
 
@@ -549,23 +566,20 @@ def _integrate(
         hist.store_accel(k, C @ accel)
         if k % save_every == 0 or k == steps:
             times[saved] = k * dt
-            pos[saved] = state[0]
+            pos[saved] = state[:, :2]
             head[saved], spd[saved] = agent.outputs(state)
             inp[saved] = inputs
             saved += 1
         if k == steps:
             break
         mask = small
-        k2, _, _, small2 = stage(k, 1, tuple(y + 0.5 * dt * d for y, d in zip(state, k1)))
-        k3, _, _, small3 = stage(k, 2, tuple(y + 0.5 * dt * d for y, d in zip(state, k2)))
-        k4, _, _, small4 = stage(k, 3, tuple(y + dt * d for y, d in zip(state, k3)))
+        k2, _, _, small2 = stage(k, 1, state + (0.5 * dt) * k1)
+        k3, _, _, small3 = stage(k, 2, state + (0.5 * dt) * k2)
+        k4, _, _, small4 = stage(k, 3, state + dt * k3)
         if mask is not None:
             regularised += int(np.count_nonzero(mask | small2 | small3 | small4))
-        state = tuple(
-            y + (dt / 6.0) * (a + 2.0 * b + 2.0 * c + d)
-            for y, a, b, c, d in zip(state, k1, k2, k3, k4)
-        )
-        cx, cv = C @ state[0], C @ agent.velocity(state)
+        state = state + (dt / 6.0) * (k1 + 2.0 * (k2 + k3) + k4)
+        cx, cv = C @ state[:, :2], C @ agent.velocity(state)
     return times[:saved], pos[:saved], head[:saved], spd[:saved], inp[:saved], regularised
 
 
