@@ -44,8 +44,11 @@ _EXPORTS: dict[str, str] = {
     "schedule_delays": "spectrum",
     # formation and simulation
     "formation_forcing": "formation",
+    "named_formation": "formation",
+    "predicted_final_positions": "formation",
     "simulate": "simulation",
     "Trajectory": "simulation",
+    "paper_simulations": "simulation",
     # scenario files
     "load_scenario": "scenario",
     "Scenario": "scenario",
