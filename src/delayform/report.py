@@ -137,10 +137,11 @@ def _save(fig: Any, out: Path, stem: str) -> tuple[str, str]:
     """Write ``fig`` as PNG and SVG and close it; return the two file names."""
     import matplotlib.pyplot as plt
 
-    fig.savefig(out / f"{stem}.png", dpi=120, bbox_inches="tight")
-    fig.savefig(out / f"{stem}.svg", bbox_inches="tight")
+    from delayform.plots import save_figure
+
+    paths = save_figure(fig, out / stem, formats=("png", "svg"), dpi=110)
     plt.close(fig)
-    return f"{stem}.png", f"{stem}.svg"
+    return paths[0].name, paths[1].name
 
 
 def _pyplot() -> Any:
