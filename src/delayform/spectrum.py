@@ -101,6 +101,9 @@ MAX_DEGREE = 192
 SETTLING_FACTOR = math.log(50.0)
 
 _NEWTON_MAXITER = 50
+#: Delays below this seed Newton from the delay-free roots (a discretization of
+#: [-h, 0] would overflow; the polishing and the certificate use the exact q).
+_TINY_DELAY = 1e-10
 #: Largest distance of the certifying line Re s = c from the roots it separates.
 _LINE_OFFSET = 0.1
 #: Most sample points spent on one certified contour before giving up.
@@ -339,7 +342,9 @@ def _delay_free_eigenvalues(prob: _Problem) -> NDArray[np.complex128]:
 
 
 def _max_delay(prob: _Problem, t1: float, t2: float) -> float:
-    return max([a * t1 + b * t2 for _, a, b in prob.delayed] + [0.0])
+    """Largest delay of the realization; below :data:`_TINY_DELAY` it counts as none for seeding."""
+    h = max([a * t1 + b * t2 for _, a, b in prob.delayed] + [0.0])
+    return h if h >= _TINY_DELAY else 0.0
 
 
 # =====================================================================
@@ -774,9 +779,10 @@ def _check_region(region: object) -> Region:
 
 
 def _with_mirror(prob: _Problem, roots: NDArray[np.complex128]) -> NDArray[np.complex128]:
+    """Roots of q_lam and their conjugates, the roots of q_conj(lam) (a pair factor)."""
     if not prob.mirror:
         return roots
-    return _cluster(np.concatenate([roots, np.conj(roots)]))
+    return np.concatenate([roots, np.conj(roots)])
 
 
 def roots_in(
@@ -798,7 +804,8 @@ def roots_in(
     Returns
     -------
     ndarray of complex
-        The distinct roots in the rectangle, sorted by decreasing real part,
+        The roots in the rectangle, a multiple root repeated by its
+        multiplicity (as numpy.roots does), sorted by decreasing real part,
         each with relative residual <= RESIDUAL_TOL (:func:`relative_residual`).
         The count, with multiplicity, is certified by the argument principle
         on the rectangle's boundary.
@@ -847,8 +854,8 @@ def roots_in(
         mult = _multiplicity(base, roots, t1, t2)
         rx0, rx1, ry0, ry1 = count_regions[0]
         inside = (roots.real > rx0) & (roots.real < rx1) & (roots.imag > ry0) & (roots.imag < ry1)
-        found = roots[inside]
-        if int(mult[inside].sum()) == expected:
+        found = np.repeat(roots[inside], np.maximum(mult[inside], 1))
+        if found.size == expected:
             break
         if hmax == 0.0 or N >= MAX_DEGREE:
             raise NotConvergedError(
@@ -1009,8 +1016,9 @@ def _igd_seeds(
     out = np.full((t1.size, k), np.nan + 0j, dtype=np.complex128)
     hmax = np.maximum.reduce([a * t1 + b * t2 for _, a, b in prob.delayed])
     degree = np.minimum(MAX_DEGREE, np.ceil(scale * _map_degree(hmax, _root_scale(prob)))).astype(int)
-    groups = [(np.flatnonzero(hmax == 0.0), 0)] + [
-        (np.flatnonzero((degree == N) & (hmax > 0.0)), int(N)) for N in np.unique(degree[hmax > 0.0])
+    delayed = hmax >= _TINY_DELAY
+    groups = [(np.flatnonzero(~delayed), 0)] + [
+        (np.flatnonzero((degree == N) & delayed), int(N)) for N in np.unique(degree[delayed])
     ]
     for idx_all, N in groups:
         for start in range(0, idx_all.size, _CHUNK):
