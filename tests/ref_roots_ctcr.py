@@ -91,9 +91,33 @@ def count_unstable(
         ``uncertain`` is True where a root lies (about) within 1e-6 of the
         imaginary axis, so the count there is not to be trusted.
     """
+    def f(s: NDArray, t1: NDArray, t2: NDArray) -> NDArray:
+        return characteristic(A, B1, B2, s, t1, t2, centroid=centroid)
+
+    return count_unstable_function(f, 1.05 * radius(A, B1, B2) + 1.0, tau1, tau2)
+
+
+def coefficient_bound(coefficients: list[NDArray[np.complex128]]) -> float:
+    """|s| bound for roots with Re s >= 0 of sum_k g_k(s) e^{-h_k s}, g_1 of top degree.
+
+    On Re s >= 0 every exponential has modulus <= 1, so a root has
+    ``|lead| |s|^d <= sum_{i<d} (sum_k |g_k,i|) |s|^i``, impossible for
+    ``|s| > max(1, sum_{i<d} sum_k |g_k,i| / |lead|)``.
+    """
+    d = len(coefficients[0]) - 1
+    lead = abs(coefficients[0][d])
+    total = sum(float(np.sum(np.abs(np.asarray(c)[:d]))) for c in coefficients)
+    return max(1.0, total / lead)
+
+
+def count_unstable_function(
+    f: object, R: float, tau1: NDArray[np.float64], tau2: NDArray[np.float64]
+) -> tuple[NDArray[np.int64], NDArray[np.bool_]]:
+    """The argument-principle count for any analytic ``f(s, tau1, tau2)`` with no root of |s| >= R, Re s >= 0."""
     tau1 = np.asarray(tau1, float).ravel()
     tau2 = np.asarray(tau2, float).ravel()
-    R = 1.05 * radius(A, B1, B2) + 1.0
+    R = float(R)
+    characteristic_fn = f
     q = tau1.size
     # Phase of e^{-tau s} turns at rate tau along the axis: a few samples per radian of it.
     n_axis = 256 + 8 * int(np.ceil(R * (tau1.max(initial=0) + tau2.max(initial=0))))
@@ -101,7 +125,7 @@ def count_unstable(
     t = t + 1e-13 * np.pi  # keep off s = 0 and the exact corners by an irrational nudge
     t[0], t[-1] = 0.0, 2.0
     T = np.broadcast_to(t, (q, t.size))
-    F = characteristic(A, B1, B2, _contour(T, R), tau1[:, None], tau2[:, None], centroid=centroid)
+    F = characteristic_fn(_contour(T, R), tau1[:, None], tau2[:, None])
     steps = np.angle(F[:, 1:] / F[:, :-1])
     winding = steps.sum(axis=1)
     uncertain = np.zeros(q, bool)
@@ -121,8 +145,7 @@ def count_unstable(
         if qi.size == 0:
             break
         sub = ta[:, None] + (tb - ta)[:, None] * np.linspace(0.0, 1.0, 9)[None, :]
-        fs = characteristic(A, B1, B2, _contour(sub[:, 1:-1], R), tau1[qi][:, None], tau2[qi][:, None],
-                            centroid=centroid)
+        fs = characteristic_fn(_contour(sub[:, 1:-1], R), tau1[qi][:, None], tau2[qi][:, None])
         fs = np.concatenate([fa[:, None], fs, fb[:, None]], axis=1)
         st = np.angle(fs[:, 1:] / fs[:, :-1])
         good = np.abs(st) <= MAX_STEP

@@ -808,7 +808,8 @@ def _split_runs(
         if run.size < 2:
             continue
         kinds = kernel[run]
-        cut = np.flatnonzero(kinds[1:] != kinds[:-1]) + 1
+        # One piece per shift (i, k) of eq. nltrans; the last vertex is shared with the next piece.
+        cut = np.flatnonzero((i1[run][1:] != i1[run][:-1]) | (i2[run][1:] != i2[run][:-1])) + 1
         bounds = np.concatenate([[0], cut, [run.size]])
         for a, b in zip(bounds[:-1], bounds[1:], strict=True):
             sel = run[a : min(b + 1, run.size)]  # share the vertex with the next piece
