@@ -289,6 +289,26 @@ class StabilityMap:
 
 
 # ===================================================================== polynomials in omega
+def _horner(x: ArrayLike, c: NDArray[np.complex128]) -> NDArray[np.complex128]:
+    """p(x) for coefficients c in increasing powers (Horner; cheaper than numpy's polyval here)."""
+    x = np.asarray(x)
+    c = np.asarray(c)
+    if c.size == 0:
+        return np.zeros(x.shape, complex)
+    out = np.full(x.shape, c[-1], dtype=np.result_type(x.dtype, c.dtype))
+    for a in c[-2::-1]:
+        out = out * x + a
+    return out
+
+
+def _deriv(c: NDArray[np.complex128]) -> NDArray[np.complex128]:
+    """Coefficients of p'."""
+    c = np.asarray(c)
+    if c.size <= 1:
+        return np.zeros(1, c.dtype)
+    return c[1:] * np.arange(1, c.size)
+
+
 def _at_j_omega(c: NDArray[np.complex128]) -> NDArray[np.complex128]:
     """Coefficients in omega of g(j omega), increasing powers."""
     return c * (1j ** np.arange(c.size)) if c.size else np.zeros(1, complex)
@@ -319,10 +339,10 @@ def _positive_real_roots(poly: NDArray[np.complex128]) -> NDArray[np.float64]:
     roots = np.roots(p[::-1])
     real = roots[np.abs(roots.imag) <= 1e-6 * np.maximum(1.0, np.abs(roots))].real
     real = real[real > 1e-12]
-    dp = npoly.polyder(p)
+    dp = _deriv(p)
     for _ in range(3):  # Newton polish: np.roots is accurate to ~1e-10 only near clusters
-        d = npoly.polyval(real, dp)
-        step = np.where(d != 0.0, npoly.polyval(real, p) / np.where(d == 0.0, 1.0, d), 0.0)
+        d = _horner(real, dp)
+        step = np.where(d != 0.0, _horner(real, p) / np.where(d == 0.0, 1.0, d), 0.0)
         real = real - step
     return np.unique(np.round(real[real > 0], 13))
 
@@ -363,8 +383,8 @@ def _tendency(
     for c, a, b in qp.terms():
         h = a * t1 + b * t2
         e = np.exp(-h * s)
-        g = npoly.polyval(s, c)
-        dq_ds += (npoly.polyval(s, npoly.polyder(c)) - h * g) * e
+        g = _horner(s, c)
+        dq_ds += (_horner(s, _deriv(c)) - h * g) * e
         dq_1 -= a * s * g * e
         dq_2 -= b * s * g * e
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -379,7 +399,7 @@ def curve_residual(qp: TwoDelayQuasiPolynomial, curve: CrossingCurve) -> NDArray
     total = np.zeros(s.shape, complex)
     scale = np.zeros(s.shape)
     for c, a, b in qp.terms():
-        g = npoly.polyval(s, c)
+        g = _horner(s, c)
         total += g * np.exp(-(a * curve.tau1 + b * curve.tau2) * s)
         scale += np.abs(g)
     return np.abs(total) / scale
@@ -405,9 +425,9 @@ def _three_term_phases(
     angle between u and -g1 is ``+-alpha`` with
     ``cos alpha = (|g1|^2 + |g2|^2 - |g3|^2) / (2 |g1| |g2|)``; ``branch`` is +-1.
     """
-    a = npoly.polyval(omega, g1w)
-    b = npoly.polyval(omega, g2w)
-    c = npoly.polyval(omega, g3w)
+    a = _horner(omega, g1w)
+    b = _horner(omega, g2w)
+    c = _horner(omega, g3w)
     r1, r2, r3 = np.abs(a), np.abs(b), np.abs(c)
     with np.errstate(divide="ignore", invalid="ignore"):
         cos_alpha = np.clip((r1**2 + r2**2 - r3**2) / (2.0 * r1 * r2), -1.0, 1.0)
@@ -430,7 +450,7 @@ def _three_term_paths(qp: TwoDelayQuasiPolynomial, window: tuple[float, float]) 
     paths = []
     for lo, hi in zip(grid[:-1], grid[1:], strict=True):
         mid = 0.5 * (lo + hi)
-        if hi - lo <= 1e-12 * hi or npoly.polyval(mid, F).real > 0.0:
+        if hi - lo <= 1e-12 * hi or _horner(mid, F).real > 0.0:
             continue
         def phases(phi: NDArray[np.float64], lo: float = lo, hi: float = hi) -> tuple[NDArray, ...]:
             # phi in [0, 2 pi]: branch + for phi < pi (omega up), branch - back down.
@@ -506,7 +526,7 @@ def _batched_conv(a: NDArray[np.complex128], b: NDArray[np.complex128]) -> NDArr
 def _general_solutions(qp: TwoDelayQuasiPolynomial, omega: NDArray[np.float64]) -> list[NDArray[np.float64]]:
     """All (theta1, theta2) with q(j omega) = 0 at each omega: resultant in z2, unit roots, Newton."""
     s = 1j * omega
-    g = [npoly.polyval(s, c) if c.size else np.zeros(s.shape, complex) for c in qp.coefficients]
+    g = [_horner(s, c) if c.size else np.zeros(s.shape, complex) for c in qp.coefficients]
     g1, g2, g3, g4, g5, g6 = g
     n = omega.size
     b = np.stack([g2, g6], 1)              # powers z2^0..1
@@ -718,7 +738,7 @@ def _single_delay_roots(
     omegas = _positive_real_roots(poly)
     out_w, out_t = [], []
     for om in omegas:
-        a, b, c = (npoly.polyval(om, w) for w in (w2, w1, w0))
+        a, b, c = (_horner(om, w) for w in (w2, w1, w0))
         cands = [-c / b] if h2.size == 0 else list(np.roots([a, b, c]))
         for z in cands:
             if not np.isfinite(z) or abs(abs(z) - 1.0) > 1e-5:
@@ -736,8 +756,8 @@ def _newton_single(
     """Polish (omega, theta) on h0 + h1 e^{-j theta} + h2 e^{-2 j theta} = 0."""
     def f_and_j(om: float, th: float) -> tuple[complex, complex, complex, float]:
         e = np.exp(-1j * th)
-        v = [npoly.polyval(om, w) for w in (w0, w1, w2)]
-        dv = [npoly.polyval(om, npoly.polyder(w)) if w.size > 1 else 0.0 for w in (w0, w1, w2)]
+        v = [_horner(om, w) for w in (w0, w1, w2)]
+        dv = [_horner(om, _deriv(w)) if w.size > 1 else 0.0 for w in (w0, w1, w2)]
         f = v[0] + v[1] * e + v[2] * e * e
         fo = dv[0] + dv[1] * e + dv[2] * e * e
         ft = -1j * v[1] * e - 2j * v[2] * e * e
@@ -769,7 +789,7 @@ def _embed(
     i_hi = int(np.floor(np.max(t1max * om - u1) / TWO_PI))
     k_lo = int(np.ceil(np.min(-u2) / TWO_PI))
     k_hi = int(np.floor(np.max(t2max * om - u2) / TWO_PI))
-    curves: list[CrossingCurve] = []
+    images = []
     for i in range(i_lo, i_hi + 1):
         p1 = u1 + TWO_PI * i
         tau1 = p1 / om
@@ -780,15 +800,24 @@ def _embed(
             p2 = u2 + TWO_PI * k
             tau2 = p2 / om
             inside = in1 & (tau2 >= -margin2) & (tau2 <= t2max + margin2)
-            if not np.any(inside):
-                continue
-            curves.extend(_split_runs(om, tau1, tau2, p1, p2, inside, qp, weight, source, factor))
+            if np.any(inside):
+                images.append((tau1, tau2, p1, p2, inside))
+    if not images:
+        return []
+    # Root tendencies of all images in one vectorized call, then cut into pieces.
+    n = om.size
+    rt1, rt2 = _tendency(qp, np.tile(om, len(images)), np.concatenate([im[0] for im in images]),
+                         np.concatenate([im[1] for im in images]))
+    curves: list[CrossingCurve] = []
+    for j, (tau1, tau2, p1, p2, inside) in enumerate(images):
+        rts = (rt1[j * n : (j + 1) * n], rt2[j * n : (j + 1) * n])
+        curves.extend(_split_runs(om, tau1, tau2, p1, p2, inside, rts, weight, source, factor))
     return curves
 
 
 def _split_runs(
     om: NDArray, tau1: NDArray, tau2: NDArray, p1: NDArray, p2: NDArray, inside: NDArray,
-    qp: TwoDelayQuasiPolynomial, weight: int, source: int, factor: int,
+    rts: tuple[NDArray[np.int64], NDArray[np.int64]], weight: int, source: int, factor: int,
 ) -> list[CrossingCurve]:
     """Cut one image into runs near the window, each of one kind (kernel/offspring)."""
     # Keep each inside point and its neighbours, so segments crossing the border survive.
@@ -815,10 +844,9 @@ def _split_runs(
             sel = run[a : min(b + 1, run.size)]  # share the vertex with the next piece
             if sel.size < 2:
                 continue
-            rt1, rt2 = _tendency(qp, om[sel], tau1[sel], tau2[sel])
             out.append(
                 CrossingCurve(
-                    tau1=tau1[sel], tau2=tau2[sel], omega=om[sel], rt1=rt1, rt2=rt2,
+                    tau1=tau1[sel], tau2=tau2[sel], omega=om[sel], rt1=rts[0][sel], rt2=rts[1][sel],
                     kind="kernel" if kinds[a] else "offspring",
                     shift=(int(i1[sel[0]]), int(i2[sel[0]])), weight=weight, source=source,
                     factor=factor,
@@ -934,9 +962,9 @@ def _exact_crossing(
             for c, a, b in qp.terms():
                 h = a * t1 + b * t2
                 e = np.exp(-h * s)
-                g = npoly.polyval(s, c)
+                g = _horner(s, c)
                 f += g * e
-                fs += (npoly.polyval(s, npoly.polyder(c)) - h * g) * e
+                fs += (_horner(s, _deriv(c)) - h * g) * e
                 f1 -= a * s * g * e
                 scale += np.abs(g)
             # Unknowns (omega, tau1): dq/domega = j dq/ds.
@@ -949,7 +977,7 @@ def _exact_crossing(
             om = np.where(ok, om - d_om, om)
             t1 = np.where(ok, t1 - d_t1, t1)
         s = 1j * om
-        res = np.abs(sum(npoly.polyval(s, c) * np.exp(-(a * t1 + b * t2) * s) for c, a, b in qp.terms()))
+        res = np.abs(sum(_horner(s, c) * np.exp(-(a * t1 + b * t2) * s) for c, a, b in qp.terms()))
         good = (res <= 1e-10 * np.maximum(scale, 1e-300)) & (np.abs(t1 - tau1[sel]) < 0.05 * (1.0 + np.abs(tau1[sel])))
         out[sel] = np.where(good, t1, tau1[sel])
     return out
