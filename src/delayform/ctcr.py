@@ -614,6 +614,12 @@ def _unique_phases(th: NDArray[np.float64]) -> NDArray[np.float64]:
     return np.array(keep).reshape(-1, 2)
 
 
+def _dist_matrix(A: NDArray[np.float64], B: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Torus (max-coordinate) distances between phase pairs, rows of A by rows of B."""
+    d = np.mod(A[:, None, :] - B[None, :, :] + np.pi, TWO_PI) - np.pi
+    return np.abs(d).max(axis=2)
+
+
 def _torus_dist(a: NDArray[np.float64], b: NDArray[np.float64]) -> float:
     d = np.abs(np.angle(np.exp(1j * (np.asarray(a) - np.asarray(b)))))
     return float(np.max(d))
@@ -652,7 +658,7 @@ def _general_paths(qp: TwoDelayQuasiPolynomial, window: tuple[float, float]) -> 
     for i in range(omega.size - 1):
         A, Bs = sols[i], sols[i + 1]
         if len(A) and len(Bs):
-            D = np.array([[_torus_dist(x, y) for y in Bs] for x in A])
+            D = _dist_matrix(A, Bs)
             r, c = linear_sum_assignment(D)
             for ri, ci in zip(r, c, strict=True):
                 if D[ri, ci] < 0.3:
@@ -682,7 +688,7 @@ def _is_end(v: tuple[int, int], i: int, adj: dict[tuple[int, int], list[tuple[in
 def _max_match_dist(A: NDArray[np.float64], B: NDArray[np.float64]) -> float:
     from scipy.optimize import linear_sum_assignment
 
-    D = np.array([[_torus_dist(x, y) for y in B] for x in A])
+    D = _dist_matrix(A, B)
     r, c = linear_sum_assignment(D)
     return float(D[r, c].max())
 
