@@ -1459,11 +1459,9 @@ def schedule_delays(
             f"tau2 in [{lo[1]:g}, {hi[1]:g}] (grid {grid} x {grid})"
         )
 
-    def objective(x: NDArray[np.float64]) -> float:
-        t = np.clip(x, lo, hi)
-        return max(rightmost_root(f, float(t[0]), float(t[1])).real for f in fs)
+    objective = _WarmDominant(tuple(_problem_of_factor(f) for f in fs), np.array(lo), np.array(hi))
 
-    flat = np.argsort(coarse.real, axis=None)[:3]
+    flat = np.argsort(coarse.real, axis=None)[:2]
     candidates = [coarse.best()[:2]]
     for k in flat:
         i, j = np.unravel_index(int(k), coarse.real.shape)
@@ -1475,10 +1473,47 @@ def schedule_delays(
         if fx < best_f:
             best_x, best_f = x, fx
     final = dominant_root(topology, P, D, float(best_x[0]), float(best_x[1]))
-    if not final.is_stable:  # cannot happen (best_f <= a stable grid value); guard anyway
+    if not final.root.real <= float(coarse.real.min()):
+        # the search was steered by uncertified values into something worse: keep the grid's best
+        t1b, t2b, _ = coarse.best()
+        final = dominant_root(topology, P, D, t1b, t2b)
+    if not final.is_stable:  # cannot happen: the grid's best is certified and stable
         raise NoStableDelaysError("delay scheduling ended on an unstable pair")
     hardware = dominant_root(topology, P, D, lo[0], lo[1])
     return DelaySchedule(final.tau1, final.tau2, final.root, final.factor, hardware.root)
+
+
+class _WarmDominant:
+    """Re(dominant root) as a function of (tau1, tau2), warm-started for a local search.
+
+    Each factor's roots at the previous evaluation seed Newton at the next
+    (the search moves little between evaluations). These values only steer
+    the search: they are not certified, the point the search ends at is
+    (:func:`schedule_delays` recomputes it with :func:`dominant_root`).
+    """
+
+    def __init__(self, problems: tuple[_Problem, ...], lo: NDArray[np.float64], hi: NDArray[np.float64]) -> None:
+        self.problems, self.lo, self.hi = problems, lo, hi
+        self.seeds: list[NDArray[np.complex128] | None] = [None] * len(problems)
+
+    def __call__(self, x: NDArray[np.float64]) -> float:
+        t = np.clip(x, self.lo, self.hi)
+        t1, t2 = np.array([float(t[0])]), np.array([float(t[1])])
+        best = -np.inf
+        for k, prob in enumerate(self.problems):
+            seeds = self.seeds[k]
+            if seeds is None:  # several roots, so a runner-up that overtakes is followed too
+                seeds = _igd_seeds(prob, t1, t2, scale=1.5, k=_BATCH_SEEDS)[0]
+                seeds = seeds[np.isfinite(seeds)]
+            roots, ok = _polish(prob, seeds, t1, t2)
+            found = roots[ok]
+            if found.size == 0:
+                self.seeds[k] = None
+                found = _solve_rightmost(prob, float(t1[0]), float(t2[0])).roots
+            else:
+                self.seeds[k] = _cluster(found)
+            best = max(best, float(found.real.max()))
+        return best
 
 
 def _refine(
@@ -1503,7 +1538,7 @@ def _refine(
     res = minimize(
         along, y0, method="Nelder-Mead", bounds=list(zip(lo[free], hi[free], strict=True)),
         options={"initial_simplex": np.clip(simplex, lo[free], hi[free]), "xatol": 1e-6,
-                 "fatol": 1e-10, "maxfev": 80},
+                 "fatol": 1e-10, "maxfev": 60},
     )
     x = x0.copy()
     x[free] = np.clip(res.x, lo[free], hi[free])
