@@ -888,49 +888,57 @@ def _horizontal_crossings(
 ) -> NDArray[np.int64]:
     """Sum of w RT1 over the curves met by each horizontal path (0, y) -> (x, y).
 
-    The polyline gives where each segment meets the line; when that is within
-    2 % of the window of the query point, the crossing is recomputed exactly,
-    solving ``q(j omega; tau1, y) = 0`` for (omega, tau1) by Newton's method, so
-    points close to a curve are on the right side of it.
+    Crossings are found once per distinct tau2 of the queries: the polyline
+    gives where each segment meets the line, then the crossing is recomputed
+    exactly, solving ``q(j omega; tau1, tau2) = 0`` for (omega, tau1) by Newton's
+    method, so that points close to a curve land on the right side of it.
+    Queries then read a cumulative sum over the crossings sorted by tau1.
     """
-    out = np.zeros(x.size)
+    out = np.zeros(x.size, np.int64)
     if seg.shape[0] == 0 or x.size == 0:
-        return out.astype(np.int64)
-    order = np.argsort(y, kind="stable")
-    ys = y[order]
+        return out
+    uy, inv = np.unique(y, return_inverse=True)
     ylo = np.minimum(seg[:, 1], seg[:, 3])
     yhi = np.maximum(seg[:, 1], seg[:, 3])
-    lo = np.searchsorted(ys, ylo, "left")
-    hi = np.searchsorted(ys, yhi, "left")  # half-open [ylo, yhi): shared vertices count once
+    lo = np.searchsorted(uy, ylo, "left")
+    hi = np.searchsorted(uy, yhi, "left")  # half-open [ylo, yhi): shared vertices count once
     counts = hi - lo
-    chunk = 4_000_000
-    starts = np.concatenate([[0], np.cumsum(counts)])
-    # Process segments in blocks so that the (segment, query) pairs fit in memory.
-    s0 = 0
-    while s0 < seg.shape[0]:
-        s1 = int(np.searchsorted(starts, starts[s0] + chunk, "right")) - 1
-        s1 = max(s1, s0 + 1)
-        s1 = min(s1, seg.shape[0])
-        n_pairs = int(starts[s1] - starts[s0])
-        if n_pairs:
-            sid = np.repeat(np.arange(s0, s1), counts[s0:s1])
-            pos = np.arange(n_pairs) - (starts[sid] - starts[s0]) + lo[sid]
-            q = order[pos]
-            x0, y0, x1, y1, w, src, om0, om1, weight = seg[sid].T
-            frac = (y[q] - y0) / (y1 - y0)
-            xc = x0 + frac * (x1 - x0)
-            om = om0 + frac * (om1 - om0)
-            close = np.abs(xc - x[q]) < 0.02 * scale
-            if np.any(close):
-                xc[close] = _exact_crossing(traced, src[close].astype(np.int64), om[close], xc[close], y[q][close])
-            hit = (xc > 0.0) & (xc < x[q])
-            turn = hit & (w == 0)
-            if np.any(turn):
-                w = w.copy()
-                w[turn] = weight[turn] * _crossing_tendency(traced, src[turn].astype(np.int64), om[turn], xc[turn], y[q][turn])
-            out += np.bincount(q[hit], weights=w[hit], minlength=x.size)
-        s0 = s1
-    return np.rint(out).astype(np.int64)
+    n_pairs = int(counts.sum())
+    if n_pairs > 20_000_000 and uy.size > 1:
+        # Too many (segment, line) pairs at once: split the queries by tau2.
+        cut = uy[uy.size // 2]
+        low = y < cut
+        out[low] = _horizontal_crossings(seg, x[low], y[low], traced, scale)
+        out[~low] = _horizontal_crossings(seg, x[~low], y[~low], traced, scale)
+        return out
+    if n_pairs == 0:
+        return out
+    sid = np.repeat(np.arange(seg.shape[0]), counts)
+    yi = np.arange(n_pairs) - np.repeat(np.cumsum(counts) - counts, counts) + lo[sid]
+    x0, y0, x1, y1, w, src, om0, om1, weight = seg[sid].T
+    yy = uy[yi]
+    frac = (yy - y0) / (y1 - y0)
+    # The polyline is within ~_CHORD_TOL * scale of the curve in each coordinate, so the
+    # crossing moves at most about that much times (1 + |dtau1/dtau2|).
+    band = 8.0 * _CHORD_TOL * scale * (1.0 + np.abs((x1 - x0) / (y1 - y0)))
+    xc = _exact_crossing(traced, src.astype(np.int64), om0 + frac * (om1 - om0), x0 + frac * (x1 - x0), yy, band)
+    turn = w == 0
+    if np.any(turn):
+        w = w.copy()
+        w[turn] = weight[turn] * _crossing_tendency(
+            traced, src[turn].astype(np.int64), (om0 + frac * (om1 - om0))[turn], xc[turn], yy[turn]
+        )
+    keep = xc > 0.0
+    yi, xc, w = yi[keep], xc[keep], w[keep]
+    # Sort crossings by (line, tau1) with one composite key; queries search the same key.
+    width = 2.0 * (max(float(xc.max(initial=0.0)), float(x.max())) + 1.0)
+    key = yi * width + xc
+    order = np.argsort(key, kind="stable")
+    key = key[order]
+    cum = np.concatenate([[0.0], np.cumsum(w[order])])
+    first = np.searchsorted(key, inv * width, "left")
+    upto = np.searchsorted(key, inv * width + x, "left")
+    return np.rint(cum[upto] - cum[first]).astype(np.int64)
 
 
 def _crossing_tendency(
@@ -947,12 +955,13 @@ def _crossing_tendency(
 
 def _exact_crossing(
     traced: tuple[TwoDelayQuasiPolynomial, ...], src: NDArray[np.int64], omega: NDArray[np.float64],
-    tau1: NDArray[np.float64], tau2: NDArray[np.float64],
+    tau1: NDArray[np.float64], tau2: NDArray[np.float64], max_move: NDArray[np.float64],
 ) -> NDArray[np.float64]:
     """tau1 where the curve meets tau2 = const exactly: Newton on q(j omega; tau1, tau2) = 0.
 
-    Starts from the polyline's interpolation; where Newton does not converge
-    (or runs off), the interpolated value is kept.
+    Starts from the polyline's interpolation; where Newton does not converge,
+    or moves further than ``max_move`` (it would be another crossing), the
+    interpolated value is kept.
     """
     out = tau1.copy()
     for k in np.unique(src):
@@ -984,7 +993,7 @@ def _exact_crossing(
             t1 = np.where(ok, t1 - d_t1, t1)
         s = 1j * om
         res = np.abs(sum(_horner(s, c) * np.exp(-(a * t1 + b * t2) * s) for c, a, b in qp.terms()))
-        good = (res <= 1e-10 * np.maximum(scale, 1e-300)) & (np.abs(t1 - tau1[sel]) < 0.05 * (1.0 + np.abs(tau1[sel])))
+        good = (res <= 1e-10 * np.maximum(scale, 1e-300)) & (np.abs(t1 - tau1[sel]) <= max_move[sel])
         out[sel] = np.where(good, t1, tau1[sel])
     return out
 
