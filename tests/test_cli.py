@@ -282,3 +282,20 @@ def test_report_on_a_scenario_file(tmp_path: Path) -> None:
     # the map grid came from the file: [0, tau1_max] x [0, tau2_max] by default
     grid = np.load(out / "dominant_map.npz")
     assert grid["real_part"].shape == (11, 11) and grid["tau1"][-1] == 3.0
+
+
+def test_report_says_when_no_delays_are_stable(tmp_path: Path) -> None:
+    # a directed ring of six with little damping is unstable at every delay in [0, 2]^2
+    scenario = tmp_path / "weak.toml"
+    scenario.write_text(
+        '[topology]\nname = "ring"\nn = 6\n[gains]\nP = 1.0\nD = 0.2\n[delays]\ntau1 = 0.2\ntau2 = 0.1\n'
+        '[formation]\nshape = "hexagon"\n[simulation]\nmodel = "double_integrator"\nduration = 5.0\ndt = 0.05\n'
+        "[chart]\ntau1_max = 2.0\ntau2_max = 2.0\n[map]\nsize = [5, 5]\n"
+    )
+    printed = _json(run("report", str(scenario), "--out", str(tmp_path / "out"), "--json", cwd=tmp_path))
+    assert printed["chart"]["stable_fraction"] == 0.0
+    assert printed["schedule"]["stable_delays_found"] is False
+    assert "no stable delays" in (tmp_path / "out" / "index.html").read_text()
+    # the schedule command alone reports it as one line
+    proc = run("schedule", str(scenario), "--out", str(tmp_path / "out2"), cwd=tmp_path)
+    assert_one_line_error(proc, "no stable delay pair")

@@ -20,11 +20,15 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import replace
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import click
 
 from delayform.errors import DelayformError, InputError
+
+if TYPE_CHECKING:  # the command line imports the library lazily, to start fast
+    from delayform.scenario import Scenario
+    from delayform.topology import Topology
 
 TOPOLOGY_NAMES = ("paper_six", "ring", "complete", "star")
 
@@ -36,7 +40,7 @@ def _fail(message: str, *, code: int = 2) -> None:
     sys.exit(code)
 
 
-def _named_topology(name: str, n: int):
+def _named_topology(name: str, n: int) -> Topology:
     from delayform import topology as topo
 
     if name == "paper_six":
@@ -119,7 +123,7 @@ def _scenario(
     D: float | None,
     tau1: float | None,
     tau2: float | None,
-):
+) -> Scenario:
     """The scenario file (or the paper's example) with the command-line overrides applied."""
     from delayform.scenario import load_scenario, paper_scenario
 
@@ -134,7 +138,7 @@ def _scenario(
     return scenario.with_changes(topology=topology, P=P, D=D, tau1=tau1, tau2=tau2)
 
 
-def _out_dir(out: Path | None, scenario: Any) -> Path:
+def _out_dir(out: Path | None, scenario: Scenario) -> Path:
     path = out if out is not None else Path("out") / scenario.name
     try:
         path.mkdir(parents=True, exist_ok=True)
@@ -223,14 +227,25 @@ def cli() -> None:
 @click.option("--n", type=int, default=6, show_default=True, help="Number of agents (not for paper_six).")
 @click.option("--P", "P", type=float, default=1.0, show_default=True, help="Proportional gain P.")
 @click.option("--D", "D", type=float, default=0.5, show_default=True, help="Derivative gain D.")
-def factors_command(topology_name: str, n: int, P: float, D: float) -> None:
+@click.option("--json", "as_json", is_flag=True, help="Print eigenvalues and factors as JSON on stdout.")
+def factors_command(topology_name: str, n: int, P: float, D: float, as_json: bool) -> None:
     """Print C, its eigenvalues and the factors of the characteristic equation (Lemma 1)."""
     import numpy as np
 
     from delayform.characteristic import factors
+    from delayform.report import jsonable
 
     topo = _named_topology(topology_name, n)
     fs = factors(topo, P, D)
+    if as_json:
+        click.echo(json.dumps(jsonable({
+            "topology": topo.name, "agents": topo.n, "P": P, "D": D,
+            "eigenvalues": [complex(v) for v in topo.eigenvalues],
+            "factors": [{"lam": complex(f.lam), "order": f.order, "multiplicity": f.multiplicity,
+                         "centroid": f.is_centroid, "quasi_polynomial": f.quasi_polynomial.describe()}
+                        for f in fs],
+        }), indent=2))  # fmt: skip
+        return
     with np.printoptions(precision=4, suppress=True, linewidth=120):
         click.echo(f"Topology {topo.name}: {topo.n} agents, spanning tree: {topo.has_spanning_tree()}")
         click.echo("C = Delta^-1 A =")
@@ -393,7 +408,7 @@ def simulate_command(scenario: Path | None, model: str | None, duration: float |
     _emit(section, directory, as_json=as_json)
 
 
-def _write_full_report(sc: Any, directory: Path, *, paper: bool, as_json: bool) -> None:
+def _write_full_report(sc: Scenario, directory: Path, *, paper: bool, as_json: bool) -> None:
     from delayform.report import jsonable, paper_sections, scenario_sections, write_report
 
     build = paper_sections if paper else scenario_sections

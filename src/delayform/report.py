@@ -436,21 +436,41 @@ def schedule_section(
     tau_min: tuple[float, float] | None = None,
     tau_max: tuple[float, float] | None = None,
     label: str = "",
+    report_failure: bool = False,
 ) -> Section:
     """Delay scheduling: the fastest stable delays reachable by increasing the hardware delays.
 
     ``tau_min`` and ``tau_max`` default to the scenario's ``[schedule]``;
     ``label`` names the hardware point (e.g. ``"c"``) in titles and file names.
+    With ``report_failure``, a box without stable delays becomes a section
+    saying so instead of :class:`~delayform.spectrum.NoStableDelaysError`.
     """
     from delayform.spectrum import schedule_delays
 
+    from delayform.spectrum import NoStableDelaysError
+
     lo = scenario.schedule.tau_min if tau_min is None else tau_min
     hi = scenario.schedule.tau_max if tau_max is None else tau_max
-    result = schedule_delays(scenario.topology, scenario.P, scenario.D, tau_min=lo, tau_max=hi)
+    suffix = f"_{label}" if label else ""
+    where = f"point {label} " if label else ""
+    try:
+        result = schedule_delays(scenario.topology, scenario.P, scenario.D, tau_min=lo, tau_max=hi)
+    except NoStableDelaysError as exc:
+        if not report_failure:
+            raise
+        # a finding, not a failure of the report: say so in the page
+        return Section(
+            key=f"schedule{suffix}",
+            title=f"Delay scheduling from {where}({lo[0]:g}, {lo[1]:g}) s: no stable delays",
+            text=f"Delays can only be increased from the hardware's, and none of them is stable: {exc}.",
+            table=(("hardware delays (tau1, tau2)", f"({lo[0]:g}, {lo[1]:g}) s"), ("result", "no stable delays")),
+            summary={"tau_min": list(lo), "tau_max": list(hi), "stable_delays_found": False},
+        )
     root, hardware = complex(result.root), complex(result.hardware_root)
     summary = {
         "tau_min": list(lo),
         "tau_max": list(hi),
+        "stable_delays_found": True,
         "tau1": float(result.tau1),
         "tau2": float(result.tau2),
         "root": root,
@@ -458,10 +478,8 @@ def schedule_section(
         "settling_time": float(result.settling_time),
         "hardware_root": hardware,
     }
-    suffix = f"_{label}" if label else ""
     name = f"schedule{suffix}.json"
     (out / name).write_text(json.dumps(jsonable(summary), indent=2))
-    where = f"point {label} " if label else ""
     verdict = "unstable" if hardware.real > 0 else "stable"
     return Section(
         key=f"schedule{suffix}",
@@ -589,7 +607,7 @@ def scenario_sections(
         ("stability chart", lambda: chart_section(scenario, out)),
         ("roots", lambda: roots_section(scenario, out)),
         ("dominant-root map", lambda: map_section(scenario, out, progress=map_progress)),
-        ("delay scheduling", lambda: schedule_section(scenario, out)),
+        ("delay scheduling", lambda: schedule_section(scenario, out, report_failure=True)),
         ("simulation", lambda: simulation_section(scenario, out)),
     ]
     sections = []
