@@ -286,3 +286,16 @@ def test_sign_of_dominant_root_agrees_with_ctcr_map() -> None:
                 assert bool(chart.is_stable(t1, t2)) is bool(re < 0), (t1, t2, re)
                 checked += 1
     assert checked > 400
+
+
+def test_certified_unstable_root_count_agrees_with_ctcr_nu() -> None:
+    ctcr = pytest.importorskip("delayform.ctcr")
+    team = paper_six()
+    chart = ctcr.stability_map(team, P, D, 10.0, 10.0)
+    fs = factors(team, P, D)
+    rng = np.random.default_rng(11)
+    for t1, t2 in zip(rng.uniform(0.05, 9.95, 12), rng.uniform(0.05, 9.95, 12), strict=True):
+        if abs(dominant_root(team, P, D, t1, t2).root.real) < 1e-6:
+            continue
+        nu = sum(f.multiplicity * spectrum.count_roots_right_of(f, t1, t2, 1e-9) for f in fs)
+        assert nu == int(chart.unstable_count(t1, t2)), (t1, t2)

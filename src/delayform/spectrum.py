@@ -967,13 +967,20 @@ def _map_degree(hmax: NDArray[np.float64], radius: float) -> NDArray[np.int64]:
 def _batch_distinct(
     roots: NDArray[np.complex128], ok: NDArray[np.bool_]
 ) -> NDArray[np.complex128]:
-    """Per row, NaN for failed seeds and for repeats of an earlier seed's root."""
-    r = np.where(ok, roots, np.nan)
-    k = r.shape[1]
-    close = np.abs(r[:, :, None] - r[:, None, :]) <= 1e-7 * (1.0 + np.abs(r[:, None, :]))
-    earlier = np.tril(np.ones((k, k), dtype=bool), -1)  # [i, j]: j < i
-    dup = np.any(close & earlier[None], axis=2)
-    return np.where(dup, np.nan, r)
+    """Per row, the distinct accepted roots first (sorted), NaN after them.
+
+    Rows are sorted (numpy orders complex numbers by real, then imaginary
+    part), so seeds that reached the same root sit side by side; a repeat
+    that is not adjacent only inflates the expected count, which the
+    certificate then rejects (the point is recomputed), never a wrong root.
+    """
+    r = np.sort(np.where(ok, roots, np.nan), axis=1)  # NaN sorts last
+    close = np.abs(r[:, 1:] - r[:, :-1]) <= 1e-7 * (1.0 + np.abs(r[:, :-1]))
+    dup = np.concatenate([np.zeros((r.shape[0], 1), dtype=bool), close], axis=1)
+    r = np.where(dup, np.nan, r)
+    keep = np.isfinite(r).sum(axis=1).max(initial=0)
+    order = np.argsort(~np.isfinite(r), axis=1, kind="stable")
+    return np.take_along_axis(r, order, 1)[:, : max(int(keep), 1)]
 
 
 def _batch_lines(
@@ -1052,12 +1059,12 @@ def _certify(
         seeds = np.where(np.abs(seeds) < 1e-6, -1e-2, seeds)
     roots, ok = _polish(prob, seeds, t1[:, None], t2[:, None])
     ok &= np.isfinite(seeds)
-    if prob.is_real:
-        roots = np.where(ok & (roots.imag < 0.0), np.conj(roots), roots)
-        pair = ok & (roots.imag > 1e-9 * (1.0 + np.abs(roots)))
+    if prob.is_real:  # distinct members with Im >= 0 first, then their mirror images
+        roots = _batch_distinct(np.where(roots.imag < 0.0, np.conj(roots), roots), ok)
+        pair = np.abs(roots.imag) > 1e-9 * (1.0 + np.abs(roots))
         roots = np.concatenate([roots, np.where(pair, np.conj(roots), np.nan)], axis=1)
-        ok = np.concatenate([ok, pair], axis=1)
-    roots = _batch_distinct(roots, ok)
+    else:
+        roots = _batch_distinct(roots, ok)
     c, expected, top = _batch_lines(prob, roots)
     good = np.isfinite(top) & np.isfinite(c)
     counts = np.full(t1.size, np.nan)
