@@ -128,7 +128,7 @@ CURVE_TOLERANCE = 1e-9
 _CHORD_TOL = 2e-4
 #: Longest chord (fraction of the window size) kept without refinement.
 _MAX_CHORD = 0.02
-_MAX_ROUNDS = 14
+_MAX_ROUNDS = 26
 #: Lowest crossing frequency traced, relative to the bound on crossing frequencies.
 _OMEGA_FLOOR = 1e-4
 
@@ -511,7 +511,38 @@ def _needs_refinement(
         lowest = np.minimum(np.mod(u[:-1], TWO_PI) * inv[:-1], np.mod(u[1:], TWO_PI) * inv[1:])
         relevant = lowest <= tmax * 1.05
         need |= relevant & ((dev + dev_shift > _CHORD_TOL * scale) | (chord > _MAX_CHORD * scale))
+    need |= _turning_needs(om, u2, m_om, m2, window[1], scale)
     return need
+
+
+def _turning_needs(
+    om: NDArray, u2: NDArray, m_om: NDArray, m2: NDArray, t2max: float, scale: float
+) -> NDArray[np.bool_]:
+    """Intervals next to a turning point in tau2 of some image whose chord is off by > 1e-9 scale.
+
+    Near a horizontal tangent a horizontal line meets the curve twice, close
+    together; the polyline must be exact there for the count to be, so these
+    intervals are refined far below the general chord tolerance.
+    """
+    need = np.zeros(m_om.shape, bool)
+    if om.size < 3:
+        return need
+    k_lo = int(np.ceil(np.min(-u2) / TWO_PI))
+    k_hi = int(np.floor(np.max(t2max * om - u2) / TWO_PI))
+    if k_hi < k_lo:
+        return need
+    ks = np.arange(k_lo, k_hi + 1, dtype=float)[:, None]
+    tau = (u2[None, :] + TWO_PI * ks) / om[None, :]
+    d = np.diff(tau, axis=1)
+    turn = (d[:, :-1] * d[:, 1:] < 0.0) & (tau[:, 1:-1] >= -0.02 * t2max) & (tau[:, 1:-1] <= 1.02 * t2max)
+    if not np.any(turn):
+        return need
+    mid = (m2[None, :] + TWO_PI * ks) / m_om[None, :]
+    dev = np.abs(mid - 0.5 * (tau[:, :-1] + tau[:, 1:])) > 1e-9 * scale
+    near = np.zeros(d.shape, bool)
+    near[:, :-1] |= turn
+    near[:, 1:] |= turn
+    return np.any(near & dev, axis=0)
 
 
 # --------------------------------------------------------------------- general qps
@@ -863,21 +894,30 @@ def _split_runs(
 
 # ===================================================================== counting helpers
 def _segment_table(curves: tuple[CrossingCurve, ...]) -> NDArray[np.float64]:
-    """Rows (x0, y0, x1, y1, w RT1, source, omega0, omega1, w) of every segment that is not horizontal.
+    """Rows (x0, y0, x1, y1, w RT1, source, omega0, omega1, w, at_turn) of the non-horizontal segments.
 
-    w RT1 is 0 where the root tendency differs at the two ends (the curve turns
-    in tau2 inside the segment): it is then taken at the crossing point itself.
+    RT1 changes sign where the curve turns in tau2 (horizontal tangent). A
+    segment ending at such a vertex takes RT1 from its other end and is marked
+    ``at_turn``: its crossing keeps the polyline's value, because a line just
+    under the turning point meets the curve twice, close together, and an exact
+    solve from either segment could find the same one of the two. w RT1 is 0
+    where the ends still disagree; it is then taken at the crossing point.
     """
     rows = []
     for c in curves:
         a, b = c.rt1[:-1], c.rt1[1:]
+        dy = np.diff(c.tau2)
+        ext = np.zeros(c.tau2.size, bool)
+        ext[1:-1] = dy[:-1] * dy[1:] < 0.0
+        ea, eb = ext[:-1], ext[1:]
         rt = np.where(a == b, a, 0)
+        rt = np.where(ea & ~eb, b, np.where(eb & ~ea, a, np.where(ea & eb, 0, rt)))
         src = np.full(rt.shape, float(c.source))
         w = np.full(rt.shape, float(c.weight))
         rows.append(np.column_stack([c.tau1[:-1], c.tau2[:-1], c.tau1[1:], c.tau2[1:], c.weight * rt,
-                                     src, c.omega[:-1], c.omega[1:], w]))
+                                     src, c.omega[:-1], c.omega[1:], w, (ea | eb).astype(float)]))
     if not rows:
-        return np.zeros((0, 9))
+        return np.zeros((0, 10))
     seg = np.concatenate(rows)
     return seg[seg[:, 1] != seg[:, 3]]
 
@@ -915,12 +955,13 @@ def _horizontal_crossings(
         return out
     sid = np.repeat(np.arange(seg.shape[0]), counts)
     yi = np.arange(n_pairs) - np.repeat(np.cumsum(counts) - counts, counts) + lo[sid]
-    x0, y0, x1, y1, w, src, om0, om1, weight = seg[sid].T
+    x0, y0, x1, y1, w, src, om0, om1, weight, at_turn = seg[sid].T
     yy = uy[yi]
     frac = (yy - y0) / (y1 - y0)
     # The polyline is within ~_CHORD_TOL * scale of the curve in each coordinate, so the
     # crossing moves at most about that much times (1 + |dtau1/dtau2|).
     band = 8.0 * _CHORD_TOL * scale * (1.0 + np.abs((x1 - x0) / (y1 - y0)))
+    band[at_turn > 0] = -1.0  # keep the polyline's crossing next to a turning point
     xc = _exact_crossing(traced, src.astype(np.int64), om0 + frac * (om1 - om0), x0 + frac * (x1 - x0), yy, band)
     turn = w == 0
     if np.any(turn):
