@@ -14,6 +14,7 @@ The tree::
     |   |   +-- NoSpanningTreeError        Lemma 3: consensus impossible
     |   +-- GainError                      P, D not finite and positive
     |   +-- DelayError                     tau1, tau2 negative or not finite
+    |   |   +-- NoStableDelaysError        delay scheduling: no stable pair in the box
     |   +-- QuasiPolynomialError           malformed coefficients
     |   |   +-- NeutralQuasiPolynomialError  not retarded: CTCR and roots refuse
     |   +-- FormationError                 desired shape of the wrong size
@@ -33,6 +34,7 @@ __all__ = [
     "NoSpanningTreeError",
     "GainError",
     "DelayError",
+    "NoStableDelaysError",
     "QuasiPolynomialError",
     "NeutralQuasiPolynomialError",
     "FormationError",
@@ -68,6 +70,10 @@ class GainError(InputError):
 
 class DelayError(InputError):
     """A delay tau1 or tau2 that is negative or not finite."""
+
+
+class NoStableDelaysError(DelayError):
+    """No delay pair in the box given to delay scheduling is stable."""
 
 
 class QuasiPolynomialError(InputError):

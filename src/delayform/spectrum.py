@@ -70,7 +70,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from delayform._validation import check_delay, check_gains
 from delayform.characteristic import CharacteristicFactor, TwoDelayQuasiPolynomial, factors
-from delayform.errors import DelayError, InputError, NotConvergedError
+from delayform.errors import DelayError, InputError, NoStableDelaysError, NotConvergedError
 from delayform.topology import Topology
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
@@ -111,10 +111,6 @@ _MAX_SAMPLES = 400_000
 
 Region = tuple[float, float, float, float]
 _Terms = tuple[tuple[NDArray[np.complex128], int, int], ...]
-
-
-class NoStableDelaysError(DelayError):
-    """No delay pair in the scheduling box gives a stable formation."""
 
 
 # =====================================================================
