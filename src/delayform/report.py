@@ -19,7 +19,6 @@ import base64
 import csv
 import html
 import json
-import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -27,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from delayform.errors import ScenarioError
 from delayform.scenario import Scenario
 
 __all__ = [
@@ -50,9 +50,6 @@ Progress = Callable[[str], None]
 
 #: Called with (grid points done, grid points in all) while a map is computed.
 MapProgress = Callable[[int, int], None]
-
-#: The paper's delay points of Fig. stability (Section "Simulation Examples").
-PAPER_POINTS = (("a", 0.3, 0.2), ("b", 2.0, 1.0), ("c", 1.0, 2.0), ("d", 1.0, 5.5), ("e", 3.5, 2.0))
 
 
 @dataclass(frozen=True)
@@ -627,10 +624,11 @@ def paper_sections(
     versus time at a and b, traces at a, the dominant-root surface and
     contour, the best delays, and the settling times.
     """
-    points = dict((p[0], p[1:]) for p in scenario.chart.points)
-    a = points.get("a", (scenario.tau1, scenario.tau2))
-    b = points.get("b", PAPER_POINTS[1][1:])
-    c = points.get("c", PAPER_POINTS[2][1:])
+    points = {p[0]: p[1:] for p in scenario.chart.points}
+    missing = [k for k in "abc" if k not in points]
+    if missing:
+        raise ScenarioError(f"{scenario.source}: chart.points: expected the paper's points a, b, c; missing {missing}")
+    a, b, c = points["a"], points["b"], points["c"]
     window = (scenario.chart.tau1_max, scenario.chart.tau2_max)
     steps: list[tuple[str, Callable[[], Section]]] = [
         ("eigenvalues and factors", lambda: factors_section(scenario, out)),
@@ -718,10 +716,3 @@ def write_report(
     }
     (out / "summary.json").write_text(json.dumps(jsonable(summary), indent=2), encoding="utf-8")
     return index
-
-
-def timed(run: Callable[[], list[Section]]) -> tuple[list[Section], float]:
-    """Run ``run`` and return its sections with the wall time in seconds."""
-    start = time.perf_counter()
-    sections = run()
-    return sections, time.perf_counter() - start
