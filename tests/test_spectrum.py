@@ -207,11 +207,13 @@ def test_dominant_root_map_matches_reference_at_sampled_points(rng: np.random.Ge
     assert dmap.factor_index.shape == dmap.roots.shape
 
 
-def test_dominant_root_map_is_fast_enough_and_drawn(tmp_path) -> None:
+def test_dominant_root_map_figures_and_progress_bar() -> None:
     team = paper_six()
     grid = np.linspace(0.0, 10.0, 40)
     dmap = dominant_root_map(team, P, D, grid, grid)
     assert np.all(np.isfinite(dmap.roots))
+    again = dominant_root_map(team, P, D, grid[:7], grid[:5], progress=True)
+    assert np.allclose(again.roots, dmap.roots[:7, :5], rtol=0.0, atol=1e-12)
     ax = dmap.plot_contour()
     assert ax.collections  # filled contours were drawn
     ax3 = dmap.plot_surface()

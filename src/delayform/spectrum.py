@@ -59,7 +59,7 @@ Maehly's correction and excluded from dominant roots (its other roots count).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import lru_cache
 from typing import TYPE_CHECKING, Any
@@ -725,7 +725,13 @@ def _known_reals(prob: _Problem, roots: NDArray[np.complex128], mult: NDArray[np
 
 @dataclass(frozen=True)
 class _SolveResult:
-    roots: NDArray[np.complex128]  # roots of the solved q (no mirror images), deflated
+    """Roots right of the certified line Re s = ``line`` at discretization ``degree``.
+
+    ``roots`` are roots of the solved q (no mirror images; the persistent zero
+    of eq. factor1 deflated), ``mult`` their multiplicities.
+    """
+
+    roots: NDArray[np.complex128]
     mult: NDArray[np.int64]
     line: float
     degree: int
@@ -963,7 +969,7 @@ def _map_degree(hmax: NDArray[np.float64], radius: float) -> NDArray[np.int64]:
     Lower than :func:`_initial_degree` on purpose: the certificate decides,
     and the few pairs it rejects go through the robust single-pair path.
     """
-    return np.clip(np.ceil(0.8 * radius * hmax + 6), 8, MAX_DEGREE).astype(np.int64)
+    return np.clip(np.ceil(0.6 * radius * hmax + 4), 6, MAX_DEGREE).astype(np.int64)
 
 
 def _batch_distinct(
