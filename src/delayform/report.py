@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from delayform.errors import ScenarioError
+from delayform.errors import NoStableDelaysError, ScenarioError
 from delayform.scenario import Scenario
 
 __all__ = [
@@ -440,11 +440,9 @@ def schedule_section(
     ``tau_min`` and ``tau_max`` default to the scenario's ``[schedule]``;
     ``label`` names the hardware point (e.g. ``"c"``) in titles and file names.
     With ``report_failure``, a box without stable delays becomes a section
-    saying so instead of :class:`~delayform.spectrum.NoStableDelaysError`.
+    saying so instead of :class:`~delayform.errors.NoStableDelaysError`.
     """
     from delayform.spectrum import schedule_delays
-
-    from delayform.spectrum import NoStableDelaysError
 
     lo = scenario.schedule.tau_min if tau_min is None else tau_min
     hi = scenario.schedule.tau_max if tau_max is None else tau_max
