@@ -42,6 +42,7 @@ __all__ = [
     "settling_section",
     "scenario_sections",
     "paper_sections",
+    "highlights",
     "write_report",
 ]
 
@@ -647,6 +648,36 @@ def paper_sections(
     return sections
 
 
+def highlights(sections: Sequence[Section]) -> tuple[tuple[str, str], ...]:
+    """The key numbers of a report, for the table at the top of the page."""
+    by_key = {s.key: s.summary for s in sections}
+    rows: list[tuple[str, str]] = []
+    if "factors" in by_key:
+        eig = by_key["factors"]["eigenvalues"]
+        shown = ", ".join(_fmt_complex(complex(v)) for v in eig[:8]) + (" ..." if len(eig) > 8 else "")
+        rows.append(("eigenvalues of C", shown))
+    if "chart" in by_key:
+        chart = by_key["chart"]
+        rows.append(("stable share of the delay window", f"{chart['stable_fraction']:.1%}"))
+        rows.extend(
+            (f"point {p['label']} ({p['tau1']:g}, {p['tau2']:g})", "stable" if p["stable"] else f"unstable, NU = {p['unstable_roots']}")
+            for p in chart["points"]
+        )  # fmt: skip
+    if "roots" in by_key:
+        roots = by_key["roots"]
+        rows.append((f"dominant root at ({roots['tau1']:g}, {roots['tau2']:g})", _fmt_complex(roots["dominant_root"])))
+    for key, summary in by_key.items():
+        if key.startswith("schedule") and summary.get("stable_delays_found"):
+            lo = summary["tau_min"]
+            rows.append((f"best delays from ({lo[0]:g}, {lo[1]:g})",
+                         f"({summary['tau1']:.3g}, {summary['tau2']:.3g}) s, settling about {summary['settling_time']:.3g} s"))  # fmt: skip
+        if key.startswith("simulation_"):
+            t = summary["settling_time"]
+            rows.append((f"simulated settling at {summary['label']} ({summary['tau1']:g}, {summary['tau2']:g})",
+                         f"{t:.3g} s" if np.isfinite(t) else f"not within {summary['duration']:g} s"))  # fmt: skip
+    return tuple(rows)
+
+
 _CSS = """
 body { font-family: system-ui, sans-serif; max-width: 60rem; margin: 2rem auto; padding: 0 1rem; color: #222; }
 h1 { font-size: 1.6rem; } h2 { font-size: 1.25rem; margin-top: 2.2rem; border-bottom: 1px solid #ccc; }
@@ -688,6 +719,8 @@ def write_report(
         f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>",
         f"<h1>{html.escape(title)}</h1>",
         f"<p>{html.escape(intro)}</p>",
+        "<h2>At a glance</h2>",
+        _table_html(highlights(sections)),
         "<h2>Scenario</h2>",
         _table_html((k, json.dumps(jsonable(v)) if not isinstance(v, str) else v)
                     for k, v in scenario.summary().items()),
