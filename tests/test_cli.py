@@ -63,6 +63,7 @@ def test_malformed_scenario_exits_2_with_one_line(tmp_path: Path, index: int, te
     [
         (("chart", "--tau1-max", "-1"), "--tau1-max"),
         (("chart", "--point", "a=0.3"), "--point"),
+        (("chart", "--point", "z=9,1"), "outside the window"),
         (("roots", "--region", "1,2"), "--region"),
         (("roots", "--region", "1,0,0,1"), "--region"),
         (("map", "--size", "1,5"), "--size"),

@@ -88,6 +88,8 @@ MALFORMED: list[tuple[str, str, str]] = [
     ("negative seed", BASE + "[initial]\nseed = -1\n", "initial.seed"),
     ("chart point not a pair", BASE + "[chart]\npoints = { a = [0.3] }\n", "chart.points.a"),
     ("chart window negative", BASE + "[chart]\ntau1_max = -2\n", "chart.tau1_max"),
+    ("chart point outside the window", BASE + "[chart]\ntau1_max = 2.0\npoints = { z = [3.0, 1.0] }\n",
+     "chart.points.z"),
     ("map size not integers", BASE + "[map]\nsize = [10.5, 10]\n", "map.size[0]"),
     ("map range reversed", BASE + "[map]\ntau1 = [3.0, 1.0]\n", "map.tau1"),
     ("schedule bounds inverted", BASE + "[schedule]\ntau_min = [1.0, 1.0]\ntau_max = [0.5, 2.0]\n",

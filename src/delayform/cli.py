@@ -282,6 +282,12 @@ def chart_command(scenario: Path | None, tau1_max: float | None, tau2_max: float
         tau2_max=sc.chart.tau2_max if tau2_max is None else tau2_max,
         points=points or sc.chart.points,
     )
+    for label, a, b in chart.points:
+        if a > chart.tau1_max or b > chart.tau2_max:
+            raise click.BadParameter(
+                f"point {label} ({a:g}, {b:g}) lies outside the window [0, {chart.tau1_max:g}] x [0, {chart.tau2_max:g}]",
+                param_hint="--point",
+            )
     sc = replace(sc, chart=chart)
     directory = _out_dir(out, sc)
     _emit(chart_section(sc, directory), directory, as_json=as_json)

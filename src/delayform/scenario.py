@@ -592,6 +592,10 @@ def _chart(reader: _Reader, data: Mapping[str, Any]) -> ChartSpec:
     points = tuple(
         (label, *reader.pair(f"chart.points.{label}", value)) for label, value in points_value.items()
     )
+    for label, a, b in points:
+        # NU is only known inside the window the curves were traced in
+        if a > tau1_max or b > tau2_max:
+            raise reader.error(f"chart.points.{label}", f"a delay pair inside the window [0, {tau1_max:g}] x [0, {tau2_max:g}]", [a, b])
     return ChartSpec(tau1_max=tau1_max, tau2_max=tau2_max, points=points)
 
 
