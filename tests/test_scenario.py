@@ -81,6 +81,7 @@ MALFORMED: list[tuple[str, str, str]] = [
     ("missing formation", BASE.split("[formation]")[0], "[formation]"),
     ("unknown model", BASE + '[simulation]\nmodel = "tank"\n', "simulation.model"),
     ("zero step", BASE + "[simulation]\ndt = 0\n", "simulation.dt"),
+    ("step longer than a delay", BASE + "[simulation]\ndt = 0.25\n", "simulation.dt"),
     ("step longer than duration", BASE + "[simulation]\nduration = 1.0\ndt = 2.0\n", "simulation.dt"),
     ("headings of the wrong size", BASE + "[initial]\nheadings = [0.0, 1.0]\n", "initial.headings"),
     ("initial positions of the wrong size", BASE + "[initial]\npositions = [[0, 0]]\n",

@@ -323,6 +323,8 @@ class Scenario:
             tau1=self.tau1 if tau1 is None else reader.non_negative("delays.tau1", tau1),
             tau2=self.tau2 if tau2 is None else reader.non_negative("delays.tau2", tau2),
         )
+        # the step is checked against overridden delays by simulate() itself, after a
+        # command line has also overridden the step
         if topology is not None:
             new = replace(new, topology_spec=TopologySpec(name=topology.name))
             _check_sizes(reader, new.topology.n, new.formation, new.initial)
@@ -627,6 +629,13 @@ def _schedule(
     return ScheduleSpec(tau_min=tau_min, tau_max=tau_max)
 
 
+def _check_step(reader: _Reader, dt: float, tau1: float, tau2: float) -> None:
+    """The simulator reads delayed states on its grid: a non-zero delay needs at least one step."""
+    shortest = min((t for t in (tau1, tau2) if t > 0.0), default=None)
+    if shortest is not None and dt > shortest:
+        raise reader.error("simulation.dt", f"a step no longer than the shortest non-zero delay {shortest:g}", dt)
+
+
 def _check_sizes(reader: _Reader, n: int, formation: FormationSpec, initial: InitialSpec) -> None:
     if formation.shape is not None:
         from delayform.formation import named_formation
@@ -691,6 +700,7 @@ def parse_scenario(data: Mapping[str, Any], *, source: str = "<scenario>", defau
 
     formation = _formation(reader, reader.table(data, "formation", required=True), n)
     simulation = _simulation(reader, reader.table(data, "simulation", required=False) or {})
+    _check_step(reader, simulation.dt, tau1, tau2)
     initial = _initial(reader, reader.table(data, "initial", required=False) or {}, n)
     chart = _chart(reader, reader.table(data, "chart", required=False) or {})
     grid = _map(reader, reader.table(data, "map", required=False) or {}, chart)
