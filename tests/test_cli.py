@@ -103,6 +103,12 @@ def test_every_option_has_help() -> None:
                 assert param.help, (name, param.name)
 
 
+def test_no_command_shows_help() -> None:
+    proc = run()
+    assert proc.returncode == 0
+    assert proc.stdout.startswith("Usage: delayform") and "paper" in proc.stdout
+
+
 @pytest.mark.parametrize("command", ["factors", *COMMANDS, "paper"])
 def test_help_runs(command: str) -> None:
     proc = run(command, "--help")

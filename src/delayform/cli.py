@@ -473,10 +473,17 @@ def paper_command(out: Path, as_json: bool) -> None:
 
 
 # ------------------------------------------------------------------- entry
+#: click >= 8.2 raises this for a group called without a command; older click prints help itself
+_NO_ARGS_IS_HELP: Any = getattr(click.exceptions, "NoArgsIsHelpError", ())
+
+
 def main(argv: list[str] | None = None) -> None:
     """Entry point of the console script: one line and exit code 2 for every input error."""
     try:
         code = cli.main(args=argv, prog_name="delayform", standalone_mode=False)
+    except _NO_ARGS_IS_HELP as exc:  # plain `delayform`: show the help
+        click.echo(exc.ctx.get_help() if exc.ctx is not None else str(exc))
+        sys.exit(0)
     except click.UsageError as exc:  # bad option, missing value, bad parameter
         hint = f" (see: delayform {exc.ctx.info_name} --help)" if exc.ctx is not None and exc.ctx.parent else ""
         _fail(exc.format_message().replace("\n", " ") + hint)
