@@ -936,6 +936,11 @@ def rightmost_root(
     """
     t1, t2 = check_delay("tau1", tau1), check_delay("tau2", tau2)
     prob = _problem(qp)
+    a1, a2 = np.array([t1]), np.array([t2])
+    # fast path: the map's low-degree seeds; the certificate decides, else the robust path
+    root, certified, _ = _certify(prob, a1, a2, _igd_seeds(prob, a1, a2, scale=1.0, k=_BATCH_SEEDS))
+    if certified[0]:
+        return _pick_rightmost(prob, root)
     res = _solve_rightmost(prob, t1, t2)
     return _pick_rightmost(prob, res.roots)
 
@@ -967,7 +972,8 @@ def _map_degree(hmax: NDArray[np.float64], radius: float) -> NDArray[np.int64]:
     """Degree for the batched pass: enough to seed Newton at the rightmost roots.
 
     Lower than :func:`_initial_degree` on purpose: the certificate decides,
-    and the few pairs it rejects go through the robust single-pair path.
+    and the pairs it rejects get a discretization of twice the degree (then,
+    rarely, the robust single-pair path).
     """
     return np.clip(np.ceil(0.6 * radius * hmax + 4), 6, MAX_DEGREE).astype(np.int64)
 
