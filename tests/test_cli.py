@@ -256,7 +256,9 @@ def test_paper_writes_every_file_it_lists(tmp_path_factory: pytest.TempPathFacto
         eig, [-0.64, -0.5, -0.16 - 0.21j, -0.16 + 0.21j, 0.46, 1.0], atol=0.006
     )
     assert [p["stable"] for p in sections["chart"]["points"]] == [True, True, False, True, True]
-    assert sections["simulation_a"]["settling_time"] < sections["simulation_b"]["settling_time"]
+    # Section "Simulation Examples": settled "after about 30 seconds" at a, "more than 100 seconds" at b
+    assert 15.0 < sections["simulation_a"]["settling_time"] < 45.0
+    assert sections["simulation_b"]["settling_time"] > 100.0
     assert sections["schedule"]["root"]["re"] < 0
     # from the unstable point c, scheduling finds stable delays no smaller than c
     assert sections["schedule_c"]["hardware_root"]["re"] > 0 > sections["schedule_c"]["root"]["re"]
