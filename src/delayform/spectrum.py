@@ -437,7 +437,8 @@ def _nth_derivative(terms: _Terms, s: NDArray[np.complex128], t1: float, t2: flo
                 continue
             p = _horner(dj, s)
             val = val + w * p * e
-            mag = mag + abs(w) * _abs_poly(dj, np.abs(s)) * np.abs(e)
+            # scale at |s| >= 1: near s = 0 a derivative like 2 s is "small" only against 1
+            mag = mag + abs(w) * _abs_poly(dj, np.maximum(np.abs(s), 1.0)) * np.abs(e)
     return val, mag
 
 
@@ -1035,7 +1036,7 @@ def _igd_seeds(
     eq. factor1, which the discretization keeps exactly, is dropped.
     """
     out = np.full((t1.size, k), np.nan + 0j, dtype=np.complex128)
-    hmax = np.maximum.reduce([a * t1 + b * t2 for _, a, b in prob.delayed])
+    hmax = np.maximum.reduce([a * t1 + b * t2 for _, a, b in prob.delayed] + [np.zeros(t1.size)])
     degree = np.minimum(MAX_DEGREE, np.ceil(scale * _map_degree(hmax, _root_scale(prob)))).astype(int)
     delayed = hmax >= _TINY_DELAY
     groups = [(np.flatnonzero(~delayed), 0)] + [
