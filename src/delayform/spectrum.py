@@ -421,7 +421,9 @@ def _cluster(roots: NDArray[np.complex128]) -> NDArray[np.complex128]:
     return np.asarray(out, dtype=np.complex128)
 
 
-def _nth_derivative(terms: _Terms, s: NDArray[np.complex128], t1: float, t2: float, k: int) -> tuple[NDArray[np.complex128], NDArray[np.float64]]:
+def _nth_derivative(
+    terms: _Terms, s: NDArray[np.complex128], t1: float, t2: float, k: int
+) -> tuple[NDArray[np.complex128], NDArray[np.float64]]:
     """d^k q / ds^k and the sum of the moduli of its terms (Leibniz rule on p(s) e^{-h s})."""
     val = np.zeros(s.shape, dtype=np.complex128)
     mag = np.zeros(s.shape)
@@ -442,7 +444,9 @@ def _nth_derivative(terms: _Terms, s: NDArray[np.complex128], t1: float, t2: flo
     return val, mag
 
 
-def _multiplicity(prob: _Problem, roots: NDArray[np.complex128], t1: float, t2: float) -> NDArray[np.int64]:
+def _multiplicity(
+    prob: _Problem, roots: NDArray[np.complex128], t1: float, t2: float
+) -> NDArray[np.int64]:
     """Multiplicity of each polished root: the first derivative of q that is not negligible.
 
     A root of multiplicity m is only accurate to about eps^(1/m), so the
@@ -715,7 +719,9 @@ def _choose_line(reals: NDArray[np.float64], top: float) -> float:
     return float(reals[min(reals.size - 1, k0 + 8)] - _LINE_OFFSET)
 
 
-def _known_reals(prob: _Problem, roots: NDArray[np.complex128], mult: NDArray[np.int64]) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+def _known_reals(
+    prob: _Problem, roots: NDArray[np.complex128], mult: NDArray[np.int64]
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """Real parts (descending) and multiplicities of the roots of q, incl. the deflated zero."""
     if prob.deflate_zero:
         roots = np.concatenate([roots, [0.0]])
@@ -1520,7 +1526,9 @@ class _WarmDominant:
     (:func:`schedule_delays` recomputes it with :func:`dominant_root`).
     """
 
-    def __init__(self, problems: tuple[_Problem, ...], lo: NDArray[np.float64], hi: NDArray[np.float64]) -> None:
+    def __init__(
+        self, problems: tuple[_Problem, ...], lo: NDArray[np.float64], hi: NDArray[np.float64]
+    ) -> None:
         self.problems, self.lo, self.hi = problems, lo, hi
         self.seeds: list[NDArray[np.complex128] | None] = [None] * len(problems)
 
