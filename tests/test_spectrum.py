@@ -170,6 +170,17 @@ def test_roots_in_of_a_conjugate_pair_factor_matches_its_quartic() -> None:
     assert np.allclose(np.sort_complex(roots), np.sort_complex(np.conj(roots)))
 
 
+def test_rightmost_root_of_a_five_delay_quasi_polynomial_matches_mesh_and_muller() -> None:
+    """The quartic of a conjugate pair has e^{-2 tau1 s}, e^{-2 tau2 s}, e^{-(tau1+tau2) s} terms."""
+    quartic = factors(paper_six(), P, D)[4].quasi_polynomial
+    assert all(c.size for c in quartic.coefficients)
+    got = rightmost_root(quartic, 3.5, 2.0)  # a TwoDelayQuasiPolynomial: companion realization
+    found = ref.mesh_roots(lambda s: quartic.evaluate(s, 3.5, 2.0), (-1.0, 0.5, -0.3, 3.0))
+    want = max(found, key=lambda z: z.real)
+    assert abs(got.real - want.real) < 1e-8 and abs(abs(got.imag) - abs(want.imag)) < 1e-8
+    assert _relative(quartic, got, 3.5, 2.0) <= 1e-10
+
+
 def test_centroid_persistent_zero_is_deflated_but_its_other_roots_count() -> None:
     centroid = factors(paper_six(), P, D)[0]
     assert centroid.is_centroid
