@@ -337,14 +337,29 @@ def _positive_real_roots(poly: NDArray[np.complex128]) -> NDArray[np.float64]:
     if p.size < 2:
         return np.zeros(0)
     roots = np.roots(p[::-1])
-    real = roots[np.abs(roots.imag) <= 1e-6 * np.maximum(1.0, np.abs(roots))].real
-    real = real[real > 1e-12]
-    dp = _deriv(p)
-    for _ in range(3):  # Newton polish: np.roots is accurate to ~1e-10 only near clusters
-        d = _horner(real, dp)
-        step = np.where(d != 0.0, _horner(real, p) / np.where(d == 0.0, 1.0, d), 0.0)
-        real = real - step
-    return np.unique(np.round(real[real > 0], 13))
+    real = np.sort(roots[np.abs(roots.imag) <= 1e-6 * np.maximum(1.0, np.abs(roots))].real)
+    if real.size == 0:
+        return real
+    # A double root (the gain condition only touched) comes out as two values ~1e-8 apart:
+    # merge such clusters and polish a double root as the simple root of p'.
+    gaps = np.diff(real) > 1e-6 * np.maximum(1.0, np.abs(real[1:]))
+    labels = np.concatenate([[0], np.cumsum(gaps)])
+    size = np.bincount(labels)
+    value = np.bincount(labels, weights=real) / size
+    out = []
+    for r, m in zip(value, size, strict=True):
+        if m <= 2:
+            f = p if m == 1 else _deriv(p)
+            df = _deriv(f)
+            for _ in range(4):
+                d = _horner(r, df)
+                step = _horner(r, f) / d if d != 0.0 else 0.0
+                if not abs(step) <= 1e-6 * max(1.0, abs(r)):
+                    break
+                r = r - step
+        out.append(float(r))
+    arr = np.array(out)
+    return arr[arr > 1e-12]
 
 
 def _omega_bound(qp: TwoDelayQuasiPolynomial) -> float:
@@ -388,9 +403,16 @@ def _tendency(
         dq_1 -= a * s * g * e
         dq_2 -= b * s * g * e
     with np.errstate(divide="ignore", invalid="ignore"):
-        r1 = np.sign((-dq_1 / dq_ds).real)
-        r2 = np.sign((-dq_2 / dq_ds).real)
-    return np.nan_to_num(r1).astype(np.int64), np.nan_to_num(r2).astype(np.int64)
+        ds1 = -dq_1 / dq_ds
+        ds2 = -dq_2 / dq_ds
+    return _sign(ds1), _sign(ds2)
+
+
+def _sign(ds: NDArray[np.complex128]) -> NDArray[np.int64]:
+    """sgn Re ds, 0 when Re ds is rounding noise next to |ds| (the root touches the axis)."""
+    re = np.nan_to_num(ds.real)
+    tiny = np.abs(re) <= 1e-9 * np.nan_to_num(np.abs(ds))
+    return np.where(tiny, 0, np.sign(re)).astype(np.int64)
 
 
 def curve_residual(qp: TwoDelayQuasiPolynomial, curve: CrossingCurve) -> NDArray[np.float64]:
@@ -780,7 +802,14 @@ def _single_delay_roots(
         for z in cands:
             if not np.isfinite(z) or abs(abs(z) - 1.0) > 1e-5:
                 continue
-            om_p, th = _newton_single(w0, w1, w2, float(om), float(-np.angle(z)))
+            th0 = float(-np.angle(z))
+            e = np.exp(-1j * th0)
+            if abs(c + b * e + a * e * e) <= 1e-12 * (abs(a) + abs(b) + abs(c)):
+                # omega is a polished polynomial root: keep it (at a touching root the 2x2
+                # Newton below is singular and would move it off).
+                om_p, th = float(om), th0
+            else:
+                om_p, th = _newton_single(w0, w1, w2, float(om), th0)
             if th is not None:
                 out_w.append(om_p)
                 out_t.append(np.mod(th, TWO_PI))
