@@ -22,7 +22,7 @@ from delayform.ctcr import (
     stability_map,
 )
 from delayform.errors import DelayError, NeutralQuasiPolynomialError, NoSpanningTreeError, QuasiPolynomialError
-from delayform.topology import Topology, paper_six, random_digraph, ring
+from delayform.topology import Topology, paper_six, random_digraph, ring, star
 
 from ref_roots_ctcr import coefficient_bound, count_unstable, count_unstable_function, system_unstable
 
@@ -95,16 +95,27 @@ def test_paper_map_matches_unfactorized_system(paper_map: StabilityMap) -> None:
 
 
 # ----------------------------------------------------------------------------- random teams
-@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+@pytest.mark.parametrize("seed", range(6))
 def test_random_team_matches_root_count(seed: int) -> None:
     rng = np.random.default_rng(100 + seed)
-    n = int([3, 9, 17, 30][seed])
-    P = float(rng.uniform(0.3, 3.0))
-    D = float(rng.uniform(0.2, 2.0))
-    topology = random_digraph(n, float(rng.uniform(0.05, 0.4)), seed=seed)
-    T = 5.0
-    m = stability_map(topology, P, D, T, T)
-    t1, t2 = rng.uniform(0.0, T, (2, 500))
+    n = int([3, 30][seed] if seed < 2 else rng.integers(3, 31))  # the ends of 3..30, then random
+    P = float(rng.uniform(0.2, 4.0))
+    D = float(rng.uniform(0.1, 3.0))
+    topology = random_digraph(n, float(rng.uniform(0.02, 0.4)), seed=seed)
+    T1, T2 = rng.uniform(3.0, 8.0, 2)
+    m = stability_map(topology, P, D, T1, T2)
+    t1, t2 = rng.uniform(0.0, T1, 500), rng.uniform(0.0, T2, 500)
+    ref, uncertain = system_unstable(factors(topology, P, D), t1, t2)
+    _compare(m.unstable_count(t1, t2), ref, uncertain)
+
+
+@pytest.mark.parametrize(("topology", "P", "D"), [(star(10), 3.8, 1.09), (ring(4), 0.88, 0.17), (ring(22), 2.5, 1.95)])
+def test_unit_modulus_eigenvalues_match_root_count(topology: Topology, P: float, D: float) -> None:
+    # |lam| = 1 (lam = -1 of a star or an even ring, +-j of ring(4)): on the tau1 = 0 axis the
+    # root only touches the imaginary axis (RT = 0) and the gain polynomial has double roots.
+    m = stability_map(topology, P, D, 6.0, 6.0)
+    rng = np.random.default_rng(topology.n)
+    t1, t2 = rng.uniform(0.0, 6.0, (2, 500))
     ref, uncertain = system_unstable(factors(topology, P, D), t1, t2)
     _compare(m.unstable_count(t1, t2), ref, uncertain)
 

@@ -129,6 +129,8 @@ _CHORD_TOL = 2e-4
 #: Longest chord (fraction of the window size) kept without refinement.
 _MAX_CHORD = 0.02
 _MAX_ROUNDS = 26
+#: Cap on the samples of one phase path (a guard; real curves need a few thousand).
+_MAX_POINTS = 200_000
 #: Lowest crossing frequency traced, relative to the bound on crossing frequencies.
 _OMEGA_FLOOR = 1e-4
 
@@ -508,7 +510,10 @@ def _adaptive_path(phases: Any, start: float, stop: float, window: tuple[float, 
         m1 = u1[:-1] + np.angle(np.exp(1j * (m1 - u1[:-1])))
         m2 = u2[:-1] + np.angle(np.exp(1j * (m2 - u2[:-1])))
         need = _needs_refinement(om, u1, u2, m_om, m1, m2, window, scale)
-        if not np.any(need):
+        # Below this parameter step the phases are rounding noise (e.g. a flat curve whose
+        # "turning points" are noise): refining further would only multiply points.
+        need &= np.diff(t) > 1e-9 * (stop - start)
+        if not np.any(need) or t.size > _MAX_POINTS:
             break
         t = np.sort(np.concatenate([t, mid_t[need]]))
         om, th1, th2 = phases(t)
@@ -520,21 +525,23 @@ def _needs_refinement(
     window: tuple[float, float], scale: float,
 ) -> NDArray[np.bool_]:
     """Intervals whose image (kernel and farthest offspring in the window) bends or is long."""
-    need = np.zeros(m_om.shape, bool)
     inv = 1.0 / om
     m_inv = 1.0 / m_om
+    # Only refine what can reach the window: the lowest image (tau >= 0) of both delays below tau_max.
+    relevant = np.ones(m_om.shape, bool)
+    for u, tmax in ((u1, window[0]), (u2, window[1])):
+        lowest = np.minimum(np.mod(u[:-1], TWO_PI) * inv[:-1], np.mod(u[1:], TWO_PI) * inv[1:])
+        relevant &= lowest <= tmax * 1.05
+    need = np.zeros(m_om.shape, bool)
     for u, m, tmax in ((u1, m1, window[0]), (u2, m2, window[1])):
         n_far = np.ceil(tmax * np.maximum(om[:-1], om[1:]) / TWO_PI) + 1.0
         tau_a, tau_b, tau_m = u[:-1] * inv[:-1], u[1:] * inv[1:], m * m_inv
         dev = np.abs(tau_m - 0.5 * (tau_a + tau_b))
         dev_shift = TWO_PI * n_far * np.abs(m_inv - 0.5 * (inv[:-1] + inv[1:]))
         chord = np.abs(tau_b - tau_a) + TWO_PI * n_far * np.abs(inv[1:] - inv[:-1])
-        # Only refine what can reach the window: some image tau >= 0 below tau_max.
-        lowest = np.minimum(np.mod(u[:-1], TWO_PI) * inv[:-1], np.mod(u[1:], TWO_PI) * inv[1:])
-        relevant = lowest <= tmax * 1.05
-        need |= relevant & ((dev + dev_shift > _CHORD_TOL * scale) | (chord > _MAX_CHORD * scale))
+        need |= (dev + dev_shift > _CHORD_TOL * scale) | (chord > _MAX_CHORD * scale)
     need |= _turning_needs(om, u2, m_om, m2, window[1], scale)
-    return need
+    return need & relevant
 
 
 def _turning_needs(
