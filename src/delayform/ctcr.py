@@ -46,8 +46,13 @@ are the omega < 0 crossings of q, each changing NU by 1 RT.
 Sampling is adaptive in a parameter that is smooth through the turning
 points (``omega = a + (b - a)(1 - cos phi)/2``): an interval of the parameter is
 halved while the image of its midpoint, for the largest offspring that reaches
-the window, lies further than 2e-4 of the window size from the chord. Every
-point satisfies ``|q(j omega)| <= 1e-9 sum_k |g_k(j omega)|``.
+the window, lies further than 2e-4 of the window size from the chord, or
+(near a turning point of the curve in tau2, where a horizontal line meets it
+twice close together) further than 1e-9 of the window size. Every point
+satisfies ``|q(j omega)| <= 1e-9 sum_k |g_k(j omega)|`` (closed form: ~1e-15;
+general path: ~1e-11). Frequencies below 1e-4 of the bound on crossing
+frequencies are not traced: there ``tau = theta / omega`` loses ~eps/omega^2
+to rounding; in practice those pieces lie far outside any window.
 
 How NU is counted (the CTCR count)
 ----------------------------------
@@ -57,7 +62,12 @@ exact single-delay problem: ``h0 + h1 z2 + h2 z2^2`` with ``h0 = g1 + g2 + g4``,
 ``h1 = g3 + g6``, ``h2 = g5``, solved by the same resultant), plus ``w RT1`` for
 each curve met by the horizontal segment from (0, tau2) to (tau1, tau2); w is
 2 for a real qp, 1 per traced half of a complex one, times the multiplicity.
-Points with tau2 = 0 take the path along the tau1 axis instead.
+Where the polyline meets the line tau2 = const, the crossing is recomputed
+exactly (Newton on ``q(j omega; tau1, tau2) = 0`` in (omega, tau1)), so a query
+point close to a curve is counted on its true side. Points with tau2 = 0 take
+the path along the tau1 axis instead. A root that only touches the imaginary
+axis (``Re ds/dtau`` zero to 1e-9 relative; e.g. lam = -1 on the tau1 = 0 axis,
+where the gain polynomial has a double root) has RT = 0 and changes nothing.
 
 The origin and the axes
 -----------------------
