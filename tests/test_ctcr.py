@@ -265,6 +265,27 @@ def test_centroid_factor_near_origin_and_on_axes() -> None:
     assert np.array_equal(m.unstable_count(t1, 0.0)[ok], ref[ok])
 
 
+def test_zero_root_line_inside_the_window() -> None:
+    # q(0) = 0 for every delay and q'(0) = -0.6 + 0.5 tau1 + 0.5 tau2: a real root passes
+    # through s = 0 on the line tau1 + tau2 = 1.2 (module docstring, "The origin and the axes").
+    gs = [np.array([1.0, 0.2, 1.0]), np.array([-0.5]), np.array([-0.5, -0.8])]
+    m = crossing_map(TwoDelayQuasiPolynomial(*gs), 4.0, 4.0)
+    multiples = [(0, 0), (1, 0), (0, 1)]
+
+    def f_over_s(s, a, b):  # the persistent root s = 0 divided out
+        return sum(np.polyval(c[::-1], s) * np.exp(-(i * a + k * b) * s) for c, (i, k) in zip(gs, multiples)) / s
+
+    rng = np.random.default_rng(4)
+    t1, t2 = rng.uniform(0.0, 4.0, (2, 500))
+    t1 = np.concatenate([t1, np.zeros(20), np.linspace(0.01, 4.0, 20)])
+    t2 = np.concatenate([t2, np.linspace(0.01, 4.0, 20), np.zeros(20)])  # both axes too
+    ref, uncertain = count_unstable_function(f_over_s, 1.05 * coefficient_bound(gs) + 1.0, t1, t2)
+    nu = m.unstable_count(t1, t2)
+    _compare(nu, ref, uncertain)
+    below = t1 + t2 < 1.1
+    assert np.any(nu[below] != nu[t1 + t2 > 1.3].min())  # the line really changes NU
+
+
 def test_unstable_count_broadcasts(paper_map: StabilityMap) -> None:
     t1 = np.linspace(0.0, 8.0, 7)
     t2 = np.linspace(0.0, 8.0, 5)

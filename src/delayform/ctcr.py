@@ -229,6 +229,14 @@ class StabilityMap:
     _axis1: tuple[NDArray[np.float64], NDArray[np.float64]] = field(repr=False)
     _zero_lines: tuple[_ZeroLine, ...] = field(repr=False)
 
+    def __repr__(self) -> str:
+        kernel = sum(c.is_kernel for c in self.curves)
+        return (
+            f"StabilityMap(window=[0, {self.tau1_max:g}] x [0, {self.tau2_max:g}], "
+            f"kernel pieces={kernel}, offspring pieces={len(self.curves) - kernel}, "
+            f"delay_free_count={self.delay_free_count})"
+        )
+
     # ------------------------------------------------------------ counting
     def unstable_count(self, tau1: ArrayLike, tau2: ArrayLike) -> NDArray[np.int64]:
         """NU at delay pairs (vectorized, broadcasting tau1 against tau2).
