@@ -194,3 +194,15 @@ def test_factor_describes_itself():
     assert "centroid" in fs[0].describe()
     assert "+-" in fs[-1].describe() and "order 4" in fs[-1].describe()
     assert isinstance(fs[0], CharacteristicFactor)
+
+
+def test_root_tendency_is_zero_where_a_root_only_touches_the_axis():
+    # lam = -1 at tau1 = 0: s^2 + D s + 2P + D s e^{-tau2 s} has s = j sqrt(2P) at tau2 = pi/sqrt(2P),
+    # where ds/dtau2 = D omega^2 / (j omega (2 + D tau2)) is purely imaginary.
+    P, D = 1.0, 0.5
+    qp = TwoDelayQuasiPolynomial([P, D, 1.0], [P], [0.0, D])
+    omega = np.sqrt(2 * P)
+    tau2 = np.pi / omega
+    assert abs(qp.evaluate(1j * omega, 0.0, tau2)) < 1e-12
+    assert qp.root_tendency(omega, 0.0, tau2, delay=2) == 0
+    assert qp.root_tendency(omega, 0.0, tau2, delay=1) != 0

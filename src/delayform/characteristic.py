@@ -52,6 +52,9 @@ __all__ = [
 #: g6 e^{-(tau1 + tau2) s}.
 DELAY_MULTIPLES: tuple[tuple[int, int], ...] = ((0, 0), (1, 0), (0, 1), (2, 0), (0, 2), (1, 1))
 
+#: |Re ds/dtau| below this fraction of |ds/dtau| is a touching root: RT = 0.
+ROOT_TENDENCY_TOL = 1e-9
+
 _TERM_NAMES = ("1", "e^{-tau1 s}", "e^{-tau2 s}", "e^{-2 tau1 s}", "e^{-2 tau2 s}", "e^{-(tau1+tau2) s}")
 
 
@@ -205,7 +208,9 @@ class TwoDelayQuasiPolynomial:
         """
         s = 1j * np.asarray(omega, dtype=np.float64)
         ds = -self.delay_derivative(s, tau1, tau2, delay=delay) / self.derivative(s, tau1, tau2)
-        return np.sign(ds.real).astype(np.int64)
+        # A root that only touches the axis has Re ds/dtau = 0 up to rounding: report 0, not noise.
+        touching = np.abs(ds.real) <= ROOT_TENDENCY_TOL * np.abs(ds)
+        return np.where(touching, 0, np.sign(ds.real)).astype(np.int64)
 
     def describe(self) -> str:
         """The quasi-polynomial written out, one term per non-zero g_k."""
