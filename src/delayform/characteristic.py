@@ -350,7 +350,28 @@ def factors(topology: Topology, P: float, D: float) -> tuple[CharacteristicFacto
 def characteristic_matrix(
     topology: Topology, P: float, D: float, s: ArrayLike, tau1: float, tau2: float
 ) -> NDArray[np.complex128]:
-    """The 2n x 2n characteristic matrix of eq. protocolss at each s (shape s.shape + (2n, 2n))."""
+    """The 2n x 2n characteristic matrix of eq. protocolss at each s.
+
+    ``M(s) = I_n (x) (s I - A0) - C (x) B(s)`` with ``A0 = [[0, 1], [-P, -D]]`` and
+    ``B(s) = [[0, 0], [P e^{-tau1 s}, D e^{-tau2 s}]]``, state order
+    ``[x1, x1', x2, x2', ...]`` as in eq. protocolss.
+
+    Parameters
+    ----------
+    topology
+        The communication topology (its dense C is used: meant for checks on small teams).
+    P, D
+        Positive gains of eq. protocol.
+    s
+        Complex points, any shape.
+    tau1, tau2
+        Non-negative delays on positions and velocities.
+
+    Returns
+    -------
+    ndarray
+        Shape ``s.shape + (2n, 2n)``.
+    """
     P, D = check_gains(P, D)
     s_arr = check_complex_array("s", s)
     t1 = check_delay_array("tau1", tau1)
@@ -372,6 +393,28 @@ def full_characteristic(
     """det of the characteristic matrix of eq. protocolss, computed directly.
 
     Independent of the eigenvalues of C: it is the check on :func:`factors`.
+
+    Parameters
+    ----------
+    topology
+        The communication topology.
+    P, D
+        Positive gains of eq. protocol.
+    s
+        Complex points, any shape.
+    tau1, tau2
+        Non-negative delays on positions and velocities.
+
+    Returns
+    -------
+    ndarray of complex
+        Q(s) of the same shape as ``s``.
+
+    Examples
+    --------
+    >>> from delayform.topology import ring
+    >>> complex(full_characteristic(ring(3), 1.0, 0.5, 0.0, 0.2, 0.1))
+    0j
     """
     return np.linalg.det(characteristic_matrix(topology, P, D, s, tau1, tau2))
 
@@ -379,7 +422,22 @@ def full_characteristic(
 def product_of_factors(
     fs: Sequence[CharacteristicFactor], s: ArrayLike, tau1: ArrayLike, tau2: ArrayLike
 ) -> NDArray[np.complex128]:
-    """Product of the factors raised to their multiplicities (eq. factorized)."""
+    """Product of the factors raised to their multiplicities (eq. factorized).
+
+    Parameters
+    ----------
+    fs
+        Factors, as returned by :func:`factors`.
+    s
+        Complex points, any shape.
+    tau1, tau2
+        Non-negative delays, broadcast with ``s``.
+
+    Returns
+    -------
+    ndarray of complex
+        Q(s); equals :func:`full_characteristic` for the same topology and gains.
+    """
     out: NDArray[np.complex128] | complex = 1.0 + 0.0j
     for f in fs:
         out = out * f.evaluate(s, tau1, tau2) ** f.multiplicity

@@ -401,6 +401,21 @@ def random_digraph(n: int, p: float, seed: int | np.random.Generator | None = No
     The ring guarantees every agent an informer and a spanning tree, so the
     result is always a valid formation topology; ``p`` sets how dense it is.
     For large n the extra edges are drawn sparsely (expected n*(n-1)*p of them).
+
+    Parameters
+    ----------
+    n
+        Number of agents, at least 2.
+    p
+        Probability of each extra directed edge, 0 <= p <= 1.
+    seed
+        Seed or generator for the draw; the same seed gives the same topology.
+
+    Examples
+    --------
+    >>> t = random_digraph(8, 0.2, seed=1)
+    >>> t.n, t.has_spanning_tree()
+    (8, True)
     """
     n = _check_count(n, 2, "random_digraph")
     if not (isinstance(p, (int, float, np.floating)) and 0.0 <= float(p) <= 1.0):
