@@ -436,7 +436,24 @@ def _sign(ds: NDArray[np.complex128]) -> NDArray[np.int64]:
 
 
 def curve_residual(qp: TwoDelayQuasiPolynomial, curve: CrossingCurve) -> NDArray[np.float64]:
-    """Relative residual ``|q(j omega)| / sum_k |g_k(j omega)|`` at each point of a curve."""
+    """Relative residual ``|q(j omega)| / sum_k |g_k(j omega)|`` at each point of a curve.
+
+    Parameters
+    ----------
+    qp
+        The quasi-polynomial of eq. genfactor whose imaginary roots make the
+        curve, usually ``m.traced[curve.source]`` of a :class:`StabilityMap` m.
+    curve
+        A :class:`CrossingCurve`; q is evaluated at ``s = j omega`` with the
+        delays ``(tau1, tau2)`` of each of its points.
+
+    Returns
+    -------
+    ndarray of float, shape of ``curve.omega``
+        ``|q|`` over the sum of the moduli of its terms ``g_k(j omega)``
+        (``|e^{-j omega h}| = 1``); every traced point has at most 1e-9
+        (module docstring).
+    """
     s = 1j * curve.omega
     total = np.zeros(s.shape, complex)
     scale = np.zeros(s.shape)

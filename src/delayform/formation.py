@@ -71,7 +71,22 @@ def polygon(n: int, *, spacing: float = 1.0) -> NDArray[np.float64]:
 
 
 def hexagon(n: int = 6, *, spacing: float = 1.0) -> NDArray[np.float64]:
-    """The hexagon of the demo: six agents on a regular hexagon (n must be 6)."""
+    """The hexagon of the demo: six agents on a regular hexagon (n must be 6).
+
+    Parameters
+    ----------
+    n
+        Number of agents; default 6, and any other count raises
+        :class:`~delayform.errors.FormationError`.
+    spacing
+        Distance between neighbouring vertices (the side length); positive,
+        default 1.0.
+
+    Returns
+    -------
+    ndarray, shape (6, 2)
+        The vertices of :func:`polygon` ``(6, spacing=spacing)``, centred at 0.
+    """
     if _count(n) != 6:
         raise FormationError(f"a hexagon has 6 agents, the team has {n}")
     return polygon(6, spacing=spacing)
@@ -86,7 +101,23 @@ def line(n: int, *, spacing: float = 1.0) -> NDArray[np.float64]:
 
 
 def grid(n: int, *, spacing: float = 1.0) -> NDArray[np.float64]:
-    """Agents row by row on a square-ish grid (ceil(sqrt(n)) columns), centred at 0."""
+    """Agents row by row on a square-ish grid (ceil(sqrt(n)) columns), centred at 0.
+
+    Parameters
+    ----------
+    n
+        Number of agents; a positive integer. The last row is partly filled
+        when n is not a multiple of ``ceil(sqrt(n))``.
+    spacing
+        Distance between neighbouring grid points, along a row and between
+        rows; positive, default 1.0.
+
+    Returns
+    -------
+    ndarray, shape (n, 2)
+        Agent i in column ``i % cols`` and row ``i // cols`` (rows go towards
+        -y), shifted so that the mean position is 0.
+    """
     n = _count(n)
     spacing = check_positive("spacing", spacing, FormationError)
     cols = int(np.ceil(np.sqrt(n)))
@@ -122,6 +153,22 @@ SHAPES = {
 
 def named_formation(name: str, n: int, *, spacing: float = 1.0) -> NDArray[np.float64]:
     """The named shape (one of :data:`SHAPES`) for n agents.
+
+    Parameters
+    ----------
+    name
+        Shape name, a key of :data:`SHAPES` (``"polygon"``, ``"hexagon"``,
+        ``"line"``, ``"grid"`` or ``"v"``); case-insensitive.
+    n
+        Number of agents; a positive integer (6 for ``"hexagon"``).
+    spacing
+        Distance between neighbouring agents of the shape, passed on to its
+        builder; positive, default 1.0 (``"v"`` keeps its default angle).
+
+    Returns
+    -------
+    ndarray, shape (n, 2)
+        The desired positions, row i for agent i.
 
     Raises
     ------
@@ -234,7 +281,22 @@ def centroid_weights(topology: Topology) -> NDArray[np.float64]:
 
 
 def weighted_centroid(topology: Topology, positions: ArrayLike) -> NDArray[np.float64]:
-    """``w^T x`` for ``(..., n, 2)`` positions: the weighted centroid of eq. factor1."""
+    """``w^T x`` for ``(..., n, 2)`` positions: the weighted centroid of eq. factor1.
+
+    Parameters
+    ----------
+    topology
+        The communication topology; must have a spanning tree (w is
+        :func:`centroid_weights`).
+    positions
+        Positions of shape ``(..., n, 2)``, agents along the second-to-last
+        axis (one formation, or e.g. a trajectory of shape ``(steps, n, 2)``).
+
+    Returns
+    -------
+    ndarray, shape (..., 2)
+        The weighted centroid (x, y) of each set of positions.
+    """
     w = centroid_weights(topology)
     return np.einsum("i,...ik->...k", w, np.asarray(positions, dtype=np.float64))
 
@@ -278,6 +340,21 @@ def final_centroid(
     Without a position delay (``tau1 = 0``) the zero root is double and the
     centroid drifts at speed ``d0``; there is then no final position unless
     ``d0 = 0``.
+
+    Parameters
+    ----------
+    topology
+        The communication topology (C = Delta^-1 A); must have a spanning tree.
+    P, D
+        Positive gains of eq. protocol.
+    tau1, tau2
+        Non-negative delays (s) on positions and on velocities.
+    initial_positions
+        ``(n, 2)`` positions of the constant history (``c0 = w^T x0``), or a
+        shape name from :data:`SHAPES`.
+    initial_velocities
+        ``(n, 2)`` Cartesian velocities of the constant history
+        (``d0 = w^T v0``).
 
     Returns
     -------
@@ -326,9 +403,31 @@ def predicted_final_positions(
     ``w^T x = w^T z_desired + a`` must equal :func:`final_centroid`, which fixes
     ``a``. Valid only where the disagreement factors are stable.
 
+    Parameters
+    ----------
+    topology
+        The communication topology (C = Delta^-1 A); must have a spanning tree.
+    P, D
+        Positive gains of eq. protocol.
+    tau1, tau2
+        Non-negative delays (s) on positions and on velocities.
+    desired
+        ``(n, 2)`` desired positions, or a shape name from :data:`SHAPES`.
+    initial_positions
+        ``(n, 2)`` positions of the constant initial history.
+    initial_velocities
+        ``(n, 2)`` Cartesian velocities of the constant initial history.
+
     Returns
     -------
     ndarray, shape (n, 2)
+        ``desired`` shifted by the common offset ``a``: where the agents
+        come to rest.
+
+    Raises
+    ------
+    FormationError
+        As :func:`final_centroid`, and for a malformed ``desired``.
     """
     z = check_formation(desired, topology.n)
     c_inf = final_centroid(topology, P, D, tau1, tau2, initial_positions, initial_velocities)

@@ -264,6 +264,22 @@ def relative_residual(
     This is the "relative" of the acceptance test ``<= RESIDUAL_TOL`` for
     every root this module returns.
 
+    Parameters
+    ----------
+    qp
+        A quasi-polynomial of eq. genfactor.
+    s
+        Complex point(s) at which q is evaluated.
+    tau1, tau2
+        Delays (s) on positions and on velocities; broadcast with ``s``.
+        Not validated.
+
+    Returns
+    -------
+    ndarray of float
+        ``|q(s)| / sum_k sum_i |g_k,i| |s|^i |e^{-h_k s}|`` in the broadcast
+        shape of s, tau1 and tau2.
+
     >>> q = TwoDelayQuasiPolynomial([-1.0, 1.0])
     >>> float(relative_residual(q, 1.0, 0.0, 0.0))
     0.0
@@ -893,6 +909,32 @@ def count_roots_right_of(
 
     The argument principle along Re s = c closed at infinity (module
     docstring). Raises NotConvergedError when a root lies on the line.
+
+    Parameters
+    ----------
+    qp
+        A retarded quasi-polynomial of eq. genfactor or a factor of
+        eq. factorized (a conjugate-pair factor counts the roots of lam and
+        of conj(lam)). The centroid factor's persistent root s = 0
+        (eq. factor1) is not deflated here: it counts when ``c < 0``.
+    tau1, tau2
+        Non-negative delays (s) on positions and on velocities.
+    c
+        Abscissa of the vertical line Re s = c; any real number.
+
+    Returns
+    -------
+    int
+        The number of roots strictly right of the line.
+
+    Raises
+    ------
+    DelayError
+        For a negative or non-finite delay.
+    InputError
+        When qp is neither a quasi-polynomial nor a factor.
+    NotConvergedError
+        When a root lies on (or within rounding of) the line.
     """
     t1, t2 = check_delay("tau1", tau1), check_delay("tau2", tau2)
     prob = _problem(qp)
