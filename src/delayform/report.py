@@ -167,7 +167,15 @@ def _step(progress: Progress | None, text: str) -> None:
 
 # ------------------------------------------------------------ the sections
 def factors_section(scenario: Scenario, out: Path) -> Section:
-    """Eigenvalues of C and the factors of the characteristic equation (Lemma 1)."""
+    """Eigenvalues of C and the factors of the characteristic equation (Lemma 1).
+
+    Parameters
+    ----------
+    scenario
+        The validated scenario (topology, gains, delays, windows).
+    out
+        Folder the section writes its files into.
+    """
     from delayform.characteristic import factors
 
     team = scenario.topology
@@ -217,7 +225,15 @@ def _chart_points(scenario: Scenario) -> tuple[tuple[str, float, float], ...]:
 
 
 def chart_section(scenario: Scenario, out: Path) -> Section:
-    """The exact CTCR stability map over the chart window, its figure, curves and the marked points."""
+    """The exact CTCR stability map over the chart window, its figure, curves and the marked points.
+
+    Parameters
+    ----------
+    scenario
+        The validated scenario (topology, gains, delays, windows).
+    out
+        Folder the section writes its files into.
+    """
     from delayform.ctcr import stability_map
 
     plt = _pyplot()
@@ -295,7 +311,18 @@ def _curve_rows(smap: Any) -> tuple[list[tuple[Any, ...]], dict[str, np.ndarray]
 def roots_section(
     scenario: Scenario, out: Path, *, region: tuple[float, float, float, float] | None = None
 ) -> Section:
-    """Dominant root at the operating delays, at the chart points, and each factor's roots in a region."""
+    """Dominant root at the operating delays, at the chart points, and each factor's roots in a region.
+
+    Parameters
+    ----------
+    scenario
+        The validated scenario (topology, gains, delays, windows).
+    out
+        Folder the section writes its files into.
+    region
+        Rectangle (re_min, re_max, im_min, im_max) for the roots table; by default one
+        reaching twice as far left as the dominant root.
+    """
     from delayform.characteristic import factors
     from delayform.spectrum import dominant_root, roots_in
 
@@ -373,7 +400,17 @@ def _chunked_map(scenario: Scenario, t1: np.ndarray, t2: np.ndarray, progress: M
 
 
 def map_section(scenario: Scenario, out: Path, *, progress: MapProgress | None = None) -> Section:
-    """Real part of the dominant root over the map grid: surface, contour, NPZ and CSV."""
+    """Real part of the dominant root over the map grid: surface, contour, NPZ and CSV.
+
+    Parameters
+    ----------
+    scenario
+        The validated scenario (topology, gains, delays, windows).
+    out
+        Folder the section writes its files into.
+    progress
+        Optional callback told of each finished block of grid rows (for a progress bar).
+    """
     plt = _pyplot()
     grid = scenario.map
     t1, t2 = grid.tau1_values(), grid.tau2_values()
@@ -507,7 +544,23 @@ def simulation_section(
     traces: bool = True,
     gif: bool = False,
 ) -> Section:
-    """Simulate the team at one delay pair: x/y versus time, traces, CSV and NPZ, optional GIF."""
+    """Simulate the team at one delay pair: x/y versus time, traces, CSV and NPZ, optional GIF.
+
+    Parameters
+    ----------
+    scenario
+        The validated scenario (topology, gains, delays, windows).
+    out
+        Folder the section writes its files into.
+    label
+        Name of the delay pair, used in file names (``sim_<label>_*``) and titles.
+    tau1, tau2
+        Delays to simulate at; the scenario's operating delays by default.
+    traces
+        Also draw the traces figure (Fig. traces).
+    gif
+        Also write an animated GIF (slower).
+    """
     from delayform.simulation import simulate
 
     plt = _pyplot()
@@ -578,7 +631,13 @@ def simulation_section(
 
 
 def settling_section(sims: Sequence[Section]) -> Section:
-    """A table of the settling times of the simulations run for the report."""
+    """A table of the settling times of the simulations run for the report.
+
+    Parameters
+    ----------
+    sims
+        Sections returned by :func:`simulation_section`.
+    """
     rows = tuple(
         (f"{s.summary['label']} ({s.summary['tau1']:g}, {s.summary['tau2']:g})",
          f"{_fmt(s.summary['settling_time'])} s" if np.isfinite(s.summary["settling_time"]) else "did not settle")
@@ -597,7 +656,19 @@ def settling_section(sims: Sequence[Section]) -> Section:
 def scenario_sections(
     scenario: Scenario, out: Path, *, progress: Progress | None = None, map_progress: MapProgress | None = None
 ) -> list[Section]:
-    """Every analysis of one scenario, in the order of the data flow."""
+    """Every analysis of one scenario, in the order of the data flow.
+
+    Parameters
+    ----------
+    scenario
+        The validated scenario (topology, gains, delays, windows).
+    out
+        Folder the section writes its files into.
+    progress
+        Optional Rich progress bar advanced once per analysis.
+    map_progress
+        Optional callback for the dominant-root map (see :func:`map_section`).
+    """
     steps: list[tuple[str, Callable[[], Section]]] = [
         ("factors", lambda: factors_section(scenario, out)),
         ("stability chart", lambda: chart_section(scenario, out)),
@@ -622,6 +693,17 @@ def paper_sections(
     Eigenvalues and factors, the stability chart with points a..e, x/y
     versus time at a and b, traces at a, the dominant-root surface and
     contour, the best delays, and the settling times.
+
+    Parameters
+    ----------
+    scenario
+        The validated scenario (topology, gains, delays, windows).
+    out
+        Folder the section writes its files into.
+    progress
+        Optional Rich progress bar advanced once per analysis.
+    map_progress
+        Optional callback for the dominant-root map (see :func:`map_section`).
     """
     points = {p[0]: p[1:] for p in scenario.chart.points}
     missing = [k for k in "abc" if k not in points]
@@ -649,7 +731,13 @@ def paper_sections(
 
 
 def highlights(sections: Sequence[Section]) -> tuple[tuple[str, str], ...]:
-    """The key numbers of a report, for the table at the top of the page."""
+    """The key numbers of a report, for the table at the top of the page.
+
+    Parameters
+    ----------
+    sections
+        The report's sections; those present contribute their numbers.
+    """
     by_key = {s.key: s.summary for s in sections}
     rows: list[tuple[str, str]] = []
     if "factors" in by_key:
@@ -707,6 +795,19 @@ def write_report(
     sections: Sequence[Section], out: Path, *, title: str, intro: str, scenario: Scenario, seconds: float | None = None
 ) -> Path:
     """Write ``index.html`` (self-contained: PNGs embedded) and ``summary.json`` into ``out``.
+
+    Parameters
+    ----------
+    sections
+        The analyses to show, in order.
+    out
+        Folder of the report; the sections' files are already there.
+    title, intro
+        Heading and first paragraph of the page.
+    scenario
+        The scenario, shown as a table.
+    seconds
+        Wall time of the analyses, shown on the page when given.
 
     Returns
     -------

@@ -715,6 +715,11 @@ def parse_scenario(data: Mapping[str, Any], *, source: str = "<scenario>", defau
 def load_scenario(path: str | Path) -> Scenario:
     """Read and validate a TOML scenario file.
 
+    Parameters
+    ----------
+    path
+        The ``.toml`` file; unknown keys are errors.
+
     Raises
     ------
     ScenarioError

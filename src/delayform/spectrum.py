@@ -1411,9 +1411,11 @@ class _progress:
     def __enter__(self) -> Callable[[int], None] | None:
         if not self.enabled:
             return None
+        from rich.console import Console
         from rich.progress import Progress
 
-        self._bar = Progress(transient=True)
+        # stderr, so machine-readable output on stdout stays clean
+        self._bar = Progress(transient=True, console=Console(stderr=True))
         self._bar.start()
         task = self._bar.add_task("dominant roots", total=self.total)
         return lambda n: self._bar.advance(task, n)
