@@ -50,3 +50,14 @@ def test_package_exports_resolve():
 
     for name in delayform.__all__:
         assert getattr(delayform, name) is not None
+
+
+def test_readme_python_example_runs():
+    import pathlib
+    import re
+
+    readme = pathlib.Path(__file__).resolve().parents[1] / "README.md"
+    blocks = re.findall(r"```python\n(.*?)```", readme.read_text(encoding="utf-8"), flags=re.S)
+    assert blocks, "README has no Python example"
+    for block in blocks:
+        exec(compile(block, "README.md", "exec"), {})
