@@ -49,6 +49,10 @@ of the last ``max(tau1, tau2) / dt + 3`` steps are kept, and C is applied three
 times per step, so time and memory grow linearly with the number of agents
 and of edges. Non-zero delays must be at least ``dt`` (then every value a
 stage reads is already computed); a zero delay uses the current stage value.
+For double integrators in teams of up to 64 agents the same step, being
+linear, is precomputed as one matrix applied to the state and the few
+history values it reads (``_integrate_linear``): same results up to
+rounding, without the Python overhead of the stage-by-stage loop.
 
 Regularisation of eq. transform2
 --------------------------------
@@ -519,7 +523,11 @@ def simulate(
     # A dense product is faster for a handful of agents; sparse wins long before 1000.
     C = topology.C_sparse.toarray() if n <= _DENSE_AGENTS else topology.C_sparse
     F = formation_forcing(topology, P, desired)
-    out = _integrate(agent, C, F, P, D, tau1, tau2, dt, steps, save_every, min_speed)
+    out = None
+    if isinstance(agent, _DoubleIntegrator) and n <= _DENSE_AGENTS:
+        out = _integrate_linear(x0, v0, C, F, P, D, tau1, tau2, dt, steps, save_every)
+    if out is None:
+        out = _integrate(agent, C, F, P, D, tau1, tau2, dt, steps, save_every, min_speed)
     times, pos, head, spd, inp, reg = out
     return _trajectory(
         topology, desired, model, P, D, tau1, tau2, dt, times, pos, head, spd, inp, reg
@@ -597,6 +605,163 @@ def _integrate(
         state = state + (dt / 6.0) * (k1 + 2.0 * (k2 + k3) + k4)
         cx, cv = C @ state[:, :2], C @ agent.velocity(state)
     return times[:saved], pos[:saved], head[:saved], spd[:saved], inp[:saved], regularised
+
+
+# ------------------------------------------- double integrator, linear map
+#: the linear path keeps every step's record; above this many floats it is not used
+_LINEAR_BUDGET = 10_000_000
+
+
+def _linear_step_map(
+    C: _Array,
+    P: float,
+    D: float,
+    dt: float,
+    look1: list[_Lookup],
+    look2: list[_Lookup],
+    lo: int,
+    constant: tuple[bool, ...],
+) -> _Array:
+    """One RK4 step of the double integrator as a matrix, for one coordinate.
+
+    The step of :func:`_integrate` is linear in the current state, the buffered
+    history and F, and (x, y) never mix, so it is computed here once on
+    "symbolic" vectors: each quantity is an ``(n, N)`` matrix mapping the inputs
+    ``Z = (records r_{k+lo} .. r_k, F)`` to its value, where the record
+    ``r_i = (a_{i-1}, x_i, xdot_i)`` holds the stage-1 acceleration u of step
+    i - 1 and the state at step i. The operations are those of ``_History.read``
+    and ``stage`` in the same order, so the map reproduces them up to rounding.
+    ``constant[j]`` says the look-up of entry j of ``look1 + look2`` still lies
+    in the constant history (``_History.read`` then reads the grid value).
+
+    Returns the ``(3n, N)`` matrix of the increment ``r_{k+1} - r_k``.
+    """
+    n = C.shape[0]
+    nrec = (1 - lo) * 3 * n
+    eye = np.eye(nrec + n)
+
+    def rec(rel: int, part: int) -> _Array:  # part 0: a_{i-1}, 1: x_i, 2: xdot_i
+        start = ((rel - lo) * 3 + part) * n
+        return eye[start : start + n]
+
+    X0, V0, F = rec(0, 1), rec(0, 2), eye[nrec:]
+    accel: list[_Array] = []  # a_k, known after stage 1 (a read at index k needs it)
+
+    def grid(rel: int, positions: bool) -> tuple[_Array, _Array]:
+        """``C x`` and ``C xdot`` (positions), or ``C xdot`` and ``C a``, at step k + rel."""
+        if positions:
+            return C @ rec(rel, 1), C @ rec(rel, 2)
+        a = accel[0] if rel == 0 else rec(rel + 1, 0)
+        return C @ rec(rel, 2), C @ a
+
+    def read(lk: _Lookup, positions: bool, const: bool) -> _Array:
+        if lk.theta == 1.0 or const:
+            return grid(lk.right, positions)[0]
+        h00, h10, h01, h11 = lk.weights
+        v0, d0 = grid(lk.right - 1, positions)
+        v1, d1 = grid(lk.right, positions)
+        return h00 * v0 + (h10 * dt) * d0 + h01 * v1 + (h11 * dt) * d1
+
+    def stage(j: int, X: _Array, V: _Array) -> _Array:
+        cxd = C @ X if look1[j].current else read(look1[j], True, constant[j])
+        cvd = C @ V if look2[j].current else read(look2[j], False, constant[4 + j])
+        return P * (cxd - X) + D * (cvd - V) + F  # eq. protocol + forcing of eq. formation
+
+    u1 = stage(0, X0, V0)
+    accel.append(u1)
+    X2, V2 = X0 + (0.5 * dt) * V0, V0 + (0.5 * dt) * u1
+    u2 = stage(1, X2, V2)
+    X3, V3 = X0 + (0.5 * dt) * V2, V0 + (0.5 * dt) * u2
+    u3 = stage(2, X3, V3)
+    X4, V4 = X0 + dt * V3, V0 + dt * u3
+    u4 = stage(3, X4, V4)
+    # Increments, as in ``state + (dt / 6) (k1 + ...)``: added to r_k in the loop, their
+    # rounding stays relative to the step's change, not to the state.
+    dX = (dt / 6.0) * (V0 + 2.0 * (V2 + V3) + V4)
+    dV = (dt / 6.0) * (u1 + 2.0 * (u2 + u3) + u4)
+    return np.vstack([u1 - rec(0, 0), dX, dV])
+
+
+def _integrate_linear(
+    x0: _Array,
+    v0: _Array,
+    C: _Array,
+    F: _Array,
+    P: float,
+    D: float,
+    tau1: float,
+    tau2: float,
+    dt: float,
+    steps: int,
+    save_every: int,
+) -> tuple[_Array, _Array, _Array, _Array, _Array, int] | None:
+    """The RK4 of :func:`_integrate` for double integrators, each step one matrix product.
+
+    For a handful of agents the generic loop spends its time in Python overhead
+    of many small NumPy calls per stage, not in arithmetic. The double
+    integrator is linear and the Hermite weights are fixed, so every step is
+    ``r_{k+1} = r_k + M Z_k + B`` (:func:`_linear_step_map`): a handful of
+    NumPy calls per step instead of about a hundred, with the results of
+    :func:`_integrate` up to rounding. While a look-up still falls in the
+    constant history t <= 0 the step differs (``_History.read``), so the first
+    steps use their own maps. Every record is kept (6 n floats per step, about
+    as much as saving every step), so saving costs nothing in the loop.
+    Returns None where this path does not apply (a first-stage read of the
+    current step, or records above :data:`_LINEAR_BUDGET`).
+    """
+    n = F.shape[0]
+    stage_c = (0.0, 0.5, 0.5, 1.0)
+    look1 = [_lookup(c, tau1, dt) for c in stage_c]
+    look2 = [_lookup(c, tau2, dt) for c in stage_c]
+    looks = look1 + look2
+    if any(lk.right >= 0 and not lk.current for lk in (look1[0], look2[0])):
+        return None  # stage 1 would read a_k before it exists; the generic loop handles it
+    lo = min([lk.right - 1 for lk in looks] + [0])  # deepest record read (a_i lives in r_{i+1})
+    pad = -lo
+    rows = pad + steps + 2
+    if rows * 3 * n * 2 > _LINEAR_BUDGET:
+        return None
+
+    # Step k sees look-up j in the constant history while k + right_j <= 0
+    # (interpolated look-ups only); so the map changes at most once per look-up.
+    def constant(k: int) -> tuple[bool, ...]:
+        return tuple(not lk.current and lk.theta != 1.0 and k + lk.right <= 0 for lk in looks)
+
+    changes = sorted({0} | {min(max(1 - lk.right, 0), steps + 1) for lk in looks})
+    bounds = [k for k in changes if k <= steps] + [steps + 1]
+    maps = [_linear_step_map(C, P, D, dt, look1, look2, lo, constant(k)) for k in bounds[:-1]]
+    # Keep only the records some map reads (each delay reads a few of them): the
+    # product then costs the same for tau = 2 dt as for tau = 200 dt.
+    nrec = 1 - lo
+    blocks = [m[:, : nrec * 3 * n].reshape(3 * n, nrec, 3 * n) for m in maps]
+    used = np.flatnonzero(np.any([np.any(b != 0, axis=(0, 2)) for b in blocks], axis=0))
+    lags = used + lo  # step of each record read, relative to k
+    linear = [np.ascontiguousarray(b[:, used].reshape(3 * n, -1)) for b in blocks]
+    affine = [m[:, nrec * 3 * n :] @ F for m in maps]  # the forcing F, a constant input
+
+    # H[pad + i] = r_i; before t = 0 the state is x0, v0 and no acceleration.
+    H = np.empty((rows, 3 * n, 2))
+    H[: pad + 1, :n] = 0.0
+    H[: pad + 1, n : 2 * n] = x0
+    H[: pad + 1, 2 * n :] = v0
+    for M, B, start, stop in zip(linear, affine, bounds[:-1], bounds[1:]):
+        read_rows = lags + pad
+        for k in range(start, stop):
+            # r_{k+1} = r_k + M (records of steps k + lags) + B; the last step
+            # (k = steps) is only there for a_steps, the input saved at t_steps.
+            r = pad + k
+            np.add(H[r], M @ H[read_rows + k].reshape(-1, 2), out=H[r + 1])
+            H[r + 1] += B
+
+    saved = np.arange(0, steps + 1, save_every)
+    if saved[-1] != steps:
+        saved = np.append(saved, steps)
+    pos = H[pad + saved, n : 2 * n]
+    vel = H[pad + saved, 2 * n :]
+    inp = H[pad + saved + 1, :n]
+    head = np.arctan2(vel[..., 1], vel[..., 0])
+    spd = np.hypot(vel[..., 0], vel[..., 1])
+    return saved * dt, pos, head, spd, inp, 0
 
 
 # ---------------------------------------------------------------- metrics
