@@ -218,7 +218,7 @@ def test_simulate_json_matches_library(tmp_path: Path) -> None:
 PAPER_FILES = (
     "index.html", "summary.json", "factors.csv",
     "stability_chart.png", "stability_chart.svg", "ctcr_curves.csv", "ctcr_curves.npz",
-    "sim_a_xy.png", "sim_a_xy.svg", "sim_a_traces.png", "sim_a_traces.svg", "sim_a.csv", "sim_a.npz",
+    "sim_a_xy.png", "sim_a_xy.svg", "sim_a_traces.png", "sim_a_traces.svg", "sim_a.csv", "sim_a.npz", "sim_a.gif",
     "sim_b_xy.png", "sim_b_xy.svg", "sim_b.csv", "sim_b.npz",
     "roots.csv", "dominant_surface.png", "dominant_surface.svg", "dominant_contour.png",
     "dominant_contour.svg", "dominant_map.npz", "dominant_map.csv", "schedule.json", "schedule_c.json",
@@ -264,7 +264,8 @@ def test_paper_writes_every_file_it_lists(tmp_path_factory: pytest.TempPathFacto
     assert sections["schedule_c"]["hardware_root"]["re"] > 0 > sections["schedule_c"]["root"]["re"]
     assert sections["schedule_c"]["tau1"] >= 1.0 and sections["schedule_c"]["tau2"] >= 2.0
     html = (out / "index.html").read_text()
-    assert html.count("<img ") == sum(1 for n in listed if n.endswith(".png"))
+    assert html.count("<img ") == sum(1 for n in listed if n.endswith((".png", ".gif")))
+    assert "data:image/gif;base64," in html
     assert "data:image/png;base64," in html
 
 

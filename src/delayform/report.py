@@ -55,11 +55,12 @@ MapProgress = Callable[[int, int], None]
 
 @dataclass(frozen=True)
 class Figure:
-    """A figure written as ``<stem>.png`` and ``<stem>.svg``, with its caption."""
+    """A figure written as ``<stem>.png`` and ``<stem>.svg`` (or an animation ``<stem>.gif``), with its caption."""
 
     stem: str
     title: str
     text: str
+    animated: bool = False
 
 
 @dataclass(frozen=True)
@@ -596,6 +597,8 @@ def simulation_section(
     if gif:
         traj.save_gif(out / f"{stem}.gif")
         files.append(f"{stem}.gif")
+        figures.append(Figure(f"{stem}", f"The robots moving into formation at {label}",
+                              "Animation of the simulated positions and headings.", animated=True))  # fmt: skip
     settling = float(traj.settling_time)
     summary = {
         "label": label, "tau1": tau1, "tau2": tau2, "model": sim.model,
@@ -714,7 +717,7 @@ def paper_sections(
     steps: list[tuple[str, Callable[[], Section]]] = [
         ("eigenvalues and factors", lambda: factors_section(scenario, out)),
         ("stability chart", lambda: chart_section(scenario, out)),
-        ("simulation at a", lambda: simulation_section(scenario, out, label="a", tau1=a[0], tau2=a[1])),
+        ("simulation at a", lambda: simulation_section(scenario, out, label="a", tau1=a[0], tau2=a[1], gif=True)),
         ("simulation at b", lambda: simulation_section(scenario, out, label="b", tau1=b[0], tau2=b[1], traces=False)),
         ("roots", lambda: roots_section(scenario, out)),
         ("dominant-root map", lambda: map_section(scenario, out, progress=map_progress)),
@@ -777,12 +780,14 @@ table { border-collapse: collapse; margin: 0.6rem 0; } td, th { border: 1px soli
 
 
 def _figure_html(out: Path, figure: Figure) -> str:
-    data = base64.b64encode((out / f"{figure.stem}.png").read_bytes()).decode("ascii")
+    kind = "gif" if figure.animated else "png"
+    data = base64.b64encode((out / f"{figure.stem}.{kind}").read_bytes()).decode("ascii")
+    vector = "" if figure.animated else f' (<a href="{html.escape(figure.stem)}.svg">SVG</a>)'
     return (
         f'<figure id="{html.escape(figure.stem)}"><img alt="{html.escape(figure.title)}" '
-        f'src="data:image/png;base64,{data}">'
-        f"<figcaption><b>{html.escape(figure.title)}.</b> {html.escape(figure.text)} "
-        f'(<a href="{html.escape(figure.stem)}.svg">SVG</a>)</figcaption></figure>'
+        f'src="data:image/{kind};base64,{data}">'
+        f"<figcaption><b>{html.escape(figure.title)}.</b> {html.escape(figure.text)}"
+        f"{vector}</figcaption></figure>"
     )
 
 
