@@ -315,3 +315,14 @@ def test_certified_unstable_root_count_agrees_with_ctcr_nu() -> None:
             continue
         nu = sum(f.multiplicity * spectrum.count_roots_right_of(f, t1, t2, 1e-9) for f in fs)
         assert nu == int(chart.unstable_count(t1, t2)), (t1, t2)
+
+
+def test_dominant_root_map_reports_progress_to_a_callback():
+    calls: list[tuple[int, int]] = []
+    grid = [0.3, 1.0, 2.0]
+    with_callback = dominant_root_map(paper_six(), 1.0, 0.5, grid, grid, progress=lambda d, t: calls.append((d, t)))
+    plain = dominant_root_map(paper_six(), 1.0, 0.5, grid, grid)
+    total = 5 * 3 * 3  # factors x grid points
+    assert calls and calls[-1] == (total, total)
+    assert all(b[0] >= a[0] for a, b in zip(calls, calls[1:]))
+    np.testing.assert_array_equal(with_callback.roots, plain.roots)

@@ -148,8 +148,8 @@ def _out_dir(out: Path | None, scenario: Scenario) -> Path:
 
 
 @contextmanager
-def _progress(total: int, *, title: str) -> Iterator[Callable[[str], None]]:
-    """A Rich progress bar on stderr; yields ``step(text)``, called before each step."""
+def _bar() -> Iterator[Any]:
+    """A Rich progress bar on stderr, so ``--json`` output on stdout stays clean."""
     from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
@@ -158,6 +158,13 @@ def _progress(total: int, *, title: str) -> Iterator[Callable[[str], None]]:
         TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
         console=console, transient=not console.is_terminal,
     ) as bar:  # fmt: skip
+        yield bar
+
+
+@contextmanager
+def _progress(total: int, *, title: str) -> Iterator[Callable[[str], None]]:
+    """A bar over the steps of a command; yields ``step(text)``, called before each step."""
+    with _bar() as bar:
         task = bar.add_task(title, total=total)
         started = False
 
@@ -174,15 +181,8 @@ def _progress(total: int, *, title: str) -> Iterator[Callable[[str], None]]:
 
 @contextmanager
 def _inner_progress(title: str) -> Iterator[Callable[[int, int], None]]:
-    """A Rich progress bar on stderr for a library loop; yields ``callback(done, total)``."""
-    from rich.console import Console
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-
-    console = Console(stderr=True)
-    with Progress(
-        TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-        console=console, transient=not console.is_terminal,
-    ) as bar:  # fmt: skip
+    """A bar for a library loop; yields ``callback(done, total)``."""
+    with _bar() as bar:
         task = bar.add_task(title, total=None)
 
         def callback(done: int, total: int) -> None:

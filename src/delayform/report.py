@@ -376,30 +376,6 @@ def _time_constant(s: complex) -> float:
     return float(1.0 / abs(s.real)) if s.real < 0 else float("inf")
 
 
-def _chunked_map(scenario: Scenario, t1: np.ndarray, t2: np.ndarray, progress: MapProgress | None) -> Any:
-    """:func:`~delayform.spectrum.dominant_root_map` in blocks of tau1 rows, reporting progress.
-
-    Every grid point is solved on its own, so blocks give the same roots as
-    one call; blocks let the command line show a progress bar on stderr.
-    """
-    from delayform.spectrum import DominantRootMap, dominant_root_map
-
-    team, P, D = scenario.topology, scenario.P, scenario.D
-    if progress is None:
-        return dominant_root_map(team, P, D, t1, t2)
-    block = max(1, t1.size // 20)
-    parts = []
-    for start in range(0, t1.size, block):
-        parts.append(dominant_root_map(team, P, D, t1[start : start + block], t2))
-        progress(min(start + block, t1.size) * t2.size, t1.size * t2.size)
-    return DominantRootMap(
-        t1, t2,
-        np.concatenate([p.roots for p in parts], axis=0),
-        np.concatenate([p.factor_index for p in parts], axis=0),
-        parts[0].factors,
-    )  # fmt: skip
-
-
 def map_section(scenario: Scenario, out: Path, *, progress: MapProgress | None = None) -> Section:
     """Real part of the dominant root over the map grid: surface, contour, NPZ and CSV.
 
@@ -410,12 +386,15 @@ def map_section(scenario: Scenario, out: Path, *, progress: MapProgress | None =
     out
         Folder the section writes its files into.
     progress
-        Optional callback told of each finished block of grid rows (for a progress bar).
+        Optional callback ``progress(done, total)`` passed to
+        :func:`~delayform.spectrum.dominant_root_map` (for a progress bar).
     """
+    from delayform.spectrum import dominant_root_map
+
     plt = _pyplot()
     grid = scenario.map
     t1, t2 = grid.tau1_values(), grid.tau2_values()
-    dmap = _chunked_map(scenario, t1, t2, progress)
+    dmap = dominant_root_map(scenario.topology, scenario.P, scenario.D, t1, t2, progress=progress or False)
     re = np.asarray(dmap.real, dtype=float)
     files = []
     fig = plt.figure(figsize=(7.0, 5.6))

@@ -1356,7 +1356,7 @@ def dominant_root_map(
     tau1_values: ArrayLike,
     tau2_values: ArrayLike,
     *,
-    progress: bool = False,
+    progress: bool | Callable[[int, int], None] = False,
 ) -> DominantRootMap:
     """Dominant root at every point of a delay grid (paper Figs. dominant and contour).
 
@@ -1376,7 +1376,9 @@ def dominant_root_map(
     tau1_values, tau2_values
         Non-empty 1-D grids of non-negative delays.
     progress
-        Show a Rich progress bar.
+        True shows a Rich progress bar on stderr; a callable is called as
+        ``progress(done, total)`` (grid points times factors) as work finishes,
+        for callers that draw their own bar.
 
     Returns
     -------
@@ -1402,13 +1404,21 @@ def dominant_root_map(
 
 
 class _progress:
-    """Context manager yielding an ``advance(n)`` callback; a Rich bar when enabled."""
+    """Context manager yielding an ``advance(n)`` callback: a Rich bar, the caller's callback, or None."""
 
-    def __init__(self, enabled: bool, total: int) -> None:
+    def __init__(self, enabled: bool | Callable[[int, int], None], total: int) -> None:
         self.enabled, self.total = enabled, total
         self._bar: Any = None
 
     def __enter__(self) -> Callable[[int], None] | None:
+        if callable(self.enabled):
+            report, done = self.enabled, [0]
+
+            def advance(n: int) -> None:
+                done[0] += n
+                report(min(done[0], self.total), self.total)
+
+            return advance
         if not self.enabled:
             return None
         from rich.console import Console

@@ -237,11 +237,18 @@ class Topology:
         """C = Delta^-1 A as a scipy.sparse CSR array, at any size."""
         return sp.csr_array(sp.diags_array(1.0 / self.in_degree) @ self.adjacency_sparse)
 
+    @cached_property
+    def _C_dense(self) -> NDArray[np.float64]:
+        # computed once and read-only: callers share it, none may change it
+        dense = self.C_sparse.toarray()
+        dense.flags.writeable = False
+        return dense
+
     @property
     def C(self) -> NDArray[np.float64] | sp.csr_array:
-        """C = Delta^-1 A (eq. protocolss), dense up to :data:`DENSE_LIMIT` agents."""
+        """C = Delta^-1 A (eq. protocolss), dense (read-only) up to :data:`DENSE_LIMIT` agents."""
         if self.n <= DENSE_LIMIT:
-            return self.C_sparse.toarray()
+            return self._C_dense
         return self.C_sparse
 
     def informers(self, agent: int) -> tuple[int, ...]:
@@ -295,7 +302,7 @@ class Topology:
     @cached_property
     def eigenvalues(self) -> NDArray[np.complex128]:
         """All n eigenvalues of C, sorted by decreasing real part then imaginary part."""
-        C = self.C_sparse.toarray()
+        C = self._C_dense if self.n <= DENSE_LIMIT else self.C_sparse.toarray()
         vals = np.linalg.eigvals(C).astype(np.complex128)
         order = np.lexsort((-vals.imag, -vals.real))
         return vals[order]
