@@ -45,6 +45,7 @@ __all__ = [
     "full_characteristic",
     "characteristic_matrix",
     "product_of_factors",
+    "tendency_sign",
 ]
 
 #: Delay of each term of eq. genfactor as (multiple of tau1, multiple of tau2):
@@ -205,12 +206,36 @@ class TwoDelayQuasiPolynomial:
         """RT = sgn Re(ds/dtau_k) at s = j omega (Definition "Root Tendency").
 
         ds/dtau_k = -(dq/dtau_k) / (dq/ds) by the implicit function theorem.
+        A root that only touches the axis has RT = 0 (see :func:`tendency_sign`).
         """
-        s = 1j * np.asarray(omega, dtype=np.float64)
-        ds = -self.delay_derivative(s, tau1, tau2, delay=delay) / self.derivative(s, tau1, tau2)
-        # A root that only touches the axis has Re ds/dtau = 0 up to rounding: report 0, not noise.
-        touching = np.abs(ds.real) <= ROOT_TENDENCY_TOL * np.abs(ds)
-        return np.where(touching, 0, np.sign(ds.real)).astype(np.int64)
+        if delay not in (1, 2):
+            raise QuasiPolynomialError(f"delay must be 1 or 2, got {delay!r}")
+        rt1, rt2 = self.root_tendencies(np.asarray(omega, dtype=np.float64),
+                                        check_delay_array("tau1", tau1), check_delay_array("tau2", tau2))  # fmt: skip
+        return rt1 if delay == 1 else rt2
+
+    def root_tendencies(
+        self, omega: NDArray[np.float64], tau1: NDArray[np.float64], tau2: NDArray[np.float64]
+    ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+        """(RT1, RT2) at s = j omega in one pass, without checking the delays.
+
+        For callers that already checked them, or, like the CTCR curve
+        polylines, may step a rounding error past an axis.
+        """
+        s = 1j * omega
+        shape = np.broadcast_shapes(s.shape, np.shape(tau1), np.shape(tau2))
+        dq_ds = np.zeros(shape, complex)
+        dq_1 = np.zeros(shape, complex)
+        dq_2 = np.zeros(shape, complex)
+        for c, a, b in self.terms():
+            h = a * tau1 + b * tau2
+            e = np.exp(-h * s)
+            g = npoly.polyval(s, c)
+            dq_ds += (npoly.polyval(s, npoly.polyder(c)) - h * g) * e
+            dq_1 -= a * s * g * e
+            dq_2 -= b * s * g * e
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return tendency_sign(-dq_1 / dq_ds), tendency_sign(-dq_2 / dq_ds)
 
     def describe(self) -> str:
         """The quasi-polynomial written out, one term per non-zero g_k."""
@@ -224,6 +249,19 @@ class TwoDelayQuasiPolynomial:
                 )
                 parts.append(f"({poly})" + ("" if name == "1" else f" {name}"))
         return " + ".join(parts)
+
+
+def tendency_sign(ds: NDArray[np.complex128]) -> NDArray[np.int64]:
+    """sgn Re(ds/dtau), 0 where Re is rounding noise next to |ds| (a root touching the axis).
+
+    Parameters
+    ----------
+    ds
+        Values of ds/dtau_k at imaginary roots.
+    """
+    re = np.nan_to_num(ds.real)
+    touching = np.abs(re) <= ROOT_TENDENCY_TOL * np.nan_to_num(np.abs(ds))
+    return np.where(touching, 0, np.sign(re)).astype(np.int64)
 
 
 def _fmt(v: complex) -> str:

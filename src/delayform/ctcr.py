@@ -407,32 +407,9 @@ def _tendency(
 ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     """(RT1, RT2) = sgn Re ds/dtau_k at s = j omega (Definition "Root Tendency").
 
-    Implicit differentiation of q(s; tau1, tau2) = 0: ds/dtau_k = -q_tau_k / q_s.
-    Written here without the delay validation of the public methods because
-    curve polylines may run a little past the axes.
+    Unchecked delays, because curve polylines may run a little past the axes.
     """
-    s = 1j * omega
-    dq_ds = np.zeros(s.shape, complex)
-    dq_1 = np.zeros(s.shape, complex)
-    dq_2 = np.zeros(s.shape, complex)
-    for c, a, b in qp.terms():
-        h = a * t1 + b * t2
-        e = np.exp(-h * s)
-        g = _horner(s, c)
-        dq_ds += (_horner(s, _deriv(c)) - h * g) * e
-        dq_1 -= a * s * g * e
-        dq_2 -= b * s * g * e
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ds1 = -dq_1 / dq_ds
-        ds2 = -dq_2 / dq_ds
-    return _sign(ds1), _sign(ds2)
-
-
-def _sign(ds: NDArray[np.complex128]) -> NDArray[np.int64]:
-    """sgn Re ds, 0 when Re ds is rounding noise next to |ds| (the root touches the axis)."""
-    re = np.nan_to_num(ds.real)
-    tiny = np.abs(re) <= 1e-9 * np.nan_to_num(np.abs(ds))
-    return np.where(tiny, 0, np.sign(re)).astype(np.int64)
+    return qp.root_tendencies(omega, t1, t2)
 
 
 def curve_residual(qp: TwoDelayQuasiPolynomial, curve: CrossingCurve) -> NDArray[np.float64]:
