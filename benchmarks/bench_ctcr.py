@@ -23,7 +23,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from delayform.ctcr import stability_map
+from delayform.analysis.ctcr import stability_map
 from delayform.topology import Topology, paper_six, random_digraph
 
 

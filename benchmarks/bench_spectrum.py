@@ -30,7 +30,7 @@ import warnings
 import numpy as np
 
 from delayform.characteristic import CharacteristicFactor, factors
-from delayform.spectrum import dominant_root, dominant_root_map
+from delayform.analysis.spectrum import dominant_root, dominant_root_map
 from delayform.topology import paper_six
 
 P, D = 1.0, 0.5

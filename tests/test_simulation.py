@@ -357,7 +357,7 @@ def test_bad_input_raises_named_errors(kwargs, error):
 @settings(max_examples=25)
 def test_linear_fast_path_equals_the_generic_rk4_loop(tau1, tau2, dt, save_every, seed):
     """The small-team double-integrator path is the generic RK4 loop, reorganised."""
-    from delayform import simulation as sim
+    from delayform.simulation import runner as sim
     from delayform.formation import formation_forcing, hexagon
 
     team = paper_six()

@@ -1,4 +1,4 @@
-"""Tests of delayform.spectrum: roots, dominant roots, maps and delay scheduling.
+"""Tests of delayform.analysis.spectrum: roots, dominant roots, maps and delay scheduling.
 
 Every numerical claim is checked against an independent computation from
 tests/ref_spectrum.py (full 2n x 2n determinant, mesh + Muller, dense
@@ -13,7 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import ref_spectrum as ref
-from delayform import spectrum
+from delayform.analysis import spectrum
 from delayform.characteristic import TwoDelayQuasiPolynomial, factors, full_characteristic
 from delayform.errors import (
     DelayError,
@@ -22,14 +22,14 @@ from delayform.errors import (
     NoSpanningTreeError,
     NotConvergedError,
 )
-from delayform.spectrum import (
+from delayform.analysis.spectrum import (
     NoStableDelaysError,
     dominant_root,
     dominant_root_map,
     rightmost_root,
     roots_in,
-    schedule_delays,
 )
+from delayform.design.scheduling import schedule_delays
 from delayform.topology import Topology, paper_six, ring
 
 P, D = 1.0, 0.5
@@ -288,7 +288,7 @@ def test_ring_dominant_root_matches_reference() -> None:
 
 # ------------------------------------------------------------------ CTCR agreement
 def test_sign_of_dominant_root_agrees_with_ctcr_map() -> None:
-    ctcr = pytest.importorskip("delayform.ctcr")
+    ctcr = pytest.importorskip("delayform.analysis.ctcr")
     team = paper_six()
     chart = ctcr.stability_map(team, P, D, 10.0, 10.0)
     tau1 = np.linspace(0.05, 9.95, 23)
@@ -305,7 +305,7 @@ def test_sign_of_dominant_root_agrees_with_ctcr_map() -> None:
 
 
 def test_certified_unstable_root_count_agrees_with_ctcr_nu() -> None:
-    ctcr = pytest.importorskip("delayform.ctcr")
+    ctcr = pytest.importorskip("delayform.analysis.ctcr")
     team = paper_six()
     chart = ctcr.stability_map(team, P, D, 10.0, 10.0)
     fs = factors(team, P, D)

@@ -33,15 +33,21 @@ _EXPORTS: dict[str, str] = {
     "factors": "characteristic",
     "full_characteristic": "characteristic",
     # CTCR
-    "stability_map": "ctcr",
-    "crossing_map": "ctcr",
-    "StabilityMap": "ctcr",
-    # spectrum
-    "roots_in": "spectrum",
-    "rightmost_root": "spectrum",
-    "dominant_root": "spectrum",
-    "dominant_root_map": "spectrum",
-    "schedule_delays": "spectrum",
+    "stability_map": "analysis.ctcr",
+    "crossing_map": "analysis.ctcr",
+    "StabilityMap": "analysis.ctcr",
+    "PAPER_POINTS": "analysis.ctcr",
+    # characteristic roots
+    "roots_in": "analysis.spectrum",
+    "rightmost_root": "analysis.spectrum",
+    "count_roots_right_of": "analysis.spectrum",
+    "dominant_root": "analysis.spectrum",
+    "dominant_root_map": "analysis.spectrum",
+    "DominantRoot": "analysis.spectrum",
+    "DominantRootMap": "analysis.spectrum",
+    # design
+    "schedule_delays": "design.scheduling",
+    "DelaySchedule": "design.scheduling",
     # formation and simulation
     "formation_forcing": "formation",
     "named_formation": "formation",

@@ -1,7 +1,11 @@
 """Figures. Every function takes an optional matplotlib ``ax`` and returns the axes it drew on.
 
 This is the only module that imports matplotlib at import time; computing
-modules never open a figure.
+modules never open a figure. It is a leaf of the package: it imports no
+other delayform module and reads the results it draws by their attributes,
+so every result's ``.plot()`` may call it without an import cycle (data flow
+topology -> factors -> analysis -> design -> simulation -> report stays one
+way; ``tests/test_architecture.py`` checks it).
 """
 
 from __future__ import annotations
@@ -37,12 +41,12 @@ def stability_chart(
     kernel_color: str = "red",
     offspring_color: str = "blue",
 ) -> Axes:
-    """The CTCR stability chart of a :class:`~delayform.ctcr.StabilityMap` (Fig. stability).
+    """The CTCR stability chart of a :class:`~delayform.analysis.ctcr.StabilityMap` (Fig. stability).
 
     Kernel curves red, offspring curves blue (Definitions "Kernel curves" and
     "Offspring curves"), the stable region (NU = 0) shaded, and optional
     labelled delay pairs such as the paper's points a-e
-    (:data:`delayform.ctcr.PAPER_POINTS`).
+    (:data:`delayform.analysis.ctcr.PAPER_POINTS`).
 
     Parameters
     ----------
@@ -80,15 +84,6 @@ def stability_chart(
     return ax
 
 
-def paper_stability_chart(ax: Axes | None = None, *, tau_max: float = 8.0) -> Axes:
-    """The paper's Fig. stability: paper_six(), P = 1, D = 0.5, points a-e."""
-    from delayform.ctcr import PAPER_POINTS, stability_map
-    from delayform.topology import paper_six
-
-    smap = stability_map(paper_six(), 1.0, 0.5, tau_max, tau_max)
-    return stability_chart(smap, ax=ax, points=PAPER_POINTS)
-
-
 def save_figure(
     fig_or_ax: Figure | Axes, path_stem: str | Path, *, formats: Sequence[str] = ("png", "svg"), dpi: int = 150
 ) -> list[Path]:
@@ -111,7 +106,7 @@ def save_figure(
 def plot_dominant_surface(result: Any, ax: Axes | None = None) -> Axes:
     """Surface of Re(dominant root) over the delay plane with the plane Re s = 0 (paper Fig. dominant).
 
-    ``result`` is a :class:`delayform.spectrum.DominantRootMap`; ``ax``, when
+    ``result`` is a :class:`delayform.analysis.spectrum.DominantRootMap`; ``ax``, when
     given, must be a 3-D axes. The stability boundary of the CTCR chart is
     where the surface cuts the black plane.
     """

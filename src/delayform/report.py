@@ -235,7 +235,7 @@ def chart_section(scenario: Scenario, out: Path) -> Section:
     out
         Folder the section writes its files into.
     """
-    from delayform.ctcr import stability_map
+    from delayform.analysis.ctcr import stability_map
 
     plt = _pyplot()
     cs = scenario.chart
@@ -325,7 +325,7 @@ def roots_section(
         reaching twice as far left as the dominant root.
     """
     from delayform.characteristic import factors
-    from delayform.spectrum import dominant_root, roots_in
+    from delayform.analysis.spectrum import dominant_root, roots_in
 
     team, P, D = scenario.topology, scenario.P, scenario.D
     dom = dominant_root(team, P, D, scenario.tau1, scenario.tau2)
@@ -387,9 +387,9 @@ def map_section(scenario: Scenario, out: Path, *, progress: MapProgress | None =
         Folder the section writes its files into.
     progress
         Optional callback ``progress(done, total)`` passed to
-        :func:`~delayform.spectrum.dominant_root_map` (for a progress bar).
+        :func:`~delayform.analysis.spectrum.dominant_root_map` (for a progress bar).
     """
-    from delayform.spectrum import dominant_root_map
+    from delayform.analysis.spectrum import dominant_root_map
 
     plt = _pyplot()
     grid = scenario.map
@@ -460,7 +460,7 @@ def schedule_section(
     With ``report_failure``, a box without stable delays becomes a section
     saying so instead of :class:`~delayform.errors.NoStableDelaysError`.
     """
-    from delayform.spectrum import schedule_delays
+    from delayform.design.scheduling import schedule_delays
 
     lo = scenario.schedule.tau_min if tau_min is None else tau_min
     hi = scenario.schedule.tau_max if tau_max is None else tau_max

@@ -1,0 +1,1 @@
+"""Analysis of the characteristic equation: CTCR stability maps and characteristic roots."""

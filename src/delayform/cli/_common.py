@@ -1,0 +1,208 @@
+"""Shared pieces of the command line: the group, option types, scenario overrides, progress bars, output."""
+
+from __future__ import annotations
+
+import json
+import sys
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, TypeVar
+
+import click
+
+if TYPE_CHECKING:  # the command line imports the library lazily, to start fast
+    from delayform.scenario import Scenario
+    from delayform.topology import Topology
+
+TOPOLOGY_NAMES = ("paper_six", "ring", "complete", "star")
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+
+def _fail(message: str, *, code: int = 2) -> None:
+    click.echo(f"delayform: error: {message}", err=True)
+    sys.exit(code)
+
+
+def _named_topology(name: str, n: int) -> Topology:
+    from delayform import topology as topo
+
+    if name == "paper_six":
+        return topo.paper_six()
+    return getattr(topo, name)(n)
+
+
+# ------------------------------------------------------------ option types
+class FloatTuple(click.ParamType):
+    """``a,b`` (or ``a,b,c,d``): a fixed number of comma-separated numbers."""
+
+    def __init__(self, count: int, *, integer: bool = False, minimum: float | None = None) -> None:
+        self.count = count
+        self.integer = integer
+        self.minimum = minimum
+        kind = "INT" if integer else "X"
+        self.name = ",".join([kind] * count)
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        if isinstance(value, tuple):
+            return value
+        parts = str(value).split(",")
+        if len(parts) != self.count:
+            self.fail(f"expected {self.count} comma-separated numbers, got {value!r}", param, ctx)
+        try:
+            numbers = tuple((int if self.integer else float)(p) for p in parts)
+        except ValueError:
+            self.fail(f"expected {self.count} comma-separated {'integers' if self.integer else 'numbers'}, got {value!r}", param, ctx)
+        if self.minimum is not None and min(numbers) < self.minimum:
+            self.fail(f"values must be >= {self.minimum:g}, got {value!r}", param, ctx)
+        return numbers
+
+
+class LabelledPoint(click.ParamType):
+    """``LABEL=tau1,tau2``: a delay pair to mark on the chart."""
+
+    name = "LABEL=T1,T2"
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        if isinstance(value, tuple):
+            return value
+        label, sep, rest = str(value).partition("=")
+        if not sep or not label:
+            self.fail(f"expected LABEL=tau1,tau2, got {value!r}", param, ctx)
+        t1, t2 = FloatTuple(2, minimum=0.0).convert(rest, param, ctx)
+        return (label, t1, t2)
+
+
+POSITIVE = click.FloatRange(min=0.0, min_open=True)
+NON_NEGATIVE = click.FloatRange(min=0.0)
+
+
+# ------------------------------------------------------- shared options
+def scenario_options(func: F) -> F:
+    """The scenario argument and the overrides every analysis command shares."""
+    options = [
+        click.argument("scenario", required=False, type=click.Path(dir_okay=False, path_type=Path)),
+        click.option("--topology", "topology_name", type=click.Choice(TOPOLOGY_NAMES),
+                     help="Replace the scenario's topology by a named one."),
+        click.option("--n", type=click.IntRange(min=2), help="Number of agents for --topology (not paper_six)."),
+        click.option("--P", "P", type=POSITIVE, help="Proportional gain P (overrides the scenario)."),
+        click.option("--D", "D", type=POSITIVE, help="Derivative gain D (overrides the scenario)."),
+        click.option("--tau1", type=NON_NEGATIVE, help="Position delay tau1 in seconds (overrides the scenario)."),
+        click.option("--tau2", type=NON_NEGATIVE, help="Velocity delay tau2 in seconds (overrides the scenario)."),
+        click.option("--out", type=click.Path(file_okay=False, path_type=Path),
+                     help="Output directory [default: out/<scenario name>]."),
+        click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON on stdout."),
+    ]  # fmt: skip
+    for option in reversed(options):
+        func = option(func)
+    return func
+
+
+def _scenario(
+    path: Path | None,
+    *,
+    topology_name: str | None,
+    n: int | None,
+    P: float | None,
+    D: float | None,
+    tau1: float | None,
+    tau2: float | None,
+) -> Scenario:
+    """The scenario file (or the paper's example) with the command-line overrides applied."""
+    from delayform.scenario import load_scenario, paper_scenario
+
+    scenario = paper_scenario() if path is None else load_scenario(path)
+    topology = None
+    if topology_name is not None:
+        if topology_name != "paper_six" and n is None:
+            raise click.UsageError(f"--topology {topology_name} needs --n")
+        topology = _named_topology(topology_name, n or 6)
+    elif n is not None:
+        raise click.UsageError("--n is only used with --topology")
+    return scenario.with_changes(topology=topology, P=P, D=D, tau1=tau1, tau2=tau2)
+
+
+def _out_dir(out: Path | None, scenario: Scenario) -> Path:
+    path = out if out is not None else Path("out") / scenario.name
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise click.BadParameter(f"cannot create output directory {path}: {exc.strerror}", param_hint="--out")
+    return path
+
+
+@contextmanager
+def _bar() -> Iterator[Any]:
+    """A Rich progress bar on stderr, so ``--json`` output on stdout stays clean."""
+    from rich.console import Console
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    console = Console(stderr=True)
+    with Progress(
+        TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+        console=console, transient=not console.is_terminal,
+    ) as bar:  # fmt: skip
+        yield bar
+
+
+@contextmanager
+def _progress(total: int, *, title: str) -> Iterator[Callable[[str], None]]:
+    """A bar over the steps of a command; yields ``step(text)``, called before each step."""
+    with _bar() as bar:
+        task = bar.add_task(title, total=total)
+        started = False
+
+        def step(text: str) -> None:
+            nonlocal started
+            if started:
+                bar.advance(task)
+            started = True
+            bar.update(task, description=f"{title}: {text}")
+
+        yield step
+        bar.update(task, completed=total, description=f"{title}: done")
+
+
+@contextmanager
+def _inner_progress(title: str) -> Iterator[Callable[[int, int], None]]:
+    """A bar for a library loop; yields ``callback(done, total)``."""
+    with _bar() as bar:
+        task = bar.add_task(title, total=None)
+
+        def callback(done: int, total: int) -> None:
+            bar.update(task, completed=done, total=total)
+
+        yield callback
+
+
+def _emit(section: Any, out: Path, *, as_json: bool) -> None:
+    """Print a section's summary: JSON on stdout, or its table and files as text."""
+    from delayform.report import jsonable
+
+    files = [str(out / f) for f in section.files]
+    if as_json:
+        click.echo(json.dumps(jsonable({**section.summary, "files": files}), indent=2))
+        return
+    click.echo(section.title)
+    width = max((len(k) for k, _ in section.table), default=0)
+    for key, value in section.table:
+        click.echo(f"  {key:<{width}}  {value}")
+    if files:
+        click.echo("Wrote " + ", ".join(files))
+
+
+# ------------------------------------------------------------------ group
+@click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
+@click.version_option(package_name="delayform")
+def cli() -> None:
+    """delayform: exact stability maps, dominant roots, delay scheduling and
+    simulation for robot formations under two communication delays.
+
+    Every command takes an optional SCENARIO file (TOML; see docs/cli.md and
+    examples/) and otherwise works on the paper's example: six robots, P = 1,
+    D = 0.5, delays (0.3, 0.2). Options override the file. Input errors exit
+    with code 2 and one line on stderr.
+    """
+
+

@@ -1,0 +1,157 @@
+"""Analysis commands: factors, chart, roots, map."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import click
+
+from delayform.cli._common import (
+    POSITIVE,
+    TOPOLOGY_NAMES,
+    FloatTuple,
+    LabelledPoint,
+    _emit,
+    _inner_progress,
+    _named_topology,
+    _out_dir,
+    _scenario,
+    cli,
+    scenario_options,
+)
+
+if TYPE_CHECKING:
+    pass
+
+
+@cli.command("factors")
+@click.option("--topology", "topology_name", type=click.Choice(TOPOLOGY_NAMES), default="paper_six",
+              show_default=True, help="Named topology.")
+@click.option("--n", type=int, default=6, show_default=True, help="Number of agents (not for paper_six).")
+@click.option("--P", "P", type=float, default=1.0, show_default=True, help="Proportional gain P.")
+@click.option("--D", "D", type=float, default=0.5, show_default=True, help="Derivative gain D.")
+@click.option("--json", "as_json", is_flag=True, help="Print eigenvalues and factors as JSON on stdout.")
+def factors_command(topology_name: str, n: int, P: float, D: float, as_json: bool) -> None:
+    """Print C, its eigenvalues and the factors of the characteristic equation (Lemma 1)."""
+    import numpy as np
+
+    from delayform.characteristic import factors
+    from delayform.report import jsonable
+
+    topo = _named_topology(topology_name, n)
+    fs = factors(topo, P, D)
+    if as_json:
+        click.echo(json.dumps(jsonable({
+            "topology": topo.name, "agents": topo.n, "P": P, "D": D,
+            "eigenvalues": [complex(v) for v in topo.eigenvalues],
+            "factors": [{"lam": complex(f.lam), "order": f.order, "multiplicity": f.multiplicity,
+                         "centroid": f.is_centroid, "quasi_polynomial": f.quasi_polynomial.describe()}
+                        for f in fs],
+        }), indent=2))  # fmt: skip
+        return
+    with np.printoptions(precision=4, suppress=True, linewidth=120):
+        click.echo(f"Topology {topo.name}: {topo.n} agents, spanning tree: {topo.has_spanning_tree()}")
+        click.echo("C = Delta^-1 A =")
+        click.echo(str(topo.C))
+        click.echo("eigenvalues of C: " + ", ".join(f"{v:.4g}" for v in topo.eigenvalues))
+    click.echo(f"Factors of the characteristic equation (eq. factorized), P = {P:g}, D = {D:g}:")
+    for i, f in enumerate(fs, start=1):
+        click.echo(f"  q{i}: {f.describe()}")
+        click.echo(f"      {f.quasi_polynomial.describe()} = 0")
+
+
+@cli.command("chart")
+@scenario_options
+@click.option("--tau1-max", type=POSITIVE, help="Right edge of the delay window [default: chart.tau1_max].")
+@click.option("--tau2-max", type=POSITIVE, help="Top edge of the delay window [default: chart.tau2_max].")
+@click.option("--point", "points", type=LabelledPoint(), multiple=True,
+              help="Delay pair to mark and classify, e.g. --point a=0.3,0.2 (repeatable) [default: chart.points].")
+def chart_command(scenario: Path | None, tau1_max: float | None, tau2_max: float | None,
+                  points: tuple[tuple[str, float, float], ...], out: Path | None, as_json: bool,
+                  **overrides: Any) -> None:  # fmt: skip
+    """Exact CTCR stability chart in the (tau1, tau2) plane.
+
+    Writes stability_chart.png/.svg (kernel curves red, offspring blue,
+    stable region shaded), the curve points as ctcr_curves.csv/.npz, and
+    reports the stable fraction of the window and, at each marked point,
+    the number of unstable roots NU.
+    """
+    from delayform.report import chart_section
+
+    sc = _scenario(scenario, **overrides)
+    chart = replace(
+        sc.chart,
+        tau1_max=sc.chart.tau1_max if tau1_max is None else tau1_max,
+        tau2_max=sc.chart.tau2_max if tau2_max is None else tau2_max,
+        points=points or sc.chart.points,
+    )
+    for label, a, b in chart.points:
+        if a > chart.tau1_max or b > chart.tau2_max:
+            raise click.BadParameter(
+                f"point {label} ({a:g}, {b:g}) lies outside the window [0, {chart.tau1_max:g}] x [0, {chart.tau2_max:g}]",
+                param_hint="--point",
+            )
+    sc = replace(sc, chart=chart)
+    directory = _out_dir(out, sc)
+    _emit(chart_section(sc, directory), directory, as_json=as_json)
+
+
+@cli.command("roots")
+@scenario_options
+@click.option("--region", type=FloatTuple(4),
+              help="Rectangle RE_MIN,RE_MAX,IM_MIN,IM_MAX of the s-plane in which to list every root "
+                   "[default: Re from min(-2, 2 Re(dominant)) to 1, Im from -0.01 to 10].")  # fmt: skip
+def roots_command(scenario: Path | None, region: tuple[float, float, float, float] | None,
+                  out: Path | None, as_json: bool, **overrides: Any) -> None:  # fmt: skip
+    """Dominant root and characteristic roots at one delay pair.
+
+    The dominant root is the rightmost root over all factors, the centroid
+    factor's root s = 0 excluded; its time constant is 1/|Re|. Also lists
+    every root of every factor in --region (roots.csv) and the dominant root
+    at each of the scenario's chart points.
+    """
+    from delayform.report import roots_section
+
+    if region is not None and (region[0] >= region[1] or region[2] >= region[3]):
+        raise click.BadParameter("expected RE_MIN < RE_MAX and IM_MIN < IM_MAX", param_hint="--region")
+    sc = _scenario(scenario, **overrides)
+    directory = _out_dir(out, sc)
+    _emit(roots_section(sc, directory, region=region), directory, as_json=as_json)
+
+
+@cli.command("map")
+@scenario_options
+@click.option("--tau1-range", type=FloatTuple(2, minimum=0.0), help="FIRST,LAST along tau1 [default: map.tau1].")
+@click.option("--tau2-range", type=FloatTuple(2, minimum=0.0), help="FIRST,LAST along tau2 [default: map.tau2].")
+@click.option("--size", type=FloatTuple(2, integer=True, minimum=2), help="Grid points N1,N2 [default: map.size].")
+def map_command(scenario: Path | None, tau1_range: tuple[float, float] | None,
+                tau2_range: tuple[float, float] | None, size: tuple[int, int] | None,
+                out: Path | None, as_json: bool, **overrides: Any) -> None:  # fmt: skip
+    """Dominant-root map over a grid of delays: surface and contour.
+
+    Writes dominant_surface.png/.svg (Re of the dominant root with the
+    plane Re = 0), dominant_contour.png/.svg, and the grid as
+    dominant_map.npz and dominant_map.csv. Shows a progress bar.
+    """
+    from delayform.report import map_section
+
+    for name, rng in (("--tau1-range", tau1_range), ("--tau2-range", tau2_range)):
+        if rng is not None and rng[0] >= rng[1]:
+            raise click.BadParameter("expected FIRST < LAST", param_hint=name)
+    sc = _scenario(scenario, **overrides)
+    grid = replace(
+        sc.map,
+        tau1=tau1_range or sc.map.tau1,
+        tau2=tau2_range or sc.map.tau2,
+        size=size or sc.map.size,
+    )
+    sc = replace(sc, map=grid)
+    directory = _out_dir(out, sc)
+    with _inner_progress("dominant-root map") as callback:
+        section = map_section(sc, directory, progress=callback)
+    _emit(section, directory, as_json=as_json)
+
+

@@ -1,0 +1,51 @@
+"""Design commands: delay scheduling."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import click
+
+from delayform.cli._common import (
+    FloatTuple,
+    _emit,
+    _out_dir,
+    _scenario,
+    cli,
+    scenario_options,
+)
+
+if TYPE_CHECKING:
+    pass
+
+
+@cli.command("schedule")
+@scenario_options
+@click.option("--tau-min", type=FloatTuple(2, minimum=0.0),
+              help="Hardware delays T1,T2: delays can only be increased from here [default: schedule.tau_min].")
+@click.option("--tau-max", type=FloatTuple(2, minimum=0.0),
+              help="Largest acceptable delays T1,T2 [default: schedule.tau_max].")
+def schedule_command(scenario: Path | None, tau_min: tuple[float, float] | None,
+                     tau_max: tuple[float, float] | None, out: Path | None, as_json: bool,
+                     **overrides: Any) -> None:  # fmt: skip
+    """Delay scheduling: the stable delays, no smaller than the hardware's, that converge fastest.
+
+    Minimises the real part of the dominant root over
+    [tau_min, tau_max] and reports the delays, the root and the predicted
+    settling time (schedule.json).
+    """
+    from delayform.report import schedule_section
+    from delayform.scenario import ScheduleSpec
+
+    sc = _scenario(scenario, **overrides)
+    lo = tau_min or sc.schedule.tau_min
+    hi = tau_max or sc.schedule.tau_max
+    if hi[0] < lo[0] or hi[1] < lo[1]:
+        raise click.BadParameter(f"expected bounds >= tau_min = {lo[0]:g},{lo[1]:g}", param_hint="--tau-max")
+    sc = replace(sc, schedule=ScheduleSpec(tau_min=lo, tau_max=hi))
+    directory = _out_dir(out, sc)
+    _emit(schedule_section(sc, directory), directory, as_json=as_json)
+
+

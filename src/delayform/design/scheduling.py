@@ -1,0 +1,240 @@
+"""Delay scheduling: the larger delays that make the formation converge fastest.
+
+The paper closes (Section "Simulation", Figs. dominant and contour) with
+*delay scheduling* (Olgac et al.): the hardware fixes the smallest delays,
+but the controller may wait longer before it uses what it hears. Inside the
+stable region of the CTCR chart, pick the delays at least the hardware ones
+whose dominant (rightmost) characteristic root lies furthest left, because
+that root sets how fast the team settles into formation.
+
+The search is steered by uncertified, warm-started roots; the pair it ends
+at is recomputed with the certified :func:`~delayform.analysis.spectrum.dominant_root`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from delayform._validation import check_delay
+from delayform.analysis.spectrum import (
+    _BATCH_SEEDS,
+    SETTLING_FACTOR,
+    _checked_factors,
+    _cluster,
+    _igd_seeds,
+    _polish,
+    _Problem,
+    _problem_of_factor,
+    _solve_rightmost,
+    dominant_root,
+    dominant_root_map,
+)
+from delayform.characteristic import CharacteristicFactor
+from delayform.errors import DelayError, InputError, NoStableDelaysError
+from delayform.topology import Topology
+
+__all__ = ["DelaySchedule", "schedule_delays"]
+
+
+@dataclass(frozen=True)
+class DelaySchedule:
+    """Delays chosen by delay scheduling (paper Section "Simulation", Fig. contour).
+
+    Attributes
+    ----------
+    tau1, tau2
+        The scheduled delays, each at least its hardware value.
+    root
+        The dominant root there (Re < 0).
+    factor
+        The factor it belongs to.
+    hardware_root
+        The dominant root at the hardware delays ``tau_min`` (for comparison;
+        may be unstable).
+    """
+
+    tau1: float
+    tau2: float
+    root: complex
+    factor: CharacteristicFactor
+    hardware_root: complex
+
+    @property
+    def time_constant(self) -> float:
+        """1 / |Re root|."""
+        return 1.0 / abs(self.root.real)
+
+    @property
+    def settling_time(self) -> float:
+        """Predicted 2 % settling time ln(50) / |Re root| (about 3.9 time constants).
+
+        The disagreement decays like e^{Re(root) t}; it is below 2 % of its
+        initial size after ln(50) / |Re root| seconds (the dominant root alone,
+        constant factors of the other modes ignored).
+        """
+        return SETTLING_FACTOR / abs(self.root.real)
+
+
+def _delay_pair(name: str, value: object) -> tuple[float, float]:
+    try:
+        a, b = value  # type: ignore[misc]
+    except (TypeError, ValueError) as exc:
+        raise DelayError(f"{name} must be a pair (tau1, tau2)") from exc
+    return check_delay(f"{name}[0]", a), check_delay(f"{name}[1]", b)
+
+
+def schedule_delays(
+    topology: Topology,
+    P: float,
+    D: float,
+    *,
+    tau_min: tuple[float, float],
+    tau_max: tuple[float, float],
+    grid: int = 41,
+) -> DelaySchedule:
+    """Delays within ``tau_min <= tau <= tau_max`` that minimise Re(dominant root).
+
+    Delays can only be increased from the hardware ones (delay scheduling,
+    paper Section "Simulation"): a ``grid x grid`` dominant-root map of the box
+    finds the basins, then Nelder-Mead (derivative-free, since the dominant
+    real part is a max of smooth branches) refines the three best stable grid
+    points inside the box.
+
+    Parameters
+    ----------
+    topology
+        Communication topology with a spanning tree.
+    P, D
+        Positive gains.
+    tau_min
+        Hardware delays (t1, t2): the smallest allowed.
+    tau_max
+        Largest allowed delays (T1, T2).
+    grid
+        Points per axis of the coarse map (>= 2).
+
+    Returns
+    -------
+    DelaySchedule
+        Never an unstable pair.
+
+    Raises
+    ------
+    NoStableDelaysError
+        When no grid point of the box is stable.
+    DelayError
+        For negative delays or tau_min > tau_max.
+
+    Examples
+    --------
+    >>> from delayform.topology import paper_six
+    >>> s = schedule_delays(paper_six(), 1.0, 0.5, tau_min=(1.0, 2.0), tau_max=(4.0, 6.0), grid=9)
+    >>> s.root.real < 0 and s.tau1 >= 1.0 and s.tau2 >= 2.0
+    True
+    """
+    lo = _delay_pair("tau_min", tau_min)
+    hi = _delay_pair("tau_max", tau_max)
+    if lo[0] > hi[0] or lo[1] > hi[1]:
+        raise DelayError(f"tau_min {lo} must not exceed tau_max {hi}")
+    if isinstance(grid, bool) or not isinstance(grid, (int, np.integer)) or grid < 2:
+        raise InputError(f"grid must be an integer >= 2, got {grid!r}")
+    fs = _checked_factors(topology, P, D)
+    ax1 = np.linspace(lo[0], hi[0], grid) if hi[0] > lo[0] else np.array([lo[0]])
+    ax2 = np.linspace(lo[1], hi[1], grid) if hi[1] > lo[1] else np.array([lo[1]])
+    coarse = dominant_root_map(topology, P, D, ax1, ax2)
+    if not coarse.stable.any():
+        raise NoStableDelaysError(
+            f"no stable delay pair in the box tau1 in [{lo[0]:g}, {hi[0]:g}], "
+            f"tau2 in [{lo[1]:g}, {hi[1]:g}] (grid {grid} x {grid})"
+        )
+
+    objective = _WarmDominant(tuple(_problem_of_factor(f) for f in fs), np.array(lo), np.array(hi))
+
+    flat = np.argsort(coarse.real, axis=None)[:2]
+    candidates = [coarse.best()[:2]]
+    for k in flat:
+        i, j = np.unravel_index(int(k), coarse.real.shape)
+        if coarse.real[i, j] < 0.0:
+            candidates.append((float(ax1[i]), float(ax2[j])))
+    best_x, best_f = np.array(candidates[0]), float(coarse.real.min())
+    for x0 in candidates[1:]:
+        x, fx = _refine(objective, np.array(x0), np.array(lo), np.array(hi), grid)
+        if fx < best_f:
+            best_x, best_f = x, fx
+    final = dominant_root(topology, P, D, float(best_x[0]), float(best_x[1]))
+    if not final.root.real <= float(coarse.real.min()):
+        # the search was steered by uncertified values into something worse: keep the grid's best
+        t1b, t2b, _ = coarse.best()
+        final = dominant_root(topology, P, D, t1b, t2b)
+    if not final.is_stable:  # cannot happen: the grid's best is certified and stable
+        raise NoStableDelaysError("delay scheduling ended on an unstable pair")
+    hardware = dominant_root(topology, P, D, lo[0], lo[1])
+    return DelaySchedule(final.tau1, final.tau2, final.root, final.factor, hardware.root)
+
+
+class _WarmDominant:
+    """Re(dominant root) as a function of (tau1, tau2), warm-started for a local search.
+
+    Each factor's roots at the previous evaluation seed Newton at the next
+    (the search moves little between evaluations). These values only steer
+    the search: they are not certified, the point the search ends at is
+    (:func:`schedule_delays` recomputes it with :func:`dominant_root`).
+    """
+
+    def __init__(
+        self, problems: tuple[_Problem, ...], lo: NDArray[np.float64], hi: NDArray[np.float64]
+    ) -> None:
+        self.problems, self.lo, self.hi = problems, lo, hi
+        self.seeds: list[NDArray[np.complex128] | None] = [None] * len(problems)
+
+    def __call__(self, x: NDArray[np.float64]) -> float:
+        t = np.clip(x, self.lo, self.hi)
+        t1, t2 = np.array([float(t[0])]), np.array([float(t[1])])
+        best = -np.inf
+        for k, prob in enumerate(self.problems):
+            seeds = self.seeds[k]
+            if seeds is None:  # several roots, so a runner-up that overtakes is followed too
+                seeds = _igd_seeds(prob, t1, t2, scale=1.5, k=_BATCH_SEEDS)[0]
+                seeds = seeds[np.isfinite(seeds)]
+            roots, ok = _polish(prob, seeds, t1, t2)
+            found = roots[ok]
+            if found.size == 0:
+                self.seeds[k] = None
+                found = _solve_rightmost(prob, float(t1[0]), float(t2[0])).roots
+            else:
+                self.seeds[k] = _cluster(found)
+            best = max(best, float(found.real.max()))
+        return best
+
+
+def _refine(
+    objective: Callable[[NDArray[np.float64]], float],
+    x0: NDArray[np.float64], lo: NDArray[np.float64], hi: NDArray[np.float64], grid: int,
+) -> tuple[NDArray[np.float64], float]:
+    """Nelder-Mead from a grid point over the free axes of the box (a flat axis stays fixed)."""
+    from scipy.optimize import minimize
+
+    free = hi > lo
+    if not free.any():
+        return x0, objective(x0)
+
+    def along(y: NDArray[np.float64]) -> float:
+        x = x0.copy()
+        x[free] = y
+        return objective(x)
+
+    step = (hi - lo)[free] / grid
+    y0 = x0[free]
+    simplex = np.vstack([y0] + [y0 + np.eye(y0.size)[k] * step[k] for k in range(y0.size)])
+    res = minimize(
+        along, y0, method="Nelder-Mead", bounds=list(zip(lo[free], hi[free], strict=True)),
+        options={"initial_simplex": np.clip(simplex, lo[free], hi[free]), "xatol": 1e-6,
+                 "fatol": 1e-10, "maxfev": 60},
+    )
+    x = x0.copy()
+    x[free] = np.clip(res.x, lo[free], hi[free])
+    return x, float(res.fun)

@@ -1,0 +1,105 @@
+"""The package's data flows one way: topology -> factors -> analysis -> design -> simulation -> outputs.
+
+Every ``import`` of a delayform module, at the top of a file or inside a
+function, must point to the same stage or an earlier one, and no two modules
+may import each other (directly or through a cycle).
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import networkx as nx
+import pytest
+
+import delayform
+
+PACKAGE = Path(delayform.__file__).parent
+
+#: stage of each module or subpackage (first match of the dotted prefix, longest first)
+STAGES: dict[str, int] = {
+    "errors": 0,
+    "_validation": 0,
+    "plots": 0,  # a leaf: draws results by their attributes, imports no delayform module
+    "topology": 1,
+    "characteristic": 2,
+    "formation": 2,
+    "analysis": 3,
+    "design": 4,
+    "simulation": 5,
+    "sweeps": 6,
+    "scenario": 7,
+    "report": 8,
+    "cli": 9,
+    "app": 10,
+    "__main__": 11,
+    "": 11,  # delayform/__init__.py: lazy re-exports of everything
+}
+
+
+def _module_name(path: Path) -> str:
+    parts = list(path.relative_to(PACKAGE).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts = parts[:-1]
+    return ".".join(parts)
+
+
+def _stage(name: str) -> int:
+    for prefix in sorted(STAGES, key=len, reverse=True):
+        if name == prefix or name.startswith(prefix + ".") or prefix == "":
+            return STAGES[prefix]
+    raise AssertionError(name)
+
+
+def _imports(path: Path, module: str) -> set[str]:
+    tree = ast.parse(path.read_text(), filename=str(path))
+    found: set[str] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:  # relative import
+                base = module.split(".")[: len(module.split(".")) - node.level + (path.name == "__init__.py")]
+                names = [".".join(base + ([node.module] if node.module else []))]
+            else:
+                names = [node.module or ""]
+                names += [f"{node.module}.{a.name}" for a in node.names if node.module == "delayform"]
+        else:
+            continue
+        for name in names:
+            if name.startswith("delayform."):
+                found.add(name.removeprefix("delayform."))
+    return found
+
+
+def _graph() -> nx.DiGraph:
+    files = {_module_name(p): p for p in PACKAGE.rglob("*.py")}
+    g = nx.DiGraph()
+    for module, path in files.items():
+        g.add_node(module)
+        for target in _imports(path, module):
+            # "analysis.spectrum.dominant_root" -> the module "analysis.spectrum"
+            while target and target not in files:
+                target = target.rpartition(".")[0]
+            if target and target != module:
+                g.add_edge(module, target)
+    return g
+
+
+def test_no_module_imports_a_later_stage() -> None:
+    g = _graph()
+    late = [(a, b) for a, b in g.edges if _stage(b) > _stage(a) and a != ""]
+    assert not late, f"imports against the data flow: {late}"
+
+
+def test_no_import_cycles() -> None:
+    g = _graph()
+    g.remove_node("")  # the package root re-exports lazily from every module
+    cycles = list(nx.simple_cycles(g))
+    assert not cycles, f"import cycles: {cycles}"
+
+
+@pytest.mark.parametrize("name", sorted(delayform.__all__))
+def test_public_names_import_from_the_package_root(name: str) -> None:
+    assert getattr(delayform, name) is not None
