@@ -883,13 +883,19 @@ def roots_in(
     >>> roots_in(q, 0.0, 0.0, (-3, 0, -1, 1)).real.round(12)
     array([-1., -2.])
     """
-    region = _check_region(region)
+    region = asked = _check_region(region)
     t1, t2 = check_delay("tau1", tau1), check_delay("tau2", tau2)
     prob = _problem(qp)
     base = prob if not prob.deflate_zero else _Problem(prob.terms, prob.A, prob.delayed, prob.mirror)
     x0, x1, y0, y1 = region
     hmax = _max_delay(base, t1, t2)
     radius = max(abs(complex(x, y)) for x in (x0, x1) for y in (y0, y1))
+    if 0.5 * radius * hmax > MAX_DEGREE:  # Chebyshev needs degree > |s| h / 2 to resolve e^{s theta}
+        raise ResourceLimitError(
+            f"the rectangle {asked} reaches |s| = {radius:.4g}, too far from the origin to list every "
+            f"root at delays up to {hmax:.4g} s (the limit is about |s| = {2 * MAX_DEGREE / hmax:.4g}); "
+            "choose a smaller rectangle"
+        )
     # when mirroring, roots of the lam-factor in the mirrored region are needed too
     yy = max(abs(y0), abs(y1))
     count_regions = [region] if not base.mirror else [(x0, x1, -yy, yy)]
@@ -907,15 +913,9 @@ def roots_in(
         expected = _region_count(base, t1, t2, count_regions[0])
     if expected is None:
         raise NotConvergedError(
-            f"roots_in: roots lie on (or within rounding of) the boundary of {region} "
+            f"roots lie on (or within rounding of) the boundary of the rectangle {asked} "
             "and of every slightly larger rectangle tried; move the rectangle's edges",
             partial=np.zeros(0, dtype=np.complex128),
-        )
-    if 0.5 * radius * hmax > MAX_DEGREE:  # Chebyshev needs degree > |s| h / 2 to resolve e^{s theta}
-        raise ResourceLimitError(
-            f"the rectangle {region} reaches |s| = {radius:.4g}, too far from the origin to list every "
-            f"root at delays up to {hmax:.4g} s (the limit is about |s| = {2 * MAX_DEGREE / hmax:.4g}); "
-            "choose a smaller rectangle"
         )
     N = _initial_degree(hmax, max(radius, _root_scale(base)))
     a1, a2 = np.asarray(t1), np.asarray(t2)
@@ -938,7 +938,7 @@ def roots_in(
             break
         if hmax == 0.0 or N >= MAX_DEGREE:
             raise NotConvergedError(
-                f"found {found.size} of the {expected} characteristic roots in the rectangle {region} "
+                f"found {found.size} of the {expected} characteristic roots in the rectangle {asked} "
                 f"at (tau1, tau2) = ({t1:g}, {t2:g}); choose a smaller rectangle",
                 partial=_in_region(_with_mirror(base, found), region),
             )
