@@ -59,6 +59,8 @@ def report_command(scenario: Path | None, out: Path | None, as_json: bool, **ove
     text per figure) and summary.json into --out.
     """
     sc = _scenario(scenario, **overrides)
+    sc.desired_positions()  # the simulation needs a formation that fits the team: say so before computing
+    sc.initial_positions()
     _write_full_report(sc, _out_dir(out, sc), paper=False, as_json=as_json)
 
 
