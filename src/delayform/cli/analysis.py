@@ -101,9 +101,11 @@ def chart_command(scenario: Path | None, tau1_max: float | None, tau2_max: float
         sc.chart,
         tau1_max=sc.chart.tau1_max if tau1_max is None else tau1_max,
         tau2_max=sc.chart.tau2_max if tau2_max is None else tau2_max,
-        points=points or sc.chart.points,
     )
-    for label, a, b in chart.points:
+    # the scenario's own points outside a smaller window are left out; points asked for must fit
+    inside = tuple(p for p in sc.chart.points if p[1] <= chart.tau1_max and p[2] <= chart.tau2_max)
+    chart = replace(chart, points=points or inside)
+    for label, a, b in points:
         if a > chart.tau1_max or b > chart.tau2_max:
             raise click.BadParameter(
                 f"point {label} ({a:g}, {b:g}) lies outside the window [0, {chart.tau1_max:g}] x [0, {chart.tau2_max:g}]",
