@@ -437,9 +437,13 @@ class _Reader:
         return out
 
     def gain(self, key: str, value: object) -> float:
+        from delayform._validation import GAIN_RANGE
+
         out = self.number(key, value)
         if out <= 0.0:
             raise self.error(key, "a positive number (eq. protocol)", value)
+        if not GAIN_RANGE[0] <= out <= GAIN_RANGE[1]:
+            raise self.error(key, f"a gain between {GAIN_RANGE[0]:g} and {GAIN_RANGE[1]:g}", value)
         return out
 
     def positive(self, key: str, value: object) -> float:
@@ -581,6 +585,8 @@ def _formation(reader: _Reader, data: Mapping[str, Any], n: int) -> FormationSpe
 
     shape = reader.string("formation.shape", data["shape"], tuple(SHAPES))
     spacing = reader.positive("formation.spacing", data.get("spacing", 1.0))
+    if spacing > 1e6:  # metres: beyond this the positions lose their precision in a simulation
+        raise reader.error("formation.spacing", "a spacing of at most 1e6 (metres)", spacing)
     try:
         named_formation(shape, n, spacing=spacing)  # e.g. a hexagon needs six agents
     except InputError as exc:
@@ -677,8 +683,7 @@ def _check_sizes(reader: _Reader, n: int, formation: FormationSpec, initial: Ini
             named_formation(formation.shape, n, spacing=formation.spacing)
         except InputError as exc:
             raise ScenarioError(
-                f"{reader.source}: formation.shape: {exc} (the team has {n} agents; "
-                "choose another shape, e.g. --formation polygon)"
+                f"{reader.source}: formation.shape: {exc}; choose a shape that fits {n} agents (e.g. --formation polygon)"
             ) from None
     if formation.positions is not None and len(formation.positions) != n:
         raise reader.error("formation.positions", f"{n} rows, one per agent", found=f"{len(formation.positions)} rows")

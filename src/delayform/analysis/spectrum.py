@@ -740,6 +740,22 @@ def _root_scale(prob: _Problem) -> float:
     return float(max(1.0, np.max(np.abs(np.linalg.eigvals(total))), np.linalg.norm(prob.A, 2)))
 
 
+#: largest (delay x root scale) the rightmost-root path certifies reliably (measured on the
+#: paper's factors: 30 s works, 60 s does not; the scale there is about 1.2)
+_MAX_REACH = 40.0
+
+
+def _check_reach(prob: _Problem, t1: float, t2: float) -> None:
+    """Refuse, in one line, delays too long for the certified root finder (not for CTCR charts)."""
+    h = max([a * t1 + b * t2 for _, a, b in prob.delayed] + [0.0])
+    scale = _root_scale(prob)
+    if h * scale > _MAX_REACH:
+        raise DelayError(
+            f"a delay of {h:.4g} s is too long for the dominant-root finder with these gains (it handles "
+            f"delays up to about {_MAX_REACH / scale:.3g} s); choose shorter delays (the stability chart has no such limit)"
+        )
+
+
 def _choose_line(reals: NDArray[np.float64], top: float) -> float:
     """A line Re s = c in a gap left of ``top`` (reals: known root real parts, descending).
 
@@ -1062,6 +1078,7 @@ def rightmost_root(
 
 
 def _rightmost(prob: _Problem, t1: float, t2: float) -> complex:
+    _check_reach(prob, t1, t2)
     a1, a2 = np.array([t1]), np.array([t2])
     # fast path: the map's low-degree seeds; the certificate decides, else the robust path
     root, certified, _ = _certify(prob, a1, a2, _igd_seeds(prob, a1, a2, scale=1.0, k=_BATCH_SEEDS))
@@ -1521,6 +1538,9 @@ def dominant_root_map(
     ------
     ResourceLimitError
         When the grid would need more memory or time than the machine allows.
+    DelayError
+        When the grid's delays are too long for the root finder (about 30 s
+        for gains of order 1).
 
     Examples
     --------
@@ -1540,6 +1560,8 @@ def dominant_root_map(
         nbytes=points * (320.0 + 16.0 * len(fs)),
         seconds=points * len(fs) * 2e-4,
     )
+    for f in fs:
+        _check_reach(_problem_of_factor(f), float(ax1.max()), float(ax2.max()))
     per_factor = np.empty((len(fs), ax1.size, ax2.size), dtype=np.complex128)
     with _progress(progress, len(fs) * ax1.size * ax2.size) as advance:
         for k, f in enumerate(fs):
