@@ -180,15 +180,23 @@ class Topology:
         are one edge.
         """
         try:
-            raw = np.asarray(list(edges), dtype=object)
-            flat = raw.ravel().tolist()
+            pairs = list(edges)
+            raw = np.asarray(pairs)
         except (TypeError, ValueError) as exc:
             raise TopologyError("edges must be pairs of integer agent indices") from exc
-        # an index like 1.5 (or True) names no agent: refuse instead of truncating it
-        bad = [v for v in flat if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer))]
-        if bad:
-            raise TopologyError(f"agent indices in edges must be integers, got {bad[0]!r}")
-        arr = np.asarray(flat, dtype=np.int64).reshape(raw.shape) if flat else np.zeros((0, 2), dtype=np.int64)
+        # numpy turns True into 1 silently; a bool names no agent
+        has_bool = any(
+            isinstance(v, (bool, np.bool_)) for pair in pairs if isinstance(pair, (tuple, list)) for v in pair
+        )
+        if has_bool:
+            raise TopologyError("agent indices in edges must be integers, got True or False")
+        if raw.size and raw.dtype.kind not in "iu":
+            # an index like 1.5 (or True) names no agent: refuse instead of truncating it
+            flat = raw.astype(object).ravel().tolist()
+            bad = [v for v in flat if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer))]
+            if bad:
+                raise TopologyError(f"agent indices in edges must be integers, got {bad[0]!r}")
+        arr = raw.astype(np.int64) if raw.size else np.zeros((0, 2), dtype=np.int64)
         if arr.size == 0:
             raise TopologyError("edges is empty: every agent needs an informer")
         if arr.ndim != 2 or arr.shape[1] != 2:

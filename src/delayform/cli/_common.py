@@ -88,6 +88,18 @@ class LabelledPoint(click.ParamType):
         return (label, t1, t2)
 
 
+class OutDir(click.Path):
+    """An output folder; an empty string (which would mean the current folder) is refused."""
+
+    def __init__(self) -> None:
+        super().__init__(file_okay=False, path_type=Path)
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        if isinstance(value, str) and not value.strip():
+            self.fail("expected a folder, got an empty path", param, ctx)
+        return super().convert(value, param, ctx)
+
+
 POSITIVE = click.FloatRange(min=0.0, min_open=True)
 NON_NEGATIVE = click.FloatRange(min=0.0)
 
@@ -125,7 +137,7 @@ def scenario_options(func: F) -> F:
                      help="Replace the scenario's formation shape (spacing kept)."),
         click.option("--tau1", type=NON_NEGATIVE, help="Position delay tau1 in seconds (overrides the scenario)."),
         click.option("--tau2", type=NON_NEGATIVE, help="Velocity delay tau2 in seconds (overrides the scenario)."),
-        click.option("--out", type=click.Path(file_okay=False, path_type=Path),
+        click.option("--out", type=OutDir(),
                      help="Output directory [default: out/<scenario name>]."),
         click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON on stdout."),
     ]  # fmt: skip

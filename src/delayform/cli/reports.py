@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Any
 import click
 
 from delayform.cli._common import (
+    OutDir,
     _emit,
     _out_dir,
     _progress,
@@ -65,7 +66,7 @@ def report_command(scenario: Path | None, out: Path | None, as_json: bool, **ove
 
 
 @cli.command("paper")
-@click.option("--out", type=click.Path(file_okay=False, path_type=Path), default=Path("out/paper"),
+@click.option("--out", type=OutDir(), default=Path("out/paper"),
               show_default=True, help="Output directory.")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON on stdout.")
 def paper_command(out: Path, as_json: bool) -> None:
