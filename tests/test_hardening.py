@@ -413,3 +413,16 @@ def test_contour_colour_bar_has_units() -> None:
     labels = [a.get_ylabel() for a in ax.figure.axes]
     assert any("1/s" in label for label in labels)
     plt.close("all")
+
+
+def test_schedule_names_the_centroid_and_formation_settling(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    import json
+
+    code, out, err = cli(capsys, "schedule", "--json", "--tau-min", "0.001,0", "--tau-max", "0.01,0.01",
+                         "--out", str(tmp_path))  # fmt: skip
+    assert code == 0, err
+    result = json.loads(out)
+    # tiny tau1: the centroid's root -P tau1 / (1 + D tau2) is the slowest, the shape settles much faster
+    assert result["dominant_is_centroid"]
+    assert result["root"]["re"] == pytest.approx(-P * result["tau1"] / (1 + D * result["tau2"]), rel=1e-3)
+    assert result["formation_settling_time"] < result["settling_time"]

@@ -522,6 +522,18 @@ def schedule_section(
         "settling_time": float(result.settling_time),
         "hardware_root": hardware,
     }
+    settling_rows = [("predicted settling time ln(50)/|Re|", f"{_fmt(float(result.settling_time))} s")]
+    if result.factor.is_centroid:
+        # the slowest mode is the centroid's speed: say so, and give the shape's own settling time
+        from delayform.analysis.spectrum import SETTLING_FACTOR, dominant_root
+
+        shape = complex(dominant_root(scenario.topology, scenario.P, scenario.D, result.tau1, result.tau2).formation_root)
+        summary |= {"dominant_is_centroid": True, "formation_root": shape,
+                    "formation_settling_time": SETTLING_FACTOR / abs(shape.real)}  # fmt: skip
+        settling_rows = [
+            ("predicted settling of the centroid's speed", f"{_fmt(float(result.settling_time))} s"),
+            ("predicted settling of the formation's shape", f"{_fmt(SETTLING_FACTOR / abs(shape.real))} s"),
+        ]
     name = f"schedule{suffix}.json"
     (out / name).write_text(json.dumps(jsonable(summary), indent=2))
     verdict = "unstable" if hardware.real > 0 else "stable"
@@ -538,7 +550,7 @@ def schedule_section(
             ("dominant root at the hardware delays", f"{_fmt_complex(hardware)} ({verdict})"),
             ("best delays (tau1, tau2)", f"({result.tau1:.4g}, {result.tau2:.4g}) s"),
             ("dominant root there", _fmt_complex(root)),
-            ("predicted settling time ln(50)/|Re|", f"{_fmt(float(result.settling_time))} s"),
+            *settling_rows,
         ),
         summary=summary,
         files=(name,),

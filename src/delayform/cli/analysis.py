@@ -126,9 +126,11 @@ def roots_command(scenario: Path | None, region: tuple[float, float, float, floa
     """Dominant root and characteristic roots at one delay pair.
 
     The dominant root is the rightmost root over all factors, the centroid
-    factor's root s = 0 excluded; its time constant is 1/|Re|. Also lists
-    every root of every factor in --region (roots.csv) and the dominant root
-    at each of the scenario's chart points.
+    factor's roots at s = 0 excluded; its time constant is 1/|Re| (for an
+    unstable root: its growth rate; when it is the centroid's, the
+    formation's own time constant too). Also lists every root of every
+    factor in --region (roots.csv; a root on its edge is included) and the
+    dominant root at the operating delays and the scenario's chart points.
     """
     from delayform.report import roots_section
 
