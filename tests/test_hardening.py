@@ -426,3 +426,26 @@ def test_schedule_names_the_centroid_and_formation_settling(tmp_path: Path, caps
     assert result["dominant_is_centroid"]
     assert result["root"]["re"] == pytest.approx(-P * result["tau1"] / (1 + D * result["tau2"]), rel=1e-3)
     assert result["formation_settling_time"] < result["settling_time"]
+
+
+def test_chart_with_many_curves_still_shows_the_stable_region() -> None:
+    """A large team's chart (thousands of curves) must not hide the stable region under red ink."""
+    from types import SimpleNamespace
+
+    import matplotlib.pyplot as plt
+    from matplotlib.collections import LineCollection
+
+    from delayform.plots import stability_chart
+
+    t = np.linspace(0.0, 4.0, 50)
+    curves = [SimpleNamespace(tau1=t, tau2=np.full_like(t, y), is_kernel=True) for y in np.linspace(0, 4, 2000)]
+    smap = SimpleNamespace(curves=curves, tau1_max=4.0, tau2_max=4.0,
+                           is_stable=lambda a, b: np.broadcast_to(a + 0 * b < 2.0, np.broadcast_shapes(np.shape(a), np.shape(b))))  # fmt: skip
+    ax = stability_chart(smap)
+    lines = [c for c in ax.collections if isinstance(c, LineCollection) and len(c.get_segments()) == 2000]
+    assert lines and lines[0].get_linewidth()[0] < 0.3 and lines[0].get_alpha() < 1.0
+    shaded = [c for c in ax.collections if c not in lines and c.get_zorder() > lines[0].get_zorder()]
+    assert shaded  # the stable region and its outline are drawn over the curves
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert labels == ["stable (NU = 0)", "kernel curves (2000)"]
+    plt.close("all")
