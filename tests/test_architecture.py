@@ -21,6 +21,7 @@ PACKAGE = Path(delayform.__file__).parent
 STAGES: dict[str, int] = {
     "errors": 0,
     "_validation": 0,
+    "resources": 0,  # a leaf: memory and time budget guard
     "plots": 0,  # a leaf: draws results by their attributes, imports no delayform module
     "topology": 1,
     "characteristic": 2,
