@@ -52,6 +52,8 @@ __all__ = ["Explorer", "PointReport", "ChartData", "Animation"]
 _MAP_CACHE = 8
 #: trajectories kept for the figures download
 _TRAJECTORY_CACHE = 4
+#: simulated seconds of the robots' default run (the paper's team settles in about 26 s at point a)
+_DEFAULT_DURATION = 40.0
 #: half-width of the default root window around the imaginary axis (1/s)
 _ROOT_WINDOW_RE = 0.5
 _ROOT_WINDOW_IM = 3.0
@@ -201,7 +203,7 @@ class Animation:
         pos = tr.positions[k]
         offset = np.mean(pos[-1] - tr.desired, axis=0)
         return {
-            "model": tr.model, "dt": tr.dt, "n": tr.n,
+            "model": tr.model, "dt": tr.dt, "n": tr.n, "tau1": tr.tau1, "tau2": tr.tau2,
             "times": _rounded(tr.times[k]),
             "x": _rounded(pos[:, :, 0]), "y": _rounded(pos[:, :, 1]),
             "heading": _rounded(tr.headings[k], 4),
@@ -246,7 +248,7 @@ class Explorer:
             )
         self._lock = threading.Lock()
         self._maps: OrderedDict[tuple[float, ...], StabilityMap] = OrderedDict()
-        self._runs: OrderedDict[tuple[float, ...], Animation] = OrderedDict()
+        self._runs: OrderedDict[tuple[float, ...], tuple[Trajectory, int]] = OrderedDict()
 
     # ------------------------------------------------------------ parameters
     @property
@@ -280,7 +282,7 @@ class Explorer:
     def animation_params(self) -> tuple[Param, ...]:
         """Parameters of :meth:`animation`: the point, gains, duration and frame count."""
         s = self.scenario
-        duration = min(s.simulation.duration, 60.0, self.limits.max_steps * s.simulation.dt)
+        duration = min(s.simulation.duration, _DEFAULT_DURATION, self.limits.max_steps * s.simulation.dt)
         return self.point_params() + (
             Param("duration", "float", 0.0, math.inf, default=duration, open_low=True),
             Param("frames", "int", 2, self.limits.max_frames, default=min(300, self.limits.max_frames),
@@ -397,6 +399,23 @@ class Explorer:
                 dt = tau
         return dt
 
+    def _run_step(self, tau1: float, tau2: float, duration: float) -> float:
+        """The step of a run, after checking the run against the work limits."""
+        dt = self._step(tau1, tau2)
+        steps = math.ceil(duration / dt - 1e-9)
+        n = self.scenario.topology.n
+        if steps > self.limits.max_steps:
+            raise InputError(
+                f"duration: {duration:g} s at dt = {dt:g} s is {steps} steps; "
+                f"explorer limit max_steps = {self.limits.max_steps}"
+            )
+        if steps * n > self.limits.max_agent_steps:
+            raise InputError(
+                f"duration: {steps} steps x {n} agents exceeds the explorer limit "
+                f"max_agent_steps = {self.limits.max_agent_steps}"
+            )
+        return dt
+
     def animation(self, P: float, D: float, tau1: float, tau2: float, duration: float, frames: int) -> Animation:
         """Simulate the team at one point and thin the run to ``frames`` animation frames.
 
@@ -417,22 +436,9 @@ class Explorer:
             When the run would exceed ``limits.max_steps`` or ``limits.max_agent_steps``.
         """
         s = self.scenario
-        dt = self._step(tau1, tau2)
-        steps = math.ceil(duration / dt - 1e-9)
-        n = s.topology.n
-        if steps > self.limits.max_steps:
-            raise InputError(
-                f"duration: {duration:g} s at dt = {dt:g} s is {steps} steps; "
-                f"explorer limit max_steps = {self.limits.max_steps}"
-            )
-        if steps * n > self.limits.max_agent_steps:
-            raise InputError(
-                f"duration: {steps} steps x {n} agents exceeds the explorer limit "
-                f"max_agent_steps = {self.limits.max_agent_steps}"
-            )
-        key = (P, D, tau1, tau2, duration, frames)
+        dt = self._run_step(tau1, tau2, duration)
 
-        def run() -> Animation:
+        def run() -> tuple[Trajectory, int]:
             with np.errstate(over="ignore", invalid="ignore"):  # an unstable run may overflow; cut below
                 tr = simulate(
                     s.topology, P, D, tau1, tau2, s.desired_positions(), model=s.simulation.model,
@@ -440,12 +446,13 @@ class Explorer:
                     initial_speed=s.initial.speed, seed=s.initial.seed, duration=duration, dt=dt,
                 )  # fmt: skip
             finite = np.all(np.isfinite(tr.positions), axis=(1, 2)) & np.isfinite(tr.formation_error)
-            last = tr.times.size if finite.all() else int(np.argmin(finite))
-            diverged = None if last == tr.times.size else float(tr.times[last])
-            idx = np.unique(np.linspace(0, max(last - 1, 0), frames).round().astype(np.int64))
-            return Animation(tr, idx, diverged)
+            return tr, (tr.times.size if finite.all() else int(np.argmin(finite)))
 
-        return self._cached(self._runs, key, _TRAJECTORY_CACHE, run)
+        # the page's run and the figures download share one simulation
+        tr, last = self._cached(self._runs, (P, D, tau1, tau2, duration), _TRAJECTORY_CACHE, run)
+        diverged = None if last == tr.times.size else float(tr.times[last])
+        idx = np.unique(np.linspace(0, max(last - 1, 0), frames).round().astype(np.int64))
+        return Animation(tr, idx, diverged)
 
     # ------------------------------------------------------------ downloads
     def _scenario_at(self, P: float, D: float, tau1: float, tau2: float, duration: float,
@@ -515,6 +522,7 @@ class Explorer:
             ``<out>/<name>_<tag>_figures.zip`` holding ``stability_chart``,
             ``traces`` and ``xy`` as PNG and SVG, ``point.json`` and ``scenario.toml``.
         """
+        self._run_step(tau1, tau2, duration)  # refuse an oversized run before any drawing
         from matplotlib.figure import Figure  # only downloads draw with matplotlib
 
         from delayform.plots import plot_trajectory_traces, plot_trajectory_xy, stability_chart

@@ -25,6 +25,7 @@ delayform.errors.InputError: tau1: expected a number, got 'x'
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
@@ -37,6 +38,8 @@ _MAX_VALUE_CHARS = 40
 #: most parameters one request may carry
 _MAX_PARAMS = 16
 
+_DECIMAL = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:e[+-]?[0-9]+)?", re.ASCII)
+_INTEGER = re.compile(r"[+-]?[0-9]+", re.ASCII)
 _TRUE = ("1", "true", "on", "yes")
 _FALSE = ("0", "false", "off", "no")
 
@@ -116,19 +119,19 @@ class Param:
         """
         if len(raw) > _MAX_VALUE_CHARS:
             raise InputError(f"{self.name}: value longer than {_MAX_VALUE_CHARS} characters")
-        text = raw.strip().lower()
+        text = raw.lower()
         if self.kind == "bool":
             if text in _TRUE:
                 return True
             if text in _FALSE:
                 return False
             raise InputError(f"{self.name}: expected 0 or 1, got {raw!r}")
-        value: float | int
-        try:
-            value = int(text) if self.kind == "int" else float(text)
-        except ValueError:
+        # plain decimal notation only: Python would also take "1_0", "inf" or non-ASCII digits
+        pattern = _INTEGER if self.kind == "int" else _DECIMAL
+        if not pattern.fullmatch(text):
             what = "an integer" if self.kind == "int" else "a number"
-            raise InputError(f"{self.name}: expected {what}, got {raw!r}") from None
+            raise InputError(f"{self.name}: expected {what}, got {raw!r}")
+        value: float | int = int(text) if self.kind == "int" else float(text)
         if not math.isfinite(value):
             raise InputError(f"{self.name}: expected a finite number, got {raw!r}")
         if value < self.low or (self.open_low and value == self.low):

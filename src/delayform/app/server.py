@@ -193,6 +193,9 @@ def create_app(explorer: Explorer) -> Any:
             return error(404, f"no such file: {request.url.path}")
         return FileResponse(asset[0], media_type=asset[1], headers=_SECURITY_HEADERS)
 
+    async def no_icon(request: Request) -> Response:
+        return Response(status_code=204, headers=_SECURITY_HEADERS)
+
     async def scenario(request: Request) -> Response:
         parse_query(request.query_params.multi_items(), ())
         s = explorer.scenario
@@ -224,6 +227,7 @@ def create_app(explorer: Explorer) -> Any:
     routes = [
         Route("/", page),
         Route("/static/{name}", static),
+        Route("/favicon.ico", no_icon),
         Route("/api/scenario", scenario),
         Route("/api/chart", json_endpoint(explorer.chart_params, explorer.chart)),
         Route("/api/point", json_endpoint(explorer.point_params, explorer.point)),

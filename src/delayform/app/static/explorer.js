@@ -107,12 +107,16 @@ async function selectPoint(p) {
   $("verdict").className = "verdict";
   $("point-label").textContent = `(${p.tau1}, ${p.tau2})`;
   const started = performance.now();
-  simulateAt(p);
   let r;
   try {
     r = await getJSON("/api/point", { ...p, ...gains() });
-  } catch (err) { if (seq === state.pointSeq) { $("verdict").textContent = "error"; say(err.message); } return; }
+  } catch (err) {
+    if (seq === state.pointSeq) { $("verdict").textContent = "error"; say(err.message); simulateAt(p); }
+    return;
+  }
   if (seq !== state.pointSeq) return;
+  // the robots' run starts once the verdict is in, so it does not slow the click's answer
+  simulateAt(p);
   const ms = performance.now() - started;
   $("verdict").textContent = r.stable ? "stable" : "unstable";
   $("verdict").className = `verdict ${r.stable ? "stable" : "unstable"}`;
@@ -122,6 +126,7 @@ async function selectPoint(p) {
   $("dominant-factor").textContent = r.dominant_factor;
   $("point-ms").textContent = `${ms.toFixed(0)} ms`;
   document.body.dataset.pointMs = ms.toFixed(1);
+  document.body.dataset.point = `${p.tau1},${p.tau2}`;
   drawRoots(r);
 }
 
@@ -175,6 +180,7 @@ function startAnimation(sim) {
     margin: { l: 50, r: 5, t: 25, b: 35 }, showlegend: false,
   }, { displaylogo: false, responsive: true });
   state.anim = { sim, frame: 0, started: performance.now(), shown: -1 };
+  document.body.dataset.simPoint = `${sim.tau1},${sim.tau2}`;
   drawFrame(0);
 }
 
@@ -214,7 +220,9 @@ function tick(now) {
   const a = state.anim;
   if (a && state.playing) {
     const frames = a.sim.times.length;
-    const k = Math.floor(((now - a.started) / 1000 / PLAY_SECONDS) * frames) % (frames + 20);
+    // rAF's timestamp can precede the moment the run arrived: clamp at the first frame
+    const elapsed = Math.max(0, now - a.started) / 1000;
+    const k = Math.floor((elapsed / PLAY_SECONDS) * frames) % (frames + 20);
     const target = Math.min(k, frames - 1);
     if (target !== a.shown && now - (a.lastDraw || 0) > 45) { a.lastDraw = now; drawFrame(target); }
   }
