@@ -66,8 +66,9 @@ async function drawChart() {
       marker: { symbol: "star", size: 15, color: "gold", line: { color: "black", width: 1 } }, hoverinfo: "skip" },
   ];
   const layout = {
-    title: { text: `Exact CTCR stability chart (P = ${params.P}, D = ${params.D}); green: stable, ` +
-      `red: NU > 0 (stable fraction ${(100 * chart.stable_fraction).toFixed(1)}%)`, font: { size: 13 } },
+    title: { text: `Exact CTCR chart, P = ${params.P}, D = ${params.D}: green stable ` +
+      `(${(100 * chart.stable_fraction).toFixed(1)}%), red NU > 0; click a point`, font: { size: 13 },
+      x: 0.01, xanchor: "left" },
     xaxis: { title: { text: "\u03c4\u2081 (s), position delay" }, range: [0, chart.tau1_max], constrain: "domain" },
     yaxis: { title: { text: "\u03c4\u2082 (s), velocity delay" }, range: [0, chart.tau2_max] },
     margin: { l: 55, r: 10, t: 40, b: 45 }, dragmode: false, showlegend: true,
@@ -173,48 +174,105 @@ function startAnimation(sim) {
   $("sim-info").textContent = `${sim.n} ${sim.model} robots, ${settle}${diverged}`;
   const err = sim.formation_error.map((e) => Math.max(e, 1e-12));
   Plotly.react("error", [{ type: "scatter", mode: "lines", x: sim.times, y: err, name: "formation error",
-    line: { color: "#333" } }], {
+    line: { color: "#333" }, hovertemplate: "t = %{x:.1f} s: %{y:.3g}<extra></extra>" }], {
     title: { text: "formation error (RMS distance from the shape)", font: { size: 12 } },
     xaxis: { title: { text: "time (s)" } }, yaxis: { type: "log" },
-    shapes: [{ type: "line", x0: 0, x1: 0, yref: "paper", y0: 0, y1: 1, line: { color: "#d7301f" } }],
     margin: { l: 50, r: 5, t: 25, b: 35 }, showlegend: false,
   }, { displaylogo: false, responsive: true });
-  state.anim = { sim, frame: 0, started: performance.now(), shown: -1 };
+  state.anim = { sim, frame: 0, started: performance.now(), shown: -1, box: null };
   document.body.dataset.simPoint = `${sim.tau1},${sim.tau2}`;
   drawFrame(0);
 }
 
+// The robots are drawn on a plain canvas: a Plotly redraw per frame would keep the
+// page's only thread busy and slow down the answer to the next click.
+const PALETTE = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22", "#17becf"];
+
+function niceStep(span) {
+  const raw = span / 6, mag = 10 ** Math.floor(Math.log10(raw));
+  return [1, 2, 5, 10].map((m) => m * mag).find((s) => s >= raw);
+}
+
+function widenBox(a, k) {
+  // fixed axes, widened only when a robot leaves them
+  const sim = a.sim, xs = sim.x[k], ys = sim.y[k], b = a.box;
+  if (b && Math.min(...xs) >= b[0] && Math.max(...xs) <= b[1] && Math.min(...ys) >= b[2] && Math.max(...ys) <= b[3]) return;
+  let x0 = Infinity, x1 = -Infinity, y0 = Infinity, y1 = -Infinity;
+  const take = (x, y) => { x0 = Math.min(x0, x); x1 = Math.max(x1, x); y0 = Math.min(y0, y); y1 = Math.max(y1, y); };
+  for (let j = 0; j <= k; j++) for (let i = 0; i < sim.n; i++) take(sim.x[j][i], sim.y[j][i]);
+  for (const q of sim.desired_final) take(q[0], q[1]);
+  const pad = 0.12 * Math.max(x1 - x0, y1 - y0, 1e-6);
+  a.box = [x0 - pad, x1 + pad, y0 - pad, y1 + pad];
+}
+
 function drawFrame(k) {
-  const a = state.anim;
-  const sim = a.sim;
-  const n = sim.n;
-  const px = [], py = [];
-  for (let i = 0; i < n; i++) {
-    for (let j = 0; j <= k; j++) { px.push(sim.x[j][i]); py.push(sim.y[j][i]); }
-    px.push(null); py.push(null);
+  const a = state.anim, sim = a.sim, n = sim.n;
+  widenBox(a, k);
+  const canvas = $("robots"), ratio = window.devicePixelRatio || 1;
+  const W = canvas.clientWidth, H = canvas.clientHeight;
+  if (canvas.width !== Math.round(W * ratio)) { canvas.width = Math.round(W * ratio); canvas.height = Math.round(H * ratio); }
+  const ctx = canvas.getContext("2d");
+  ctx.setTransform(ratio, 0, 0, ratio, 0, 0);
+  ctx.clearRect(0, 0, W, H);
+  const [bx0, bx1, by0, by1] = a.box, m = { l: 45, r: 10, t: 26, b: 30 };
+  const scale = Math.min((W - m.l - m.r) / (bx1 - bx0), (H - m.t - m.b) / (by1 - by0));
+  const cx = (bx0 + bx1) / 2, cy = (by0 + by1) / 2, px0 = m.l + (W - m.l - m.r) / 2, py0 = m.t + (H - m.t - m.b) / 2;
+  const X = (x) => px0 + (x - cx) * scale, Y = (y) => py0 - (y - cy) * scale;
+  // axes: a frame with ticks every "nice" step
+  ctx.strokeStyle = "#ccc"; ctx.fillStyle = "#555"; ctx.font = "11px sans-serif"; ctx.lineWidth = 1;
+  ctx.strokeRect(m.l, m.t, W - m.l - m.r, H - m.t - m.b);
+  const step = niceStep(Math.max((W - m.l - m.r) / scale, (H - m.t - m.b) / scale));
+  const lx = cx - (W / 2) / scale, hx = cx + (W / 2) / scale, ly = cy - (H / 2) / scale, hy = cy + (H / 2) / scale;
+  ctx.textAlign = "center";
+  for (let v = Math.ceil(lx / step) * step; v <= hx; v += step) {
+    if (X(v) < m.l || X(v) > W - m.r) continue;
+    ctx.beginPath(); ctx.moveTo(X(v), m.t); ctx.lineTo(X(v), H - m.b); ctx.strokeStyle = "#eee"; ctx.stroke();
+    ctx.fillText(Number(v.toPrecision(6)).toString(), X(v), H - m.b + 13);
   }
-  // heading theta is counter-clockwise from +x; Plotly turns markers clockwise from "up"
-  const angle = sim.heading[k].map((th) => 90 - (th * 180) / Math.PI);
-  const data = [
-    { type: "scatter", mode: "lines", x: px, y: py, name: "paths", line: { color: "#9ab", width: 1 }, hoverinfo: "skip" },
-    { type: "scatter", mode: "markers", x: sim.desired_final.map((q) => q[0]), y: sim.desired_final.map((q) => q[1]),
-      name: "formation (final offset)", marker: { symbol: "circle-open", size: 14, color: "#2a2" }, hoverinfo: "skip" },
-    { type: "scatter", mode: "markers+text", x: sim.x[k], y: sim.y[k], text: sim.labels, textposition: "top center",
-      name: "robots", marker: { symbol: "triangle-up", size: 15, angle, color: "#d7301f" }, hoverinfo: "skip" },
-  ];
-  const layout = {
-    title: { text: `robots (unicycles with headings) at t = ${fmt(sim.times[k], 1)} s`, font: { size: 12 } },
-    xaxis: { title: { text: "x" }, autorange: true }, yaxis: { title: { text: "y" }, scaleanchor: "x", autorange: true },
-    margin: { l: 45, r: 5, t: 25, b: 35 }, showlegend: true, legend: { font: { size: 9 } },
-  };
-  Plotly.react("robots", data, layout, { displaylogo: false, responsive: true });
-  Plotly.relayout("error", { "shapes[0].x0": sim.times[k], "shapes[0].x1": sim.times[k] });
+  ctx.textAlign = "right";
+  for (let v = Math.ceil(ly / step) * step; v <= hy; v += step) {
+    if (Y(v) < m.t || Y(v) > H - m.b) continue;
+    ctx.beginPath(); ctx.moveTo(m.l, Y(v)); ctx.lineTo(W - m.r, Y(v)); ctx.strokeStyle = "#eee"; ctx.stroke();
+    ctx.fillText(Number(v.toPrecision(6)).toString(), m.l - 4, Y(v) + 4);
+  }
+  ctx.save();
+  ctx.beginPath(); ctx.rect(m.l, m.t, W - m.l - m.r, H - m.t - m.b); ctx.clip();
+  for (let i = 0; i < n; i++) {  // paths so far
+    ctx.beginPath(); ctx.strokeStyle = PALETTE[i % PALETTE.length]; ctx.globalAlpha = 0.45;
+    for (let j = 0; j <= k; j++) { const x = X(sim.x[j][i]), y = Y(sim.y[j][i]); if (j) ctx.lineTo(x, y); else ctx.moveTo(x, y); }
+    ctx.stroke();
+  }
+  ctx.globalAlpha = 1; ctx.strokeStyle = "#2a2"; ctx.lineWidth = 1.5;
+  for (const q of sim.desired_final) { ctx.beginPath(); ctx.arc(X(q[0]), Y(q[1]), 8, 0, 2 * Math.PI); ctx.stroke(); }
+  ctx.textAlign = "center"; ctx.fillStyle = "#222";
+  for (let i = 0; i < n; i++) {  // unicycles: a triangle along the heading
+    const x = X(sim.x[k][i]), y = Y(sim.y[k][i]), th = sim.heading[k][i], c = Math.cos(th), s = Math.sin(th);
+    const tip = [x + 11 * c, y - 11 * s], left = [x - 6 * c - 5 * s, y + 6 * s - 5 * c], right = [x - 6 * c + 5 * s, y + 6 * s + 5 * c];
+    ctx.beginPath(); ctx.moveTo(...tip); ctx.lineTo(...left); ctx.lineTo(...right); ctx.closePath();
+    ctx.fillStyle = PALETTE[i % PALETTE.length]; ctx.fill(); ctx.strokeStyle = "#000"; ctx.lineWidth = 0.8; ctx.stroke();
+    if (n <= 20) { ctx.fillStyle = "#222"; ctx.fillText(sim.labels[i], x, y - 12); }
+  }
+  ctx.restore();
+  ctx.fillStyle = "#222"; ctx.font = "12px sans-serif"; ctx.textAlign = "center";
+  ctx.fillText(`robots (unicycles with headings; green: the formation at its final offset), t = ${fmt(sim.times[k], 1)} s`, W / 2, 16);
+  moveCursor(sim.times[k]);
   $("sim-time").textContent = `t = ${fmt(sim.times[k], 1)} s`;
   document.body.dataset.simTime = String(sim.times[k]);
   a.shown = k;
 }
 
-// about ten seconds per run, then it starts again; ~20 drawn frames per second
+// the time cursor on the error plot is a positioned line, not a Plotly relayout
+function moveCursor(t) {
+  const gd = $("error"), full = gd._fullLayout, line = $("error-cursor");
+  if (!full || !full.xaxis || !full.xaxis._length) { line.style.display = "none"; return; }
+  const xa = full.xaxis, ya = full.yaxis;
+  line.style.display = "block";
+  line.style.left = `${gd.offsetLeft + xa._offset + xa.l2p(t)}px`;
+  line.style.top = `${gd.offsetTop + ya._offset}px`;
+  line.style.height = `${ya._length}px`;
+}
+
+// about ten seconds per run, then it starts again; at most ~15 drawn frames per second
 const PLAY_SECONDS = 10;
 function tick(now) {
   const a = state.anim;
@@ -224,7 +282,7 @@ function tick(now) {
     const elapsed = Math.max(0, now - a.started) / 1000;
     const k = Math.floor((elapsed / PLAY_SECONDS) * frames) % (frames + 20);
     const target = Math.min(k, frames - 1);
-    if (target !== a.shown && now - (a.lastDraw || 0) > 45) { a.lastDraw = now; drawFrame(target); }
+    if (target !== a.shown && now - (a.lastDraw || 0) > 60) { a.lastDraw = now; drawFrame(target); }
   }
   requestAnimationFrame(tick);
 }
