@@ -92,7 +92,12 @@ def browser_clicks(url: str, repeats: int, screenshot: Path | None) -> list[floa
             # as a user does: look at the robots' run (it plays on) before the next click
             page.wait_for_function(settled, timeout=60_000)
             page.wait_for_timeout(300)
-        if screenshot is not None:
+        if screenshot is not None:  # at exactly a, typed into the fields, with the mouse off the chart
+            page.fill("#tau1", str(PAPER_POINTS["a"][0]))
+            page.fill("#tau2", str(PAPER_POINTS["a"][1]))
+            page.dispatch_event("#tau2", "change")
+            page.mouse.move(5, 5)
+            page.wait_for_function("() => document.body.dataset.simPoint === '0.3,0.2'", timeout=60_000)
             page.wait_for_function("() => Number(document.body.dataset.simTime) > 6", timeout=60_000)
             screenshot.parent.mkdir(parents=True, exist_ok=True)
             page.screenshot(path=str(screenshot))
