@@ -73,7 +73,8 @@ def test_click_a_then_c_in_chromium(tmp_path: Path) -> None:
             page.on("pageerror", lambda e: problems.append(f"page error: {e}"))
             page.on("console", lambda m: problems.append(f"console {m.type}: {m.text}") if m.type == "error" else None)
             page.goto(running.url)
-            page.wait_for_function("() => document.body.dataset.chartReady && document.body.dataset.simPoint",
+            # the chart and the first verdict are in (the first run may still be computing)
+            page.wait_for_function("() => document.body.dataset.chartReady && document.body.dataset.point",
                                    timeout=30_000)  # fmt: skip
 
             seen = {}

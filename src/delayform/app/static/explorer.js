@@ -5,7 +5,7 @@
 const $ = (id) => document.getElementById(id);
 const state = {
   defaults: {}, limits: {}, toggles: [], points: [],
-  chartSeq: 0, pointSeq: 0, simSeq: 0,
+  chartSeq: 0, pointSeq: 0, simBusy: false, simPending: null,
   anim: null, playing: true,
 };
 
@@ -157,15 +157,22 @@ function drawRoots(r) {
 }
 
 // ------------------------------------------------------------------ robots
+// One run in flight per page: a click during a run waits, and only the newest waiting point
+// runs next, so quick clicks never queue runs on the server that nobody will watch.
 async function simulateAt(p) {
-  const seq = ++state.simSeq;
+  if (state.simBusy) { state.simPending = p; $("sim-info").textContent = "simulating\u2026"; return; }
+  state.simBusy = true;
+  state.simPending = null;
   $("sim-info").textContent = "simulating\u2026";
-  let sim;
   try {
-    sim = await getJSON("/api/simulate", { ...p, ...gains(), duration: num("duration"), ...toggleParams() });
-  } catch (err) { if (seq === state.simSeq) { $("sim-info").textContent = ""; say(`robots: ${err.message}`); } return; }
-  if (seq !== state.simSeq) return;
-  startAnimation(sim);
+    const sim = await getJSON("/api/simulate", { ...p, ...gains(), duration: num("duration"), ...toggleParams() });
+    if (!state.simPending) startAnimation(sim);
+  } catch (err) {
+    if (!state.simPending) { $("sim-info").textContent = ""; say(`robots: ${err.message}`); }
+  } finally {
+    state.simBusy = false;
+    if (state.simPending) simulateAt(state.simPending);
+  }
 }
 
 function startAnimation(sim) {
