@@ -75,7 +75,9 @@ def test_point_agrees_with_dominant_root_and_the_argument_principle(server, labe
     assert got["stable"] is (nu == 0) is (label != "c")  # Fig. stability: only c is unstable
     assert got["dominant_root_stable"] is got["stable"]
     # the dominant root is among the roots listed near the axis, and nothing lies right of it
-    roots = np.array([complex(*r) for r in got["roots_near_axis"]])
+    near = get_json(server, f"/api/roots?tau1={t1}&tau2={t2}")
+    assert near["roots_certified"] and complex(*near["dominant_root"]) == complex(*got["dominant_root"])
+    roots = np.array([complex(*r) for r in near["roots_near_axis"]])
     assert np.min(np.abs(roots - want)) <= 1e-8
     assert roots.real.max() <= want.real + 1e-9
 
@@ -127,7 +129,6 @@ MALFORMED = [
     "/api/point?tau1=&tau2=0.2",
     "/api/point?tau1=nan&tau2=0.2",
     "/api/point?tau1=inf&tau2=0.2",
-    "/api/point?tau1=-inf&tau2=0.2",
     "/api/point?tau1=-0.1&tau2=0.2",
     "/api/point?tau1=1e400&tau2=0.2",
     "/api/point?tau1=51&tau2=0.2",
@@ -135,12 +136,13 @@ MALFORMED = [
     "/api/point?tau1=0.3&tau2=0.2&P=0",
     "/api/point?tau1=0.3&tau2=0.2&P=-1",
     "/api/point?tau1=0.3&tau2=0.2&P=abc",
-    "/api/point?tau1=0.3&tau2=0.2&P=101",
+    "/api/point?tau1=0.3&tau2=0.2&P=21",
     "/api/point?tau1=0.3&tau2=0.2&D=0",
     "/api/point?tau1=0.3&tau2=0.2&D=nan",
+    "/api/point?tau1=0.3&tau2=0.2&grid=10",
     "/api/point?tau1=0x10&tau2=0.2",
     "/api/point?tau1=0.3&tau2=0.2&foo=1",
-    "/api/point?tau1=0.3&tau2=0.2&grid=10",
+    "/api/roots?tau1=20&tau2=0.2",  # 20 s x 1.69 rad/s: beyond max_delay_bandwidth
     "/api/point?tau1=1,2&tau2=0.2",
     "/api/point?tau1=0.3%200.4&tau2=0.2",
     "/api/point?tau1=" + "1" * 60 + "&tau2=0.2",
@@ -154,17 +156,17 @@ MALFORMED = [
     "/api/chart?grid=1.5",
     "/api/chart?grid=abc",
     "/api/chart?tau1_max=0",
-    "/api/chart?tau1_max=-1",
     "/api/chart?tau2_max=51",
+    "/api/chart?tau1_max=18",  # max_delay_bandwidth at the paper's gains: 17.8 s
     "/api/chart?P=0",
-    "/api/chart?tau1_max=nan",
+    "/api/chart?tau1_max=nan&grid=20",
     "/api/simulate?tau1=0.3&tau2=0.2&duration=0",
     "/api/simulate?tau1=0.3&tau2=0.2&duration=-5",
     "/api/simulate?tau1=0.3&tau2=0.2&duration=1e6",
     "/api/simulate?tau1=0.3&tau2=0.2&duration=301",
     "/api/simulate?tau1=0.3&tau2=0.2&frames=1",
     "/api/simulate?tau1=0.3&tau2=0.2&frames=601",
-    "/api/simulate?tau1=0.3&tau2=0.2&frames=abc",
+    "/api/simulate?tau1=0.3&tau2=0.2&frames=abc&frames=2",
     "/api/simulate?tau1=0.001&tau2=0.2&duration=60",  # the step shrinks to 0.001: 60000 steps
     "/download/scenario.toml",
     "/download/scenario.toml?tau1=0.3&tau2=0.2&tau1_max=0",
@@ -188,6 +190,9 @@ def test_limits_are_named_when_they_refuse(server) -> None:
     assert "max_steps" in json.loads(get(server, "/api/simulate?tau1=0.3&tau2=0.2&duration=301")[2])["error"]
     assert "max_grid" in json.loads(get(server, "/api/chart?grid=301")[2])["error"]
     assert "max_delay" in json.loads(get(server, "/api/point?tau1=51&tau2=0.2")[2])["error"]
+    # the delay-bandwidth bound follows the gains: 10 s is refused at P = 10 and allowed at P = 1
+    assert "max_delay_bandwidth" in json.loads(get(server, "/api/point?tau1=10&tau2=0&P=10")[2])["error"]
+    assert get(server, "/api/point?tau1=10&tau2=0&P=1")[0] == 200
     big = parse_scenario({"topology": {"name": "ring", "n": 101}, "gains": {"P": 1, "D": 0.5},
                           "delays": {"tau1": 0.1, "tau2": 0.1}, "formation": {"shape": "polygon"}})  # fmt: skip
     with pytest.raises(InputError, match="max_agents"):

@@ -13,7 +13,7 @@ installed ``plotly`` package; the server (Starlette on uvicorn) listens on
 127.0.0.1 only. See docs/explorer.md.
 """
 
-from delayform.app.explorer import Animation, ChartData, Explorer, PointReport
+from delayform.app.explorer import Animation, ChartData, Explorer, PointReport, RootsReport, crossing_frequency_bound
 from delayform.app.params import ExplorerLimits
 from delayform.app.scenario_toml import scenario_toml
 from delayform.app.server import LOOPBACK, RunningExplorer, check_host, create_app, serve, start
@@ -22,6 +22,8 @@ __all__ = [
     "Explorer",
     "ExplorerLimits",
     "PointReport",
+    "RootsReport",
+    "crossing_frequency_bound",
     "ChartData",
     "Animation",
     "scenario_toml",

@@ -46,7 +46,7 @@ from delayform.errors import InputError, NotConvergedError
 from delayform.scenario import Scenario
 from delayform.simulation import Trajectory, simulate
 
-__all__ = ["Explorer", "PointReport", "ChartData", "Animation"]
+__all__ = ["Explorer", "PointReport", "RootsReport", "ChartData", "Animation", "crossing_frequency_bound"]
 
 #: maps kept per explorer (each a few hundred kB): the chart's and the clicks' windows
 _MAP_CACHE = 8
@@ -57,6 +57,8 @@ _DEFAULT_DURATION = 40.0
 #: half-width of the default root window around the imaginary axis (1/s)
 _ROOT_WINDOW_RE = 0.5
 _ROOT_WINDOW_IM = 3.0
+#: largest ``height x delay`` of the root window (rad): about six roots per chain
+_ROOT_WINDOW_PHASE = 20.0
 #: decimals of delays and positions sent to the page (far below a pixel)
 _DECIMALS = 5
 
@@ -73,10 +75,33 @@ def _complex_pairs(roots: NDArray[np.complex128]) -> list[list[float]]:
     return [[float(r.real), float(r.imag)] for r in roots]
 
 
+def crossing_frequency_bound(P: float, D: float) -> float:
+    """Largest frequency at which a characteristic root can cross the imaginary axis.
+
+    A root ``s = j omega`` of a factor of eq. factorized,
+    ``s^2 + D s + P = lam (D s e^{-tau2 s} + P e^{-tau1 s})`` with ``|lam| <= 1``
+    (C is row-stochastic), needs ``omega^2 - P <= |P - omega^2 + j D omega| <= D omega + P``,
+    so ``omega <= (D + sqrt(D^2 + 8 P)) / 2`` whatever the delays. The CTCR
+    curves repeat every ``2 pi / omega`` along each delay, so the work of a map,
+    and the number of roots near the axis, grow with delay x this bound.
+
+    Parameters
+    ----------
+    P, D
+        Positive gains of eq. protocol.
+
+    Examples
+    --------
+    >>> round(crossing_frequency_bound(1.0, 0.5), 4)  # the paper's gains
+    1.6861
+    """
+    return (D + math.sqrt(D * D + 8.0 * P)) / 2.0
+
+
 # ==================================================================== results
 @dataclass(frozen=True, eq=False)
 class PointReport:
-    """What the page shows for one clicked delay pair.
+    """The verdict at one clicked delay pair.
 
     Attributes
     ----------
@@ -87,19 +112,6 @@ class PointReport:
         persistent zero excepted), from the exact CTCR map.
     dominant
         :func:`~delayform.analysis.spectrum.dominant_root` at the point.
-    roots
-        Roots of every factor in :attr:`region`, each once (a factor of
-        multiplicity m contributes each root m times to the characteristic
-        equation), centroid's persistent zero removed.
-    root_factors
-        Index of the factor (order of :func:`~delayform.characteristic.factors`) of each root.
-    factor_names
-        ``describe()`` of each factor.
-    region
-        ``(re_min, re_max, im_min, im_max)`` of the root window.
-    roots_certified
-        False when :func:`roots_in` did not reach the certified count for some factor
-        (the roots shown are then those found).
     """
 
     P: float
@@ -108,11 +120,6 @@ class PointReport:
     tau2: float
     unstable_count: int
     dominant: DominantRoot
-    roots: NDArray[np.complex128]
-    root_factors: tuple[int, ...]
-    factor_names: tuple[str, ...]
-    region: tuple[float, float, float, float]
-    roots_certified: bool
 
     @property
     def stable(self) -> bool:
@@ -130,11 +137,55 @@ class PointReport:
             "dominant_root_stable": self.dominant.is_stable,
             "time_constant": None if math.isinf(self.dominant.time_constant) else self.dominant.time_constant,
             "dominant_factor": self.dominant.factor.describe(),
+        }  # fmt: skip
+
+
+@dataclass(frozen=True, eq=False)
+class RootsReport:
+    """The roots of every factor near the imaginary axis at one delay pair.
+
+    Attributes
+    ----------
+    P, D, tau1, tau2
+        The gains and delays.
+    dominant
+        The dominant root the window is placed around.
+    roots
+        Roots of every factor in :attr:`region`, each once (a factor of
+        multiplicity m contributes each root m times to the characteristic
+        equation), centroid's persistent zero removed.
+    root_factors
+        Index of the factor (order of :func:`~delayform.characteristic.factors`) of each root.
+    factor_names
+        ``describe()`` of each factor.
+    region
+        ``(re_min, re_max, im_min, im_max)`` of the window.
+    certified
+        False when :func:`roots_in` did not reach the certified count for some factor
+        (the roots shown are then those found).
+    """
+
+    P: float
+    D: float
+    tau1: float
+    tau2: float
+    dominant: complex
+    roots: NDArray[np.complex128]
+    root_factors: tuple[int, ...]
+    factor_names: tuple[str, ...]
+    region: tuple[float, float, float, float]
+    certified: bool
+
+    def as_json(self) -> dict[str, Any]:
+        """The roots as ``[re, im]`` pairs with their factors and the window."""
+        return {
+            "P": self.P, "D": self.D, "tau1": self.tau1, "tau2": self.tau2,
+            "dominant_root": [self.dominant.real, self.dominant.imag],
             "roots_near_axis": _complex_pairs(self.roots),
             "root_factors": list(self.root_factors),
             "factors": list(self.factor_names),
             "region": list(self.region),
-            "roots_certified": self.roots_certified,
+            "roots_certified": self.certified,
         }  # fmt: skip
 
 
@@ -271,11 +322,13 @@ class Explorer:
         return (self._delay("tau1"), self._delay("tau2"), self._gain("P", s.P), self._gain("D", s.D))
 
     def chart_params(self) -> tuple[Param, ...]:
-        """Parameters of :meth:`chart`: P, D, the window and the shading grid."""
+        """Parameters of :meth:`chart`: P, D, the window (the scenario's, within the limits) and the grid."""
         s = self.scenario
+        side = self.limits.max_delay_bandwidth / crossing_frequency_bound(s.P, s.D)
+        w1, w2 = min(s.chart.tau1_max, side, self.limits.max_delay), min(s.chart.tau2_max, side, self.limits.max_delay)
         return (
             self._gain("P", s.P), self._gain("D", s.D),
-            self._window("tau1_max", s.chart.tau1_max), self._window("tau2_max", s.chart.tau2_max),
+            self._window("tau1_max", w1), self._window("tau2_max", w2),
             Param("grid", "int", 10, self.limits.max_grid, default=min(160, self.limits.max_grid), limit="max_grid"),
         )  # fmt: skip
 
@@ -342,6 +395,7 @@ class Explorer:
         grid
             Cells per axis of the shading (<= ``limits.max_grid``).
         """
+        self._check_bandwidth(P, D, max(tau1_max, tau2_max), "tau1_max, tau2_max")
         smap = self.stability_map(P, D, tau1_max, tau2_max)
         t1 = (np.arange(grid) + 0.5) * tau1_max / grid
         t2 = (np.arange(grid) + 0.5) * tau2_max / grid
@@ -350,7 +404,7 @@ class Explorer:
         return ChartData(smap, t1, t2, counts, points)
 
     def point(self, P: float, D: float, tau1: float, tau2: float) -> PointReport:
-        """Stability, NU, dominant root and the roots near the imaginary axis at one delay pair.
+        """Stability, NU and the dominant root at one delay pair.
 
         Parameters
         ----------
@@ -359,17 +413,36 @@ class Explorer:
         tau1, tau2
             The delays.
         """
-        topology = self.scenario.topology
+        self._check_bandwidth(P, D, max(tau1, tau2), "tau1, tau2")
         count = int(self._map_covering(P, D, tau1, tau2).unstable_count(tau1, tau2))
-        dom = dominant_root(topology, P, D, tau1, tau2)
-        re, im = dom.root.real, abs(dom.root.imag)
-        # the window reaches past the dominant root, and the irrational offsets keep its
-        # edges off the roots that sit exactly on the real axis or at s = 0
+        return PointReport(P, D, tau1, tau2, count, dominant_root(self.scenario.topology, P, D, tau1, tau2))
+
+    def roots(self, P: float, D: float, tau1: float, tau2: float) -> RootsReport:
+        """The roots of every factor in a window around the imaginary axis and the dominant root.
+
+        The window reaches :data:`_ROOT_WINDOW_RE` left and right of the axis and
+        of the dominant root s*, and ``|Im s| < max(min(3, 20 / max(tau1, tau2)), |Im s*| + 0.5)``:
+        a chain of roots of a quasi-polynomial with delay h has about one root per
+        ``2 pi / h`` of height, so the window holds about six roots per chain
+        however long the delays (the certified count's cost grows with the roots in it).
+
+        Parameters
+        ----------
+        P, D
+            Gains of eq. protocol.
+        tau1, tau2
+            The delays.
+        """
+        self._check_bandwidth(P, D, max(tau1, tau2), "tau1, tau2")
+        topology = self.scenario.topology
+        dom = dominant_root(topology, P, D, tau1, tau2).root
+        height = max(min(_ROOT_WINDOW_IM, _ROOT_WINDOW_PHASE / max(tau1, tau2, 1e-12)), abs(dom.imag) + 0.5)
+        # irrational nudges keep the edges off roots exactly on the real axis or at s = 0
         region = (
-            min(-_ROOT_WINDOW_RE, re - _ROOT_WINDOW_RE) - 1.37e-3,
-            max(_ROOT_WINDOW_RE, re + _ROOT_WINDOW_RE) + 1.13e-3,
-            -(max(_ROOT_WINDOW_IM, im + 1.0) + 1.21e-3),
-            max(_ROOT_WINDOW_IM, im + 1.0) + 1.21e-3,
+            min(-_ROOT_WINDOW_RE, dom.real - _ROOT_WINDOW_RE) - 1.37e-3,
+            max(_ROOT_WINDOW_RE, dom.real + _ROOT_WINDOW_RE) + 1.13e-3,
+            -(height + 1.21e-3),
+            height + 1.21e-3,
         )
         found: list[NDArray[np.complex128]] = []
         owners: list[int] = []
@@ -387,9 +460,18 @@ class Explorer:
             found.append(roots)
             owners += [idx] * roots.size
         allroots = np.concatenate(found) if found else np.zeros(0, dtype=np.complex128)
-        return PointReport(
-            P, D, tau1, tau2, count, dom, allroots, tuple(owners), tuple(f.describe() for f in fs), region, certified
-        )
+        names = tuple(f.describe() for f in fs)
+        return RootsReport(P, D, tau1, tau2, dom, allroots, tuple(owners), names, region, certified)
+
+    def _check_bandwidth(self, P: float, D: float, delay: float, what: str) -> None:
+        """Refuse delays whose product with the crossing-frequency bound exceeds the limit."""
+        omega = crossing_frequency_bound(P, D)
+        if delay * omega > self.limits.max_delay_bandwidth:
+            raise InputError(
+                f"{what}: {delay:g} s x crossing-frequency bound {omega:.3g} rad/s exceeds the explorer "
+                f"limit max_delay_bandwidth = {self.limits.max_delay_bandwidth:g} "
+                f"(at P = {P:g}, D = {D:g}: delays up to {self.limits.max_delay_bandwidth / omega:.3g} s)"
+            )
 
     def _step(self, tau1: float, tau2: float) -> float:
         """The scenario's step, shortened when a non-zero delay is smaller (simulate needs tau >= dt)."""
@@ -530,6 +612,7 @@ class Explorer:
         chart = self.chart(P, D, tau1_max, tau2_max, 10)
         run = self.animation(P, D, tau1, tau2, duration, 2)
         point = self.point(P, D, tau1, tau2)
+        roots = self.roots(P, D, tau1, tau2)
         s = self._scenario_at(P, D, tau1, tau2, duration, tau1_max, tau2_max)
         tr = run.trajectory
         if run.diverged_at is not None:  # draw the finite part of an overflowing run
@@ -554,6 +637,6 @@ class Explorer:
                     data = io.BytesIO()
                     fig.savefig(data, format=fmt, dpi=150, bbox_inches="tight")
                     zf.writestr(f"{name}.{fmt}", data.getvalue())
-            zf.writestr("point.json", json.dumps(point.as_json(), indent=2))
+            zf.writestr("point.json", json.dumps(point.as_json() | roots.as_json(), indent=2))
             zf.writestr("scenario.toml", scenario_toml(s))
         return self._write(f"{s.name}_{self._tag(P, D, tau1, tau2)}_figures.zip", buffer.getvalue())

@@ -64,15 +64,21 @@ class ExplorerLimits:
         Most animation frames sent back.
     max_agents
         Largest team the explorer opens (checked once, when it starts).
+    max_delay_bandwidth
+        Largest delay (or chart window side) times the bound on crossing
+        frequencies ``(D + sqrt(D^2 + 8 P)) / 2`` (rad): the number of CTCR
+        curve periods and of roots near the axis, which set the cost of a map
+        and of a certified root count, grow with it.
     """
 
     max_delay: float = 50.0
-    max_gain: float = 100.0
+    max_gain: float = 20.0
     max_grid: int = 300
     max_steps: int = 30_000
     max_agent_steps: int = 3_000_000
     max_frames: int = 600
     max_agents: int = 100
+    max_delay_bandwidth: float = 30.0
 
 
 @dataclass(frozen=True)

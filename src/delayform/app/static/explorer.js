@@ -116,8 +116,6 @@ async function selectPoint(p) {
     return;
   }
   if (seq !== state.pointSeq) return;
-  // the robots' run starts once the verdict is in, so it does not slow the click's answer
-  simulateAt(p);
   const ms = performance.now() - started;
   $("verdict").textContent = r.stable ? "stable" : "unstable";
   $("verdict").className = `verdict ${r.stable ? "stable" : "unstable"}`;
@@ -128,7 +126,12 @@ async function selectPoint(p) {
   $("point-ms").textContent = `${ms.toFixed(0)} ms`;
   document.body.dataset.pointMs = ms.toFixed(1);
   document.body.dataset.point = `${p.tau1},${p.tau2}`;
-  drawRoots(r);
+  // then the roots near the axis (a certified count per factor) and the robots' run
+  try {
+    const roots = await getJSON("/api/roots", { ...p, ...gains() });
+    if (seq === state.pointSeq) drawRoots(roots);
+  } catch (err) { if (seq === state.pointSeq) say(`roots: ${err.message}`); }
+  if (seq === state.pointSeq) simulateAt(p);
 }
 
 function drawRoots(r) {
