@@ -100,7 +100,20 @@ def crossing_frequency_bound(P: float, D: float) -> float:
 
 # ==================================================================== results
 @dataclass(frozen=True, eq=False)
-class PointReport:
+class _AtPoint:
+    """Gains and delays an answer belongs to."""
+
+    P: float
+    D: float
+    tau1: float
+    tau2: float
+
+    def _where(self) -> dict[str, float]:
+        return {"P": self.P, "D": self.D, "tau1": self.tau1, "tau2": self.tau2}
+
+
+@dataclass(frozen=True, eq=False)
+class PointReport(_AtPoint):
     """The verdict at one clicked delay pair.
 
     Attributes
@@ -114,10 +127,6 @@ class PointReport:
         :func:`~delayform.analysis.spectrum.dominant_root` at the point.
     """
 
-    P: float
-    D: float
-    tau1: float
-    tau2: float
     unstable_count: int
     dominant: DominantRoot
 
@@ -129,8 +138,7 @@ class PointReport:
     def as_json(self) -> dict[str, Any]:
         """The report as JSON-ready values (``dominant_root`` as ``[re, im]``)."""
         root = self.dominant.root
-        return {
-            "P": self.P, "D": self.D, "tau1": self.tau1, "tau2": self.tau2,
+        return self._where() | {
             "stable": self.stable,
             "unstable_count": self.unstable_count,
             "dominant_root": [root.real, root.imag],
@@ -141,7 +149,7 @@ class PointReport:
 
 
 @dataclass(frozen=True, eq=False)
-class RootsReport:
+class RootsReport(_AtPoint):
     """The roots of every factor near the imaginary axis at one delay pair.
 
     Attributes
@@ -165,10 +173,6 @@ class RootsReport:
         (the roots shown are then those found).
     """
 
-    P: float
-    D: float
-    tau1: float
-    tau2: float
     dominant: complex
     roots: NDArray[np.complex128]
     root_factors: tuple[int, ...]
@@ -178,8 +182,7 @@ class RootsReport:
 
     def as_json(self) -> dict[str, Any]:
         """The roots as ``[re, im]`` pairs with their factors and the window."""
-        return {
-            "P": self.P, "D": self.D, "tau1": self.tau1, "tau2": self.tau2,
+        return self._where() | {
             "dominant_root": [self.dominant.real, self.dominant.imag],
             "roots_near_axis": _complex_pairs(self.roots),
             "root_factors": list(self.root_factors),
