@@ -23,7 +23,7 @@ import pytest
 
 from delayform.analysis.ctcr import PAPER_POINTS, stability_map
 from delayform.analysis.spectrum import count_roots_right_of, dominant_root
-from delayform.app import Explorer, ExplorerLimits, check_host, scenario_toml, start
+from delayform.app import LOOPBACK, Explorer, ExplorerLimits, check_host, scenario_toml, start
 from delayform.app.server import bind
 from delayform.characteristic import factors
 from delayform.cli import main
@@ -225,6 +225,18 @@ def test_binds_the_loopback_and_the_cli_refuses_other_hosts(capsys: pytest.Captu
     assert exit_info.value.code == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "127.0.0.1 only" in err
+
+
+def test_cli_refuses_a_port_in_use_in_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    taken = bind(LOOPBACK, 0)
+    try:
+        with pytest.raises(SystemExit) as exit_info:
+            main(["explore", "--port", str(taken.getsockname()[1]), "--no-browser", "--out", str(tmp_path)])
+    finally:
+        taken.close()
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "cannot listen on 127.0.0.1" in err
 
 
 # ---------------------------------------------------------------- files
