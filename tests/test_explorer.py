@@ -16,6 +16,7 @@ import tomllib
 import urllib.error
 import urllib.request
 import zipfile
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -262,6 +263,13 @@ def test_downloads_round_trip_and_stay_in_the_output_folder(
     saved = sorted(p.name for p in out_dir.iterdir())
     assert saved == ["paper_P0.8_D0.9_tau1.5_0.7.toml", "paper_P0.8_D0.9_tau1.5_0.7_figures.zip"]
     assert os.listdir(tmp_path) == []  # nothing written in the working directory
+
+
+def test_a_scenario_name_never_leads_outside_the_output_folder(tmp_path: Path) -> None:
+    sneaky = replace(paper_scenario(), name="../../x/..")
+    path = Explorer(sneaky, out_dir=tmp_path / "out").scenario_file(1.0, 0.5, 0.3, 0.2, 10.0, 8.0, 8.0)
+    assert path.parent == (tmp_path / "out").resolve() and path.name == "_.._x__P1_D0.5_tau0.3_0.2.toml"
+    assert sorted(p.name for p in tmp_path.rglob("*") if p.is_file()) == [path.name]
 
 
 @pytest.mark.parametrize("example", sorted(EXAMPLES.glob("*.toml")), ids=lambda p: p.stem)

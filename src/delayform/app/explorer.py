@@ -27,6 +27,7 @@ from __future__ import annotations
 import io
 import json
 import math
+import re
 import threading
 import zipfile
 from collections import OrderedDict
@@ -559,9 +560,10 @@ class Explorer:
         path.write_bytes(data)
         return path
 
-    @staticmethod
-    def _tag(P: float, D: float, tau1: float, tau2: float) -> str:
-        return f"P{P:g}_D{D:g}_tau{tau1:g}_{tau2:g}"
+    def _stem(self, P: float, D: float, tau1: float, tau2: float) -> str:
+        """``<scenario name>_P.._D.._tau.._..``: the name as letters, digits, ``._-`` only."""
+        name = re.sub(r"[^A-Za-z0-9_.-]", "_", self.scenario.name)[:40].strip(".") or "scenario"
+        return f"{name}_P{P:g}_D{D:g}_tau{tau1:g}_{tau2:g}"
 
     def scenario_file(self, P: float, D: float, tau1: float, tau2: float, duration: float,
                       tau1_max: float, tau2_max: float) -> Path:  # fmt: skip
@@ -584,7 +586,7 @@ class Explorer:
             ``<out>/<name>_<tag>.toml``.
         """
         s = self._scenario_at(P, D, tau1, tau2, duration, tau1_max, tau2_max)
-        return self._write(f"{s.name}_{self._tag(P, D, tau1, tau2)}.toml", scenario_toml(s).encode("utf-8"))
+        return self._write(f"{self._stem(P, D, tau1, tau2)}.toml", scenario_toml(s).encode("utf-8"))
 
     def figures_file(self, P: float, D: float, tau1: float, tau2: float, duration: float,
                      tau1_max: float, tau2_max: float) -> Path:  # fmt: skip
@@ -642,4 +644,4 @@ class Explorer:
                     zf.writestr(f"{name}.{fmt}", data.getvalue())
             zf.writestr("point.json", json.dumps(point.as_json() | roots.as_json(), indent=2))
             zf.writestr("scenario.toml", scenario_toml(s))
-        return self._write(f"{s.name}_{self._tag(P, D, tau1, tau2)}_figures.zip", buffer.getvalue())
+        return self._write(f"{self._stem(P, D, tau1, tau2)}_figures.zip", buffer.getvalue())
