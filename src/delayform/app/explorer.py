@@ -145,6 +145,7 @@ class PointReport(_AtPoint):
             "dominant_root": [root.real, root.imag],
             "dominant_root_stable": self.dominant.is_stable,
             "time_constant": None if math.isinf(self.dominant.time_constant) else self.dominant.time_constant,
+            "growth_rate": max(root.real, 0.0),
             "dominant_factor": self.dominant.factor.describe(),
         }  # fmt: skip
 
