@@ -31,6 +31,7 @@ STAGES: dict[str, int] = {
     "sweeps": 6,
     "scenario": 7,
     "report": 8,
+    "report_gains": 8,
     "cli": 9,
     "app": 10,
     "__main__": 11,
