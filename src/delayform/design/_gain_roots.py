@@ -311,22 +311,49 @@ def _certify(
     return roots[np.arange(L.size), best], certified, roots
 
 
-def rightmost_roots(group: EigenvalueGroup, L: _Lines) -> _CArr:
-    """Certified rightmost root (Im >= 0 member) of the factor of ``group`` on every line."""
+def rightmost_roots(
+    group: EigenvalueGroup, L: _Lines, seeds: _CArr | None = None
+) -> tuple[_CArr, _CArr]:
+    """Certified rightmost root (Im >= 0 member) of the factor of ``group`` on every line.
+
+    ``seeds`` (B, K), e.g. the roots of a nearby line (roots move continuously
+    with the gains), replace the discretization where the certificate accepts
+    them. Returns the rightmost roots and every line's distinct roots found
+    (NaN-padded), the seeds for the next nearby batch.
+    """
     lam = complex(group.lam)
     out = np.full(L.size, np.nan + 0j)
-    root, cert, _ = _certify(group, L, _seeds(lam, group.is_centroid, L, scale=1.0, k=_BATCH_SEEDS))
+    if seeds is None:
+        seeds = _seeds(lam, group.is_centroid, L, scale=1.0, k=_BATCH_SEEDS)
+    root, cert, found = _certify(group, L, seeds)
     out[cert] = root[cert]
     left = np.flatnonzero(~cert)
     if left.size:
         sub = L.take(left)
-        seeds = _seeds(lam, group.is_centroid, sub, scale=2.0, k=2 * _BATCH_SEEDS)
-        r, ok, _ = _certify(group, sub, seeds)
-        out[left[ok]] = r[ok]
-        for i in left[~ok]:  # the spectrum module's robust path, certified or raising
+        for scale, k in ((1.0, _BATCH_SEEDS), (2.0, 2 * _BATCH_SEEDS)):
+            r, ok, more = _certify(group, sub, _seeds(lam, group.is_centroid, sub, scale=scale, k=k))
+            out[left[ok]] = r[ok]
+            found = _merge_rows(found, left[ok], more[ok])
+            left, sub = left[~ok], sub.take(np.flatnonzero(~ok))
+            if left.size == 0:
+                break
+        for i in left:  # the spectrum module's robust path, certified or raising
             f = CharacteristicFactor(group, float(L.P[i]), float(L.D[i]))
             out[i] = rightmost_root(f, float(L.t1[i]), float(L.t2[i]))
-    return out.real + 1j * np.abs(out.imag)
+            found = _merge_rows(found, np.array([i]), np.array([[out[i]]]))
+    return out.real + 1j * np.abs(out.imag), found
+
+
+def _merge_rows(found: _CArr, rows: NDArray[np.int64], new: _CArr) -> _CArr:
+    """``found`` with the given rows replaced by ``new`` (widened with NaN as needed)."""
+    if rows.size == 0:
+        return found
+    width = max(found.shape[1], new.shape[1])
+    out = np.full((found.shape[0], width), np.nan + 0j)
+    out[:, : found.shape[1]] = found
+    out[rows] = np.nan
+    out[rows, : new.shape[1]] = new
+    return out
 
 
 def root_gradients(

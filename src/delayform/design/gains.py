@@ -75,7 +75,7 @@ _Arr = NDArray[np.float64]
 _SAMPLES = 6
 _STEPS = 12
 #: Sampling radius (fraction of the bound widths) below which a local search stops.
-_EPS_MIN = 1e-7
+_EPS_MIN = 1e-6
 _MAX_ITER = 60
 #: Rounds of the exchange method of the robust design.
 _ROBUST_ROUNDS = 3
@@ -214,20 +214,58 @@ class _Objective:
     """max over factors and over the delay pairs of Re(rightmost root), and its gradient in (P, D).
 
     Every evaluation is certified (:func:`~delayform.design._gain_roots.rightmost_roots`);
-    all points of a call share one batch per factor.
+    all points of a call share one batch per factor. After :meth:`keep_seeds`
+    on a grid of gains, Newton starts from the roots at the nearest grid point
+    (roots move continuously with the gains) instead of a new discretization;
+    the certificate still decides.
     """
 
     def __init__(self, topology: Topology, delays: _Arr) -> None:
         self.groups = topology.eigenvalue_groups
-        self.delays = np.asarray(delays, dtype=np.float64).reshape(-1, 2)
+        self._delays = np.asarray(delays, dtype=np.float64).reshape(-1, 2)
         self.lines = 0
+        self._bank: tuple[_Arr, _Arr, list[NDArray[np.complex128]]] | None = None
+        self._keep = False
+
+    @property
+    def delays(self) -> _Arr:
+        """The delay pairs (m, 2) the max runs over."""
+        return self._delays
+
+    @delays.setter
+    def delays(self, value: _Arr) -> None:
+        self._delays = np.asarray(value, dtype=np.float64).reshape(-1, 2)
+        self._bank = None  # seeds were for the old pairs
+
+    def keep_seeds(self, P_axis: _Arr, D_axis: _Arr) -> tuple[_Arr, _Arr, NDArray[np.complex128], NDArray[np.int64]]:
+        """Evaluate on the grid P_axis x D_axis and keep every line's roots as seeds for later calls."""
+        PP, DD = np.meshgrid(P_axis, D_axis, indexing="ij")
+        self._keep = True
+        try:
+            out = self(np.column_stack([PP.ravel(), DD.ravel()]))
+        finally:
+            self._keep = False
+        return out
+
+    def _seeds(self, X: _Arr) -> list[NDArray[np.complex128] | None]:
+        if self._bank is None:
+            return [None] * len(self.groups)
+        P_axis, D_axis, found = self._bank
+        i = np.clip(np.rint((X[:, 0] - P_axis[0]) / (P_axis[-1] - P_axis[0]) * (P_axis.size - 1)), 0, P_axis.size - 1)
+        j = np.clip(np.rint((X[:, 1] - D_axis[0]) / (D_axis[-1] - D_axis[0]) * (D_axis.size - 1)), 0, D_axis.size - 1)
+        m = self._delays.shape[0]
+        rows = ((i.astype(int) * D_axis.size + j.astype(int))[:, None] * m + np.arange(m)).ravel()
+        return [f[rows] for f in found]
 
     def __call__(self, X: _Arr) -> tuple[_Arr, _Arr, NDArray[np.complex128], NDArray[np.int64]]:
         """Values (n,), gradients (n, 2), active roots (n,) and active delay index (n,) at gains X (n, 2)."""
         X = np.asarray(X, dtype=np.float64).reshape(-1, 2)
-        n, m = X.shape[0], self.delays.shape[0]
-        L = _lines(X[:, 0, None], X[:, 1, None], self.delays[None, :, 0], self.delays[None, :, 1])
-        per = np.stack([rightmost_roots(g, L) for g in self.groups])  # (G, n*m)
+        n, m = X.shape[0], self._delays.shape[0]
+        L = _lines(X[:, 0, None], X[:, 1, None], self._delays[None, :, 0], self._delays[None, :, 1])
+        results = [rightmost_roots(g, L, s) for g, s in zip(self.groups, self._seeds(X), strict=True)]
+        if self._keep:
+            self._bank = (np.unique(X[:, 0]), np.unique(X[:, 1]), [r[1] for r in results])
+        per = np.stack([r[0] for r in results])  # (G, n*m)
         self.lines += L.size * len(self.groups)
         k = np.argmax(per.real, axis=0)
         root = per[k, np.arange(L.size)].reshape(n, m)
@@ -270,7 +308,9 @@ def _gradient_sampling(
     F, Gx, _, _ = obj(X)
     eps = np.full(X.shape[0], eps0)
     active = np.ones(X.shape[0], dtype=bool)
-    for _ in range(_MAX_ITER):
+    for it in range(_MAX_ITER):
+        if it >= 8:  # a start far behind the best by now is in a worse basin: stop spending on it
+            active &= F <= F.min() + 0.02
         act = np.flatnonzero(active)
         if act.size == 0:
             break
@@ -408,8 +448,7 @@ def _polyline_meets_box(x: _Arr, y: _Arr, box: tuple[float, float, float, float]
 # the design
 # =====================================================================
 def _coarse_map(obj: _Objective, P_axis: _Arr, D_axis: _Arr) -> GainPlaneMap:
-    PP, DD = np.meshgrid(P_axis, D_axis, indexing="ij")
-    F, _, roots, _ = obj(np.column_stack([PP.ravel(), DD.ravel()]))
+    F, _, roots, _ = obj.keep_seeds(P_axis, D_axis)
     shape = (P_axis.size, D_axis.size)
     return GainPlaneMap(P_axis, D_axis, F.reshape(shape), roots.reshape(shape), obj.delays.copy())
 
