@@ -245,8 +245,9 @@ def plot_gain_plane(
 
     Filled contours of Re(dominant root) over a
     :class:`~delayform.design.gains.GainPlaneMap`, the stable region's edge
-    (the zero level) in black, the designed gains as a star and other
-    labelled gains as dots.
+    (the zero level) in black, the exact curves with an imaginary root
+    (D-decomposition, when the map has them) dashed red, the designed gains
+    as a star and other labelled gains as dots.
 
     Parameters
     ----------
@@ -272,6 +273,10 @@ def plot_gain_plane(
     ax.figure.colorbar(filled, ax=ax, label=r"Re $s_{dom}$ (1/s)")
     if np.nanmin(A) < 0.0 < np.nanmax(A):
         ax.contour(P, D, A.T, levels=[0.0], colors="k", linewidths=1.4)
+    curves = [c for c in getattr(result, "boundary", ()) if len(c) > 1]
+    if curves:  # the exact curves with an imaginary root; the stable region's edge lies on them
+        ax.add_collection(LineCollection(curves, colors="red", linewidths=0.8, linestyles="--",
+                                         label="imaginary root (exact)"))
     if result.chosen is not None:
         ax.plot([result.chosen[0]], [result.chosen[1]], marker="*", color="red", ms=14, mec="k", ls="none",
                 label="designed gains")
@@ -284,6 +289,8 @@ def plot_gain_plane(
     where = (f"(tau1, tau2) = ({delays[0, 0]:g}, {delays[0, 1]:g}) s" if delays.shape[0] == 1
              else f"worst of {delays.shape[0]} delay pairs")
     ax.set_title(f"Spectral abscissa over the gains, {where}; black: Re = 0")
-    if result.chosen is not None:
+    ax.set_xlim(P[0], P[-1])
+    ax.set_ylim(D[0], D[-1])
+    if result.chosen is not None or curves:
         ax.legend(loc="upper right", fontsize="small")
     return ax

@@ -67,7 +67,7 @@ if TYPE_CHECKING:  # pragma: no cover - typing only
 
     from delayform.analysis.ctcr import StabilityMap
 
-__all__ = ["GainDesign", "GainPlaneMap", "design_gains", "box_is_stable"]
+__all__ = ["GainDesign", "GainPlaneMap", "design_gains", "box_is_stable", "gain_crossing_curves"]
 
 _Arr = NDArray[np.float64]
 
@@ -101,6 +101,11 @@ class GainPlaneMap:
         The delay pairs (tau1, tau2) the map was computed at, shape (m, 2).
     chosen
         The designed gains (P, D), marked on the plot; None when not designed.
+    boundary
+        At one delay pair: the exact curves of the gain plane on which a root
+        is on the imaginary axis (:func:`gain_crossing_curves`), each an
+        (k, 2) array of (P, D); the stable region's edge is made of them.
+        Empty for a map over several delay pairs.
     """
 
     P_values: _Arr
@@ -109,6 +114,7 @@ class GainPlaneMap:
     roots: NDArray[np.complex128]
     delays: _Arr
     chosen: tuple[float, float] | None = None
+    boundary: tuple[_Arr, ...] = ()
 
     @property
     def stable(self) -> NDArray[np.bool_]:
@@ -445,6 +451,72 @@ def _polyline_meets_box(x: _Arr, y: _Arr, box: tuple[float, float, float, float]
 
 
 # =====================================================================
+# the exact stability boundary in the gain plane (D-decomposition)
+# =====================================================================
+def gain_crossing_curves(
+    topology: Topology, tau1: float, tau2: float, *, P_bounds: tuple[float, float],
+    D_bounds: tuple[float, float], samples: int = 4000,
+) -> tuple[_Arr, ...]:
+    """The curves of the gain plane on which a characteristic root is on the imaginary axis.
+
+    The gain-plane analogue of the CTCR kernel and offspring curves
+    (D-decomposition, Neimark): every factor of eq. factorized is linear in
+    the gains, ``q(j w) = -w^2 + P a(w) + D b(w)`` with
+    ``a = 1 - lam e^{-j w tau1}`` and ``b = j w (1 - lam e^{-j w tau2})``,
+    so ``q(j w) = 0`` has, for each frequency w, the single real solution
+    ``P = w^2 Im b / det``, ``D = -w^2 Im a / det``
+    (``det = Re a Im b - Re b Im a``). Roots change sides of the imaginary axis
+    only where (P, D) crosses one of these curves, so the stable region's
+    edge is made of them. Frequencies run up to the bound
+    ``|w| <= D_max (1 + |lam|) + sqrt(P_max (1 + |lam|))`` of imaginary
+    roots; negative ones too for a complex lam (its roots do not pair up).
+    The vertices lie exactly on the curves; the polylines join them.
+
+    Parameters
+    ----------
+    topology
+        Communication topology with a spanning tree.
+    tau1, tau2
+        Non-negative delays (s).
+    P_bounds, D_bounds
+        The part of the gain plane wanted, (lo, hi) each.
+    samples
+        Frequencies per factor and sign.
+
+    Returns
+    -------
+    tuple of ndarray
+        Polylines, each (k, 2) of (P, D), clipped to the bounds.
+    """
+    t1, t2 = check_delay("tau1", tau1), check_delay("tau2", tau2)
+    pb, db = _bounds("P_bounds", P_bounds), _bounds("D_bounds", D_bounds)
+    samples = _count("samples", samples, 16)
+    span = np.array([pb[1] - pb[0], db[1] - db[0]])
+    out: list[_Arr] = []
+    for group in topology.eigenvalue_groups:
+        lam = complex(group.lam)
+        top = db[1] * (1 + abs(lam)) + math.sqrt(pb[1] * (1 + abs(lam)))
+        signs = (1.0,) if lam.imag == 0.0 else (1.0, -1.0)
+        for sign in signs:
+            w = sign * np.linspace(top / samples, top, samples)
+            a = 1.0 - lam * np.exp(-1j * w * t1)
+            b = 1j * w * (1.0 - lam * np.exp(-1j * w * t2))
+            det = a.real * b.imag - b.real * a.imag
+            with np.errstate(divide="ignore", invalid="ignore"):
+                pts = np.column_stack([w * w * b.imag / det, -w * w * a.imag / det])
+            inside = np.all(np.isfinite(pts), axis=1) & (pts[:, 0] >= pb[0]) & (pts[:, 0] <= pb[1]) \
+                & (pts[:, 1] >= db[0]) & (pts[:, 1] <= db[1])
+            jump = np.ones(w.size, dtype=bool)
+            jump[1:] = np.any(np.abs(np.diff(pts, axis=0)) > 0.05 * span, axis=1)
+            run = np.cumsum(~inside | jump)  # a new piece after every gap or jump
+            for r in np.unique(run[inside]):
+                piece = pts[inside & (run == r)]
+                if piece.shape[0] >= 2:
+                    out.append(piece)
+    return tuple(out)
+
+
+# =====================================================================
 # the design
 # =====================================================================
 def _coarse_map(obj: _Objective, P_axis: _Arr, D_axis: _Arr) -> GainPlaneMap:
@@ -588,14 +660,15 @@ def design_gains(
             float(x[0]), float(x[1]), float(dom.root.real), complex(dom.root), dom.factor,
             box1[0], box2[0],
             "dominant root certified by the argument principle (no root of any factor right of it)",
-            _marked(gmap, x), pb, db, box1, box2,
+            _marked(gmap, x, gain_crossing_curves(topology, box1[0], box2[0], P_bounds=pb, D_bounds=db)),
+            pb, db, box1, box2,
         )  # fmt: skip
     return _robust(topology, obj, gmap, x, lo, hi, box1, box2, grid, int(seed))
 
 
-def _marked(gmap: GainPlaneMap, x: _Arr) -> GainPlaneMap:
+def _marked(gmap: GainPlaneMap, x: _Arr, boundary: tuple[_Arr, ...] = ()) -> GainPlaneMap:
     return GainPlaneMap(gmap.P_values, gmap.D_values, gmap.abscissa, gmap.roots, gmap.delays,
-                        (float(x[0]), float(x[1])))  # fmt: skip
+                        (float(x[0]), float(x[1])), boundary)  # fmt: skip
 
 
 def _robust(
