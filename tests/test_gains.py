@@ -178,6 +178,14 @@ def test_bad_input_is_a_named_error(kwargs: dict, error: type[Exception]) -> Non
         design_gains(TEAM, t1, t2, **args)
 
 
+def test_a_map_too_large_is_refused_up_front() -> None:
+    from delayform.topology import random_digraph
+
+    team = random_digraph(200, 0.05, seed=1)
+    with pytest.raises(InputError, match=r"factor roots .* about \d+ s"):
+        design_gains(team, (1.0, 2.0), 1.0, P_bounds=BOUNDS, D_bounds=BOUNDS, grid=101)
+
+
 def test_no_stable_gains_is_an_error_not_an_answer() -> None:
     with pytest.raises(NoStableGainsError, match="converge"):
         design_gains(TEAM, 8.0, 8.0, P_bounds=(2.9, 3.0), D_bounds=(2.9, 3.0), grid=4, starts=1)

@@ -79,6 +79,10 @@ _EPS_MIN = 1e-6
 _MAX_ITER = 60
 #: Rounds of the exchange method of the robust design.
 _ROBUST_ROUNDS = 3
+#: Most factor roots the coarse map may ask for (grid^2 x delay pairs x factors): about 90 s of CPU.
+MAX_MAP_ROOTS = 2_000_000
+#: Measured CPU seconds per certified factor root in a map batch (benchmarks/bench_gains.py).
+_SECONDS_PER_ROOT = 4.5e-5
 
 
 # =====================================================================
@@ -621,7 +625,8 @@ def design_gains(
     NoStableGainsError
         When no gains in the bounds make the team converge (at every delay pair of the box).
     GainError, DelayError, InputError
-        For bad bounds, delays, grid or starts.
+        For bad bounds, delays, grid or starts, or a map larger than
+        :data:`MAX_MAP_ROOTS` factor roots (refused up front, with the time it would take).
 
     Examples
     --------
@@ -643,6 +648,13 @@ def design_gains(
     lo, hi = np.array([pb[0], db[0]]), np.array([pb[1], db[1]])
     robust = box1[0] < box1[1] or box2[0] < box2[1]
     delays = _box_samples(box1, box2) if robust else np.array([[box1[0], box2[0]]])
+    need = grid * grid * delays.shape[0] * len(topology.eigenvalue_groups)
+    if need > MAX_MAP_ROOTS:
+        raise InputError(
+            f"the gain-plane map would solve {need:,} factor roots (grid {grid}^2 x {delays.shape[0]} delay "
+            f"pairs x {len(topology.eigenvalue_groups)} factors, about {need * _SECONDS_PER_ROOT:.0f} s); "
+            f"the limit is {MAX_MAP_ROOTS:,}: lower grid"
+        )
     obj = _Objective(topology, delays)
     gmap = _coarse_map(obj, np.linspace(pb[0], pb[1], grid), np.linspace(db[0], db[1], grid))
     x, fx = _local_search(obj, _starts(gmap, starts), lo, hi, grid, int(seed))
