@@ -120,6 +120,14 @@ class GainPlaneMap:
     chosen: tuple[float, float] | None = None
     boundary: tuple[_Arr, ...] = ()
 
+    def __repr__(self) -> str:
+        P, D = self.P_values, self.D_values
+        return (
+            f"GainPlaneMap(P in [{P[0]:g}, {P[-1]:g}] x D in [{D[0]:g}, {D[-1]:g}], grid {P.size} x {D.size}, "
+            f"{self.delays.shape[0]} delay pair(s), stable fraction {float(np.mean(self.stable)):.3f}, "
+            f"chosen={self.chosen})"
+        )
+
     @property
     def stable(self) -> NDArray[np.bool_]:
         """True where the abscissa is negative: the formation converges (Lemma 2)."""
@@ -182,7 +190,7 @@ class GainDesign:
     tau1: float
     tau2: float
     certificate: str
-    gain_map: GainPlaneMap
+    gain_map: GainPlaneMap = field(repr=False)
     P_bounds: tuple[float, float]
     D_bounds: tuple[float, float]
     tau1_box: tuple[float, float]
@@ -713,7 +721,8 @@ def _robust(
     if not box_is_stable(smap, box1, box2):
         raise NoStableGainsError(
             f"the gains P = {x[0]:.4g}, D = {x[1]:.4g} are stable at every delay pair sampled in {where}, "
-            "but the exact CTCR map shows a crossing curve inside the box: not certified"
+            "but a crossing curve of the exact CTCR map meets the box (or passes within the map's tolerance "
+            "of it): not certified"
         )
     return GainDesign(
         float(x[0]), float(x[1]), float(dom.root.real), complex(dom.root), dom.factor, t1w, t2w,
