@@ -671,6 +671,9 @@ def design_gains(
         x, fx = np.array([Pg, Dg]), fg
     if not robust:
         dom = dominant_root(topology, float(x[0]), float(x[1]), box1[0], box2[0])
+        if dom.root.real > fg:  # cannot happen (both certified); never return worse than the map's best
+            x = np.array([Pg, Dg])
+            dom = dominant_root(topology, Pg, Dg, box1[0], box2[0])
         if not dom.is_stable:
             raise NoStableGainsError(
                 f"no gains in P in [{pb[0]:g}, {pb[1]:g}], D in [{db[0]:g}, {db[1]:g}] make the team "
