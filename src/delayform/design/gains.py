@@ -79,6 +79,8 @@ _EPS_MIN = 1e-6
 _MAX_ITER = 60
 #: Rounds of the exchange method of the robust design.
 _ROBUST_ROUNDS = 3
+#: Points per axis of the certified dominant-root map of the box in the robust design's worst-case search.
+_BOX_GRID = 11
 #: Most factor roots the coarse map may ask for (grid^2 x delay pairs x factors): about 90 s of CPU.
 MAX_MAP_ROOTS = 2_000_000
 #: Measured CPU seconds per certified factor root in a map batch (benchmarks/bench_gains.py).
@@ -581,7 +583,7 @@ def _worst_in_box(
         g2 = np.clip(t[1] + np.linspace(-h[1], h[1], 7), *box2)
         A, B = np.meshgrid(g1, g2, indexing="ij")
         obj.delays = np.column_stack([A.ravel(), B.ravel()])
-        F, _, roots, j_best = obj(np.array([[P, D]]))
+        _, _, _, j_best = obj(np.array([[P, D]]))
         t = obj.delays[j_best[0]]
         h = h / 3.0
     return float(t[0]), float(t[1])
@@ -702,15 +704,14 @@ def _robust(
     from delayform.analysis.ctcr import stability_map
 
     pb, db = (float(lo[0]), float(hi[0])), (float(lo[1]), float(hi[1]))
-    box_grid = 11
-    worst = _worst_in_box(topology, float(x[0]), float(x[1]), box1, box2, box_grid)
+    worst = _worst_in_box(topology, float(x[0]), float(x[1]), box1, box2, _BOX_GRID)
     for _ in range(_ROBUST_ROUNDS):
         at_worst = float(_Objective(topology, np.array([worst]))(x[None, :])[0][0])
         if at_worst <= float(obj(x[None, :])[0][0]) + 1e-6:
             break  # the sampled pairs already hold the box's worst case
         obj.delays = np.vstack([obj.delays, worst])
         x, _ = _local_search(obj, np.vstack([x, _starts(gmap, 1)]), lo, hi, grid, seed)
-        worst = _worst_in_box(topology, float(x[0]), float(x[1]), box1, box2, box_grid)
+        worst = _worst_in_box(topology, float(x[0]), float(x[1]), box1, box2, _BOX_GRID)
     t1w, t2w = worst
     dom = dominant_root(topology, float(x[0]), float(x[1]), t1w, t2w)
     where = f"tau1 in [{box1[0]:g}, {box1[1]:g}], tau2 in [{box2[0]:g}, {box2[1]:g}] s"
@@ -730,7 +731,7 @@ def _robust(
     return GainDesign(
         float(x[0]), float(x[1]), float(dom.root.real), complex(dom.root), dom.factor, t1w, t2w,
         f"stable on the whole box {where} by the exact CTCR map (no crossing curve meets the box, "
-        "NU = 0 at its centre); worst case from a certified 11 x 11 dominant-root map of the box "
+        f"NU = 0 at its centre); worst case from a certified {_BOX_GRID} x {_BOX_GRID} dominant-root map of the box "
         "zoomed 3 times (a lower bound on the true worst case)",
         _marked(gmap, x), pb, db, box1, box2, smap,
     )  # fmt: skip
