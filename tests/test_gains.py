@@ -189,8 +189,16 @@ def test_a_map_too_large_is_refused_up_front() -> None:
 def test_no_stable_gains_is_an_error_not_an_answer() -> None:
     with pytest.raises(NoStableGainsError, match="converge"):
         design_gains(TEAM, 8.0, 8.0, P_bounds=(2.9, 3.0), D_bounds=(2.9, 3.0), grid=4, starts=1)
-    with pytest.raises(NoStableGainsError, match="double root"):
+    with pytest.raises(DelayError, match="tau1 -> 0"):  # no uniform decay rate near tau1 = 0
         design_gains(TEAM, (0.0, 0.3), 0.2, P_bounds=BOUNDS, D_bounds=BOUNDS, grid=4, starts=1)
+    with pytest.raises(DelayError, match="too long"):
+        design_gains(TEAM, 30.0, 1.0, P_bounds=BOUNDS, D_bounds=BOUNDS, grid=4, starts=1)
+
+
+def test_on_tau1_zero_the_drift_does_not_count() -> None:
+    g = design_gains(TEAM, 0.0, 0.2, P_bounds=BOUNDS, D_bounds=BOUNDS, grid=7, starts=1)
+    ref = float(ref_gains.abscissa(EIG, g.P, g.D, 0.0, 0.2)[0])  # both roots at 0 excluded there
+    assert g.abscissa < 0 and abs(g.abscissa - ref) < 1e-6
 
 
 def test_designed_gains_settle_faster_in_simulation(designs: dict[str, GainDesign]) -> None:

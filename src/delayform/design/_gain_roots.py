@@ -24,7 +24,11 @@ as the spectrum module run on all lines together:
 Lines the certificate rejects are redone at twice the degree, and any still
 rejected by the spectrum module's robust single-pair path
 (:func:`~delayform.analysis.spectrum.rightmost_root`). Every root returned is
-therefore certified: no root of its factor lies to its right.
+therefore certified: no root of its factor lies to its right. As in
+:func:`~delayform.analysis.spectrum.dominant_root`, the centroid factor's
+roots at s = 0 are not counted: the persistent one, and on tau1 = 0 the
+second one (the centroid's drift), for which the spectrum module's
+centroid path is used.
 """
 
 from __future__ import annotations
@@ -41,6 +45,7 @@ from delayform.analysis.spectrum import (
     RESIDUAL_TOL,
     _batch_distinct,
     _batch_lines,
+    _centroid_rightmost,
     _chebyshev,
     _lagrange_rows,
     _map_degree,
@@ -327,6 +332,13 @@ def rightmost_roots(
         seeds = _seeds(lam, group.is_centroid, L, scale=1.0, k=_BATCH_SEEDS)
     root, cert, found = _certify(group, L, seeds)
     out[cert] = root[cert]
+    if group.is_centroid:  # on tau1 = 0 the second root at 0 is the centroid's drift: not counted either
+        for i in np.flatnonzero(L.t1 == 0.0):
+            f = CharacteristicFactor(group, float(L.P[i]), float(L.D[i]))
+            r = _centroid_rightmost(f, 0.0, float(L.t2[i]))
+            out[i] = complex(-np.inf, 0.0) if r is None else r
+            cert[i] = True
+            found = _merge_rows(found, np.array([i]), np.array([[out[i]]]))
     left = np.flatnonzero(~cert)
     if left.size:
         sub = L.take(left)

@@ -56,7 +56,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from delayform._validation import check_delay
-from delayform.analysis.spectrum import SETTLING_FACTOR, dominant_root, dominant_root_map
+from delayform.analysis.spectrum import (
+    SETTLING_FACTOR,
+    _check_reach,
+    _problem_of_factor,
+    dominant_root,
+    dominant_root_map,
+)
 from delayform.characteristic import CharacteristicFactor, factors
 from delayform.design._gain_roots import _lines, rightmost_roots, root_gradients
 from delayform.errors import DelayError, GainError, InputError, NoStableGainsError
@@ -521,7 +527,8 @@ def gain_crossing_curves(
             inside = np.all(np.isfinite(pts), axis=1) & (pts[:, 0] >= pb[0]) & (pts[:, 0] <= pb[1]) \
                 & (pts[:, 1] >= db[0]) & (pts[:, 1] <= db[1])
             jump = np.ones(w.size, dtype=bool)
-            jump[1:] = np.any(np.abs(np.diff(pts, axis=0)) > 0.05 * span, axis=1)
+            with np.errstate(invalid="ignore"):  # inf - inf next to a vanishing det: a gap anyway
+                jump[1:] = np.any(np.abs(np.diff(pts, axis=0)) > 0.05 * span, axis=1)
             run = np.cumsum(~inside | jump)  # a new piece after every gap or jump
             for r in np.unique(run[inside]):
                 piece = pts[inside & (run == r)]
@@ -634,7 +641,9 @@ def design_gains(
     ------
     NoStableGainsError
         When no gains in the bounds make the team converge (at every delay pair of the box).
-    GainError, DelayError, InputError
+    DelayError
+        Also for delays too long for the certified root finder at the largest gains.
+    GainError, InputError
         For bad bounds, delays, grid or starts, or a map larger than
         :data:`MAX_MAP_ROOTS` factor roots (refused up front, with the time it would take).
 
@@ -657,7 +666,15 @@ def design_gains(
         raise InputError(f"seed must be an integer, got {seed!r}")
     lo, hi = np.array([pb[0], db[0]]), np.array([pb[1], db[1]])
     robust = box1[0] < box1[1] or box2[0] < box2[1]
+    if robust and box1[0] == 0.0:
+        raise DelayError(
+            "a delay box reaching tau1 = 0 has no worst-case decay rate to optimise: the centroid factor's "
+            "root -P tau1 / (1 + D tau2) (eq. factor1) tends to 0 as tau1 -> 0 for every gain; start the box "
+            "at tau1 > 0"
+        )
     delays = _box_samples(box1, box2) if robust else np.array([[box1[0], box2[0]]])
+    for group in topology.eigenvalue_groups:  # the largest gains and delays bound the roots' reach
+        _check_reach(_problem_of_factor(CharacteristicFactor(group, pb[1], db[1])), box1[1], box2[1])
     need = grid * grid * delays.shape[0] * len(topology.eigenvalue_groups)
     if need > MAX_MAP_ROOTS:
         raise InputError(
@@ -719,7 +736,6 @@ def _robust(
         raise NoStableGainsError(
             f"no gains in P in [{pb[0]:g}, {pb[1]:g}], D in [{db[0]:g}, {db[1]:g}] found that keep the team "
             f"stable over {where} (best worst case Re = {dom.root.real:.4g} at ({t1w:g}, {t2w:g}))"
-            + ("; at tau1 = 0 the centroid factor has a double root at 0 (eq. factor1)" if box1[0] == 0.0 else "")
         )
     smap = stability_map(topology, float(x[0]), float(x[1]), 1.05 * box1[1] + 0.1, 1.05 * box2[1] + 0.1)
     if not box_is_stable(smap, box1, box2):
