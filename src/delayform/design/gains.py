@@ -66,6 +66,7 @@ from delayform.analysis.spectrum import (
 from delayform.characteristic import CharacteristicFactor, factors
 from delayform.design._gain_roots import _lines, rightmost_roots, root_gradients
 from delayform.errors import DelayError, GainError, InputError, NoStableGainsError
+from delayform.resources import require
 from delayform.topology import Topology
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
@@ -87,10 +88,11 @@ _MAX_ITER = 60
 _ROBUST_ROUNDS = 3
 #: Points per axis of the certified dominant-root map of the box in the robust design's worst-case search.
 _BOX_GRID = 11
-#: Most factor roots the coarse map may ask for (grid^2 x delay pairs x factors): about 90 s of CPU.
-MAX_MAP_ROOTS = 2_000_000
-#: Measured CPU seconds per certified factor root in a map batch (benchmarks/bench_gains.py).
+#: Measured CPU seconds per certified factor root in a map batch (benchmarks/bench_gains.py),
+#: and the search after the map: about as much again (more for the robust design's rounds).
 _SECONDS_PER_ROOT = 4.5e-5
+#: Bytes per factor root kept (the roots of every map point are the local search's seeds).
+_BYTES_PER_ROOT = 320.0
 
 
 # =====================================================================
@@ -644,8 +646,10 @@ def design_gains(
     DelayError
         Also for delays too long for the certified root finder at the largest gains.
     GainError, InputError
-        For bad bounds, delays, grid or starts, or a map larger than
-        :data:`MAX_MAP_ROOTS` factor roots (refused up front, with the time it would take).
+        For bad bounds, delays, grid or starts.
+    ResourceLimitError
+        When the map would need more memory or time than this machine allows
+        (:mod:`delayform.resources`), refused up front with the estimate.
 
     Examples
     --------
@@ -675,13 +679,14 @@ def design_gains(
     delays = _box_samples(box1, box2) if robust else np.array([[box1[0], box2[0]]])
     for group in topology.eigenvalue_groups:  # the largest gains and delays bound the roots' reach
         _check_reach(_problem_of_factor(CharacteristicFactor(group, pb[1], db[1])), box1[1], box2[1])
-    need = grid * grid * delays.shape[0] * len(topology.eigenvalue_groups)
-    if need > MAX_MAP_ROOTS:
-        raise InputError(
-            f"the gain-plane map would solve {need:,} factor roots (grid {grid}^2 x {delays.shape[0]} delay "
-            f"pairs x {len(topology.eigenvalue_groups)} factors, about {need * _SECONDS_PER_ROOT:.0f} s); "
-            f"the limit is {MAX_MAP_ROOTS:,}: lower grid"
-        )
+    need = float(grid * grid * delays.shape[0] * len(topology.eigenvalue_groups))
+    require(
+        what=(f"gain design with a {grid} x {grid} gain-plane map at {delays.shape[0]} delay pair(s) "
+              f"and {len(topology.eigenvalue_groups)} factors"),
+        setting="grid (--grid)",
+        nbytes=need * _BYTES_PER_ROOT,
+        seconds=need * _SECONDS_PER_ROOT * (4.0 if robust else 2.0),
+    )  # fmt: skip
     obj = _Objective(topology, delays)
     gmap = _coarse_map(obj, np.linspace(pb[0], pb[1], grid), np.linspace(db[0], db[1], grid))
     x, fx = _local_search(obj, _starts(gmap, starts), lo, hi, grid, int(seed))
