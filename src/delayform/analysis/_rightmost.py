@@ -143,7 +143,7 @@ def _certify(
         roots = np.concatenate([roots, np.where(pair, np.conj(roots), np.nan)], axis=1)
     else:
         roots = _batch_distinct(roots, ok)
-    c, expected, top = _batch_lines(prob, roots)
+    c, expected, top = _batch_lines(prob.deflate_zero, roots)
     good = np.isfinite(top) & np.isfinite(c)
     counts = np.full(t1.size, np.nan)
     if good.any():

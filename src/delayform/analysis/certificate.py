@@ -249,27 +249,34 @@ def _known_reals(
 
 
 def _batch_lines(
-    prob: _Problem, roots: NDArray[np.complex128]
+    deflate_zero: bool | NDArray[np.bool_], roots: NDArray[np.complex128]
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    """Vectorized :func:`_choose_line`: the line c, the expected count and the rightmost real part."""
+    """Vectorized :func:`_choose_line`: the line c, the expected count and the rightmost real part.
+
+    ``deflate_zero`` (one flag, or one per row) adds the persistent root 0 of
+    eq. factor1 to the known roots of a row.
+    """
     reals = roots.real  # NaN for missing
     top = np.nanmax(np.where(np.isnan(reals), -np.inf, reals), axis=1)
-    if prob.deflate_zero:
-        reals = np.concatenate([reals, np.zeros((reals.shape[0], 1))], axis=1)
+    if np.any(deflate_zero):
+        zero = np.where(np.broadcast_to(deflate_zero, top.shape), 0.0, np.nan)
+        reals = np.concatenate([reals, zero[:, None]], axis=1)
     srt = -np.sort(np.where(np.isnan(reals), np.inf, -reals), axis=1)  # descending, -inf for missing
     n_known = np.sum(np.isfinite(srt), axis=1)
     c = np.full(srt.shape[0], np.nan)
     k0 = np.argmax(srt <= top[:, None], axis=1)
-    for step in range(8):
-        k = k0 + step
-        valid = (k + 1 < n_known) & np.isnan(c)
-        kk = np.minimum(k, srt.shape[1] - 2)
-        hi = np.take_along_axis(srt, kk[:, None], 1)[:, 0]
-        lo = np.take_along_axis(srt, (kk + 1)[:, None], 1)[:, 0]
+    width = srt.shape[1]
+    if width >= 2:  # the first of the 8 gaps below the top that is wide enough
+        k = k0[:, None] + np.arange(8)
+        kk = np.minimum(k, width - 2)
+        hi = np.take_along_axis(srt, kk, 1)
+        lo = np.take_along_axis(srt, kk + 1, 1)
         with np.errstate(invalid="ignore"):  # -inf - -inf where fewer roots are known
             gap = hi - lo
-        take = valid & (gap > 1e-3 * (1.0 + np.abs(hi)))
-        c = np.where(take, hi - np.minimum(0.5 * gap, _LINE_OFFSET), c)
+        take = (k + 1 < n_known[:, None]) & (gap > 1e-3 * (1.0 + np.abs(hi)))
+        first = np.argmax(take, axis=1)[:, None]
+        hi1, gap1 = np.take_along_axis(hi, first, 1)[:, 0], np.take_along_axis(gap, first, 1)[:, 0]
+        c = np.where(take.any(axis=1), hi1 - np.minimum(0.5 * gap1, _LINE_OFFSET), c)
     last = np.take_along_axis(srt, np.clip(np.minimum(k0 + 8, n_known - 1), 0, None)[:, None], 1)[:, 0]
     c = np.where(np.isnan(c), last - _LINE_OFFSET, c)
     expected = np.sum(srt > c[:, None], axis=1).astype(float)

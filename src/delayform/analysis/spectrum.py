@@ -69,6 +69,7 @@ from numpy.typing import ArrayLike, NDArray
 from delayform._validation import check_delay, check_gains
 # the internals live in one module per concept; the private names other modules
 # (design/scheduling.py) import from here stay importable from here
+from delayform.analysis._family import family_grid, family_rightmost
 from delayform.analysis._generator import (  # noqa: F401
     _delay_free_eigenvalues,
     _igd_eigenvalues,
@@ -425,13 +426,11 @@ def dominant_root(topology: Topology, P: float, D: float, tau1: float, tau2: flo
     (False, 0.0836)
     """
     t1, t2 = check_delay("tau1", tau1), check_delay("tau2", tau2)
-    best: tuple[complex, CharacteristicFactor] | None = None
-    for f in _checked_factors(topology, P, D):
-        r = rightmost_root(f, t1, t2)
-        if best is None or r.real > best[0].real:
-            best = (r, f)
-    assert best is not None  # a topology has at least the centroid factor
-    return DominantRoot(best[0], best[1], t1, t2)
+    fs = _checked_factors(topology, P, D)
+    # all factors in one batch (one stacked discretization, one vectorized certificate)
+    right = family_rightmost(fs, fs[0].P, fs[0].D, t1, t2)
+    k = int(np.argmax(right.real))
+    return DominantRoot(complex(right[k]), fs[k], t1, t2)
 
 
 @dataclass(frozen=True, eq=False)
@@ -549,8 +548,7 @@ def dominant_root_map(
     ax2 = _grid_axis("tau2_values", tau2_values)
     per_factor = np.empty((len(fs), ax1.size, ax2.size), dtype=np.complex128)
     with _progress(progress, len(fs) * ax1.size * ax2.size) as advance:
-        for k, f in enumerate(fs):
-            per_factor[k] = _rightmost_grid(_problem_of_factor(f), ax1, ax2, advance)
+        per_factor[:] = family_grid(fs, fs[0].P, fs[0].D, ax1, ax2, advance)
     index = np.argmax(per_factor.real, axis=0)
     roots = np.take_along_axis(per_factor, index[None], 0)[0]
     return DominantRootMap(ax1, ax2, roots, index, fs)
