@@ -32,7 +32,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from delayform.analysis._generator import _chebyshev, _igd_seeds, _lagrange_rows
-from delayform.analysis._quasi import _NEWTON_MAXITER, _TINY_DELAY, MAX_DEGREE, RESIDUAL_TOL, _problem_of_factor
+from delayform.analysis._quasi import _TINY_DELAY, MAX_DEGREE, RESIDUAL_TOL, _problem_of_factor
 from delayform.analysis._rightmost import (
     _BATCH_SEEDS,
     _SEED_WINDOW,
@@ -48,6 +48,8 @@ from delayform.characteristic import CharacteristicFactor
 _LEVELS = (27, 9, 3, 1)
 #: Known roots kept per row as seeds for its neighbours.
 _KEEP = 6
+#: Newton steps of the fast path (a seed still moving after them is left to the fallback).
+_FAST_NEWTON_STEPS = 16
 #: Initial samples of the certified walk along Re s = c (bisected where needed).
 _INITIAL_SAMPLES = 12
 
@@ -82,17 +84,19 @@ def _lams(fs: Sequence[CharacteristicFactor]) -> tuple[NDArray[np.complex128], N
 # =====================================================================
 # q, dq/ds and the term moduli of the family
 # =====================================================================
+# Far-left seeds and lines overflow e^{-tau s}; such values fail the residual
+# test or the certificate, so the entry points (family_rightmost, family_grid)
+# silence floating-point warnings once instead of in every vectorized step.
 def _q(
     s: NDArray[np.complex128], lam: NDArray[np.complex128], t1: NDArray[np.float64],
     t2: NDArray[np.float64], P: float, D: float,
 ) -> tuple[NDArray[np.complex128], NDArray[np.complex128], NDArray[np.complex128], NDArray[np.complex128]]:
     """q(s), dq/ds and the two delayed terms lam P e^{-tau1 s}, lam D e^{-tau2 s} (broadcasting)."""
-    with np.errstate(all="ignore"):  # far-left seeds overflow; rejected by the residual test
-        a = lam * P * np.exp(-t1 * s)
-        b = lam * D * np.exp(-t2 * s)
-        bs = b * s
-        q = (s + D) * s + P - a - bs
-        dq = 2.0 * s + D + t1 * a - b + t2 * bs
+    a = lam * P * np.exp(-t1 * s)
+    b = lam * D * np.exp(-t2 * s)
+    bs = b * s
+    q = (s + D) * s + P - a - bs
+    dq = 2.0 * s + D + t1 * a - b + t2 * bs
     return q, dq, a, b
 
 
@@ -110,14 +114,13 @@ def _polish_rows(seeds: NDArray[np.complex128], rows: _Rows) -> tuple[NDArray[np
     s = flat[live].copy()
     lam, t1, t2, defl = rows.lam[rid], rows.t1[rid], rows.t2[rid], rows.deflate[rid]
     act = np.arange(s.size)
-    for _ in range(_NEWTON_MAXITER):
+    for _ in range(_FAST_NEWTON_STEPS):
         if act.size == 0:
             break
         sa = s[act]
         q, dq, _, _ = _q(sa, lam[act], t1[act], t2[act], rows.P, rows.D)
-        with np.errstate(all="ignore"):
-            den = np.where(defl[act], dq - q / sa, dq)
-            step = q / den
+        den = np.where(defl[act], dq - q / sa, dq)
+        step = q / den
         bad = ~np.isfinite(step)
         step[bad] = 0.0
         s[act] = sa - step
@@ -126,9 +129,8 @@ def _polish_rows(seeds: NDArray[np.complex128], rows: _Rows) -> tuple[NDArray[np
         act = act[moving]
     q, _, a, b = _q(s, lam, t1, t2, rows.P, rows.D)
     abs_s = np.abs(s)
-    with np.errstate(all="ignore"):
-        mag = (abs_s + rows.D) * abs_s + rows.P + np.abs(a) + np.abs(b) * abs_s
-        ok = np.isfinite(mag) & (np.abs(q) <= RESIDUAL_TOL * mag)
+    mag = (abs_s + rows.D) * abs_s + rows.P + np.abs(a) + np.abs(b) * abs_s
+    ok = np.isfinite(mag) & (np.abs(q) <= RESIDUAL_TOL * mag)
     # s ~ 0 in a centroid row is a root of q(s)/s only when 0 is double (q'(0) = 0,
     # as at tau1 = 0); it is then exactly 0 (as _quasi._deflated_zero decides)
     near = defl & (abs_s < 1e-6)
@@ -177,15 +179,15 @@ def _count_rows(
     P, D = rows.P, rows.D
     n = c.size
     lam, t1, t2 = rows.lam, rows.t1, rows.t2
-    with np.errstate(over="ignore", invalid="ignore"):
-        x1, x2 = np.exp(-t1 * c), np.exp(-t2 * c)
+    x1, x2 = np.exp(-t1 * c), np.exp(-t2 * c)
     A1, B1 = lam * (P * x1), lam * (D * x2)  # a = A1 e^{-i tau1 w}, b = B1 e^{-i tau2 w}
     absl = np.abs(lam)
     E1, E2 = absl * P * x1, absl * D * x2
     b1, b0 = D + E2, P + E1
     omega = (b1 + np.sqrt(b1 * b1 + 4.0 * b0)) / 2.0 * (1.0 + 1e-9) + 1e-12
     m2_slope, m2_offset = t2 * t2 * E2, 2.0 + t1 * t1 * E1 + 2.0 * t2 * E2
-    m = _INITIAL_SAMPLES
+    # few lines: the Python cost of a bisection round outweighs extra samples
+    m = _INITIAL_SAMPLES if n > 64 else 4 * _INITIAL_SAMPLES
     lo = np.where(rows.real, 0.0, -omega)
     h = (omega - lo) / (m - 1)
 
@@ -207,8 +209,7 @@ def _count_rows(
 
     w = lo + h * np.arange(m)[:, None]  # (m, n)
     k1, k2 = rotations(t1), rotations(t2)
-    with np.errstate(all="ignore"):
-        q, dq = value(c + 1j * w, k1, k2, slice(None))
+    q, dq = value(c + 1j * w, k1, k2, slice(None))
     # segments j = 0..m-2 of every line, flattened line-major
     line = np.repeat(np.arange(n), m - 1)
     seg = (slice(None, -1), slice(1, None))
@@ -245,8 +246,7 @@ def _count_rows(
         wm = wa + step[line]
         km = ka * np.exp(-1j * t1 * step)[line]
         kbm = kb * np.exp(-1j * t2 * step)[line]
-        with np.errstate(all="ignore"):
-            qm, dqm = value(c[line] + 1j * wm, km, kbm, line)
+        qm, dqm = value(c[line] + 1j * wm, km, kbm, line)
         failed[line[~np.isfinite(qm) | (qm == 0.0)]] = True
         dm = np.abs(dqm)
         line = np.concatenate([line, line])
@@ -284,9 +284,8 @@ def _certify_rows(
     real = rows.real[:, None]
     seeds = np.where(real & (seeds.imag < 0.0), np.conj(seeds), seeds)
     seeds = np.where(rows.deflate[:, None] & (np.abs(seeds) < 1e-6), -1e-2, seeds)
-    with np.errstate(invalid="ignore"):
-        top_seed = np.max(np.where(np.isfinite(seeds), seeds.real, -np.inf), axis=1)
-        seeds = np.where(seeds.real >= top_seed[:, None] - _SEED_WINDOW, seeds, np.nan)
+    top_seed = np.max(np.where(np.isfinite(seeds), seeds.real, -np.inf), axis=1)
+    seeds = np.where(seeds.real >= top_seed[:, None] - _SEED_WINDOW, seeds, np.nan)
     roots, ok = _polish_rows(seeds, rows)
     ok &= np.isfinite(seeds)
     roots = np.where(real & (roots.imag < 0.0), np.conj(roots), roots)
@@ -331,6 +330,11 @@ def _generator_blocks(N: int, t1: float, t2: float, P: float, D: float) -> tuple
     return M0.reshape(size, size), M1.reshape(size, size)
 
 
+@lru_cache(maxsize=64)
+def _norm_a(P: float, D: float) -> float:
+    return float(np.linalg.norm(np.array([[0.0, 1.0], [-P, -D]]), 2))
+
+
 def _family_seeds(lam: NDArray[np.complex128], P: float, D: float, t1: float, t2: float, k: int) -> NDArray[np.complex128]:
     """The k rightmost eigenvalues of every factor's discretized generator at one pair (F, k)."""
     hmax = max(t1, t2)
@@ -340,7 +344,11 @@ def _family_seeds(lam: NDArray[np.complex128], P: float, D: float, t1: float, t2
         disc = np.sqrt(b * b - 4.0 * c0 + 0j)
         eig = np.stack([(-b + disc) / 2.0, (-b - disc) / 2.0], axis=1)
     else:
-        radius = max(1.0, float(np.max(np.abs(lam))) * (P + D) + P + D)
+        # as _generator._root_scale: delay-free roots and the norm of A
+        b, c0 = D * (1.0 - lam), P * (1.0 - lam)
+        disc = np.sqrt(b * b - 4.0 * c0 + 0j)
+        free = max(float(np.max(np.abs(-b + disc))), float(np.max(np.abs(-b - disc)))) / 2.0
+        radius = max(1.0, free, _norm_a(P, D))
         N = int(np.clip(np.ceil(0.6 * radius * hmax + 4), 6, MAX_DEGREE))
         M0, M1 = _generator_blocks(N, float(t1), float(t2), float(P), float(D))
         if np.all(lam.imag == 0.0):
@@ -395,6 +403,7 @@ def _pad(roots: NDArray[np.complex128], k: int) -> NDArray[np.complex128]:
 # =====================================================================
 # drivers: one delay pair, a grid of delay pairs
 # =====================================================================
+@np.errstate(all="ignore")
 def family_rightmost(
     fs: Sequence[CharacteristicFactor], P: float, D: float, tau1: float, tau2: float
 ) -> NDArray[np.complex128]:
@@ -427,6 +436,7 @@ def _nearest(target: NDArray[np.int64], solved: NDArray[np.int64], axis: NDArray
     return np.where(np.abs(axis[target] - axis[lo]) <= np.abs(axis[target] - axis[hi]), lo, hi)
 
 
+@np.errstate(all="ignore")
 def family_grid(
     fs: Sequence[CharacteristicFactor], P: float, D: float,
     ax1: NDArray[np.float64], ax2: NDArray[np.float64],
