@@ -174,11 +174,17 @@ def _split_runs(
 # ===================================================================== assembling a map
 @dataclass(frozen=True)
 class _Part:
-    """One qp traced for omega > 0 with its NU weight per unit RT."""
+    """One qp traced for omega > 0 with its NU weight per unit RT.
+
+    ``lam`` is set when qp is the three-term factor of eq. factorized of that
+    eigenvalue of C (``s^2 + D s + P - lam (P z1 + D s z2)``): all such parts
+    are traced together by :mod:`delayform.analysis._family_curves`.
+    """
 
     qp: TwoDelayQuasiPolynomial
     weight: int
     factor: int
+    lam: complex | None = None
 
 
 def _conjugate(qp: TwoDelayQuasiPolynomial) -> TwoDelayQuasiPolynomial:

@@ -115,6 +115,7 @@ from delayform.analysis._count import (  # noqa: F401
     _segment_table,
     _zero_line_count,
 )
+from delayform.analysis._family_curves import family_axis_crossings, family_curves
 from delayform.analysis._phase import (  # noqa: F401
     _CHORD_TOL,
     _MAX_CHORD,
@@ -315,14 +316,24 @@ def _assemble(
         if line is not None:
             lines.append(line)
         parts.extend(qp_parts)
-    for source, part in enumerate(parts):
-        curves.extend(_part_curves(part, window, source))
+    if parts and all(p.lam is not None for p in parts):
+        # every part is a factor of eq. factorized: all traced at once (vectorized)
+        lam = np.array([complex(p.lam) for p in parts])  # type: ignore[arg-type]
+        P, D = float(parts[0].qp.g1[0].real), float(parts[0].qp.g1[1].real)
+        curves = family_curves(parts, lam, P, D, window)
+        axis2 = family_axis_crossings(parts, lam, P, D, window, axis=2)
+        axis1 = family_axis_crossings(parts, lam, P, D, window, axis=1)
+    else:
+        for source, part in enumerate(parts):
+            curves.extend(_part_curves(part, window, source))
+        axis2 = _axis_crossings(parts, window, axis=2)
+        axis1 = _axis_crossings(parts, window, axis=1)
     return StabilityMap(
         curves=tuple(curves), tau1_max=tau1_max, tau2_max=tau2_max, delay_free_count=start2,
         traced=tuple(p.qp for p in parts),
         _start1=start1,
-        _axis2=_axis_crossings(parts, window, axis=2),
-        _axis1=_axis_crossings(parts, window, axis=1),
+        _axis2=axis2,
+        _axis1=axis1,
         _zero_lines=tuple(lines),
     )
 
@@ -413,9 +424,9 @@ def stability_map(topology: Topology, P: float, D: float, tau1_max: float, tau2_
     for idx, f in enumerate(factors(topology, P, D)):
         mult = f.multiplicity
         if not f.group.is_complex_pair:
-            parts = [_Part(f.quasi_polynomial, 2 * mult, idx)]
+            parts = [_Part(f.quasi_polynomial, 2 * mult, idx, complex(f.lam))]
         else:
-            parts = [_Part(_lam_factor(f.P, f.D, lam), 2 * mult, idx) for lam in (f.lam, np.conj(f.lam))]
+            parts = [_Part(_lam_factor(f.P, f.D, lam), 2 * mult, idx, complex(lam)) for lam in (f.lam, np.conj(f.lam))]
         sources.append((f.quasi_polynomial, mult, parts))
     return _assemble(sources, t1, t2)
 
