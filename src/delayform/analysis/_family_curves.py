@@ -35,11 +35,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from delayform.analysis._phase import _MAX_POINTS, _MAX_ROUNDS, _OMEGA_FLOOR, TWO_PI, _CHORD_TOL, _MAX_CHORD
-from delayform.analysis._plane import CrossingCurve, _Part, _split_runs
+from delayform.analysis._plane import CrossingCurve, _Part
 from delayform.characteristic import tendency_sign
 
 #: Paths embedded per chunk (bounds the memory of the full-length images).
-_EMBED_CHUNK = 256
+_EMBED_CHUNK = 64
 
 
 # ===================================================================== polynomial roots, batched
@@ -202,9 +202,16 @@ def _segmented_unwrap(th: NDArray[np.float64], same: NDArray[np.bool_], first: N
     return th + cs - cs[first][pid]
 
 
+def _k_range(om: NDArray, u2: NDArray, first: NDArray[np.int64], t2max: float) -> tuple[NDArray, NDArray]:
+    """Per path, the tau2 images k that can meet [0, t2max] (as in _phase._turning_needs)."""
+    return (np.ceil(np.minimum.reduceat(-u2, first) / TWO_PI),
+            np.floor(np.maximum.reduceat(t2max * om - u2, first) / TWO_PI))
+
+
 def _turning_needs_flat(
     om: NDArray, u2: NDArray, m_om: NDArray, m2: NDArray, pid: NDArray[np.int64], first: NDArray[np.int64],
     count: NDArray[np.int64], same: NDArray[np.bool_], t2max: float, scale: float,
+    points: NDArray[np.bool_] | None = None,
 ) -> NDArray[np.bool_]:
     """:func:`delayform.analysis._phase._turning_needs` of every path, per interval j (j, j+1).
 
@@ -217,14 +224,15 @@ def _turning_needs_flat(
     need = np.zeros(max(n - 1, 0), bool)
     if n < 3:
         return need
-    k_lo = np.ceil(np.minimum.reduceat(-u2, first) / TWO_PI)
-    k_hi = np.floor(np.maximum.reduceat(t2max * om - u2, first) / TWO_PI)
+    k_lo, k_hi = _k_range(om, u2, first, t2max)
     inv = 1.0 / om
     a = np.diff(u2 * inv)                 # d_j(k) = a_j + k b_j on interval j
     b = TWO_PI * np.diff(inv)
     # the point j (1..n-2) is interior when both neighbouring intervals are on its path
     interior = np.zeros(n, bool)
     interior[1:-1] = same[:-1] & same[1:] & (count[pid[1:-1]] >= 3)
+    if points is not None:
+        interior &= points
     j = np.flatnonzero(interior)
     if j.size == 0:
         return need
@@ -290,13 +298,22 @@ def _sample_paths(paths: _Paths, window: tuple[float, float]) -> tuple[NDArray, 
     npaths = paths.lo.size
     active = np.ones(npaths, bool)
     span = paths.stop - paths.start
+    # Only intervals next to new samples are tested again (the others' tests see the
+    # same samples), unless a path's range of tau2 images grew (then all of it).
+    dirty = np.ones(max(t.size - 1, 0), bool)
+    k_prev: tuple[NDArray, NDArray] | None = None
     for _ in range(_MAX_ROUNDS):
         count = np.bincount(pid, minlength=npaths)
         first = np.concatenate([[0], np.cumsum(count)[:-1]])
         same = pid[1:] == pid[:-1]
         u1 = _segmented_unwrap(th1, same, first, pid)
         u2 = _segmented_unwrap(th2, same, first, pid)
-        iv = np.flatnonzero(same & active[pid[:-1]])
+        k_now = _k_range(om, u2, first, window[1])
+        if k_prev is not None:
+            grown = (k_now[0] < k_prev[0]) | (k_now[1] > k_prev[1])
+            dirty |= grown[pid[:-1]]
+        k_prev = k_now
+        iv = np.flatnonzero(same & dirty & active[pid[:-1]])
         if iv.size == 0:
             break
         ip = pid[iv]
@@ -307,7 +324,10 @@ def _sample_paths(paths: _Paths, window: tuple[float, float]) -> tuple[NDArray, 
         full_m_om = np.ones(max(om.size - 1, 0))
         full_m2 = np.zeros(max(om.size - 1, 0))
         full_m_om[iv], full_m2[iv] = m_om, m2
-        turn = _turning_needs_flat(om, u2, full_m_om, full_m2, pid, first, count, same, window[1], scale)
+        points = np.zeros(om.size, bool)
+        points[iv] = True
+        points[iv + 1] = True
+        turn = _turning_needs_flat(om, u2, full_m_om, full_m2, pid, first, count, same, window[1], scale, points)
         need_iv = (_chord_needs(om, u1, u2, iv, m_om, m1, m2, window, scale) | turn[iv]) & _relevant(
             om, u1, u2, iv, window
         )
@@ -330,6 +350,11 @@ def _sample_paths(paths: _Paths, window: tuple[float, float]) -> tuple[NDArray, 
             for x, xm in ((t, mid_t[need_iv]), (om, m_om[need_iv]), (th1, np.mod(m1[need_iv], TWO_PI)),
                           (th2, np.mod(m2[need_iv], TWO_PI)), (pid, ip[need_iv]))
         )
+        # intervals touching a new sample, and their neighbours (the turning test looks one further)
+        dirty = np.zeros(new_size - 1, bool)
+        for off in (-2, -1, 0, 1):
+            q = pos_mid + off
+            dirty[q[(q >= 0) & (q < new_size - 1)]] = True
     count = np.bincount(pid, minlength=npaths)
     first = np.concatenate([[0], np.cumsum(count)[:-1]])
     same = pid[1:] == pid[:-1]
@@ -405,7 +430,11 @@ def _embed_all(
     om: NDArray, u1: NDArray, u2: NDArray, pid: NDArray[np.int64], path_part: NDArray[np.int64],
     parts: Sequence[_Part], lam: NDArray[np.complex128], P: float, D: float, window: tuple[float, float],
 ) -> list[CrossingCurve]:
-    """:func:`delayform.analysis._plane._embed` of every sampled path, tendencies in one call."""
+    """:func:`delayform.analysis._plane._embed` of every sampled path, tendencies in one call.
+
+    Only the samples an image keeps (inside the window, or next to such a
+    sample) are stored, so memory follows the curve points kept.
+    """
     t1max, t2max = window
     margin1, margin2 = 0.02 * t1max, 0.02 * t2max
     count = np.bincount(pid, minlength=path_part.size)
@@ -420,42 +449,74 @@ def _embed_all(
         i_hi = int(np.floor(np.max(t1max * w - v1) / TWO_PI))
         k_lo = int(np.ceil(np.min(-v2) / TWO_PI))
         k_hi = int(np.floor(np.max(t2max * w - v2) / TWO_PI))
+        inv = 1.0 / w
         for i in range(i_lo, i_hi + 1):
             p1 = v1 + TWO_PI * i
-            tau1 = p1 / w
+            tau1 = p1 * inv
             in1 = (tau1 >= -margin1) & (tau1 <= t1max + margin1)
             if not np.any(in1):
                 continue
+            sub = np.flatnonzero(in1)
             for k in range(k_lo, k_hi + 1):
-                p2 = v2 + TWO_PI * k
-                tau2 = p2 / w
-                inside = in1 & (tau2 >= -margin2) & (tau2 <= t2max + margin2)
-                if np.any(inside):
-                    keep = inside.copy()
-                    keep[:-1] |= inside[1:]
-                    keep[1:] |= inside[:-1]
-                    images.append((p, a, b, tau1, tau2, p1, p2, inside, np.flatnonzero(keep)))
+                tau2_sub = (v2[sub] + TWO_PI * k) * inv[sub]
+                ok = (tau2_sub >= -margin2) & (tau2_sub <= t2max + margin2)
+                if not np.any(ok):
+                    continue
+                inside = np.zeros(b - a, bool)
+                inside[sub[ok]] = True
+                keep = inside.copy()
+                keep[:-1] |= inside[1:]
+                keep[1:] |= inside[:-1]
+                kept = np.flatnonzero(keep)
+                p2 = v2[kept] + TWO_PI * k
+                images.append((p, a + kept, tau1[kept], p2 * inv[kept], p1[kept], p2, inside[kept], i, k))
     if not images:
         return []
-    # tendencies only where the curves are kept (inside the window and one neighbour)
-    idx = np.concatenate([im[8] + im[1] for im in images])
-    lam_pt = np.concatenate([np.full(im[8].size, lam[path_part[im[0]]]) for im in images])
-    t1_pt = np.concatenate([im[3][im[8]] for im in images])
-    t2_pt = np.concatenate([im[4][im[8]] for im in images])
-    rt1_all, rt2_all = _tendencies(lam_pt, P, D, om[idx], t1_pt, t2_pt)
+    # tendencies of all kept samples of all images in one vectorized call
+    idx = np.concatenate([im[1] for im in images])
+    lam_pt = np.repeat(lam[path_part[[im[0] for im in images]]], [im[1].size for im in images])
+    rt1_all, rt2_all = _tendencies(lam_pt, P, D, om[idx], np.concatenate([im[2] for im in images]),
+                                   np.concatenate([im[3] for im in images]))
     curves: list[CrossingCurve] = []
     pos = 0
-    for p, a, b, tau1, tau2, p1, p2, inside, kept in images:
-        n = b - a
-        rt1 = np.zeros(n, np.int64)
-        rt2 = np.zeros(n, np.int64)
-        rt1[kept] = rt1_all[pos : pos + kept.size]
-        rt2[kept] = rt2_all[pos : pos + kept.size]
-        pos += kept.size
+    for p, gidx, tau1, tau2, p1, p2, inside, _, _ in images:
+        n = gidx.size
         part = parts[int(path_part[p])]
-        curves.extend(_split_runs(om[a:b], tau1, tau2, p1, p2, inside, (rt1, rt2), part.weight,
-                                  int(path_part[p]), part.factor))
+        curves.extend(_split_kept(gidx, om[gidx], tau1, tau2, p1, p2, (rt1_all[pos : pos + n], rt2_all[pos : pos + n]),
+                                  part.weight, int(path_part[p]), part.factor))
+        pos += n
     return curves
+
+
+def _split_kept(
+    gidx: NDArray[np.int64], om: NDArray, tau1: NDArray, tau2: NDArray, p1: NDArray, p2: NDArray,
+    rts: tuple[NDArray[np.int64], NDArray[np.int64]], weight: int, source: int, factor: int,
+) -> list[CrossingCurve]:
+    """:func:`delayform.analysis._plane._split_runs` on the kept samples (gidx: their sample indices)."""
+    i1 = np.floor(p1 / TWO_PI).astype(np.int64)
+    i2 = np.floor(p2 / TWO_PI).astype(np.int64)
+    kernel = (i1 == 0) & (i2 == 0)
+    out: list[CrossingCurve] = []
+    breaks = np.flatnonzero(np.diff(gidx) > 1) + 1
+    for lo, hi in zip(np.concatenate([[0], breaks]), np.concatenate([breaks, [gidx.size]]), strict=True):
+        if hi - lo < 2:
+            continue
+        # one piece per shift (i, k) of eq. nltrans; the last vertex is shared with the next piece
+        cut = np.flatnonzero((i1[lo + 1 : hi] != i1[lo : hi - 1]) | (i2[lo + 1 : hi] != i2[lo : hi - 1])) + 1 + lo
+        edges = np.concatenate([[lo], cut, [hi]])
+        for a, b in zip(edges[:-1], edges[1:], strict=True):
+            sel = slice(a, min(b + 1, hi))
+            if min(b + 1, hi) - a < 2:
+                continue
+            out.append(
+                CrossingCurve(
+                    tau1=tau1[sel].copy(), tau2=tau2[sel].copy(), omega=om[sel].copy(),
+                    rt1=rts[0][sel].copy(), rt2=rts[1][sel].copy(),
+                    kind="kernel" if kernel[a] else "offspring",
+                    shift=(int(i1[a]), int(i2[a])), weight=weight, source=source, factor=factor,
+                )
+            )
+    return out
 
 
 # ===================================================================== axis crossings
