@@ -23,7 +23,8 @@ def _segment_table(curves: tuple[CrossingCurve, ...]) -> NDArray[np.float64]:
     """
     rows = []
     for c in curves:
-        a, b = c.rt1[:-1], c.rt1[1:]
+        rt1 = c.rt1.astype(np.int64)  # stored as int8
+        a, b = rt1[:-1], rt1[1:]
         dy = np.diff(c.tau2)
         ext = np.zeros(c.tau2.size, bool)
         ext[1:-1] = dy[:-1] * dy[1:] < 0.0

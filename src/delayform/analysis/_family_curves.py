@@ -477,6 +477,7 @@ def _embed_all(
     lam_pt = np.repeat(lam[path_part[[im[0] for im in images]]], [im[1].size for im in images])
     rt1_all, rt2_all = _tendencies(lam_pt, P, D, om[idx], np.concatenate([im[2] for im in images]),
                                    np.concatenate([im[3] for im in images]))
+    rt1_all, rt2_all = rt1_all.astype(np.int8), rt2_all.astype(np.int8)
     curves: list[CrossingCurve] = []
     pos = 0
     for p, gidx, tau1, tau2, p1, p2, inside, _, _ in images:
@@ -511,7 +512,7 @@ def _split_kept(
             out.append(
                 CrossingCurve(
                     tau1=tau1[sel].copy(), tau2=tau2[sel].copy(), omega=om[sel].copy(),
-                    rt1=rts[0][sel].copy(), rt2=rts[1][sel].copy(),
+                    rt1=rts[0][sel].astype(np.int8), rt2=rts[1][sel].astype(np.int8),
                     kind="kernel" if kernel[a] else "offspring",
                     shift=(int(i1[a]), int(i2[a])), weight=weight, source=source, factor=factor,
                 )

@@ -35,7 +35,8 @@ class CrossingCurve:
     omega
         Crossing frequency at each point: ``s = j omega`` is a root there.
     rt1, rt2
-        Root tendencies w.r.t. tau1 and tau2 at each point (Definition "Root Tendency").
+        Root tendencies w.r.t. tau1 and tau2 at each point (Definition "Root Tendency"),
+        -1, 0 or +1 (stored as int8: large teams have millions of curve points).
     kind
         ``"kernel"`` when ``0 < omega tau_k < 2 pi`` for both delays, else ``"offspring"``.
     shift
@@ -54,8 +55,8 @@ class CrossingCurve:
     tau1: NDArray[np.float64]
     tau2: NDArray[np.float64]
     omega: NDArray[np.float64]
-    rt1: NDArray[np.int64]
-    rt2: NDArray[np.int64]
+    rt1: NDArray[np.int8]
+    rt2: NDArray[np.int8]
     kind: str
     shift: tuple[int, int]
     weight: int
@@ -162,7 +163,7 @@ def _split_runs(
                 continue
             out.append(
                 CrossingCurve(
-                    tau1=tau1[sel], tau2=tau2[sel], omega=om[sel], rt1=rts[0][sel], rt2=rts[1][sel],
+                    tau1=tau1[sel], tau2=tau2[sel], omega=om[sel], rt1=rts[0][sel].astype(np.int8), rt2=rts[1][sel].astype(np.int8),
                     kind="kernel" if kinds[a] else "offspring",
                     shift=(int(i1[sel[0]]), int(i2[sel[0]])), weight=weight, source=source,
                     factor=factor,
@@ -234,7 +235,7 @@ def _line_curves(part: _Part, window: tuple[float, float], source: int, *, verti
             t1, t2 = (a, b) if vertical else (b, a)
             w = np.array([om, om])
             rt1, rt2 = _tendency(qp, w, t1, t2)
-            out.append(CrossingCurve(t1, t2, w, rt1, rt2, "kernel" if i == 0 else "offspring",
+            out.append(CrossingCurve(t1, t2, w, rt1.astype(np.int8), rt2.astype(np.int8), "kernel" if i == 0 else "offspring",
                                      (i, 0) if vertical else (0, i), part.weight, source, part.factor))
     return out
 
