@@ -38,8 +38,9 @@ from delayform.analysis._phase import _MAX_POINTS, _MAX_ROUNDS, _OMEGA_FLOOR, TW
 from delayform.analysis._plane import CrossingCurve, _Part
 from delayform.characteristic import tendency_sign
 
-#: Paths embedded per chunk (bounds the memory of the full-length images).
-_EMBED_CHUNK = 64
+#: Samples of the paths sampled and embedded together: bounds the transient memory (about
+#: 150 bytes per sample, and 200 per curve point of their images).
+_SAMPLE_BUDGET = 120_000
 
 
 # ===================================================================== polynomial roots, batched
@@ -418,11 +419,15 @@ def family_curves(parts: Sequence[_Part], lam: NDArray[np.complex128], P: float,
     if path_part.size == 0:
         return []
     curves: list[CrossingCurve] = []
-    for lo in range(0, path_part.size, _EMBED_CHUNK):
-        sel = np.arange(lo, min(lo + _EMBED_CHUNK, path_part.size))
+    lo, chunk = 0, 8
+    while lo < path_part.size:
+        sel = np.arange(lo, min(lo + chunk, path_part.size))
         sub = _Paths(paths.lam[sel], paths.lo[sel], paths.hi[sel], paths.start[sel], paths.stop[sel], P, D)
         om, u1, u2, pid = _sample_paths(sub, window)
         curves.extend(_embed_all(om, u1, u2, pid, path_part[sel], parts, lam, P, D, window))
+        # the next chunk holds about _SAMPLE_BUDGET samples (paths of one team are alike)
+        lo += sel.size
+        chunk = int(np.clip(_SAMPLE_BUDGET * sel.size / max(om.size, 1), 8, 4096))
     return curves
 
 
@@ -475,9 +480,14 @@ def _embed_all(
     # tendencies of all kept samples of all images in one vectorized call
     idx = np.concatenate([im[1] for im in images])
     lam_pt = np.repeat(lam[path_part[[im[0] for im in images]]], [im[1].size for im in images])
-    rt1_all, rt2_all = _tendencies(lam_pt, P, D, om[idx], np.concatenate([im[2] for im in images]),
-                                   np.concatenate([im[3] for im in images]))
-    rt1_all, rt2_all = rt1_all.astype(np.int8), rt2_all.astype(np.int8)
+    t1_pt = np.concatenate([im[2] for im in images])
+    t2_pt = np.concatenate([im[3] for im in images])
+    rt1_all = np.empty(idx.size, np.int8)
+    rt2_all = np.empty(idx.size, np.int8)
+    for lo in range(0, idx.size, 65536):  # blocks: the complex temporaries stay small
+        blk = slice(lo, lo + 65536)
+        rt1_all[blk], rt2_all[blk] = _tendencies(lam_pt[blk], P, D, om[idx[blk]], t1_pt[blk], t2_pt[blk])
+    del t1_pt, t2_pt, lam_pt
     curves: list[CrossingCurve] = []
     pos = 0
     for p, gidx, tau1, tau2, p1, p2, inside, _, _ in images:
@@ -511,8 +521,8 @@ def _split_kept(
                 continue
             out.append(
                 CrossingCurve(
-                    tau1=tau1[sel].copy(), tau2=tau2[sel].copy(), omega=om[sel].copy(),
-                    rt1=rts[0][sel].astype(np.int8), rt2=rts[1][sel].astype(np.int8),
+                    tau1=tau1[sel], tau2=tau2[sel], omega=om[sel],
+                    rt1=rts[0][sel], rt2=rts[1][sel],
                     kind="kernel" if kernel[a] else "offspring",
                     shift=(int(i1[a]), int(i2[a])), weight=weight, source=source, factor=factor,
                 )
