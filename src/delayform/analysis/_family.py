@@ -471,7 +471,17 @@ def family_grid(
             np.repeat(real, pts.size), np.repeat(centroid, pts.size), P, D,
         )
         r, ok, roots = _certify_rows(rows, seeds)
-        r, ok, roots = r.reshape(F, -1), ok.reshape(F, -1), _pad(roots, _KEEP).reshape(F, pts.size, _KEEP)
+        roots = _pad(roots, _KEEP)
+        if not ok.all():  # a root the neighbours did not have: fresh discretization seeds
+            bad = np.flatnonzero(~ok)
+            fresh = np.concatenate([
+                _family_seeds(rows.lam[b : b + 1], P, D, float(rows.t1[b]), float(rows.t2[b]), 2 * _BATCH_SEEDS)
+                for b in bad
+            ])
+            fresh = np.where(rows.deflate[bad][:, None] & (np.abs(fresh) < 1e-9), np.nan, fresh)
+            r2, ok2, roots2 = _certify_rows(rows.take(bad), np.concatenate([fresh, seeds[bad]], axis=1))
+            r[bad[ok2]], ok[bad[ok2]], roots[bad[ok2]] = r2[ok2], True, _pad(roots2[ok2], _KEEP)
+        r, ok, roots = r.reshape(F, -1), ok.reshape(F, -1), roots.reshape(F, pts.size, _KEEP)
         right[:, pts], known[:, pts] = r, roots
         for k in np.flatnonzero((~ok).any(axis=1)):
             bad = pts[~ok[k]]
