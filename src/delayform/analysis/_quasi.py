@@ -229,20 +229,44 @@ def _deflated_zero(
 ) -> tuple[NDArray[np.complex128], NDArray[np.bool_]]:
     """Settle seeds that reached s ~ 0 after deflating the persistent root of eq. factor1.
 
-    Such a seed is a root of q(s)/s only when 0 is a double root (q'(0) = 0,
-    e.g. tau1 = 0 for eq. factor1); it is then snapped to exactly 0, which
-    q(s)/s cannot resolve better than sqrt(eps) by Newton. Otherwise it is
-    rejected.
+    Near 0, Newton on q(s)/s cannot resolve a root better than about
+    sqrt(eps) (q's terms cancel), so a seed that ended there is replaced by
+    the root of the Taylor model of q(s)/s at 0,
+    ``d1 + d2 s / 2 + d3 s^2 / 6`` (dk the k-th derivative of q at 0):
+    exactly 0 when 0 is a double root (d1 = 0, e.g. tau1 = 0 for
+    eq. factor1), and otherwise the small genuine root a tiny delay puts next
+    to 0 (about -P tau1 / (1 + D tau2) for eq. factor1), accurate to O(s^3).
+    A seed near 0 when that root is not (a spurious seed) is rejected.
     """
     near = np.abs(s) < 1e-6
     if not near.any():
         return s, np.ones(s.shape, dtype=bool)
     shape = np.broadcast_shapes(s.shape, np.shape(t1), np.shape(t2))
-    zero = np.zeros(shape, dtype=np.complex128)
-    _, dq0, _ = _evaluate(prob.terms, zero, np.broadcast_to(t1, shape), np.broadcast_to(t2, shape))
-    scale = sum(float(np.abs(c).sum()) for c, _, _ in prob.terms)
-    double = np.abs(dq0) <= 1e-12 * scale
-    return np.where(near & double, 0.0, s), ~near | double
+    b1, b2 = np.broadcast_to(t1, shape), np.broadcast_to(t2, shape)
+    # derivatives at 0 of the terms p(s) e^{-h s}, each summed exactly (fsum): d1 is
+    # tiny when large terms cancel, and its relative accuracy is the root's
+    parts: list[list[list[complex]]] = [[[], [], []] for _ in range(int(np.prod(shape)))]
+    for c, a, b in prob.terms:
+        p0, p1, p2, p3 = (complex(c[k]) * math.factorial(k) if k < c.size else 0j for k in range(4))
+        for idx, h in enumerate((a * b1 + b * b2).ravel().tolist()):
+            parts[idx][0] += [p1, -h * p0]
+            parts[idx][1] += [p2, -2 * h * p1, h**2 * p0]
+            parts[idx][2] += [p3, -3 * h * p2, 3 * h**2 * p1, -(h**3) * p0]
+
+    def exact(k: int) -> NDArray[np.complex128]:
+        vals = [complex(math.fsum(z.real for z in part[k]), math.fsum(z.imag for z in part[k])) for part in parts]
+        return np.array(vals, dtype=np.complex128).reshape(shape)
+
+    d1, d2, d3 = exact(0), exact(1), exact(2)
+    double = d1 == 0.0  # summed exactly: any other value is a genuine small root
+    with np.errstate(all="ignore"):
+        lin = -2.0 * d1 / d2  # root of d1 + d2 s / 2, then one correction for the cubic term
+        model = lin - (d3 / 3.0) * lin**2 / d2
+    model = np.where(double, 0.0, model)
+    # q(s)/s is about linear within 1e-5 of 0, so its only root there is the model's
+    genuine = np.isfinite(model) & (np.abs(model) < 1e-5)
+    keep = ~near | double | genuine
+    return np.where(near & keep, model, s), keep
 
 
 def _cluster(roots: NDArray[np.complex128]) -> NDArray[np.complex128]:

@@ -79,7 +79,9 @@ def _solve_rightmost(prob: _Problem, t1: float, t2: float) -> _SolveResult:
                 return _SolveResult(roots[keep], mult[keep], c, N)
         if hmax == 0.0 or N >= MAX_DEGREE:
             raise NotConvergedError(
-                f"rightmost root at (tau1, tau2) = ({t1:g}, {t2:g}) not certified up to degree {N}",
+                f"could not make sure that no characteristic root lies right of the rightmost one found "
+                f"at (tau1, tau2) = ({t1:g}, {t2:g}); roots there are too many or too close together, "
+                "try slightly different delays",
                 partial=partial,
             )
         N = min(MAX_DEGREE, 2 * N)
