@@ -47,11 +47,20 @@ def paper_grid_map():
     return grid, dominant_root_map(paper_six(), P, D, grid, grid)
 
 
-@pytest.mark.parametrize("ij", [(0, 37), (12, 5), (71, 18), (99, 99)])
+@pytest.mark.parametrize("ij", [(1, 37), (12, 5), (71, 18), (99, 99)])
 def test_continuation_map_equals_the_full_determinant(paper_grid_map, ij: tuple[int, int]) -> None:
     grid, dmap = paper_grid_map
     i, j = ij
     _check_against_determinant(paper_six(), float(grid[i]), float(grid[j]), complex(dmap.roots[i, j]))
+
+
+def test_map_row_tau1_zero_drift_by_lambert_w_equals_the_certified_path(paper_grid_map) -> None:
+    # on tau1 = 0 the centroid factor is s (s + D - D e^{-tau2 s}); the map takes the second
+    # factor's rightmost non-zero root from Lambert's W, dominant_root from the certified path
+    grid, dmap = paper_grid_map
+    for j in (0, 1, 30, 62, 99):
+        single = dominant_root(paper_six(), P, D, 0.0, float(grid[j]))
+        assert abs(single.root - dmap.roots[0, j]) < 1e-9
 
 
 def test_continuation_map_equals_batched_single_points(paper_grid_map) -> None:

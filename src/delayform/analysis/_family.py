@@ -131,14 +131,14 @@ def _polish_rows(seeds: NDArray[np.complex128], rows: _Rows) -> tuple[NDArray[np
     abs_s = np.abs(s)
     mag = (abs_s + rows.D) * abs_s + rows.P + np.abs(a) + np.abs(b) * abs_s
     ok = np.isfinite(mag) & (np.abs(q) <= RESIDUAL_TOL * mag)
-    # s ~ 0 in a centroid row is a root of q(s)/s only when 0 is double (q'(0) = 0,
-    # as at tau1 = 0); it is then exactly 0 (as _quasi._deflated_zero decides)
+    # s ~ 0 in a centroid row is a root of q(s)/s when 0 is double (q'(0) = 0, as at
+    # tau1 = 0); it is then exactly 0 (as _quasi._deflated_zero decides)
     near = defl & (abs_s < 1e-6)
     if near.any():
         lz = lam[near]
-        dq0 = rows.D + t1[near] * lz * rows.P - lz * rows.D
-        scale = 1.0 + rows.D + rows.P + np.abs(lz) * (rows.P + rows.D)
-        double = np.abs(dq0) <= 1e-12 * scale
+        # q'(0) = tau1 lam P + D (1 - lam), exactly 0 for the centroid (lam = 1) at tau1 = 0; a
+        # tiny tau1 puts a genuine root beside 0, which the generic path resolves (rejected here)
+        double = t1[near] * lz * rows.P + rows.D * (1.0 - lz) == 0.0
         s[near] = np.where(double, 0.0, s[near])
         ok[near] = double
     out = np.full(R * K, np.nan + 0j)
