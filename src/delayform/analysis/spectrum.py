@@ -655,12 +655,14 @@ def dominant_root_map(
 ) -> DominantRootMap:
     """Dominant root at every point of a delay grid (paper Figs. dominant and contour).
 
-    Fast by design: per factor, every grid point's discretized generator is
-    solved in stacked eigenvalue calls (one degree per bucket of the largest
-    delay), the rightmost eigenvalues of all points are Newton-polished
-    together and certified together by the argument principle; only the
-    points the certificate rejects are redone one by one at higher degree.
-    A conjugate-pair factor is solved through its second-order factor of lam.
+    Fast by design: all factors (a conjugate pair through its second-order
+    factor of lam) and all grid points are one vectorized family
+    (:mod:`delayform.analysis._family`). The grid is visited coarse to fine:
+    the coarsest points are seeded by the discretized generator, every later
+    point by the roots of its nearest solved point; Newton's method and the
+    argument-principle certificate run on all rows at once, and only rows the
+    certificate rejects are redone (fresh discretization seeds, then the
+    generic per-factor path). Every point is certified.
 
     Parameters
     ----------
