@@ -249,13 +249,15 @@ def _known_reals(
 
 
 def _batch_lines(
-    deflate_zero: bool | NDArray[np.bool_], roots: NDArray[np.complex128]
+    deflate_zero: bool | NDArray[np.bool_] | _Problem, roots: NDArray[np.complex128]
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """Vectorized :func:`_choose_line`: the line c, the expected count and the rightmost real part.
 
-    ``deflate_zero`` (one flag, or one per row) adds the persistent root 0 of
-    eq. factor1 to the known roots of a row.
+    ``deflate_zero`` (one flag, one per row, or a problem whose flag is read)
+    adds the persistent root 0 of eq. factor1 to the known roots of a row.
     """
+    if isinstance(deflate_zero, _Problem):
+        deflate_zero = deflate_zero.deflate_zero
     reals = roots.real  # NaN for missing
     top = np.nanmax(np.where(np.isnan(reals), -np.inf, reals), axis=1)
     if np.any(deflate_zero):

@@ -71,6 +71,9 @@ from delayform._validation import check_delay, check_gains
 # (design/scheduling.py) import from here stay importable from here
 from delayform.analysis._family import centroid_drift_roots, family_grid, family_rightmost, family_reach_scales
 from delayform.analysis._generator import (  # noqa: F401
+    _chebyshev,
+    _lagrange_rows,
+    _map_degree,
     _delay_free_eigenvalues,
     _igd_eigenvalues,
     _igd_seeds,
@@ -94,12 +97,14 @@ from delayform.analysis._quasi import (  # noqa: F401
 )
 from delayform.analysis._rightmost import (  # noqa: F401
     _BATCH_SEEDS,
+    _SEED_WINDOW,
+    _batch_distinct,
     _certify,
     _pick_rightmost,
     _rightmost_grid,
     _solve_rightmost,
 )
-from delayform.analysis.certificate import _count_right_single, _region_count  # noqa: F401
+from delayform.analysis.certificate import _batch_lines, _count_right_single, _region_count  # noqa: F401
 from delayform.characteristic import CharacteristicFactor, TwoDelayQuasiPolynomial, factors
 from delayform.errors import DelayError, InputError, NoStableDelaysError, NotConvergedError, ResourceLimitError
 from delayform.resources import require
