@@ -40,7 +40,7 @@ from delayform.characteristic import tendency_sign
 
 #: Samples of the paths sampled and embedded together: bounds the transient memory (about
 #: 150 bytes per sample, and 200 per curve point of their images).
-_SAMPLE_BUDGET = 100_000
+_SAMPLE_BUDGET = 30_000
 
 
 # ===================================================================== polynomial roots, batched
