@@ -20,6 +20,7 @@ PACKAGE = Path(delayform.__file__).parent
 #: stage of each module or subpackage (first match of the dotted prefix, longest first)
 STAGES: dict[str, int] = {
     "errors": 0,
+    "resources": 0,  # a leaf: memory and time budgets
     "_validation": 0,
     "plots": 0,  # a leaf: draws results by their attributes, imports no delayform module
     "topology": 1,

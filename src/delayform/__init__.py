@@ -55,6 +55,9 @@ _EXPORTS: dict[str, str] = {
     "simulate": "simulation",
     "Trajectory": "simulation",
     "paper_simulations": "simulation",
+    "RobotLimits": "simulation",
+    "IROBOT_CREATE": "simulation",
+    "RobotCommands": "simulation",
     # scenario files
     "load_scenario": "scenario",
     "Scenario": "scenario",

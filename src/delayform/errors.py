@@ -20,6 +20,7 @@ The tree::
     |   +-- FormationError                 desired shape of the wrong size
     |   +-- SimulationInputError           dt, duration, initial states
     |   +-- ScenarioError                  a TOML scenario file
+    |   +-- ResourceError                  a run needing more memory or time than the machine has
     +-- NotConvergedError (RuntimeError)   carries the partial result
 """
 
@@ -40,6 +41,7 @@ __all__ = [
     "FormationError",
     "SimulationInputError",
     "ScenarioError",
+    "ResourceError",
     "NotConvergedError",
 ]
 
@@ -94,6 +96,14 @@ class SimulationInputError(InputError):
 
 class ScenarioError(InputError):
     """A scenario file that is missing a field, has an unknown key or a wrong value."""
+
+
+class ResourceError(InputError):
+    """A request that would need more memory or time than the machine has.
+
+    Raised up front, before anything is computed; the one-line message says
+    how much the run would need and which setting to change.
+    """
 
 
 class NotConvergedError(DelayformError, RuntimeError):

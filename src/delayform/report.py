@@ -39,6 +39,7 @@ __all__ = [
     "map_section",
     "schedule_section",
     "simulation_section",
+    "CSV_AUTO_LIMIT",
     "settling_section",
     "scenario_sections",
     "paper_sections",
@@ -514,6 +515,10 @@ def schedule_section(
     )
 
 
+#: the CSV of a run is written by default only below this estimated size (bytes); NPZ always
+CSV_AUTO_LIMIT = 20 * 2**20
+
+
 def simulation_section(
     scenario: Scenario,
     out: Path,
@@ -523,13 +528,20 @@ def simulation_section(
     tau2: float | None = None,
     traces: bool = True,
     gif: bool = False,
+    csv: bool | None = None,
 ) -> Section:
-    """Simulate the team at one delay pair: x/y versus time, traces, CSV and NPZ, optional GIF.
+    """Simulate the team at one delay pair: paths, x/y versus time, commands, NPZ (and CSV), optional GIF.
+
+    Files (``<stem> = sim_<label>``): ``<stem>_traces.png/.svg`` x(t) and
+    y(t); ``<stem>_xy.png/.svg`` the paths in the x-y plane (with ``traces``);
+    ``<stem>.npz`` the trajectory; for robots ``<stem>_commands.png/.svg``
+    and ``<stem>_commands.npz`` (v, omega, wheel speeds); the CSV versions
+    ``<stem>.csv`` and ``<stem>_commands.csv`` when ``csv`` says so.
 
     Parameters
     ----------
     scenario
-        The validated scenario (topology, gains, delays, windows).
+        The validated scenario (topology, gains, delays, windows, robot limits).
     out
         Folder the section writes its files into.
     label
@@ -537,9 +549,12 @@ def simulation_section(
     tau1, tau2
         Delays to simulate at; the scenario's operating delays by default.
     traces
-        Also draw the traces figure (Fig. traces).
+        Also draw the paths figure (paper Fig. traces), ``<stem>_xy``.
     gif
         Also write an animated GIF (slower).
+    csv
+        Write the CSV files: True always, False never, None (default) when
+        the trajectory's CSV would be below :data:`CSV_AUTO_LIMIT`.
     """
     from delayform.simulation import simulate
 
@@ -547,66 +562,102 @@ def simulation_section(
     tau1 = scenario.tau1 if tau1 is None else tau1
     tau2 = scenario.tau2 if tau2 is None else tau2
     sim = scenario.simulation
+    limits = scenario.robot if sim.model == "unicycle" else None
     traj = simulate(
         scenario.topology, scenario.P, scenario.D, tau1, tau2, scenario.desired_positions(),
-        model=sim.model, initial_positions=scenario.initial_positions(),
+        model=sim.model, limits=limits, initial_positions=scenario.initial_positions(),
         initial_headings=scenario.initial_headings(), initial_speed=scenario.initial.speed,
         seed=scenario.initial.seed, duration=sim.duration, dt=sim.dt,
     )  # fmt: skip
     stem = f"sim_{label}"
     files: list[str] = []
     figures = []
-    fig, axes = plt.subplots(2, 1, figsize=(7.0, 6.0), sharex=True)
+    n = scenario.topology.n
+    fig, axes = plt.subplots(2, 1, figsize=(8.0 if n <= 20 else 7.0, 6.0), sharex=True)
     traj.plot_xy(ax=axes)
-    files += _save(fig, out, f"{stem}_xy")
-    figures.append(Figure(f"{stem}_xy", f"x and y versus time at {label}",
-                          f"Positions of the {scenario.topology.n} agents in x (top) and y (bottom) "
+    files += _save(fig, out, f"{stem}_traces")
+    figures.append(Figure(f"{stem}_traces", f"x and y versus time at {label}",
+                          f"Positions (m) of the {n} agents, numbered from 1, in x (top) and y (bottom) "
                           f"at (tau1, tau2) = ({tau1:g}, {tau2:g}) s."))  # fmt: skip
     if traces:
-        fig, ax = plt.subplots(figsize=(6.4, 6.0))
+        fig, ax = plt.subplots(figsize=(8.0, 6.0))
         traj.plot_traces(ax=ax)
-        files += _save(fig, out, f"{stem}_traces")
-        figures.append(Figure(f"{stem}_traces", f"Traces at {label}",
-                              "Paths of the agents into the formation; short lines mark headings at snapshots."))  # fmt: skip
-    traj.to_csv(out / f"{stem}.csv")
-    files.append(f"{stem}.csv")
-    np.savez_compressed(out / f"{stem}.npz", times=traj.times, positions=traj.positions,
-                        headings=traj.headings, speeds=traj.speeds)  # fmt: skip
+        files += _save(fig, out, f"{stem}_xy")
+        figures.append(Figure(f"{stem}_xy", f"Paths at {label}",
+                              "Paths of the agents in the plane (m) into the formation; dots mark positions at "
+                              "snapshot times with a short line along each heading; open circles the final positions."))  # fmt: skip
+    write_csv = traj.csv_bytes() <= CSV_AUTO_LIMIT if csv is None else csv
+    if write_csv:
+        traj.to_csv(out / f"{stem}.csv")
+        files.append(f"{stem}.csv")
+    traj.to_npz(out / f"{stem}.npz")
     files.append(f"{stem}.npz")
+    commands = traj.commands
+    if commands is not None:
+        fig, axes = plt.subplots(3, 1, figsize=(8.0, 7.5), sharex=True)
+        commands.plot(ax=axes)
+        files += _save(fig, out, f"{stem}_commands")
+        reference = "the robots' limits" if commands.limited else "the iRobot Create's limits, for reference"
+        figures.append(Figure(f"{stem}_commands", f"Commands of the robots at {label}",
+                              f"Speed v, turn rate omega and wheel speeds each robot executes; dashed: {reference}."))  # fmt: skip
+        commands.to_npz(out / f"{stem}_commands.npz")
+        files.append(f"{stem}_commands.npz")
+        if write_csv:
+            commands.to_csv(out / f"{stem}_commands.csv")
+            files.append(f"{stem}_commands.csv")
     if gif:
         traj.save_gif(out / f"{stem}.gif")
         files.append(f"{stem}.gif")
         figures.append(Figure(f"{stem}", f"The robots moving into formation at {label}",
                               "Animation of the simulated positions and headings.", animated=True))  # fmt: skip
     settling = float(traj.settling_time)
+    limits_text = commands.summary() if commands is not None else None
     summary = {
         "label": label, "tau1": tau1, "tau2": tau2, "model": sim.model,
         "duration": sim.duration, "dt": sim.dt,
+        "status": traj.status, "warnings": list(traj.warnings),
         "settling_time": settling,
         "initial_error": float(traj.formation_error[0]),
         "final_error": float(traj.formation_error[-1]),
         "min_distance": float(traj.min_distance),
         "final_centroid": np.asarray(traj.final_centroid),
-        "regularised_steps": int(traj.regularisation_count),
+        "robot_limits": None if limits is None else limits.describe(),
+        "limits_exceeded": limits_text,
+        "csv_written": bool(write_csv),
     }  # fmt: skip
-    table = (
+    if traj.status == "settled":
+        settled_text = f"{_fmt(settling)} s"
+    elif traj.status == "not settled":
+        settled_text = f"not within {sim.duration:g} s"
+    else:
+        settled_text = f"no: {traj.status}"
+    table = [
         ("delays (tau1, tau2)", f"({tau1:g}, {tau2:g}) s"),
-        ("model", sim.model),
-        ("settling time (2 %)", f"{_fmt(settling)} s" if np.isfinite(settling) else f"not within {sim.duration:g} s"),
-        ("final formation error", _fmt(summary["final_error"])),
-        ("closest approach of two agents", _fmt(summary["min_distance"])),
-    )
+        ("model", sim.model + ("" if commands is None else (", with limits" if commands.limited else ", ideal robots"))),
+        ("settling time (2 %)", settled_text),
+        ("final formation error", f"{_fmt(summary['final_error'])} m"),
+        ("closest approach of two agents", f"{_fmt(summary['min_distance'])} m"),
+    ]
+    if commands is not None:
+        table.append(("beyond the limits" if commands.limited else "beyond an iRobot Create's limits", limits_text))
+    table += [("warning", w) for w in traj.warnings]
+    if not write_csv:
+        table.append(("CSV", "not written (large run): NPZ only; use --csv to force it"))
+    robots = "double-integrator agents"
+    if sim.model == "unicycle":
+        robots = ("differential-drive robots with actuator limits (saturated unicycle)" if limits is not None
+                  else "ideal differential-drive robots (unicycle, feedback linearization eq. transform2)")  # fmt: skip
     return Section(
         key=f"simulation_{label}",
         title=f"Simulation at {label}: (tau1, tau2) = ({tau1:g}, {tau2:g}) s",
         text=(
-            f"{scenario.topology.n} {'differential-drive robots (unicycle, feedback linearization eq. transform2)' if sim.model == 'unicycle' else 'double-integrator agents'} "
+            f"{n} {robots} "
             f"start from {'random' if scenario.initial.positions is None else 'given'} positions "
-            f"(seed {scenario.initial.seed}) with speed {scenario.initial.speed:g} and move into the "
+            f"(seed {scenario.initial.seed}) with speed {scenario.initial.speed:g} m/s and move into the "
             f"{scenario.formation.describe()} formation over {sim.duration:g} s (step {sim.dt:g} s)."
         ),
         figures=tuple(figures),
-        table=table,
+        table=tuple(table),
         summary=summary,
         files=tuple(files),
     )
