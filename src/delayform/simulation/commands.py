@@ -55,6 +55,9 @@ class LimitExceedance:
         Number of (robot, sample) pairs beyond the limit.
     first_time
         First time any robot exceeded this limit (s).
+    held
+        True for a saturated robot held back by its speed limit (``needed``
+        is then its speed there).
     """
 
     limit_name: str
@@ -65,10 +68,16 @@ class LimitExceedance:
     unit: str
     samples: int
     first_time: float
+    held: bool = False
 
     @property
     def sentence(self) -> str:
         """``"robot 3 needs 2.7 rad/s turn rate at t = 0.4 s; the limit is 1.5"``."""
+        if self.held:
+            return (
+                f"robot {self.robot} is held back by the speed limit {self.limit:.3g} {self.unit} "
+                f"from t = {self.time:.3g} s"
+            )
         need = f"{self.needed:.3g} {self.unit}" if math.isfinite(self.needed) else "an unbounded"
         return (
             f"robot {self.robot} needs {need} {self.limit_name} at t = {self.time:.3g} s; "
@@ -100,6 +109,9 @@ class RobotCommands:
         Geometry (and limits) the wheel speeds and checks use.
     limited
         True when the run integrated the saturated robot.
+    speed_held
+        ``(T, n)`` booleans of a saturated run: the speed limit held the
+        robot back (cut its demanded acceleration); None for ideal robots.
     """
 
     times: _Array
@@ -112,6 +124,7 @@ class RobotCommands:
     ideal_acceleration: _Array
     robot: RobotLimits
     limited: bool = False
+    speed_held: _Array | None = None
 
     @classmethod
     def from_motion(
@@ -125,6 +138,7 @@ class RobotCommands:
         ideal_turn_rate: _Array | None = None,
         ideal_acceleration: _Array | None = None,
         limited: bool = False,
+        speed_held: _Array | None = None,
     ) -> RobotCommands:
         """Commands with wheel speeds computed for ``robot``.
 
@@ -138,6 +152,8 @@ class RobotCommands:
             What eq. transform2 asked for; default: the executed values.
         limited
             Whether the run was saturated.
+        speed_held
+            Where the speed limit held a saturated robot back.
         """
         left, right = wheel_speeds(speed, turn_rate, robot)
         return cls(
@@ -145,7 +161,7 @@ class RobotCommands:
             wheel_left=left, wheel_right=right,
             ideal_turn_rate=turn_rate if ideal_turn_rate is None else ideal_turn_rate,
             ideal_acceleration=acceleration if ideal_acceleration is None else ideal_acceleration,
-            robot=robot, limited=limited,
+            robot=robot, limited=limited, speed_held=speed_held,
         )  # fmt: skip
 
     @property
@@ -184,13 +200,21 @@ class RobotCommands:
         out = []
         for name, (values, limit, unit) in self.needed(limits).items():
             beyond = values > limit * (1 + 1e-9)
+            if name == "speed" and self.speed_held is not None and limits is None:
+                # a saturated robot never exceeds its speed: say where the limit held it back
+                beyond = self.speed_held.astype(bool)
+                values = np.where(beyond, values, -np.inf)
             if not beyond.any():
                 continue
             ratio = np.where(beyond, values, -np.inf)
             k, i = np.unravel_index(int(np.argmax(ratio)), ratio.shape)
             first = int(np.flatnonzero(beyond.any(axis=1))[0])
+            held = name == "speed" and self.speed_held is not None and limits is None
+            if held:  # the first time the limit held a robot back, not the worst
+                k = first
+                i = int(np.flatnonzero(beyond[k])[0])
             out.append(LimitExceedance(name, int(i) + 1, float(self.times[k]), float(values[k, i]),
-                                       limit, unit, int(beyond.sum()), float(self.times[first])))  # fmt: skip
+                                       limit, unit, int(beyond.sum()), float(self.times[first]), held))  # fmt: skip
         return tuple(out)
 
     def summary(self, limits: RobotLimits | None = None) -> str:

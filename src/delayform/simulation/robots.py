@@ -74,6 +74,12 @@ class RobotLimits:
         instead of ``e_perp . u / v``; s turns the robot's axis towards the
         line of u at rest): the robot turns on the spot when it must, and the
         heading loop stays smooth through v = 0 (docs/theory.md).
+    turn_time_constant
+        Fastest heading response (s) the controller asks for: the softening
+        speed grows to ``|u| turn_time_constant`` when the demanded
+        acceleration u is large, so the heading loop's rate stays below
+        ``1 / turn_time_constant`` (a real robot's heading loop has a finite
+        bandwidth; a fixed step must resolve it).
 
     See :data:`IROBOT_CREATE` for defaults of the paper's robot.
     """
@@ -85,6 +91,7 @@ class RobotLimits:
     max_turn_rate: float = 2 * 0.5 / 0.258
     max_acceleration: float = 0.5
     slow_speed: float = 0.05
+    turn_time_constant: float = 0.05
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -210,7 +217,8 @@ class LimitedUnicycle:
     """State rows (x, y, theta, v): eq. transform2 with saturated inputs.
 
     The wanted turn rate is the softened eq. transform2
-    (:attr:`RobotLimits.slow_speed`) clipped to ``max_turn_rate``. The
+    (:attr:`RobotLimits.slow_speed`, :attr:`RobotLimits.turn_time_constant`)
+    clipped to ``max_turn_rate``. The
     commanded acceleration is ``clip(e . u, +-max_acceleration)``, faded to
     zero as |v| approaches the speed cap while it would push |v| beyond it
     (factor ``1 - (|v| / cap)^8``); turning has priority over speed: where
@@ -223,7 +231,7 @@ class LimitedUnicycle:
     """
 
     name = "unicycle"
-    extras = ("dv_dt", "omega", "ideal_dv_dt", "ideal_omega")
+    extras = ("dv_dt", "omega", "ideal_dv_dt", "ideal_omega", "speed_held")
 
     def __init__(self, x0: _Array, theta0: _Array, speed0: _Array, limits: RobotLimits) -> None:
         self.state0 = np.column_stack([x0, theta0, speed0])
@@ -235,10 +243,11 @@ class LimitedUnicycle:
         return state[:, 3:4] * np.column_stack([np.cos(th), np.sin(th)])
 
     def rhs(self, state: _Array, u: _Array) -> tuple[_Array, _Array, tuple[_Array, ...]]:
-        """(state derivative, Cartesian acceleration, (dv/dt, omega, demanded dv/dt, demanded omega)).
+        """(state derivative, Cartesian acceleration, extras).
 
-        The demands are the controller's commands before the limits: ``e . u``
-        and the softened eq. transform2 turn rate.
+        Extras: executed dv/dt and omega; the controller's demands before the
+        limits (``e . u`` and the softened eq. transform2 turn rate); 1.0
+        where the speed limit cut the demanded acceleration by more than 1 %.
         """
         lim = self.limits
         th, v = state[:, 2], state[:, 3]
@@ -248,10 +257,12 @@ class LimitedUnicycle:
         cap = lim.speed_cap
         accel = np.clip(along, -lim.max_acceleration, lim.max_acceleration)
         outward = accel * v > 0.0
-        accel = accel * np.where(outward, np.clip(1.0 - (np.abs(v) / cap) ** 8, 0.0, 1.0), 1.0)
-        vs = lim.slow_speed
+        fade = np.where(outward, np.clip(1.0 - (np.abs(v) / cap) ** 8, 0.0, 1.0), 1.0)
+        accel = accel * fade
+        size2 = u[:, 0] ** 2 + u[:, 1] ** 2
+        vs = np.sqrt(lim.slow_speed**2 + lim.turn_time_constant**2 * size2)
         # towards the line of u at rest: +1 when u is ahead, -1 when behind (then reverse)
-        toward = along / np.sqrt(u[:, 0] ** 2 + u[:, 1] ** 2 + 1e-24)
+        toward = along / np.sqrt(size2 + 1e-24)
         demand = across * (v + toward * vs) / (v * v + vs * vs)  # eq. transform2, second row, softened
         wanted = np.clip(demand, -lim.max_turn_rate, lim.max_turn_rate)
         # Both wheels at full speed leave no room to turn: the turn comes first, so a
@@ -265,4 +276,4 @@ class LimitedUnicycle:
         deriv = np.column_stack([v * c, v * s, omega, accel])
         vw = v * omega
         cart = np.column_stack([accel * c - vw * s, accel * s + vw * c])
-        return deriv, cart, (accel, omega, along, demand)
+        return deriv, cart, (accel, omega, along, demand, (fade < 0.99).astype(float))

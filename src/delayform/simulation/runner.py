@@ -338,6 +338,7 @@ def _trajectory(
         commands = RobotCommands.from_motion(
             times, spd, ex["omega"], ex["dv_dt"], limits,
             ideal_turn_rate=ex["ideal_omega"], ideal_acceleration=ex["ideal_dv_dt"], limited=True,
+            speed_held=ex["speed_held"] > 0.5,
         )  # fmt: skip
     error = formation_error(pos, desired)
     settled = settling_time(times, error, 1.0 + float(np.abs(pos[0]).max()))
