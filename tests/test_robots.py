@@ -125,7 +125,7 @@ def test_saturated_run_matches_error_controlled_integration_at_second_order():
 def test_paper_robots_with_create_limits_converge_in_the_step_and_respect_every_limit():
     topo = paper_six()
     desired = named_formation("hexagon", 6, spacing=2.0)
-    kw = dict(duration=8.0, seed=0, limits=IROBOT_CREATE)
+    kw = dict(duration=5.0, seed=0, limits=IROBOT_CREATE)
     coarse = simulate(topo, P, D, *POINT_A, desired, dt=0.01, **kw)
     fine = simulate(topo, P, D, *POINT_A, desired, dt=0.001, save_every=10, **kw)
     np.testing.assert_allclose(fine.times, coarse.times)
