@@ -529,6 +529,7 @@ def simulation_section(
     traces: bool = True,
     gif: bool = False,
     csv: bool | None = None,
+    progress: MapProgress | None = None,
 ) -> Section:
     """Simulate the team at one delay pair: paths, x/y versus time, commands, NPZ (and CSV), optional GIF.
 
@@ -555,6 +556,8 @@ def simulation_section(
     csv
         Write the CSV files: True always, False never, None (default) when
         the trajectory's CSV would be below :data:`CSV_AUTO_LIMIT`.
+    progress
+        Optional callback ``(steps done, steps)`` while the run is integrated.
     """
     from delayform.simulation import simulate
 
@@ -567,7 +570,7 @@ def simulation_section(
         scenario.topology, scenario.P, scenario.D, tau1, tau2, scenario.desired_positions(),
         model=sim.model, limits=limits, initial_positions=scenario.initial_positions(),
         initial_headings=scenario.initial_headings(), initial_speed=scenario.initial.speed,
-        seed=scenario.initial.seed, duration=sim.duration, dt=sim.dt,
+        seed=scenario.initial.seed, duration=sim.duration, dt=sim.dt, progress=progress,
     )  # fmt: skip
     stem = f"sim_{label}"
     files: list[str] = []

@@ -11,8 +11,8 @@ import click
 from delayform.cli._common import (
     POSITIVE,
     _emit,
+    _inner_progress,
     _out_dir,
-    _progress,
     _scenario,
     cli,
     scenario_options,
@@ -89,9 +89,8 @@ def simulate_command(scenario: Path | None, model: str | None, duration: float |
     sc = replace(sc, simulation=sim, robot=robot,
                  initial=replace(sc.initial, seed=sc.initial.seed if seed is None else seed))  # fmt: skip
     directory = _out_dir(out, sc)
-    with _progress(1, title="simulate") as step:
-        step(f"{sim.model}, {sim.duration:g} s")
-        section = simulation_section(sc, directory, gif=gif, csv=csv)
+    with _inner_progress(f"simulate {sim.model}, {sim.duration:g} s (steps)") as callback:
+        section = simulation_section(sc, directory, gif=gif, csv=csv, progress=callback)
     _emit(section, directory, as_json=as_json)
     if section.summary["status"] in ("diverging", "stopped"):
         for warning in section.summary["warnings"]:

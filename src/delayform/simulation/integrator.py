@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from collections.abc import Callable
 from typing import Any, Protocol
 
 import numpy as np
@@ -53,9 +54,12 @@ _Array = NDArray[np.float64]
 BLOWUP = 1e8
 
 #: the blocked linear path multiplies matrices of at most this many rows (block x 3 n)
-_BLOCK_ROWS = 1024
+_BLOCK_ROWS = 96
 
 _STAGE_C = (0.0, 0.5, 0.5, 1.0)
+
+#: called with (steps done, steps in all) while a run is integrated
+Progress = Callable[[int, int], None]
 
 
 def stated_order(tau1: float, tau2: float, dt: float) -> int:
@@ -238,8 +242,12 @@ def integrate(
     dt: float,
     steps: int,
     save_every: int,
+    progress: Progress | None = None,
 ) -> Samples:
-    """RK4 with Hermite look-ups of the delayed terms (module doc), stage by stage."""
+    """RK4 with Hermite look-ups of the delayed terms (module doc), stage by stage.
+
+    ``progress(done, steps)`` is called every 1000 steps when given.
+    """
     n = F.shape[0]
     look1, look2 = _lookups(tau1, tau2, dt)
     state = agent.state0
@@ -276,6 +284,8 @@ def integrate(
         return agent.rhs(st, u)
 
     for k in range(steps + 1):
+        if progress is not None and k % 1000 == 0:
+            progress(k, steps)
         hist.store_state(k, cx, cv)
         k1, accel, extra = stage(k, 0, state)
         hist.store_accel(k, C @ accel)
@@ -431,6 +441,7 @@ def integrate_linear(
     dt: float,
     steps: int,
     save_every: int,
+    progress: Progress | None = None,
 ) -> Samples | None:
     """The RK4 of :func:`integrate` for double integrators, advanced in blocks of steps.
 
@@ -450,7 +461,7 @@ def integrate_linear(
     step, about as much as saving every step).
 
     Returns None where this path does not apply (a first-stage read of the
-    current step).
+    current step). ``progress(done, steps)`` is called every 256 blocks when given.
     """
     n = F.shape[0]
     look1, look2 = _lookups(tau1, tau2, dt)
@@ -512,7 +523,9 @@ def integrate_linear(
         cols = 2 * n if per_agent else 2
         still = np.tile(B.reshape(1, 6 * n), (block, 1))  # d without delayed reads
         checked = start  # records up to r_checked are known to be below the blow-up limit
-        for k in range(start, stop, block):
+        for b, k in enumerate(range(start, stop, block)):
+            if progress is not None and b % 256 == 0:
+                progress(k, steps)
             m = min(block, stop - k)
             r = pad + k
             d = still[:m]

@@ -54,6 +54,7 @@ from delayform.formation import (
 from delayform.resources import check_budget
 from delayform.simulation.commands import RobotCommands
 from delayform.simulation.integrator import (
+    Progress,
     Samples,
     effective_delay,
     history_steps,
@@ -90,7 +91,7 @@ _DENSE_AGENTS = 64
 _SAVE_BUDGET = 2_000_000
 
 #: the linear path keeps every step's record; above this many bytes the generic loop runs
-_LINEAR_BYTES = 2 * 2**30
+_LINEAR_BYTES = 6 * 2**30
 
 _Array = NDArray[np.float64]
 
@@ -188,6 +189,7 @@ def simulate(
     dt: float,
     rest_speed: float = REST_SPEED,
     save_every: int | None = None,
+    progress: Progress | None = None,
 ) -> Trajectory:
     """Simulate n agents under eq. formation with delays tau1 (positions) and tau2 (velocities).
 
@@ -228,6 +230,8 @@ def simulate(
     save_every
         Keep every ``save_every``-th step; default: every step while
         ``samples x n <= 2e6``, else the smallest stride that fits.
+    progress
+        Optional callback ``progress(steps_done, steps)``, called now and then.
 
     Returns
     -------
@@ -297,12 +301,15 @@ def simulate(
     F = formation_forcing(topology, P, desired)
     run: Samples | None = None
     if limits is not None:
-        run = integrate(LimitedUnicycle(x0, th0, speed0, limits), C, F, P, D, eff1, eff2, dt, steps, save_every)
+        agent = LimitedUnicycle(x0, th0, speed0, limits)
+        run = integrate(agent, C, F, P, D, eff1, eff2, dt, steps, save_every, progress)
     else:
         if linear:
-            run = integrate_linear(x0, v0, C, F, P, D, eff1, eff2, dt, steps, save_every)
+            run = integrate_linear(x0, v0, C, F, P, D, eff1, eff2, dt, steps, save_every, progress)
         if run is None:
-            run = integrate(DoubleIntegrator(x0, v0), C, F, P, D, eff1, eff2, dt, steps, save_every)
+            run = integrate(DoubleIntegrator(x0, v0), C, F, P, D, eff1, eff2, dt, steps, save_every, progress)
+    if progress is not None:
+        progress(steps, steps)
     return _trajectory(topology, desired, model, limits, P, D, tau1, tau2, dt, duration, th0, run, rest_speed)
 
 
