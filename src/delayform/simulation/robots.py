@@ -239,8 +239,11 @@ class LimitedUnicycle:
 
     @staticmethod
     def velocity(state: _Array) -> _Array:
-        th = state[:, 2]
-        return state[:, 3:4] * np.column_stack([np.cos(th), np.sin(th)])
+        th, v = state[:, 2], state[:, 3]
+        out = np.empty((state.shape[0], 2))
+        np.multiply(v, np.cos(th), out=out[:, 0])
+        np.multiply(v, np.sin(th), out=out[:, 1])
+        return out
 
     def rhs(self, state: _Array, u: _Array) -> tuple[_Array, _Array, tuple[_Array, ...]]:
         """(state derivative, Cartesian acceleration, extras).
@@ -249,31 +252,42 @@ class LimitedUnicycle:
         limits (``e . u`` and the softened eq. transform2 turn rate); 1.0
         where the speed limit cut the demanded acceleration by more than 1 %.
         """
+        # np.minimum / np.maximum instead of np.clip: for a handful of robots the
+        # call overhead, not the arithmetic, is the cost of a step.
+        lo, hi = np.maximum, np.minimum
         lim = self.limits
         th, v = state[:, 2], state[:, 3]
         c, s = np.cos(th), np.sin(th)
-        along = c * u[:, 0] + s * u[:, 1]  # eq. transform2, first row
-        across = -s * u[:, 0] + c * u[:, 1]
-        cap = lim.speed_cap
-        accel = np.clip(along, -lim.max_acceleration, lim.max_acceleration)
-        outward = accel * v > 0.0
-        fade = np.where(outward, np.clip(1.0 - (np.abs(v) / cap) ** 8, 0.0, 1.0), 1.0)
+        ux, uy = u[:, 0], u[:, 1]
+        along = c * ux + s * uy  # eq. transform2, first row
+        across = c * uy - s * ux
+        speed = np.abs(v)
+        amax = lim.max_acceleration
+        accel = hi(lo(along, -amax), amax)
+        fade = np.where(accel * v > 0.0, lo(1.0 - (speed / lim.speed_cap) ** 8, 0.0), 1.0)
         accel = accel * fade
-        size2 = u[:, 0] ** 2 + u[:, 1] ** 2
+        size2 = ux * ux + uy * uy
         vs = np.sqrt(lim.slow_speed**2 + lim.turn_time_constant**2 * size2)
         # towards the line of u at rest: +1 when u is ahead, -1 when behind (then reverse)
         toward = along / np.sqrt(size2 + 1e-24)
         demand = across * (v + toward * vs) / (v * v + vs * vs)  # eq. transform2, second row, softened
-        wanted = np.clip(demand, -lim.max_turn_rate, lim.max_turn_rate)
+        wanted = hi(lo(demand, -lim.max_turn_rate), lim.max_turn_rate)
         # Both wheels at full speed leave no room to turn: the turn comes first, so a
         # robot faster than the wheels allow for the wanted turn brakes (ramp over 0.1 s).
         rim = lim.wheel_radius * lim.max_wheel_speed
-        allowed = np.maximum(rim - 0.5 * lim.axle_length * np.abs(wanted), 0.0)
-        brake = np.clip((np.abs(v) - allowed) / (0.1 * lim.max_acceleration), 0.0, 1.0)
-        accel = (1.0 - brake) * accel - brake * np.sign(v) * lim.max_acceleration
-        turn_cap = np.clip(2.0 * (rim - np.abs(v)) / lim.axle_length, 0.0, lim.max_turn_rate)
-        omega = np.clip(wanted, -turn_cap, turn_cap)
-        deriv = np.column_stack([v * c, v * s, omega, accel])
+        allowed = lo(rim - 0.5 * lim.axle_length * np.abs(wanted), 0.0)
+        brake = hi(lo((speed - allowed) / (0.1 * amax), 0.0), 1.0)
+        accel = (1.0 - brake) * accel - brake * np.sign(v) * amax
+        turn_cap = hi(lo(2.0 * (rim - speed) / lim.axle_length, 0.0), lim.max_turn_rate)
+        omega = hi(lo(wanted, -turn_cap), turn_cap)
+        n = v.shape[0]
+        deriv = np.empty((n, 4))
+        deriv[:, 0] = v * c
+        deriv[:, 1] = v * s
+        deriv[:, 2] = omega
+        deriv[:, 3] = accel
         vw = v * omega
-        cart = np.column_stack([accel * c - vw * s, accel * s + vw * c])
+        cart = np.empty((n, 2))
+        cart[:, 0] = accel * c - vw * s
+        cart[:, 1] = accel * s + vw * c
         return deriv, cart, (accel, omega, along, demand, (fade < 0.99).astype(float))
