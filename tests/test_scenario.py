@@ -176,11 +176,16 @@ def test_paper_example_file_is_the_embedded_default() -> None:
                                np.sort_complex(paper_six().eigenvalues))
 
 
-@pytest.mark.parametrize("name", ["paper", "ring12", "random50"])
+@pytest.mark.parametrize("name", ["paper", "ring12", "random50", "paper_create"])
 def test_shipped_examples_load(name: str) -> None:
     s = load_scenario(EXAMPLES / f"{name}.toml")
     assert s.name == name
     assert s.topology.has_spanning_tree()
+    assert (s.robot is not None) == (name == "paper_create")
+    if s.robot is not None:
+        from delayform.simulation import IROBOT_CREATE
+
+        assert s.robot.max_speed == IROBOT_CREATE.max_speed and s.robot.axle_length == IROBOT_CREATE.axle_length
 
 
 def test_overrides_are_checked() -> None:
