@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from delayform.errors import ResourceError, SimulationInputError
+from delayform.errors import ResourceLimitError, SimulationInputError
 from delayform.formation import formation_forcing, named_formation
 from delayform.simulation import IROBOT_CREATE, RobotCommands, RobotLimits, simulate
 from delayform.topology import complete, paper_six
@@ -222,7 +222,7 @@ def test_runs_beyond_the_machine_are_refused_up_front(kwargs, setting):
     import time
 
     start = time.perf_counter()
-    with pytest.raises(ResourceError, match=setting) as info:
+    with pytest.raises(ResourceLimitError, match=setting) as info:
         simulate(paper_six(), P, D, *POINT_A, "hexagon", **kwargs)
     assert time.perf_counter() - start < 5.0
     assert "\n" not in str(info.value) and "would" in str(info.value)

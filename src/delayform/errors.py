@@ -20,7 +20,7 @@ The tree::
     |   +-- FormationError                 desired shape of the wrong size
     |   +-- SimulationInputError           dt, duration, initial states
     |   +-- ScenarioError                  a TOML scenario file
-    |   +-- ResourceError                  a run needing more memory or time than the machine has
+    |   +-- ResourceLimitError             a job larger than the machine's memory or time budget
     +-- NotConvergedError (RuntimeError)   carries the partial result
 """
 
@@ -41,7 +41,7 @@ __all__ = [
     "FormationError",
     "SimulationInputError",
     "ScenarioError",
-    "ResourceError",
+    "ResourceLimitError",
     "NotConvergedError",
 ]
 
@@ -98,11 +98,11 @@ class ScenarioError(InputError):
     """A scenario file that is missing a field, has an unknown key or a wrong value."""
 
 
-class ResourceError(InputError):
-    """A request that would need more memory or time than the machine has.
+class ResourceLimitError(InputError):
+    """A job that would need more memory or time than the machine has or the budget allows.
 
-    Raised up front, before anything is computed; the one-line message says
-    how much the run would need and which setting to change.
+    Raised before the job starts (see :mod:`delayform.resources`); the
+    message says how much would be needed and which setting to change.
     """
 
 

@@ -1,105 +1,170 @@
-"""Memory and time budgets: refuse a request up front instead of running out of memory.
+"""A memory and time budget guard, checked before a job starts.
 
-A computation that can be asked for arbitrarily large arrays or run times
-estimates what it needs and calls :func:`check_budget` before it allocates
-anything. The memory budget is the memory available on the machine now
-(free physical pages from ``os.sysconf``; page cache the kernel could
-release is not counted, so the estimate errs on the safe side); the time budget is :data:`MAX_SECONDS` unless the caller
-gives one. This module is a leaf: it imports only :mod:`delayform.errors`.
+Every computation that a user can make arbitrarily large (a grid of
+10^5 x 10^5 delay pairs, a chart window reaching a delay of 10^6 s, a long
+simulation with a tiny step) first estimates what it would need, and
+:func:`require` refuses it up front with one line, saying how much it would
+need, what this machine has and which setting to change, instead of running
+into the out-of-memory killer or hanging without a word.
+
+The limits:
+
+* memory: a fraction (:data:`MEMORY_FRACTION`) of the machine's physical
+  memory, read with ``os.sysconf``; ``DELAYFORM_MEMORY_LIMIT`` (bytes, or with
+  a suffix K, M, G) overrides it, e.g. for a container smaller than the host;
+* time: :data:`DEFAULT_TIME_BUDGET` seconds, overridden by
+  ``DELAYFORM_TIME_BUDGET`` (seconds).
+
+Estimates are deliberately rough (a factor of two either way): the guard is
+for jobs that are off by orders of magnitude, not for tuning.
+
+Examples
+--------
+>>> require(what="a test job", nbytes=1024, seconds=0.1, setting="nothing")
+>>> format_bytes(3 * 2**30)
+'3 GiB'
 """
 
 from __future__ import annotations
 
+import math
 import os
 
-from delayform.errors import ResourceError
+from delayform.errors import ResourceLimitError
 
-__all__ = ["MAX_SECONDS", "available_memory", "check_budget", "describe_bytes"]
+__all__ = [
+    "MEMORY_FRACTION",
+    "DEFAULT_TIME_BUDGET",
+    "memory_limit",
+    "time_budget",
+    "require",
+    "format_bytes",
+    "format_seconds",
+]
 
-#: default longest run a single request may take (s) before it is refused
-MAX_SECONDS = 3600.0
+#: share of the physical memory one job may plan to use (the rest: the OS, other processes, copies)
+MEMORY_FRACTION = 0.75
 
-#: share of the available memory one request may take
-_MEMORY_SHARE = 0.8
+#: seconds a single command may plan to run before it is refused (one hour)
+DEFAULT_TIME_BUDGET = 3600.0
+
+_SUFFIX = {"": 1, "K": 2**10, "M": 2**20, "G": 2**30, "T": 2**40}
 
 
-def available_memory() -> int:
-    """Bytes of memory available to a new allocation now (an estimate).
-
-    >>> available_memory() > 0
-    True
-    """
+def _physical_memory() -> int:
     try:
-        return int(os.sysconf("SC_AVPHYS_PAGES")) * int(os.sysconf("SC_PAGE_SIZE"))
-    except (ValueError, OSError, AttributeError):  # not POSIX: no way to tell, assume 8 GiB
+        return int(os.sysconf("SC_PAGE_SIZE")) * int(os.sysconf("SC_PHYS_PAGES"))
+    except (ValueError, OSError, AttributeError):  # not POSIX: assume a modest machine
         return 8 * 2**30
 
 
-def describe_bytes(nbytes: float) -> str:
-    """A byte count for people: ``'1.5 GiB'``.
+def memory_limit() -> int:
+    """Bytes one job may use: ``DELAYFORM_MEMORY_LIMIT`` or a share of physical memory.
+
+    Returns
+    -------
+    int
+        The limit in bytes.
+
+    Raises
+    ------
+    ResourceLimitError
+        When ``DELAYFORM_MEMORY_LIMIT`` is set but is not a size like ``4G``.
+    """
+    text = os.environ.get("DELAYFORM_MEMORY_LIMIT", "").strip().upper().removesuffix("B").removesuffix("I")
+    if not text:
+        return int(MEMORY_FRACTION * _physical_memory())
+    unit = text[-1] if text[-1] in _SUFFIX else ""
+    try:
+        value = float(text[: len(text) - len(unit)]) * _SUFFIX[unit]
+    except ValueError:
+        value = math.nan
+    if not math.isfinite(value) or value <= 0:
+        raise ResourceLimitError(f"DELAYFORM_MEMORY_LIMIT must be a size like 4G, got {os.environ['DELAYFORM_MEMORY_LIMIT']!r}")
+    return int(value)
+
+
+def time_budget() -> float:
+    """Seconds one job may plan to run: ``DELAYFORM_TIME_BUDGET`` or :data:`DEFAULT_TIME_BUDGET`.
+
+    Returns
+    -------
+    float
+        The budget in seconds.
+
+    Raises
+    ------
+    ResourceLimitError
+        When ``DELAYFORM_TIME_BUDGET`` is set but is not a positive number.
+    """
+    text = os.environ.get("DELAYFORM_TIME_BUDGET", "").strip()
+    if not text:
+        return DEFAULT_TIME_BUDGET
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not math.isfinite(value) or value <= 0:
+        raise ResourceLimitError(f"DELAYFORM_TIME_BUDGET must be a positive number of seconds, got {text!r}")
+    return value
+
+
+def format_bytes(nbytes: float) -> str:
+    """A size for a message: ``'512 MiB'``, ``'3 GiB'``, ``'7.5e+04 TiB'``.
 
     Parameters
     ----------
     nbytes
-        Number of bytes.
-
-    >>> describe_bytes(3 * 2**30)
-    '3.0 GiB'
+        The size in bytes.
     """
-    value = float(nbytes)
-    for unit in ("B", "KiB", "MiB", "GiB", "TiB", "PiB"):
-        if value < 1024 or unit == "PiB":
-            return f"{value:.0f} {unit}" if unit == "B" else f"{value:.1f} {unit}"
-        value /= 1024
-    raise AssertionError("unreachable")
+    for unit, size in (("TiB", 2**40), ("GiB", 2**30), ("MiB", 2**20), ("KiB", 2**10)):
+        if nbytes >= size:
+            return f"{nbytes / size:.3g} {unit}"
+    return f"{nbytes:.0f} bytes"
 
 
-def _describe_seconds(seconds: float) -> str:
-    if seconds < 120:
-        return f"{seconds:.0f} s"
-    if seconds < 7200:
-        return f"{seconds / 60:.0f} min"
-    return f"{seconds / 3600:.1f} h"
+def format_seconds(seconds: float) -> str:
+    """A duration for a message: ``'40 s'``, ``'12 min'``, ``'3.1 h'``, ``'2.5e+03 days'``.
+
+    Parameters
+    ----------
+    seconds
+        The duration in seconds.
+    """
+    for unit, size in (("days", 86400.0), ("h", 3600.0), ("min", 60.0)):
+        if seconds >= 2 * size:
+            return f"{seconds / size:.3g} {unit}"
+    return f"{seconds:.3g} s"
 
 
-def check_budget(
-    what: str,
-    *,
-    nbytes: float = 0.0,
-    seconds: float = 0.0,
-    setting: str,
-    max_seconds: float = MAX_SECONDS,
-) -> None:
-    """Raise :class:`~delayform.errors.ResourceError` when a request exceeds the machine.
+def require(*, what: str, setting: str, nbytes: float = 0.0, seconds: float = 0.0) -> None:
+    """Refuse a job, in one line, when its estimate exceeds the machine's memory or the time budget.
 
     Parameters
     ----------
     what
-        The request, as the message names it (``"this simulation"``).
-    nbytes
-        Estimated peak memory of the request in bytes.
-    seconds
-        Estimated run time in seconds.
+        The job, as the user asked for it, e.g. ``"a 100000 x 100000 dominant-root map"``.
     setting
-        Which settings would make the request smaller (named in the message).
-    max_seconds
-        Longest acceptable run time; default :data:`MAX_SECONDS`.
+        What to change, e.g. ``"map.size (--size)"``.
+    nbytes
+        Estimated peak memory in bytes (not finite: refused).
+    seconds
+        Estimated run time in seconds on this machine (not finite: refused).
 
     Raises
     ------
-    ResourceError
-        One line: how much the request needs, how much there is, what to change.
-
-    >>> check_budget("a small run", nbytes=1e3, seconds=1.0, setting="dt")
+    ResourceLimitError
+        ``<what> would need about <x> of memory (limit <y> ...); reduce <setting>``.
     """
-    limit = _MEMORY_SHARE * available_memory()
-    if nbytes > limit:
-        raise ResourceError(
-            f"{what} would need about {describe_bytes(nbytes)} of memory but "
-            f"{describe_bytes(limit)} is available; change {setting}"
+    limit = memory_limit()
+    if not nbytes <= limit:  # also catches NaN
+        raise ResourceLimitError(
+            f"{what} would need about {format_bytes(nbytes)} of memory, more than the "
+            f"{format_bytes(limit)} this machine allows one job (DELAYFORM_MEMORY_LIMIT); reduce {setting}"
         )
-    if seconds > max_seconds:
-        raise ResourceError(
-            f"{what} would take about {_describe_seconds(seconds)} "
-            f"(limit {_describe_seconds(max_seconds)}); change {setting}"
+    budget = time_budget()
+    if not seconds <= budget:
+        raise ResourceLimitError(
+            f"{what} would take about {format_seconds(seconds)}, more than the time budget of "
+            f"{format_seconds(budget)} (DELAYFORM_TIME_BUDGET); reduce {setting}"
         )

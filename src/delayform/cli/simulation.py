@@ -42,7 +42,6 @@ def _limit_options(func: Any) -> Any:
               help="Agent model [default: simulation.model].")
 @click.option("--duration", type=POSITIVE, help="Simulated time in seconds [default: simulation.duration].")
 @click.option("--dt", type=POSITIVE, help="Time step in seconds [default: simulation.dt].")
-@click.option("--seed", type=click.IntRange(min=0), help="Seed of the random initial state [default: initial.seed].")
 @click.option("--limits/--no-limits", "use_limits", default=None,
               help="Robots with actuator limits (the scenario's [robot] table, else the iRobot Create's) "
                    "or ideal robots [default: limits when the scenario has a [robot] table].")
@@ -68,7 +67,7 @@ def simulate_command(scenario: Path | None, model: str | None, duration: float |
 
     given = {field: overrides.pop(field) for field, _, _ in _LIMIT_OPTIONS}
     given = {k: v for k, v in given.items() if v is not None}
-    sc = _scenario(scenario, **overrides)
+    sc = _scenario(scenario, seed=seed, **overrides)
     sim = SimulationSpec(
         model=model or sc.simulation.model,
         duration=sc.simulation.duration if duration is None else duration,

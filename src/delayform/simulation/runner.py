@@ -33,7 +33,7 @@ Resources and divergence
 ------------------------
 Memory and run time are estimated before anything is allocated and a run
 that would exceed the machine is refused with
-:class:`~delayform.errors.ResourceError`. A run whose state overflows stops
+:class:`~delayform.errors.ResourceLimitError`. A run whose state overflows stops
 cleanly; its :attr:`Trajectory.status` says so.
 """
 
@@ -51,7 +51,7 @@ from delayform.formation import (
     formation_forcing,
     named_formation,
 )
-from delayform.resources import check_budget
+from delayform.resources import require
 from delayform.simulation.commands import RobotCommands
 from delayform.simulation.integrator import (
     Progress,
@@ -243,7 +243,7 @@ def simulate(
     ------
     GainError, DelayError, FormationError, SimulationInputError, NoSpanningTreeError
         For bad gains, delays, formation, step, duration, model, limits or initial state.
-    ResourceError
+    ResourceLimitError
         When the run would need more memory or time than the machine has.
 
     Examples
@@ -294,8 +294,8 @@ def simulate(
     nbytes, seconds, linear = estimate_resources(
         n, steps, save_every, eff1, eff2, dt, limited=limits is not None, nnz=topology.C_sparse.nnz
     )
-    check_budget(f"this simulation ({steps:,} steps of {n:,} agents)", nbytes=nbytes, seconds=seconds,
-                 setting="duration, dt or the number of agents (or save_every)")  # fmt: skip
+    require(what=f"this simulation ({steps:,} steps of {n:,} agents)", nbytes=nbytes, seconds=seconds,
+            setting="duration (--duration), the step dt (raise --dt), the number of agents or save_every")  # fmt: skip
 
     C = topology.C_sparse.toarray() if n <= _DENSE_AGENTS else topology.C_sparse
     F = formation_forcing(topology, P, desired)
