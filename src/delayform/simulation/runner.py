@@ -165,8 +165,9 @@ def estimate_resources(
         seconds = steps * (2e-6 + 3e-9 * n * n)
     else:
         nbytes += 8.0 * history_steps(tau1, tau2, dt) * 6 * n + 8.0 * 60 * n + 12.0 * nnz
-        # about 80 microseconds of overhead per step and 1.6 microseconds per agent-step (docs/benchmarks.md)
-        seconds = steps * (8e-5 + (2.5e-6 if limited else 1.6e-6) * n)
+        # per step about 80 microseconds of overhead (300 with limits: more NumPy calls per
+        # stage) and 1.6 (2.5) microseconds per agent (docs/benchmarks.md)
+        seconds = steps * ((3e-4 + 2.5e-6 * n) if limited else (8e-5 + 1.6e-6 * n))
     return nbytes, seconds, linear
 
 
