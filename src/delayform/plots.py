@@ -311,6 +311,8 @@ def save_trajectory_gif(traj: Any, path: Any, *, frames: int = 80, fps: int = 15
     ax.set_xlim(lo[0] - pad, hi[0] + pad)
     ax.set_ylim(lo[1] - pad, hi[1] + pad)
     ax.set_aspect("equal")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
     length = 0.04 * float((hi - lo).max() or 1.0)
     dots = ax.plot([], [], "o", ms=4, color="tab:red")[0]
     marks = LineCollection([], colors="tab:blue")
