@@ -234,3 +234,57 @@ def save_trajectory_gif(traj: Any, path: Any, *, frames: int = 80, fps: int = 15
     anim.save(path, writer=PillowWriter(fps=fps))
     plt.close(fig)
     return path
+
+
+# === section: the eigenvalue plane and certificates for classes of teams (issue 11) ===
+def lambda_region_plot(
+    region: Any, ax: Axes | None = None, eigenvalues: Any = None, *, radius: float = 1.6, resolution: int = 301
+) -> Axes:
+    """The stable region of the eigenvalue plane (shaded), its boundary ``L(j omega)``, the unit disc.
+
+    ``region`` is a :class:`delayform.analysis.region.LambdaRegion`; the
+    optional ``eigenvalues`` of a team's C are marked green where stable and
+    red where not (the centroid eigenvalue 1 as a black square).
+
+    Parameters
+    ----------
+    region
+        The region to draw.
+    ax
+        Axes to draw on; new ones when None.
+    eigenvalues
+        Complex eigenvalues to mark, or None.
+    radius
+        Half-width of the drawn square of the lam plane.
+    resolution
+        Grid points per axis used to shade the region.
+
+    Returns
+    -------
+    Axes
+    """
+    ax = _axes(ax)
+    x = np.linspace(-radius, radius, resolution)
+    z = x[None, :] + 1j * x[:, None]
+    stable = region.is_stable(z).astype(float)
+    ax.contourf(x, x, stable, levels=[0.5, 1.5], colors=["0.8"])
+    curve = region.boundary(radius * 1.5)
+    ax.plot(curve.real, curve.imag, color="tab:red", lw=0.9, label=r"boundary $L(j\omega)$")
+    phi = np.linspace(0.0, 2.0 * np.pi, 361)
+    ax.plot(np.cos(phi), np.sin(phi), color="0.3", lw=0.8, ls="--", label="unit disc")
+    if eigenvalues is not None:
+        lam = np.asarray(eigenvalues, dtype=complex)
+        centroid = np.abs(lam - 1.0) <= 1e-9
+        ok = region.is_stable(lam)
+        ax.plot(lam[ok & ~centroid].real, lam[ok & ~centroid].imag, "o", color="tab:green", ms=4, label="eigenvalue, stable")
+        ax.plot(lam[~ok & ~centroid].real, lam[~ok & ~centroid].imag, "o", color="tab:red", ms=4, mfc="none",
+                label="eigenvalue, unstable")
+        ax.plot(lam[centroid].real, lam[centroid].imag, "ks", ms=4, label="centroid (lam = 1)")
+    ax.set_xlim(-radius, radius)
+    ax.set_ylim(-radius, radius)
+    ax.set_aspect("equal")
+    ax.set_xlabel(r"Re $\lambda$")
+    ax.set_ylabel(r"Im $\lambda$")
+    ax.set_title(rf"Stable eigenvalues (shaded), $\tau_1$ = {region.tau1:g}, $\tau_2$ = {region.tau2:g}")
+    ax.legend(loc="lower left", fontsize="x-small")
+    return ax
