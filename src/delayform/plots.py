@@ -288,3 +288,54 @@ def lambda_region_plot(
     ax.set_title(rf"Stable eigenvalues (shaded), $\tau_1$ = {region.tau1:g}, $\tau_2$ = {region.tau2:g}")
     ax.legend(loc="lower left", fontsize="x-small")
     return ax
+
+
+def safe_delay_chart(
+    smap: Any, ax: Axes | None = None, points: Mapping[str, tuple[float, float]] | None = None,
+    *, resolution: int = 200, shade: str = "tab:green",
+) -> Axes:
+    """The delays safe for a whole class of teams, drawn like the CTCR chart.
+
+    ``smap`` is a :class:`delayform.analysis.certificates.SafeDelayMap`: the
+    certified safe set shaded, the exact CTCR curves of the factors at the
+    ends of the spectrum set (kernel red, offspring blue) and the envelope
+    of the interior eigenvalues where present.
+
+    Parameters
+    ----------
+    smap
+        The map to draw.
+    ax
+        Axes to draw on; new ones when None.
+    points
+        Label -> (tau1, tau2) to mark.
+    resolution
+        Grid cells per axis used to shade the safe set.
+    shade
+        Colour of the safe set.
+
+    Returns
+    -------
+    Axes
+    """
+    ax = _axes(ax)
+    t1, t2, safe = smap.grid(resolution)
+    if np.any(safe):
+        ax.contourf(t1, t2, safe.astype(float), levels=[0.5, 1.5], colors=[shade], alpha=0.45)
+    for base in smap.base_maps:
+        for kernel, color in ((False, "blue"), (True, "red")):
+            lines = [np.column_stack([c.tau1, c.tau2]) for c in base.curves if c.is_kernel == kernel]
+            if lines:
+                ax.add_collection(LineCollection(lines, colors=color, linewidths=0.7, alpha=0.8))
+    for line in getattr(smap, "envelope", ()):
+        ax.plot(line[:, 0], line[:, 1], color="black", lw=1.0)
+    for name, (a, b) in (points or {}).items():
+        ax.plot([a], [b], "ko", ms=4)
+        ax.annotate(f"{name}", (a, b), xytext=(4, 4), textcoords="offset points", fontweight="bold")
+    ax.set_xlim(0.0, smap.tau1_max)
+    ax.set_ylim(0.0, smap.tau2_max)
+    ax.set_xlabel(r"$\tau_1$ (s), position delay")
+    ax.set_ylabel(r"$\tau_2$ (s), velocity delay")
+    title = f"Safe for every team with spectrum in: {smap.spectrum.label}"
+    ax.set_title(title if not smap.never_safe else title + " (none)", fontsize="small")
+    return ax

@@ -60,6 +60,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from delayform._validation import check_complex_array, check_delay, check_gains
+from delayform.analysis.certificates import SafeDelayMap, SpectrumSet, omega_limit, parse_spectrum, safe_delays
 from delayform.errors import InputError
 from delayform.topology import Topology
 
@@ -70,6 +71,11 @@ __all__ = [
     "CENTROID_TOL",
     "LambdaRegion",
     "lambda_region",
+    # re-exported: certificates for classes of teams
+    "SafeDelayMap",
+    "SpectrumSet",
+    "safe_delays",
+    "parse_spectrum",
 ]
 
 #: Eigenvalues closer than this to 1 are the centroid eigenvalue (eq. factor1).
@@ -97,16 +103,6 @@ def _ab_derivatives(P: float, D: float, tau1: float, tau2: float, w: NDArray[np.
     da = 2.0 * s + D
     db = D * e2 * (1.0 - tau2 * s) - P * tau1 * e1
     return a, b, da, db
-
-
-def omega_limit(P: float, D: float, radius: float) -> float:
-    """A frequency beyond which ``|L(j omega)| > radius`` (so no crossing of |lam| <= radius).
-
-    ``|a(j w)| >= w^2 - P`` and ``|b(j w)| <= P + D w``, so ``|L| > radius`` once
-    ``w^2 - radius D w - P (1 + radius) > 0``.
-    """
-    r = max(float(radius), 0.0)
-    return float(0.5 * (r * D + np.sqrt((r * D) ** 2 + 4.0 * P * (1.0 + r)))) * 1.0001 + 1e-9
 
 
 @dataclass(frozen=True)

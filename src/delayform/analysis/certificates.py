@@ -1,0 +1,718 @@
+"""Certificates for classes of teams: the delays safe for every spectrum in a set.
+
+A team is stable at (tau1, tau2) exactly when every eigenvalue of its C lies
+in the stable region of the eigenvalue plane (:mod:`delayform.analysis.region`),
+the centroid's root s = 0 aside. So a delay pair is *safe for a set S* of
+eigenvalues when S (minus the centroid eigenvalue 1) lies in the region, and
+then every team whose spectrum lies in S is stable there, whatever its size or
+graph. S is a real interval [a, b] (``"undirected"`` is [-1, 1]: C = Delta^-1 A
+of an undirected graph is similar to the symmetric Delta^-1/2 A Delta^-1/2) or
+a closed disc (``"any"`` is the unit disc, which holds the spectrum of every
+row-stochastic C).
+
+The construction (exact pointwise; see docs/theory.md)
+-------------------------------------------------------
+NU(lam) only changes where lam crosses the boundary curve ``L(j omega)``, so S
+lies in the region exactly when NU = 0 at one point of S (its *base*: the left
+end a of an interval, the centre of a disc) and the curve does not meet S
+(the point 1 aside):
+
+* **Base.** NU of the factor ``q(s, base)`` is read from the exact CTCR map of
+  that factor (:func:`~delayform.analysis.ctcr.crossing_map`).
+* **Interval [a, b].** ``L(j omega) - 1 = j omega m(j omega) / b(j omega)`` with
+  ``m(s) = s - D expm1(-tau2 s) - P expm1(-tau1 s) / s`` (smooth at 0), so the
+  real points of the curve other than L(0) = 1 are the zeros of
+  ``r(omega) = Re(m conj b)`` for omega > 0, with
+  ``Re L = 1 - omega Im(m conj b) / |b|^2``. The curve meets (a, b) exactly when r
+  has a zero where ``(1 - a)|b|^2 - omega Im(m conj b) > 0`` and
+  ``(1 - b)|b|^2 - omega Im(m conj b) < 0``.
+* **Disc |lam - c| <= rho.** The curve meets the disc exactly where
+  ``k(omega) = |a - c b|^2 - rho^2 |b|^2 <= 0``. When 1 lies on the circle
+  (it always lies on the curve, at omega = 0) and c is real, both are tangent
+  there and the curve leaves 1 outward exactly when
+  ``tau1^2 - 2 rho Re L2 > 0``, ``L2 = (1 - D tau1 + D tau2) / P + tau1^2 / 2``
+  the second Taylor coefficient of L at 0; for the unit disc this is
+  ``D (tau1 - tau2) > 1``. A disc with 1 inside, or with 1 on its circle and c
+  not real, is never safe (real lam > 1 has an unstable real root; a curve
+  crossing the circle at 1 enters the disc).
+
+Each condition is decided on omega in [0, omega_max] (beyond which |L| exceeds
+every |lam| of S) by *certified* sampling: on a sample interval of width h a
+function with the Lipschitz bound Lip (closed-form bounds on |m|, |m'|, |b|,
+|b'| there) has no zero when ``|f(l)| + |f(r)| > Lip h``; intervals are halved
+until each is certified empty, certified to hold a witness (a sign change
+with the other conditions certain), or narrower than 1e-10 omega_max. Such
+undecided points are reported as not safe, so "safe" is always certified;
+:attr:`SafeDelayMap.undecided` tells how many there were.
+
+References
+----------
+Cepeda-Gomez and Perico, Lemma 1 (eq. factorized), eq. factor1, Lemma 2;
+Section "Stability Analysis Using CTCR".
+"""
+
+from __future__ import annotations
+
+import numbers
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from delayform._validation import check_delay_array, check_gains, check_positive
+from delayform.analysis.ctcr import StabilityMap, _lam_factor, crossing_map
+from delayform.errors import DelayError, InputError
+
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    from matplotlib.axes import Axes
+
+__all__ = [
+    "SpectrumSet",
+    "SafeDelayMap",
+    "safe_delays",
+    "parse_spectrum",
+    "omega_limit",
+]
+
+_MIN_WIDTH = 1e-10
+_MAX_ROUNDS = 60
+_SAMPLES = 96
+#: omega below which the tangency at lam = 1 is decided by its Taylor coefficient.
+_W_EPS = 1e-4
+
+
+def omega_limit(P: float, D: float, radius: float) -> float:
+    """A frequency beyond which ``|L(j omega)| > radius`` (so no crossing of |lam| <= radius).
+
+    ``|a(j w)| >= w^2 - P`` and ``|b(j w)| <= P + D w``, so ``|L| > radius`` once
+    ``w^2 - radius D w - P (1 + radius) > 0``.
+    """
+    r = max(float(radius), 0.0)
+    return float(0.5 * (r * D + np.sqrt((r * D) ** 2 + 4.0 * P * (1.0 + r)))) * 1.0001 + 1e-9
+
+
+# ===================================================================== spectrum sets
+@dataclass(frozen=True)
+class SpectrumSet:
+    """A closed set of the eigenvalue plane: a real interval or a disc.
+
+    Attributes
+    ----------
+    kind
+        ``"interval"`` (real eigenvalues in [low, high]) or ``"disc"``
+        (``|lam - center| <= radius``).
+    low, high
+        Ends of the interval (kind "interval").
+    center, radius
+        Centre and radius of the disc (kind "disc").
+    label
+        How it is named in tables and figures.
+    """
+
+    kind: str
+    low: float = 0.0
+    high: float = 0.0
+    center: complex = 0j
+    radius: float = 0.0
+    label: str = ""
+
+    @classmethod
+    def interval(cls, low: float, high: float, label: str | None = None) -> SpectrumSet:
+        """The real eigenvalues in [low, high].
+
+        Parameters
+        ----------
+        low, high
+            Ends, ``low < high``, finite.
+        label
+            Name in tables; default ``"interval [low, high]"``.
+        """
+        lo, hi = _finite("interval low", low), _finite("interval high", high)
+        if not lo < hi:
+            raise InputError(f"an interval needs low < high, got [{lo:g}, {hi:g}]")
+        return cls("interval", low=lo, high=hi, label=label or f"interval [{lo:g}, {hi:g}]")
+
+    @classmethod
+    def disc(cls, center: complex, radius: float, label: str | None = None) -> SpectrumSet:
+        """The closed disc ``|lam - center| <= radius``.
+
+        Parameters
+        ----------
+        center
+            Centre (complex).
+        radius
+            Positive radius.
+        label
+            Name in tables; default ``"disc |lam - c| <= r"``.
+        """
+        if isinstance(center, bool) or not isinstance(center, (numbers.Complex, np.number)):
+            raise InputError(f"disc center must be a number, got {center!r}")
+        c = complex(center)
+        if not np.isfinite(c):
+            raise InputError("disc center must be finite")
+        r = check_positive("disc radius", radius)
+        return cls("disc", center=c, radius=r, label=label or f"disc |lam - {_fmt(c)}| <= {r:g}")
+
+    def contains(self, lam: ArrayLike) -> NDArray[np.bool_]:
+        """True for the eigenvalues inside the set (boundary included, 1e-12 slack).
+
+        Parameters
+        ----------
+        lam
+            Complex values, any shape.
+        """
+        z = np.asarray(lam, dtype=complex)
+        if self.kind == "interval":
+            tol = 1e-12 * max(1.0, abs(self.low), abs(self.high))
+            return (np.abs(z.imag) <= tol) & (z.real >= self.low - tol) & (z.real <= self.high + tol)
+        return np.abs(z - self.center) <= self.radius * (1.0 + 1e-12)
+
+    @property
+    def base(self) -> complex:
+        """The point of the set where NU is read from the CTCR map (left end or centre)."""
+        return complex(self.low) if self.kind == "interval" else self.center
+
+    @property
+    def outer_radius(self) -> float:
+        """Largest |lam| in the set."""
+        if self.kind == "interval":
+            return max(abs(self.low), abs(self.high))
+        return abs(self.center) + self.radius
+
+
+def _fmt(c: complex) -> str:
+    return f"{c.real:g}" if c.imag == 0 else f"({c.real:g}{c.imag:+g}j)"
+
+
+def _finite(name: str, value: object) -> float:
+    if isinstance(value, bool) or not isinstance(value, (numbers.Real, np.floating, np.integer)):
+        raise InputError(f"{name} must be a real number, got {value!r}")
+    out = float(value)
+    if not np.isfinite(out):
+        raise InputError(f"{name} must be finite, got {out}")
+    return out
+
+
+UNDIRECTED = SpectrumSet("interval", low=-1.0, high=1.0, label="undirected: real spectrum in [-1, 1]")
+ANY = SpectrumSet("disc", center=0j, radius=1.0, label="any: closed unit disc")
+
+
+def parse_spectrum(spectrum: object) -> SpectrumSet:
+    """A spectrum set from what :func:`safe_delays` accepts.
+
+    Parameters
+    ----------
+    spectrum
+        ``"undirected"``, ``"any"``, ``"interval:a,b"``, ``"disc:c,r"`` (c real)
+        or ``"disc:re,im,r"``, a :class:`SpectrumSet`, or any object with a
+        ``spectrum_set`` attribute (a :class:`~delayform.analysis.bounds.SpectrumBound`).
+
+    Returns
+    -------
+    SpectrumSet
+
+    Raises
+    ------
+    InputError
+        For anything else.
+
+    Examples
+    --------
+    >>> parse_spectrum("interval:-0.5,0.9").label
+    'interval [-0.5, 0.9]'
+    """
+    if isinstance(spectrum, SpectrumSet):
+        return spectrum
+    inner = getattr(spectrum, "spectrum_set", None)
+    if isinstance(inner, SpectrumSet):
+        return inner
+    if not isinstance(spectrum, str):
+        raise InputError(f"spectrum must be 'undirected', 'any', 'interval:a,b', 'disc:c,r' or a SpectrumSet, got {spectrum!r}")
+    text = spectrum.strip().lower()
+    if text == "undirected":
+        return UNDIRECTED
+    if text == "any":
+        return ANY
+    kind, sep, rest = text.partition(":")
+    try:
+        values = [float(v) for v in rest.split(",")] if sep else []
+    except ValueError:
+        raise InputError(f"spectrum {spectrum!r}: expected numbers after '{kind}:'") from None
+    if kind == "interval" and len(values) == 2:
+        return SpectrumSet.interval(*values)
+    if kind == "disc" and len(values) == 2:
+        return SpectrumSet.disc(values[0], values[1])
+    if kind == "disc" and len(values) == 3:
+        return SpectrumSet.disc(complex(values[0], values[1]), values[2])
+    raise InputError(
+        f"spectrum {spectrum!r}: expected 'undirected', 'any', 'interval:a,b', 'disc:c,r' or 'disc:re,im,r'"
+    )
+
+
+# ===================================================================== the functions on omega
+def _parts(P: float, D: float, t1: NDArray, t2: NDArray, w: NDArray) -> tuple[NDArray, NDArray]:
+    """m(j w) and b(j w), with ``a - b = s m`` (expm1 keeps m accurate at small omega)."""
+    s = 1j * w
+    z1 = -t1 * s
+    with np.errstate(invalid="ignore", divide="ignore"):
+        phi1 = np.where(z1 == 0, 1.0 + 0j, np.expm1(z1) / np.where(z1 == 0, 1.0, z1))
+    m = s - D * np.expm1(-t2 * s) + P * t1 * phi1
+    b = D * s * np.exp(-t2 * s) + P * np.exp(-t1 * s)
+    return m, b
+
+
+def _bounds(P: float, D: float, t1: NDArray, t2: NDArray, w: NDArray) -> tuple[NDArray, ...]:
+    """Upper bounds of |m|, |dm/domega|, |b|, |db/domega| for |omega| <= w."""
+    m = w + D * np.minimum(2.0, t2 * w) + P * t1
+    dm = 1.0 + D * t2 + 0.5 * P * t1 * t1
+    b = P + D * w
+    db = D + D * t2 * w + P * t1
+    return m, dm, b, db
+
+
+@dataclass
+class _Scan:
+    """Pending intervals of every point: point index, ends and end values."""
+
+    pid: NDArray[np.int64]
+    lo: NDArray[np.float64]
+    hi: NDArray[np.float64]
+    flo: NDArray[np.float64]
+    fhi: NDArray[np.float64]
+
+
+def _interval_values(P, D, t1, t2, w, a, b):  # type: ignore[no-untyped-def]
+    m, bb = _parts(P, D, t1, t2, w)
+    mb = m * np.conj(bb)
+    b2 = np.abs(bb) ** 2
+    return np.stack([mb.real, (1.0 - a) * b2 - w * mb.imag, (1.0 - b) * b2 - w * mb.imag], axis=-1)
+
+
+def _interval_lips(P, D, t1, t2, wmax, a, b):  # type: ignore[no-untyped-def]
+    m, dm, bb, db = _bounds(P, D, t1, t2, wmax)
+    lr = dm * bb + m * db
+    lg = 2.0 * bb * db * max(abs(1.0 - a), abs(1.0 - b)) + m * bb + wmax * lr
+    return np.stack([lr, lg, lg], axis=-1)
+
+
+def _interval_decide(fl: NDArray, fr: NDArray, lip: NDArray, h: NDArray) -> NDArray[np.int64]:
+    """0: certified no real point in (a, b); 1: certified one; 2: halve."""
+    lh = lip * h[:, None]
+    no_zero = np.abs(fl[:, 0]) + np.abs(fr[:, 0]) > lh[:, 0]
+    below = 0.5 * (fl[:, 1] + fr[:, 1] + lh[:, 1]) <= 0.0   # Re L <= a throughout
+    above = 0.5 * (fl[:, 2] + fr[:, 2] - lh[:, 2]) >= 0.0   # Re L >= b throughout
+    inside = (0.5 * (fl[:, 1] + fr[:, 1] - lh[:, 1]) > 0.0) & (0.5 * (fl[:, 2] + fr[:, 2] + lh[:, 2]) < 0.0)
+    witness = (fl[:, 0] * fr[:, 0] < 0.0) & inside
+    out = np.full(fl.shape[0], 2, np.int64)
+    out[no_zero | below | above] = 0
+    out[witness] = 1
+    return out
+
+
+def _disc_values(P, D, t1, t2, w, c, rho, through_one):  # type: ignore[no-untyped-def]
+    m, bb = _parts(P, D, t1, t2, w)
+    if through_one:
+        # a - c b = s m + (1 - c) b and |1 - c| = rho: k = w^2 |m|^2 - 2 w Im(m conj((1 - c) b))
+        k = w * w * np.abs(m) ** 2 - 2.0 * w * (m * np.conj((1.0 - c) * bb)).imag
+    else:
+        a = 1j * w * m + bb
+        k = np.abs(a - c * bb) ** 2 - rho * rho * np.abs(bb) ** 2
+    return k[..., None]
+
+
+def _disc_lips(P, D, t1, t2, wmax, c, rho, through_one):  # type: ignore[no-untyped-def]
+    m, dm, bb, db = _bounds(P, D, t1, t2, wmax)
+    amb = wmax * m + abs(1.0 - c) * bb                       # |a - c b| = |s m + (1 - c) b|
+    d_amb = m + wmax * dm + abs(1.0 - c) * db
+    lip = 2.0 * amb * d_amb + 2.0 * rho * rho * bb * db
+    return lip[..., None]
+
+
+def _disc_decide(fl: NDArray, fr: NDArray, lip: NDArray, h: NDArray) -> NDArray[np.int64]:
+    out = np.full(fl.shape[0], 2, np.int64)
+    out[0.5 * (fl[:, 0] + fr[:, 0] - lip[:, 0] * h) > 0.0] = 0
+    out[(fl[:, 0] < 0.0) | (fr[:, 0] < 0.0)] = 1
+    return out
+
+
+def _certified_scan(
+    values: Any, lips: Any, decide: Any, t1: NDArray, t2: NDArray, w_lo: float, w_hi: float
+) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+    """Per point: (witness found, undecided) over omega in [w_lo, w_hi] (see module docstring)."""
+    n = t1.size
+    witness = np.zeros(n, bool)
+    undecided = np.zeros(n, bool)
+    if n == 0:
+        return witness, undecided
+    grid = np.linspace(w_lo, w_hi, _SAMPLES + 1)
+    vals = values(t1[:, None], t2[:, None], grid[None, :])            # (n, S+1, k)
+    pid = np.repeat(np.arange(n), _SAMPLES)
+    scan = _Scan(pid, np.tile(grid[:-1], n), np.tile(grid[1:], n),
+                 vals[:, :-1].reshape(n * _SAMPLES, -1), vals[:, 1:].reshape(n * _SAMPLES, -1))
+    min_width = _MIN_WIDTH * max(w_hi, 1.0)
+    for _ in range(_MAX_ROUNDS):
+        if scan.pid.size == 0:
+            break
+        h = scan.hi - scan.lo
+        lip = lips(t1[scan.pid], t2[scan.pid], scan.hi)
+        verdict = decide(scan.flo, scan.fhi, lip, h)
+        witness[scan.pid[verdict == 1]] = True
+        split = (verdict == 2) & ~witness[scan.pid]
+        tiny = split & (h < min_width)
+        undecided[scan.pid[tiny]] = True
+        split &= ~tiny & ~undecided[scan.pid]
+        if not np.any(split):
+            scan = _Scan(scan.pid[:0], scan.lo[:0], scan.hi[:0], scan.flo[:0], scan.fhi[:0])
+            break
+        p, lo, hi, flo, fhi = scan.pid[split], scan.lo[split], scan.hi[split], scan.flo[split], scan.fhi[split]
+        mid = 0.5 * (lo + hi)
+        fm = values(t1[p], t2[p], mid)
+        scan = _Scan(np.concatenate([p, p]), np.concatenate([lo, mid]), np.concatenate([mid, hi]),
+                     np.concatenate([flo, fm]), np.concatenate([fm, fhi]))
+    undecided[scan.pid] = True
+    undecided &= ~witness
+    return witness, undecided
+
+
+# ===================================================================== the result
+@dataclass(frozen=True, eq=False)
+class SafeDelayMap:
+    """Delay pairs at which every team whose spectrum lies in a set is stable.
+
+    Attributes
+    ----------
+    P, D
+        Gains of eq. protocol.
+    tau1_max, tau2_max
+        The window [0, tau1_max] x [0, tau2_max].
+    spectrum
+        The set S of eigenvalues covered.
+    base_maps
+        Exact CTCR maps of the factors at the ends of an interval (or the
+        centre of a disc): their curves bound the safe set where an end of S
+        becomes unstable.
+    never_safe
+        A reason when no delay pair can be safe for S (e.g. S holds real lam > 1), else "".
+    envelope
+        For an interval: segments ``(2, 2)`` (rows: points, columns: tau1, tau2)
+        of the envelope of the CTCR curves of the interior eigenvalues, where
+        an eigenvalue inside the interval becomes unstable first.
+    """
+
+    P: float
+    D: float
+    tau1_max: float
+    tau2_max: float
+    spectrum: SpectrumSet
+    base_maps: tuple[StabilityMap, ...]
+    never_safe: str = ""
+    envelope: tuple[NDArray[np.float64], ...] = ()
+    _cache: dict = field(default_factory=dict, repr=False)
+
+    def _classify(self, tau1: ArrayLike, tau2: ArrayLike) -> tuple[NDArray[np.bool_], NDArray[np.bool_], tuple[int, ...]]:
+        t1 = check_delay_array("tau1", tau1)
+        t2 = check_delay_array("tau2", tau2)
+        x, y = np.broadcast_arrays(t1, t2)
+        shape = x.shape
+        x, y = x.ravel().astype(float), y.ravel().astype(float)
+        if np.any(x > self.tau1_max * (1 + 1e-12)) or np.any(y > self.tau2_max * (1 + 1e-12)):
+            raise DelayError(f"delays must lie in the window [0, {self.tau1_max:g}] x [0, {self.tau2_max:g}]")
+        safe = np.zeros(x.size, bool)
+        undecided = np.zeros(x.size, bool)
+        if self.never_safe or x.size == 0:
+            return safe, undecided, shape
+        ok = np.ones(x.size, bool)
+        for m in self.base_maps:
+            ok &= m.unstable_count(x, y) == 0
+        idx = np.flatnonzero(ok)
+        S = self.spectrum
+        P, D = self.P, self.D
+        wmax = omega_limit(P, D, S.outer_radius)
+        if S.kind == "interval":
+            a, b = S.low, S.high
+            wit, und = _certified_scan(
+                lambda p, q, w: _interval_values(P, D, p, q, w, a, b),
+                lambda p, q, w: _interval_lips(P, D, p, q, w, a, b),
+                _interval_decide, x[idx], y[idx], 0.0, wmax,
+            )
+        else:
+            wit, und = self._disc_scan(x[idx], y[idx], wmax)
+        safe[idx] = ~wit & ~und
+        undecided[idx] = und
+        return safe, undecided, shape
+
+    def _disc_scan(self, x: NDArray, y: NDArray, wmax: float) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+        S, P, D = self.spectrum, self.P, self.D
+        c, rho = S.center, S.radius
+        through = abs(abs(1.0 - c) - rho) <= 1e-12 * max(1.0, rho)
+        vals = lambda p, q, w: _disc_values(P, D, p, q, w, c, rho, through)  # noqa: E731
+        lips = lambda p, q, w: _disc_lips(P, D, p, q, w, c, rho, through)  # noqa: E731
+        if not through:
+            wit = np.zeros(x.size, bool)
+            und = np.zeros(x.size, bool)
+            for lo, hi in ((-wmax, 0.0), (0.0, wmax)) if c.imag != 0 else ((0.0, wmax),):
+                wi, un = _certified_scan(vals, lips, _disc_decide, x, y, lo, hi)
+                wit |= wi
+                und |= un
+            return wit, und & ~wit
+        # 1 on the circle, c real: tangent at 1; the curve leaves 1 outward iff tau1^2 - 2 rho Re L2 > 0
+        L2 = (1.0 - D * x + D * y) / P + 0.5 * x * x
+        local = x * x - 2.0 * rho * L2
+        wit = local < 0.0
+        und = np.abs(local) <= 1e-9
+        rest = np.flatnonzero(~wit & ~und)
+        wi, un = _certified_scan(vals, lips, _disc_decide, x[rest], y[rest], _W_EPS, wmax)
+        wit[rest] |= wi
+        und[rest] |= un
+        return wit, und & ~wit
+
+    def is_safe(self, tau1: ArrayLike, tau2: ArrayLike) -> NDArray[np.bool_]:
+        """True where every eigenvalue in the set is stable (certified; vectorized, broadcasting).
+
+        Parameters
+        ----------
+        tau1, tau2
+            Delays inside the window.
+
+        Returns
+        -------
+        ndarray of bool
+            Undecided points (within ~1e-10 of the boundary) are False.
+        """
+        safe, _, shape = self._classify(tau1, tau2)
+        return safe.reshape(shape)
+
+    def undecided(self, tau1: ArrayLike, tau2: ArrayLike) -> NDArray[np.bool_]:
+        """True where the certified scan could not decide (reported as not safe).
+
+        Parameters
+        ----------
+        tau1, tau2
+            Delays inside the window.
+        """
+        _, und, shape = self._classify(tau1, tau2)
+        return und.reshape(shape)
+
+    def grid(self, resolution: int = 200) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
+        """(tau1 cell centres, tau2 cell centres, safe[i2, i1]) on a grid, cached.
+
+        Parameters
+        ----------
+        resolution
+            Cells per axis.
+        """
+        key = ("grid", int(resolution))
+        if key not in self._cache:
+            t1 = (np.arange(resolution) + 0.5) * self.tau1_max / resolution
+            t2 = (np.arange(resolution) + 0.5) * self.tau2_max / resolution
+            self._cache[key] = (t1, t2, self.is_safe(t1[None, :], t2[:, None]))
+        return self._cache[key]
+
+    def safe_fraction(self, *, resolution: int = 200) -> float:
+        """Fraction of the window's area that is safe, on a grid of cell centres.
+
+        Parameters
+        ----------
+        resolution
+            Cells per axis.
+        """
+        return float(np.mean(self.grid(resolution)[2]))
+
+    def plot(self, ax: Axes | None = None, points: dict[str, tuple[float, float]] | None = None) -> Axes:
+        """Draw the safe set like the stability chart (see :func:`delayform.plots.safe_delay_chart`).
+
+        Parameters
+        ----------
+        ax
+            Axes to draw on; new ones when None.
+        points
+            Label -> (tau1, tau2) to mark.
+        """
+        from delayform.plots import safe_delay_chart
+
+        return safe_delay_chart(self, ax=ax, points=points)
+
+
+def safe_delays(
+    P: float, D: float, tau1_max: float, tau2_max: float, *, spectrum: object = "undirected"
+) -> SafeDelayMap:
+    """The delay pairs safe for every team whose eigenvalues of C lie in a set.
+
+    Parameters
+    ----------
+    P, D
+        Positive gains of eq. protocol.
+    tau1_max, tau2_max
+        The window [0, tau1_max] x [0, tau2_max].
+    spectrum
+        ``"undirected"`` (real spectrum in [-1, 1]: every undirected team),
+        ``"any"`` (the closed unit disc: every team), ``"interval:a,b"``,
+        ``"disc:c,r"``, ``"disc:re,im,r"``, a :class:`SpectrumSet`, or a
+        :class:`~delayform.analysis.bounds.SpectrumBound` of a team.
+
+    Returns
+    -------
+    SafeDelayMap
+        ``.is_safe(tau1, tau2)`` (certified), ``.safe_fraction()``, ``.plot()``.
+
+    Raises
+    ------
+    GainError, DelayError, InputError
+
+    Examples
+    --------
+    >>> m = safe_delays(1.0, 0.5, 4.0, 4.0, spectrum="undirected")
+    >>> bool(m.is_safe(0.3, 0.2)), bool(m.is_safe(1.0, 2.0))
+    (True, False)
+    >>> safe_delays(1.0, 0.5, 4.0, 4.0, spectrum="any").safe_fraction(resolution=20)
+    0.0
+    """
+    P, D = check_gains(P, D)
+    t1 = check_positive("tau1_max", tau1_max, DelayError)
+    t2 = check_positive("tau2_max", tau2_max, DelayError)
+    S = parse_spectrum(spectrum)
+    reason = ""
+    if S.kind == "interval" and S.high > 1.0 + 1e-12:
+        reason = "the set holds real eigenvalues > 1, whose factor has an unstable real root"
+    if S.kind == "disc":
+        d1 = abs(1.0 - S.center)
+        if d1 < S.radius * (1.0 - 1e-12):
+            reason = "the disc holds real eigenvalues > 1, whose factor has an unstable real root"
+        elif abs(d1 - S.radius) <= 1e-12 * max(1.0, S.radius) and S.center.imag != 0.0:
+            reason = "the boundary curve crosses the disc's circle at lam = 1 (not tangent): points inside are unstable"
+    bases = [] if reason else [S.base]
+    if S.kind == "interval" and S.high < 1.0 and not reason:
+        bases.append(complex(S.high))
+    maps = tuple(crossing_map(_lam_factor(P, D, lam), t1, t2) for lam in bases)
+    envelope = _envelope(P, D, S.low, S.high, t1, t2) if S.kind == "interval" and not reason else ()
+    return SafeDelayMap(P, D, t1, t2, S, maps, reason, envelope)
+
+
+# ===================================================================== the envelope (interval sets)
+def _triangle(P: float, D: float, w: NDArray, x: NDArray, branch: float) -> tuple[NDArray, NDArray, NDArray]:
+    """Phases (theta1, theta2) in [0, 2 pi) with a(j w) = x (P z1 + j D w z2), and the feasibility mask.
+
+    ``u = P z1`` and ``v = j D w z2`` are the sides of the triangle ``u + v = a / x``
+    (law of cosines; ``branch`` = +-1 picks the mirror triangle).
+    """
+    A = -w * w + 1j * D * w + P
+    with np.errstate(divide="ignore", invalid="ignore"):
+        c = A / x
+        rc = np.abs(c)
+        cos_alpha = (rc * rc + P * P - (D * w) ** 2) / (2.0 * rc * P)
+        ok = np.isfinite(cos_alpha) & (np.abs(cos_alpha) <= 1.0) & (w > 0)
+        u = P * np.exp(1j * (np.angle(c) + branch * np.arccos(np.clip(cos_alpha, -1.0, 1.0))))
+        v = c - u
+        th1 = np.mod(-np.angle(u / P), 2.0 * np.pi)
+        th2 = np.mod(-np.angle(v / (1j * D * w)), 2.0 * np.pi)
+    return th1, th2, ok
+
+
+def _tangency(P: float, D: float, w: NDArray, x: NDArray, t1: NDArray, t2: NDArray) -> NDArray[np.float64]:
+    """Re((a' - x b') / a) at s = j w: zero where the curve L(j omega) is tangent to the real axis at x."""
+    s = 1j * w
+    A = s * s + D * s + P
+    db = D * np.exp(-t2 * s) * (1.0 - t2 * s) - P * t1 * np.exp(-t1 * s)
+    return ((2.0 * s + D - x * db) / A).real
+
+
+def _envelope(P: float, D: float, low: float, high: float, tau1_max: float, tau2_max: float,
+              *, n_w: int = 240, n_x: int = 160) -> tuple[NDArray[np.float64], ...]:
+    """Segments (tau1, tau2) of the envelope of the CTCR curves of the factors x in (low, high).
+
+    On a grid of (omega, x) the phases come in closed form (:func:`_triangle`)
+    and the delays on each lattice image ``tau_k = (theta_k + 2 pi n_k) / omega``;
+    the tangency function is zero on the envelope. Every vertex is the zero of
+    the tangency function on a grid edge, found by Brent's method on the exact
+    closed form (so it satisfies q(j omega; x, tau) = 0 and tangency to
+    rounding); the grid only decides which vertices are joined.
+    """
+    from scipy.optimize import brentq
+
+    wmax = omega_limit(P, D, max(abs(low), abs(high)))
+    w = np.linspace(wmax / n_w, wmax, n_w)
+    x = np.linspace(low, high, n_x + 2)[1:-1]
+    W, X = np.meshgrid(w, x, indexing="ij")
+    n1max = int(np.ceil(tau1_max * wmax / (2 * np.pi)))
+    n2max = int(np.ceil(tau2_max * wmax / (2 * np.pi)))
+    segments: list[tuple[tuple[float, float], tuple[float, float]]] = []
+    for branch in (1.0, -1.0):
+        th1, th2, ok = _triangle(P, D, W, X, branch)
+
+        def point(wv: float, xv: float, ref1: float, ref2: float, branch: float = branch) -> tuple[float, float, float]:
+            # phases continued next to the cell's (unwrapped, lattice-shifted) reference phases
+            a1, a2, good = _triangle(P, D, np.array(wv), np.array(xv), branch)
+            if not good:
+                return np.nan, np.nan, np.nan
+            p1 = ref1 + np.angle(np.exp(1j * (a1 - ref1)))
+            p2 = ref2 + np.angle(np.exp(1j * (a2 - ref2)))
+            tt1, tt2 = p1 / wv, p2 / wv
+            return float(_tangency(P, D, np.array(wv), np.array(xv), tt1, tt2)), float(tt1), float(tt2)
+
+        for n1 in range(n1max + 1):
+            for n2 in range(n2max + 1):
+                T1 = (th1 + 2 * np.pi * n1) / W
+                T2 = (th2 + 2 * np.pi * n2) / W
+                G = np.where(ok, _tangency(P, D, W, X, T1, T2), np.nan)
+                segments.extend(_march(G, th1, th2, T1, T2, w, x, n1, n2, point, brentq, tau1_max, tau2_max))
+    if not segments:
+        return ()
+    arr = np.asarray(segments, dtype=float)
+    return tuple(arr)
+
+
+def _wraps(th: NDArray[np.float64]) -> NDArray[np.bool_]:
+    """Cells in which a phase wraps around 2 pi."""
+    big = np.pi
+    return ((np.abs(np.diff(th, axis=0))[:, :-1] > big) | (np.abs(np.diff(th, axis=0))[:, 1:] > big)
+            | (np.abs(np.diff(th, axis=1))[:-1, :] > big) | (np.abs(np.diff(th, axis=1))[1:, :] > big))
+
+
+def _march(G, th1, th2, T1, T2, w, x, n1, n2, point, brentq, tau1_max, tau2_max):  # type: ignore[no-untyped-def]
+    """Marching squares on the (omega, x) grid; vertices polished on the cell edges."""
+    out = []
+    near = ((T1 <= 1.05 * tau1_max) & (T2 <= 1.05 * tau2_max))
+    sign = np.sign(G)
+    wrapped = _wraps(th1) | _wraps(th2)
+    cells = np.argwhere(
+        np.isfinite(G[:-1, :-1]) & np.isfinite(G[1:, :-1]) & np.isfinite(G[:-1, 1:]) & np.isfinite(G[1:, 1:])
+        & ((np.abs(sign[:-1, :-1] + sign[1:, :-1] + sign[:-1, 1:] + sign[1:, 1:]) < 4) | wrapped)
+        & (near[:-1, :-1] | near[1:, 1:])
+    )
+    for i, j in cells:
+        corners = [(i, j), (i + 1, j), (i + 1, j + 1), (i, j + 1)]
+        ref1 = th1[i, j] + 2 * np.pi * n1
+        ref2 = th2[i, j] + 2 * np.pi * n2
+        # the corners' phases continued from the first corner (a wrap inside the cell is not a jump)
+        if wrapped[i, j]:
+            g = {c: point(w[c[0]], x[c[1]], ref1, ref2)[0] for c in corners}
+        else:
+            g = {c: G[c] for c in corners}
+        if not all(np.isfinite(v) for v in g.values()):
+            continue
+        verts = []
+        for p, q in zip(corners, corners[1:] + corners[:1], strict=True):
+            if g[p] * g[q] < 0:
+                if p[0] != q[0]:  # an edge along omega at fixed x
+                    xv = x[p[1]]
+                    f = lambda wv, xv=xv: point(wv, xv, ref1, ref2)[0]  # noqa: E731
+                    lo, hi = sorted((w[p[0]], w[q[0]]))
+                    try:
+                        wv = brentq(f, lo, hi, xtol=1e-14)
+                    except ValueError:
+                        continue
+                else:
+                    wv = w[p[0]]
+                    f = lambda xv, wv=wv: point(wv, xv, ref1, ref2)[0]  # noqa: E731
+                    lo, hi = sorted((x[p[1]], x[q[1]]))
+                    try:
+                        xv = brentq(f, lo, hi, xtol=1e-14)
+                    except ValueError:
+                        continue
+                _, tt1, tt2 = point(wv, xv, ref1, ref2)
+                if np.isfinite(tt1):
+                    verts.append((tt1, tt2))
+        for k in range(0, len(verts) - 1, 2):
+            out.append((verts[k], verts[k + 1]))
+    return out
