@@ -60,6 +60,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from delayform._validation import check_complex_array, check_delay, check_gains
+from delayform.analysis.bounds import SpectrumBound, spectrum_bound
 from delayform.analysis.certificates import SafeDelayMap, SpectrumSet, omega_limit, parse_spectrum, safe_delays
 from delayform.errors import InputError
 from delayform.topology import Topology
@@ -76,6 +77,9 @@ __all__ = [
     "SpectrumSet",
     "safe_delays",
     "parse_spectrum",
+    # re-exported: spectrum bounds for large teams
+    "SpectrumBound",
+    "spectrum_bound",
 ]
 
 #: Eigenvalues closer than this to 1 are the centroid eigenvalue (eq. factor1).
