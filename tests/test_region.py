@@ -107,6 +107,8 @@ def test_region_input_errors() -> None:
         lambda_region(1.0, 0.5, -1.0, 1.0)
     with pytest.raises(InputError):
         lambda_region(1.0, 0.5, 1.0, 1.0).unstable_count(np.nan)
+    with pytest.raises(InputError, match="at most"):
+        lambda_region(1.0, 0.5, 1.0, 1.0).unstable_count(1e6)
     with pytest.raises(InputError):
         lambda_region(1.0, 0.5, 1.0, 1.0).team_is_stable("paper")  # type: ignore[arg-type]
 

@@ -84,6 +84,8 @@ __all__ = [
 
 #: Eigenvalues closer than this to 1 are the centroid eigenvalue (eq. factor1).
 CENTROID_TOL = 1e-9
+#: Largest |lam| accepted (eigenvalues of C lie in the unit disc; the curve's samples grow like |lam| tau).
+MAX_MODULUS = 1e4
 _PHASE_STEP = 0.25
 _LOGRHO_STEP = 0.25
 _CHORD_TOL = 1e-3
@@ -284,7 +286,8 @@ class LambdaRegion:
         Parameters
         ----------
         lam
-            Complex eigenvalue(s), any shape, anywhere in the plane. Values
+            Complex eigenvalue(s), any shape, anywhere in the plane with
+            ``|lam| <= MAX_MODULUS``. Values
             within :data:`CENTROID_TOL` of 1 are the centroid eigenvalue,
             whose root s = 0 is not counted.
 
@@ -301,6 +304,8 @@ class LambdaRegion:
         if z.size == 0:
             return out.reshape(shape)
         rad = np.abs(z)
+        if rad.max() > MAX_MODULUS:
+            raise InputError(f"|lam| must be at most {MAX_MODULUS:g} (eigenvalues of C lie in the unit disc), got {rad.max():g}")
         curve = self._curve(float(rad.max()) * 1.01)
         psi = np.angle(z)
         for sign in (1.0, -1.0):  # omega > 0 for lam, omega < 0 as omega > 0 for conj(lam)
