@@ -295,3 +295,14 @@ def test_grid_builder() -> None:
     assert np.isclose(t.eigenvalues.real.min(), -1.0)  # bipartite
     with pytest.raises(InputError):
         grid(1, 1)
+
+
+def test_bound_falls_back_to_the_theorem_when_a_factorization_would_not_fit(monkeypatch: pytest.MonkeyPatch) -> None:
+    import delayform.analysis.bounds as bounds
+
+    monkeypatch.setattr(bounds, "FACTOR_MEMORY_BUDGET", 1)
+    b = bounds.spectrum_bound(grid(45, 46))
+    assert (b.spectrum_set.low, b.spectrum_set.high) == (-1.0, 1.0) and not b.high_certified
+    assert "not tightened" in b.method and "GiB" in b.method
+    # the estimate is an upper estimate of the real fill for grids (minimum-degree LU: ~n log n)
+    assert bounds.factor_memory_estimate(grid(40, 40).adjacency_sparse) >= 8 * 40**3
