@@ -212,13 +212,16 @@ def test_spectrum_sets_and_errors() -> None:
         m.is_safe(3.0, 1.0)
 
 
-def test_small_disc_against_region() -> None:
-    # A disc away from 1: safe exactly where the region holds the disc (sampled densely).
-    P, D, c, r = 1.0, 0.5, -0.2 + 0.1j, 0.4
+@pytest.mark.parametrize(("c", "r"), [(-0.2 + 0.1j, 0.4), (0.5 + 0j, 0.5)])
+def test_disc_against_region(c: complex, r: float) -> None:
+    # A disc away from 1, and one tangent to the boundary curve at 1: safe exactly where the
+    # region holds the disc (sampled densely).
+    P, D = 1.0, 0.5
     m = safe_delays(P, D, 4.0, 4.0, spectrum=f"disc:{c.real},{c.imag},{r}")
     t = (np.arange(10) + 0.5) * 4.0 / 10
     rho, ang = np.meshgrid(np.linspace(0.0, r, 12), np.linspace(0.0, 2 * np.pi, 48, endpoint=False))
     disc = (c + rho * np.exp(1j * ang)).ravel()
+    disc = disc[np.abs(disc - 1.0) > 1e-6]
     agree = 0
     for a in t:
         for b in t:

@@ -282,14 +282,16 @@ class _Scan:
     fhi: NDArray[np.float64]
 
 
-def _interval_values(P, D, t1, t2, w, a, b):  # type: ignore[no-untyped-def]
+def _interval_values(P: float, D: float, t1: NDArray, t2: NDArray, w: NDArray, a: float, b: float) -> NDArray:
+    """(r, g_a, g_b) at omega: r = 0 at a real point of the curve, Re L > a iff g_a > 0, Re L < b iff g_b < 0."""
     m, bb = _parts(P, D, t1, t2, w)
     mb = m * np.conj(bb)
     b2 = np.abs(bb) ** 2
     return np.stack([mb.real, (1.0 - a) * b2 - w * mb.imag, (1.0 - b) * b2 - w * mb.imag], axis=-1)
 
 
-def _interval_lips(P, D, t1, t2, wmax, a, b):  # type: ignore[no-untyped-def]
+def _interval_lips(P: float, D: float, t1: NDArray, t2: NDArray, wmax: NDArray, a: float, b: float) -> NDArray:
+    """Lipschitz bounds in omega of (r, g_a, g_b) on intervals ending at ``wmax``."""
     m, dm, bb, db = _bounds(P, D, t1, t2, wmax)
     lr = dm * bb + m * db
     lg = 2.0 * bb * db * max(abs(1.0 - a), abs(1.0 - b)) + m * bb + wmax * lr
@@ -310,7 +312,10 @@ def _interval_decide(fl: NDArray, fr: NDArray, lip: NDArray, h: NDArray) -> NDAr
     return out
 
 
-def _disc_values(P, D, t1, t2, w, c, rho, through_one):  # type: ignore[no-untyped-def]
+def _disc_values(
+    P: float, D: float, t1: NDArray, t2: NDArray, w: NDArray, c: complex, rho: float, through_one: bool
+) -> NDArray:
+    """k(omega) = |a - c b|^2 - rho^2 |b|^2 (<= 0 where the curve is in the disc), as a last axis of length 1."""
     m, bb = _parts(P, D, t1, t2, w)
     if through_one:
         # a - c b = s m + (1 - c) b and |1 - c| = rho: k = w^2 |m|^2 - 2 w Im(m conj((1 - c) b))
@@ -321,8 +326,16 @@ def _disc_values(P, D, t1, t2, w, c, rho, through_one):  # type: ignore[no-untyp
     return k[..., None]
 
 
-def _disc_lips(P, D, t1, t2, wmax, c, rho, through_one):  # type: ignore[no-untyped-def]
+def _disc_lips(
+    P: float, D: float, t1: NDArray, t2: NDArray, wmax: NDArray, c: complex, rho: float, through_one: bool
+) -> NDArray:
+    """Lipschitz bound in omega of k on intervals ending at ``wmax``."""
     m, dm, bb, db = _bounds(P, D, t1, t2, wmax)
+    if through_one:
+        # k = w kt with kt = w |m|^2 - 2 Im(m conj((1 - c) b)) odd in w (c real), so |kt| <= w sup|kt'|
+        # and |k'| <= |kt| + w |kt'| <= 2 w sup|kt'|: small next to omega = 0, where k ~ w^2
+        dkt = m * m + 2.0 * wmax * m * dm + 2.0 * abs(1.0 - c) * (dm * bb + m * db)
+        return (2.0 * wmax * dkt)[..., None]
     amb = wmax * m + abs(1.0 - c) * bb                       # |a - c b| = |s m + (1 - c) b|
     d_amb = m + wmax * dm + abs(1.0 - c) * db
     lip = 2.0 * amb * d_amb + 2.0 * rho * rho * bb * db
@@ -669,7 +682,10 @@ def _wraps(th: NDArray[np.float64]) -> NDArray[np.bool_]:
             | (np.abs(np.diff(th, axis=1))[:-1, :] > big) | (np.abs(np.diff(th, axis=1))[1:, :] > big))
 
 
-def _march(G, th1, th2, T1, T2, w, x, n1, n2, point, brentq, tau1_max, tau2_max):  # type: ignore[no-untyped-def]
+def _march(
+    G: NDArray, th1: NDArray, th2: NDArray, T1: NDArray, T2: NDArray, w: NDArray, x: NDArray, n1: int, n2: int,
+    point: Any, brentq: Any, tau1_max: float, tau2_max: float,
+) -> list[tuple[tuple[float, float], tuple[float, float]]]:
     """Marching squares on the (omega, x) grid; vertices polished on the cell edges."""
     out = []
     near = ((T1 <= 1.05 * tau1_max) & (T2 <= 1.05 * tau2_max))
