@@ -309,3 +309,18 @@ def test_bound_falls_back_to_the_theorem_when_a_factorization_would_not_fit(monk
     assert "not tightened" in b.method and "GiB" in b.method
     # the estimate is an upper estimate of the real fill for grids (minimum-degree LU: ~n log n)
     assert bounds.factor_memory_estimate(grid(40, 40).adjacency_sparse) >= 8 * 40**3
+
+
+def test_undirected_certificate_holds_for_random_undirected_teams(rng: np.random.Generator) -> None:
+    import networkx as nx
+
+    m = safe_delays(1.0, 0.5, 4.0, 4.0, spectrum="undirected")
+    t1, t2, safe = m.grid(40)
+    pairs = np.argwhere(safe)
+    picks = pairs[rng.choice(len(pairs), size=6, replace=False)]
+    for seed in range(3):
+        G = nx.connected_watts_strogatz_graph(10 + 3 * seed, 4, 0.3, seed=seed)
+        team = Topology.from_networkx(G)
+        for i2, i1 in picks:
+            # certified safe for every undirected team: this one is stable, by its own dominant root
+            assert dominant_root(team, 1.0, 0.5, t1[i1], t2[i2]).is_stable, (seed, t1[i1], t2[i2])
