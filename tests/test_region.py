@@ -324,3 +324,35 @@ def test_undirected_certificate_holds_for_random_undirected_teams(rng: np.random
         for i2, i1 in picks:
             # certified safe for every undirected team: this one is stable, by its own dominant root
             assert dominant_root(team, 1.0, 0.5, t1[i1], t2[i2]).is_stable, (seed, t1[i1], t2[i2])
+
+
+def _curve_points(m: object) -> np.ndarray:
+    pts = [np.column_stack([c.tau1, c.tau2]) for base in m.base_maps for c in base.curves]  # type: ignore[attr-defined]
+    for line in m.envelope:  # type: ignore[attr-defined]
+        # densify: segments may be longer than a cell
+        t = np.linspace(0.0, 1.0, 20)[:, None]
+        pts += [a + t * (b - a) for a, b in zip(line[:-1], line[1:], strict=True)]
+    return np.concatenate(pts)
+
+
+@pytest.mark.parametrize(
+    ("P", "D", "spectrum", "window"),
+    [(4.72, 0.366, "interval:-0.8,0.5", (0.6, 10.0)), (1.0, 0.5, "disc:-0.2,0.1,0.4", (4.0, 4.0)),
+     (1.0, 0.5, "disc:0.5,0.5", (4.0, 4.0))],
+)
+def test_safe_set_boundary_lies_on_the_drawn_curves(P: float, D: float, spectrum: str, window: tuple[float, float]) -> None:
+    from scipy.spatial import cKDTree
+
+    m = safe_delays(P, D, *window, spectrum=spectrum)
+    t1, t2, safe = m.grid(60)
+    tree = cKDTree(_curve_points(m) / np.array(window))
+    cell = 1.0 / 60
+    for axis in (0, 1):
+        change = np.diff(safe.astype(int), axis=axis) != 0
+        i2, i1 = np.nonzero(change)
+        if axis == 0:
+            mid = np.column_stack([t1[i1], 0.5 * (t2[i2] + t2[i2 + 1])])
+        else:
+            mid = np.column_stack([0.5 * (t1[i1] + t1[i1 + 1]), t2[i2]])
+        dist, _ = tree.query(mid / np.array(window))
+        assert np.all(dist < 2.0 * cell), (axis, mid[dist >= 2.0 * cell][:5])

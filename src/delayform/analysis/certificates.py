@@ -36,6 +36,12 @@ end a of an interval, the centre of a disc) and the curve does not meet S
   not real, is never safe (real lam > 1 has an unstable real root; a curve
   crossing the circle at 1 enters the disc).
 
+The chart draws the boundary: the CTCR curves of the base factors and the
+envelope of the CTCR curves of the set's family of eigenvalues (the interior
+of an interval, the circle of a disc), where an eigenvalue of the family
+gets an imaginary root that does not move under a change of the eigenvalue
+along the family (:func:`_envelope`).
+
 Each condition is decided on omega in [0, omega_max] (beyond which |L| exceeds
 every |lam| of S) by *certified* sampling: on a sample interval of width h a
 function with the Lipschitz bound Lip (closed-form bounds on |m|, |m'|, |b|,
@@ -408,9 +414,10 @@ class SafeDelayMap:
     never_safe
         A reason when no delay pair can be safe for S (e.g. S holds real lam > 1), else "".
     envelope
-        For an interval: segments ``(2, 2)`` (rows: points, columns: tau1, tau2)
-        of the envelope of the CTCR curves of the interior eigenvalues, where
-        an eigenvalue inside the interval becomes unstable first.
+        Polylines ``(k, 2)`` (rows: points, columns: tau1, tau2) of the envelope
+        of the CTCR curves of the interior eigenvalues of an interval (or of the
+        circle of a disc, and its tangency at 1): where an eigenvalue inside the
+        set becomes unstable before its ends (its base).
     """
 
     P: float
@@ -598,7 +605,7 @@ def safe_delays(
     if S.kind == "interval" and S.high < 1.0 and not reason:
         bases.append(complex(S.high))
     maps = tuple(crossing_map(_lam_factor(P, D, lam), t1, t2) for lam in bases)
-    envelope = _envelope(P, D, S.low, S.high, t1, t2) if S.kind == "interval" and not reason else ()
+    envelope = () if reason else _set_envelope(S, P, D, t1, t2)
     return SafeDelayMap(P, D, t1, t2, S, maps, reason, envelope)
 
 
@@ -622,57 +629,89 @@ def _triangle(P: float, D: float, w: NDArray, x: NDArray, branch: float) -> tupl
     return th1, th2, ok
 
 
-def _tangency(P: float, D: float, w: NDArray, x: NDArray, t1: NDArray, t2: NDArray) -> NDArray[np.float64]:
-    """Re((a' - x b') / a) at s = j w: zero where the curve L(j omega) is tangent to the real axis at x."""
+def _tangency(P: float, D: float, w: NDArray, lam: NDArray, dlam: NDArray, t1: NDArray, t2: NDArray) -> NDArray[np.float64]:
+    """``Re(dlam b conj(q_s))`` at s = j w with ``b = a / lam``: zero where the imaginary root stops moving.
+
+    Along a family of eigenvalues ``lam(t)`` the root j omega of q(s, lam)
+    moves by ``ds = dlam b / q_s``; where ``Re ds = 0`` the curve ``L(j omega)`` is
+    tangent to the family (the real axis, or the disc's circle) and the CTCR
+    curves of the family have their envelope.
+    """
     s = 1j * w
     A = s * s + D * s + P
     db = D * np.exp(-t2 * s) * (1.0 - t2 * s) - P * t1 * np.exp(-t1 * s)
-    return ((2.0 * s + D - x * db) / A).real
+    qs = 2.0 * s + D - lam * db
+    return (dlam * (A / lam) * np.conj(qs)).real
 
 
-def _envelope(P: float, D: float, low: float, high: float, tau1_max: float, tau2_max: float,
-              *, n_w: int = 240, n_x: int = 160) -> tuple[NDArray[np.float64], ...]:
-    """Segments (tau1, tau2) of the envelope of the CTCR curves of the factors x in (low, high).
+def _envelope(
+    P: float, D: float, lam_of: Any, dlam_of: Any, t_lo: float, t_hi: float, radius: float,
+    tau1_max: float, tau2_max: float, *, n_w: int = 240, n_t: int = 160,
+) -> list[NDArray[np.float64]]:
+    """Segments (tau1, tau2) of the envelope of the CTCR curves of the factors lam(t), t in (t_lo, t_hi).
 
-    On a grid of (omega, x) the phases come in closed form (:func:`_triangle`)
+    On a grid of (omega, t) the phases come in closed form (:func:`_triangle`)
     and the delays on each lattice image ``tau_k = (theta_k + 2 pi n_k) / omega``;
-    the tangency function is zero on the envelope. Every vertex is the zero of
-    the tangency function on a grid edge, found by Brent's method on the exact
-    closed form (so it satisfies q(j omega; x, tau) = 0 and tangency to
-    rounding); the grid only decides which vertices are joined.
+    the tangency function (:func:`_tangency`) is zero on the envelope. Every
+    vertex is the zero of the tangency function on a grid edge, found by
+    Brent's method on the exact closed form (so it satisfies
+    q(j omega; lam, tau) = 0 and the tangency to rounding); the grid only
+    decides which vertices are joined.
     """
     from scipy.optimize import brentq
 
-    wmax = omega_limit(P, D, max(abs(low), abs(high)))
+    wmax = omega_limit(P, D, radius)
     w = np.linspace(wmax / n_w, wmax, n_w)
-    x = np.linspace(low, high, n_x + 2)[1:-1]
-    W, X = np.meshgrid(w, x, indexing="ij")
+    t = np.linspace(t_lo, t_hi, n_t + 2)[1:-1]
+    W, Tg = np.meshgrid(w, t, indexing="ij")
+    L, dL = lam_of(Tg), dlam_of(Tg)
     n1max = int(np.ceil(tau1_max * wmax / (2 * np.pi)))
     n2max = int(np.ceil(tau2_max * wmax / (2 * np.pi)))
     segments: list[tuple[tuple[float, float], tuple[float, float]]] = []
     for branch in (1.0, -1.0):
-        th1, th2, ok = _triangle(P, D, W, X, branch)
+        th1, th2, ok = _triangle(P, D, W, L, branch)
 
-        def point(wv: float, xv: float, ref1: float, ref2: float, branch: float = branch) -> tuple[float, float, float]:
+        def point(wv: float, tv: float, ref1: float, ref2: float, branch: float = branch) -> tuple[float, float, float]:
             # phases continued next to the cell's (unwrapped, lattice-shifted) reference phases
-            a1, a2, good = _triangle(P, D, np.array(wv), np.array(xv), branch)
+            lam = lam_of(np.array(tv))
+            a1, a2, good = _triangle(P, D, np.array(wv), lam, branch)
             if not good:
                 return np.nan, np.nan, np.nan
             p1 = ref1 + np.angle(np.exp(1j * (a1 - ref1)))
             p2 = ref2 + np.angle(np.exp(1j * (a2 - ref2)))
             tt1, tt2 = p1 / wv, p2 / wv
-            return float(_tangency(P, D, np.array(wv), np.array(xv), tt1, tt2)), float(tt1), float(tt2)
+            g = _tangency(P, D, np.array(wv), lam, dlam_of(np.array(tv)), tt1, tt2)
+            return float(g), float(tt1), float(tt2)
 
         for n1 in range(n1max + 1):
             for n2 in range(n2max + 1):
                 T1 = (th1 + 2 * np.pi * n1) / W
                 T2 = (th2 + 2 * np.pi * n2) / W
-                G = np.where(ok, _tangency(P, D, W, X, T1, T2), np.nan)
-                segments.extend(_march(G, th1, th2, T1, T2, w, x, n1, n2, point, brentq, tau1_max, tau2_max))
-    if not segments:
-        return ()
-    arr = np.asarray(segments, dtype=float)
-    return tuple(arr)
+                G = np.where(ok, _tangency(P, D, W, L, dL, T1, T2), np.nan)
+                segments.extend(_march(G, th1, th2, T1, T2, w, t, n1, n2, point, brentq, tau1_max, tau2_max))
+    return [np.asarray(seg, dtype=float) for seg in segments]
+
+
+def _set_envelope(S: SpectrumSet, P: float, D: float, tau1_max: float, tau2_max: float) -> tuple[NDArray[np.float64], ...]:
+    """The envelope curves of a spectrum set (interval: its interior; disc: its circle, and the tangency at 1)."""
+    R = S.outer_radius
+    if S.kind == "interval":
+        return tuple(_envelope(P, D, lambda x: x + 0j, lambda x: np.ones_like(x) + 0j, S.low, S.high, R,
+                               tau1_max, tau2_max))  # fmt: skip
+    c, rho = S.center, S.radius
+    out: list[NDArray[np.float64]] = []
+    # omega > 0 roots of the circle's factors; omega < 0 ones are those of the mirror circle
+    for centre in ((c,) if c.imag == 0 else (c, np.conj(c))):
+        out += _envelope(P, D, lambda p, centre=centre: centre + rho * np.exp(1j * p),
+                         lambda p: 1j * rho * np.exp(1j * p), 0.0, 2 * np.pi, R, tau1_max, tau2_max, n_t=240)  # fmt: skip
+    if abs(abs(1.0 - c) - rho) <= 1e-12 * max(1.0, rho) and c.imag == 0:
+        # tangent to the curve at lam = 1: tau1^2 - 2 rho Re L2 = 0 (module docstring), a parabola
+        x = np.linspace(0.0, tau1_max, 400)
+        y = (x * x * (1.0 - rho) * P / (2.0 * rho) - 1.0 + D * x) / D
+        keep = (y >= 0.0) & (y <= tau2_max)
+        if np.count_nonzero(keep) >= 2:
+            out.append(np.column_stack([x[keep], y[keep]]))
+    return tuple(out)
 
 
 def _wraps(th: NDArray[np.float64]) -> NDArray[np.bool_]:
