@@ -40,7 +40,7 @@ The chart draws the boundary: the CTCR curves of the base factors and the
 envelope of the CTCR curves of the set's family of eigenvalues (the interior
 of an interval, the circle of a disc), where an eigenvalue of the family
 gets an imaginary root that does not move under a change of the eigenvalue
-along the family (:func:`_envelope`).
+along the family (:mod:`delayform.analysis.envelope`).
 
 Each condition is decided on omega in [0, omega_max] (beyond which |L| exceeds
 every |lam| of S) by *certified* sampling: on a sample interval of width h a
@@ -67,7 +67,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from delayform._validation import check_delay_array, check_gains, check_positive
+from delayform.analysis.boundary_curve import omega_limit
 from delayform.analysis.ctcr import StabilityMap, _lam_factor, crossing_map
+from delayform.analysis.envelope import envelope_of_family, tangency_parabola
 from delayform.errors import DelayError, InputError
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
@@ -78,7 +80,7 @@ __all__ = [
     "SafeDelayMap",
     "safe_delays",
     "parse_spectrum",
-    "omega_limit",
+    "omega_limit",  # from delayform.analysis.boundary_curve
 ]
 
 _MIN_WIDTH = 1e-10
@@ -86,16 +88,6 @@ _MAX_ROUNDS = 60
 _SAMPLES = 96
 #: omega below which the tangency at lam = 1 is decided by its Taylor coefficient.
 _W_EPS = 1e-4
-
-
-def omega_limit(P: float, D: float, radius: float) -> float:
-    """A frequency beyond which ``|L(j omega)| > radius`` (so no crossing of |lam| <= radius).
-
-    ``|a(j w)| >= w^2 - P`` and ``|b(j w)| <= P + D w``, so ``|L| > radius`` once
-    ``w^2 - radius D w - P (1 + radius) > 0``.
-    """
-    r = max(float(radius), 0.0)
-    return float(0.5 * (r * D + np.sqrt((r * D) ** 2 + 4.0 * P * (1.0 + r)))) * 1.0001 + 1e-9
 
 
 # ===================================================================== spectrum sets
@@ -609,165 +601,22 @@ def safe_delays(
     return SafeDelayMap(P, D, t1, t2, S, maps, reason, envelope)
 
 
-# ===================================================================== the envelope (interval sets)
-def _triangle(P: float, D: float, w: NDArray, x: NDArray, branch: float) -> tuple[NDArray, NDArray, NDArray]:
-    """Phases (theta1, theta2) in [0, 2 pi) with a(j w) = x (P z1 + j D w z2), and the feasibility mask.
-
-    ``u = P z1`` and ``v = j D w z2`` are the sides of the triangle ``u + v = a / x``
-    (law of cosines; ``branch`` = +-1 picks the mirror triangle).
-    """
-    A = -w * w + 1j * D * w + P
-    with np.errstate(divide="ignore", invalid="ignore"):
-        c = A / x
-        rc = np.abs(c)
-        cos_alpha = (rc * rc + P * P - (D * w) ** 2) / (2.0 * rc * P)
-        ok = np.isfinite(cos_alpha) & (np.abs(cos_alpha) <= 1.0) & (w > 0)
-        u = P * np.exp(1j * (np.angle(c) + branch * np.arccos(np.clip(cos_alpha, -1.0, 1.0))))
-        v = c - u
-        th1 = np.mod(-np.angle(u / P), 2.0 * np.pi)
-        th2 = np.mod(-np.angle(v / (1j * D * w)), 2.0 * np.pi)
-    return th1, th2, ok
-
-
-def _tangency(P: float, D: float, w: NDArray, lam: NDArray, dlam: NDArray, t1: NDArray, t2: NDArray) -> NDArray[np.float64]:
-    """``Re(dlam b conj(q_s))`` at s = j w with ``b = a / lam``: zero where the imaginary root stops moving.
-
-    Along a family of eigenvalues ``lam(t)`` the root j omega of q(s, lam)
-    moves by ``ds = dlam b / q_s``; where ``Re ds = 0`` the curve ``L(j omega)`` is
-    tangent to the family (the real axis, or the disc's circle) and the CTCR
-    curves of the family have their envelope.
-    """
-    s = 1j * w
-    A = s * s + D * s + P
-    db = D * np.exp(-t2 * s) * (1.0 - t2 * s) - P * t1 * np.exp(-t1 * s)
-    qs = 2.0 * s + D - lam * db
-    return (dlam * (A / lam) * np.conj(qs)).real
-
-
-def _envelope(
-    P: float, D: float, lam_of: Any, dlam_of: Any, t_lo: float, t_hi: float, radius: float,
-    tau1_max: float, tau2_max: float, *, n_w: int = 240, n_t: int = 160,
-) -> list[NDArray[np.float64]]:
-    """Segments (tau1, tau2) of the envelope of the CTCR curves of the factors lam(t), t in (t_lo, t_hi).
-
-    On a grid of (omega, t) the phases come in closed form (:func:`_triangle`)
-    and the delays on each lattice image ``tau_k = (theta_k + 2 pi n_k) / omega``;
-    the tangency function (:func:`_tangency`) is zero on the envelope. Every
-    vertex is the zero of the tangency function on a grid edge, found by
-    Brent's method on the exact closed form (so it satisfies
-    q(j omega; lam, tau) = 0 and the tangency to rounding); the grid only
-    decides which vertices are joined.
-    """
-    from scipy.optimize import brentq
-
-    wmax = omega_limit(P, D, radius)
-    w = np.linspace(wmax / n_w, wmax, n_w)
-    t = np.linspace(t_lo, t_hi, n_t + 2)[1:-1]
-    W, Tg = np.meshgrid(w, t, indexing="ij")
-    L, dL = lam_of(Tg), dlam_of(Tg)
-    n1max = int(np.ceil(tau1_max * wmax / (2 * np.pi)))
-    n2max = int(np.ceil(tau2_max * wmax / (2 * np.pi)))
-    segments: list[tuple[tuple[float, float], tuple[float, float]]] = []
-    for branch in (1.0, -1.0):
-        th1, th2, ok = _triangle(P, D, W, L, branch)
-
-        def point(wv: float, tv: float, ref1: float, ref2: float, branch: float = branch) -> tuple[float, float, float]:
-            # phases continued next to the cell's (unwrapped, lattice-shifted) reference phases
-            lam = lam_of(np.array(tv))
-            a1, a2, good = _triangle(P, D, np.array(wv), lam, branch)
-            if not good:
-                return np.nan, np.nan, np.nan
-            p1 = ref1 + np.angle(np.exp(1j * (a1 - ref1)))
-            p2 = ref2 + np.angle(np.exp(1j * (a2 - ref2)))
-            tt1, tt2 = p1 / wv, p2 / wv
-            g = _tangency(P, D, np.array(wv), lam, dlam_of(np.array(tv)), tt1, tt2)
-            return float(g), float(tt1), float(tt2)
-
-        for n1 in range(n1max + 1):
-            for n2 in range(n2max + 1):
-                T1 = (th1 + 2 * np.pi * n1) / W
-                T2 = (th2 + 2 * np.pi * n2) / W
-                G = np.where(ok, _tangency(P, D, W, L, dL, T1, T2), np.nan)
-                segments.extend(_march(G, th1, th2, T1, T2, w, t, n1, n2, point, brentq, tau1_max, tau2_max))
-    return [np.asarray(seg, dtype=float) for seg in segments]
-
-
+# ===================================================================== the envelope
 def _set_envelope(S: SpectrumSet, P: float, D: float, tau1_max: float, tau2_max: float) -> tuple[NDArray[np.float64], ...]:
     """The envelope curves of a spectrum set (interval: its interior; disc: its circle, and the tangency at 1)."""
     R = S.outer_radius
     if S.kind == "interval":
-        return tuple(_envelope(P, D, lambda x: x + 0j, lambda x: np.ones_like(x) + 0j, S.low, S.high, R,
+        return tuple(envelope_of_family(P, D, lambda x: x + 0j, lambda x: np.ones_like(x) + 0j, S.low, S.high, R,
                                tau1_max, tau2_max))  # fmt: skip
     c, rho = S.center, S.radius
     out: list[NDArray[np.float64]] = []
     # omega > 0 roots of the circle's factors; omega < 0 ones are those of the mirror circle
     for centre in ((c,) if c.imag == 0 else (c, np.conj(c))):
-        out += _envelope(P, D, lambda p, centre=centre: centre + rho * np.exp(1j * p),
+        out += envelope_of_family(P, D, lambda p, centre=centre: centre + rho * np.exp(1j * p),
                          lambda p: 1j * rho * np.exp(1j * p), 0.0, 2 * np.pi, R, tau1_max, tau2_max, n_t=240)  # fmt: skip
     if abs(abs(1.0 - c) - rho) <= 1e-12 * max(1.0, rho) and c.imag == 0:
         # tangent to the curve at lam = 1: tau1^2 - 2 rho Re L2 = 0 (module docstring), a parabola
-        x = np.linspace(0.0, tau1_max, 400)
-        y = (x * x * (1.0 - rho) * P / (2.0 * rho) - 1.0 + D * x) / D
-        keep = (y >= 0.0) & (y <= tau2_max)
-        if np.count_nonzero(keep) >= 2:
-            out.append(np.column_stack([x[keep], y[keep]]))
+        parabola = tangency_parabola(P, D, rho, tau1_max, tau2_max)
+        if parabola is not None:
+            out.append(parabola)
     return tuple(out)
-
-
-def _wraps(th: NDArray[np.float64]) -> NDArray[np.bool_]:
-    """Cells in which a phase wraps around 2 pi."""
-    big = np.pi
-    return ((np.abs(np.diff(th, axis=0))[:, :-1] > big) | (np.abs(np.diff(th, axis=0))[:, 1:] > big)
-            | (np.abs(np.diff(th, axis=1))[:-1, :] > big) | (np.abs(np.diff(th, axis=1))[1:, :] > big))
-
-
-def _march(
-    G: NDArray, th1: NDArray, th2: NDArray, T1: NDArray, T2: NDArray, w: NDArray, x: NDArray, n1: int, n2: int,
-    point: Any, brentq: Any, tau1_max: float, tau2_max: float,
-) -> list[tuple[tuple[float, float], tuple[float, float]]]:
-    """Marching squares on the (omega, x) grid; vertices polished on the cell edges."""
-    out = []
-    near = ((T1 <= 1.05 * tau1_max) & (T2 <= 1.05 * tau2_max))
-    sign = np.sign(G)
-    wrapped = _wraps(th1) | _wraps(th2)
-    cells = np.argwhere(
-        np.isfinite(G[:-1, :-1]) & np.isfinite(G[1:, :-1]) & np.isfinite(G[:-1, 1:]) & np.isfinite(G[1:, 1:])
-        & ((np.abs(sign[:-1, :-1] + sign[1:, :-1] + sign[:-1, 1:] + sign[1:, 1:]) < 4) | wrapped)
-        & (near[:-1, :-1] | near[1:, 1:])
-    )
-    for i, j in cells:
-        corners = [(i, j), (i + 1, j), (i + 1, j + 1), (i, j + 1)]
-        ref1 = th1[i, j] + 2 * np.pi * n1
-        ref2 = th2[i, j] + 2 * np.pi * n2
-        # the corners' phases continued from the first corner (a wrap inside the cell is not a jump)
-        if wrapped[i, j]:
-            g = {c: point(w[c[0]], x[c[1]], ref1, ref2)[0] for c in corners}
-        else:
-            g = {c: G[c] for c in corners}
-        if not all(np.isfinite(v) for v in g.values()):
-            continue
-        verts = []
-        for p, q in zip(corners, corners[1:] + corners[:1], strict=True):
-            if g[p] * g[q] < 0:
-                if p[0] != q[0]:  # an edge along omega at fixed x
-                    xv = x[p[1]]
-                    f = lambda wv, xv=xv: point(wv, xv, ref1, ref2)[0]  # noqa: E731
-                    lo, hi = sorted((w[p[0]], w[q[0]]))
-                    try:
-                        wv = brentq(f, lo, hi, xtol=1e-14)
-                    except ValueError:
-                        continue
-                else:
-                    wv = w[p[0]]
-                    f = lambda xv, wv=wv: point(wv, xv, ref1, ref2)[0]  # noqa: E731
-                    lo, hi = sorted((x[p[1]], x[q[1]]))
-                    try:
-                        xv = brentq(f, lo, hi, xtol=1e-14)
-                    except ValueError:
-                        continue
-                _, tt1, tt2 = point(wv, xv, ref1, ref2)
-                if np.isfinite(tt1):
-                    verts.append((tt1, tt2))
-        for k in range(0, len(verts) - 1, 2):
-            out.append((verts[k], verts[k + 1]))
-    return out

@@ -61,7 +61,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from delayform._validation import check_complex_array, check_delay, check_gains
 from delayform.analysis.bounds import SpectrumBound, spectrum_bound
-from delayform.analysis.certificates import SafeDelayMap, SpectrumSet, omega_limit, parse_spectrum, safe_delays
+from delayform.analysis.boundary_curve import ab_terms, omega_limit
+from delayform.analysis.certificates import SafeDelayMap, SpectrumSet, parse_spectrum, safe_delays
 from delayform.errors import InputError
 from delayform.topology import Topology
 
@@ -94,23 +95,6 @@ _NEWTON_STEPS = 40
 
 
 # ===================================================================== the curve L(j omega)
-def _ab(P: float, D: float, tau1: float, tau2: float, w: NDArray[np.float64]) -> tuple[NDArray, NDArray]:
-    """a(j w) and b(j w)."""
-    s = 1j * w
-    return s * s + D * s + P, D * s * np.exp(-tau2 * s) + P * np.exp(-tau1 * s)
-
-
-def _ab_derivatives(P: float, D: float, tau1: float, tau2: float, w: NDArray[np.float64]) -> tuple[NDArray, ...]:
-    """a, b and their s-derivatives at s = j w."""
-    s = 1j * w
-    e1, e2 = np.exp(-tau1 * s), np.exp(-tau2 * s)
-    a = s * s + D * s + P
-    b = D * s * e2 + P * e1
-    da = 2.0 * s + D
-    db = D * e2 * (1.0 - tau2 * s) - P * tau1 * e1
-    return a, b, da, db
-
-
 @dataclass(frozen=True)
 class _Curve:
     """Samples of L(j omega) for 0 <= omega <= omega_max: phase unwrapped, log-modulus."""
@@ -122,7 +106,7 @@ class _Curve:
 
 
 def _phase_and_modulus(P: float, D: float, t1: float, t2: float, w: NDArray) -> tuple[NDArray, NDArray]:
-    a, b = _ab(P, D, t1, t2, w)
+    a, b, _, _ = ab_terms(P, D, t1, t2, w)
     with np.errstate(divide="ignore"):
         return np.angle(a) - np.angle(b), np.log(np.abs(a)) - np.log(np.abs(b))
 
@@ -156,7 +140,7 @@ def _sample_curve(P: float, D: float, t1: float, t2: float, radius: float) -> _C
 
 def _theta_at(P: float, D: float, t1: float, t2: float, w: NDArray, ref: NDArray) -> tuple[NDArray, NDArray, NDArray]:
     """theta (unwrapped next to ``ref``), d theta / d omega and log rho at omega."""
-    a, b, da, db = _ab_derivatives(P, D, t1, t2, w)
+    a, b, da, db = ab_terms(P, D, t1, t2, w)
     th = np.angle(a) - np.angle(b)
     th = ref + np.angle(np.exp(1j * (th - ref)))
     dth = (da / a - db / b).real  # d/domega arg L(j omega) = Re(L'/L)
