@@ -356,3 +356,10 @@ def test_safe_set_boundary_lies_on_the_drawn_curves(P: float, D: float, spectrum
             mid = np.column_stack([0.5 * (t1[i1] + t1[i1 + 1]), t2[i2]])
         dist, _ = tree.query(mid / np.array(window))
         assert np.all(dist < 2.0 * cell), (axis, mid[dist >= 2.0 * cell][:5])
+
+
+def test_too_large_a_window_is_refused_up_front() -> None:
+    with pytest.raises(DelayError, match="GiB"):
+        safe_delays(1.0, 0.5, 2000.0, 2000.0)
+    m = safe_delays(1.0, 0.5, 4.0, 4.0, spectrum="interval:-0.5,0.9")
+    assert m.envelope_note == ""

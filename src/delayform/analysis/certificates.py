@@ -405,11 +405,6 @@ class SafeDelayMap:
         becomes unstable.
     never_safe
         A reason when no delay pair can be safe for S (e.g. S holds real lam > 1), else "".
-    envelope
-        Polylines ``(k, 2)`` (rows: points, columns: tau1, tau2) of the envelope
-        of the CTCR curves of the interior eigenvalues of an interval (or of the
-        circle of a disc, and its tangency at 1): where an eigenvalue inside the
-        set becomes unstable before its ends (its base).
     """
 
     P: float
@@ -419,8 +414,33 @@ class SafeDelayMap:
     spectrum: SpectrumSet
     base_maps: tuple[StabilityMap, ...]
     never_safe: str = ""
-    envelope: tuple[NDArray[np.float64], ...] = ()
     _cache: dict = field(default_factory=dict, repr=False)
+
+    @property
+    def envelope(self) -> tuple[NDArray[np.float64], ...]:
+        """Polylines ``(k, 2)`` (columns tau1, tau2) of the envelope of the set's family (computed on first use).
+
+        The envelope of the CTCR curves of the interior eigenvalues of an
+        interval (or of the circle of a disc, and its tangency at 1): where an
+        eigenvalue inside the set becomes unstable before its ends (its base).
+        Empty when no pair can be safe, or when the window would need more
+        than :data:`MAX_LATTICE_IMAGES` lattice images (see :attr:`envelope_note`).
+        """
+        if "envelope" not in self._cache:
+            images = _lattice_images(self.P, self.D, self.spectrum, self.tau1_max, self.tau2_max)
+            if self.never_safe or images > MAX_LATTICE_IMAGES:
+                self._cache["envelope"] = ()
+            else:
+                self._cache["envelope"] = _set_envelope(self.spectrum, self.P, self.D, self.tau1_max, self.tau2_max)
+        return self._cache["envelope"]
+
+    @property
+    def envelope_note(self) -> str:
+        """Why the envelope is not drawn, or "" when it is."""
+        images = _lattice_images(self.P, self.D, self.spectrum, self.tau1_max, self.tau2_max)
+        if images > MAX_LATTICE_IMAGES:
+            return f"envelope not drawn: the window needs {images} lattice images (at most {MAX_LATTICE_IMAGES})"
+        return ""
 
     def _classify(self, tau1: ArrayLike, tau2: ArrayLike) -> tuple[NDArray[np.bool_], NDArray[np.bool_], tuple[int, ...]]:
         t1 = check_delay_array("tau1", tau1)
@@ -570,7 +590,12 @@ def safe_delays(
 
     Raises
     ------
-    GainError, DelayError, InputError
+    GainError, InputError
+        For bad gains or spectrum.
+    DelayError
+        For a window that is not positive, or so large that the exact CTCR
+        maps of the base factors would need more than :data:`MAX_MAP_IMAGES`
+        offspring images (the message says how much memory).
 
     Examples
     --------
@@ -593,15 +618,33 @@ def safe_delays(
             reason = "the disc holds real eigenvalues > 1, whose factor has an unstable real root"
         elif abs(d1 - S.radius) <= 1e-12 * max(1.0, S.radius) and S.center.imag != 0.0:
             reason = "the boundary curve crosses the disc's circle at lam = 1 (not tangent): points inside are unstable"
+    images = _lattice_images(P, D, S, t1, t2)
+    if images > MAX_MAP_IMAGES:
+        # the exact CTCR maps of the base factors grow with the number of offspring images
+        raise DelayError(
+            f"the window [0, {t1:g}] x [0, {t2:g}] needs about {images:,} offspring images of the CTCR curves "
+            f"(about {images * _BYTES_PER_IMAGE / 2**30:.0f} GiB); at most {MAX_MAP_IMAGES:,}: choose a smaller window"
+        )
     bases = [] if reason else [S.base]
     if S.kind == "interval" and S.high < 1.0 and not reason:
         bases.append(complex(S.high))
     maps = tuple(crossing_map(_lam_factor(P, D, lam), t1, t2) for lam in bases)
-    envelope = () if reason else _set_envelope(S, P, D, t1, t2)
-    return SafeDelayMap(P, D, t1, t2, S, maps, reason, envelope)
+    return SafeDelayMap(P, D, t1, t2, S, maps, reason)
 
 
 # ===================================================================== the envelope
+#: Most lattice images (delay shifts 2 pi n / omega of each phase) the envelope is traced on.
+MAX_LATTICE_IMAGES = 2500
+#: Most lattice images a safe-delay map accepts (its base CTCR maps take about 0.15 MB per image).
+MAX_MAP_IMAGES = 25_000
+_BYTES_PER_IMAGE = 160_000
+
+
+def _lattice_images(P: float, D: float, S: SpectrumSet, tau1_max: float, tau2_max: float) -> int:
+    wmax = omega_limit(P, D, S.outer_radius)
+    return (int(np.ceil(tau1_max * wmax / (2 * np.pi))) + 1) * (int(np.ceil(tau2_max * wmax / (2 * np.pi))) + 1)
+
+
 def _set_envelope(S: SpectrumSet, P: float, D: float, tau1_max: float, tau2_max: float) -> tuple[NDArray[np.float64], ...]:
     """The envelope curves of a spectrum set (interval: its interior; disc: its circle, and the tangency at 1)."""
     R = S.outer_radius
