@@ -109,6 +109,8 @@ def test_region_input_errors() -> None:
         lambda_region(1.0, 0.5, 1.0, 1.0).unstable_count(np.nan)
     with pytest.raises(InputError, match="at most"):
         lambda_region(1.0, 0.5, 1.0, 1.0).unstable_count(1e6)
+    with pytest.raises(DelayError, match="samples"):  # refused up front, with what it would need
+        lambda_region(1.0, 0.5, 1e6, 1.0).is_stable(0.5)
     with pytest.raises(InputError):
         lambda_region(1.0, 0.5, 1.0, 1.0).team_is_stable("paper")  # type: ignore[arg-type]
 

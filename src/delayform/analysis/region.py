@@ -63,7 +63,7 @@ from delayform._validation import check_complex_array, check_delay, check_gains
 from delayform.analysis.bounds import SpectrumBound, spectrum_bound
 from delayform.analysis.boundary_curve import ab_terms, omega_limit
 from delayform.analysis.certificates import SafeDelayMap, SpectrumSet, parse_spectrum, safe_delays
-from delayform.errors import InputError
+from delayform.errors import DelayError, InputError
 from delayform.topology import Topology
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
@@ -92,6 +92,8 @@ _LOGRHO_STEP = 0.25
 _CHORD_TOL = 1e-3
 _MAX_ROUNDS = 40
 _NEWTON_STEPS = 40
+#: Most samples of the boundary curve (the phase turns about omega_max * max(tau) radians).
+MAX_SAMPLES = 2_000_000
 
 
 # ===================================================================== the curve L(j omega)
@@ -258,6 +260,12 @@ class LambdaRegion:
 
     def _curve(self, radius: float) -> _Curve:
         r = max(2.0, float(radius))
+        need = 2.0 * omega_limit(self.P, self.D, r) * max(self.tau1, self.tau2) / _PHASE_STEP
+        if need > MAX_SAMPLES:
+            raise DelayError(
+                f"delays ({self.tau1:g}, {self.tau2:g}) with |lam| up to {r:g} need about {need:,.0f} samples of the "
+                f"boundary curve (at most {MAX_SAMPLES:,}; about {need * 24 / 2**20:,.0f} MiB)"
+            )
         best = self._cache.get("curve")
         if best is None or best.radius < r:
             best = _sample_curve(self.P, self.D, self.tau1, self.tau2, max(r, 2.0 * (best.radius if best else 0.0)))
