@@ -20,6 +20,7 @@ The tree::
     |   +-- FormationError                 desired shape of the wrong size
     |   +-- SimulationInputError           dt, duration, initial states
     |   +-- ScenarioError                  a TOML scenario file
+    |   +-- ResourceLimitError             a job larger than the machine's memory or time budget
     +-- NotConvergedError (RuntimeError)   carries the partial result
 """
 
@@ -40,6 +41,7 @@ __all__ = [
     "FormationError",
     "SimulationInputError",
     "ScenarioError",
+    "ResourceLimitError",
     "NotConvergedError",
 ]
 
@@ -94,6 +96,14 @@ class SimulationInputError(InputError):
 
 class ScenarioError(InputError):
     """A scenario file that is missing a field, has an unknown key or a wrong value."""
+
+
+class ResourceLimitError(InputError):
+    """A job that would need more memory or time than the machine has or the budget allows.
+
+    Raised before the job starts (see :mod:`delayform.resources`); the
+    message says how much would be needed and which setting to change.
+    """
 
 
 class NotConvergedError(DelayformError, RuntimeError):
