@@ -19,7 +19,7 @@ from delayform.analysis.ctcr import PAPER_POINTS, _lam_factor, crossing_map, sta
 from delayform.analysis.region import lambda_region
 from delayform.analysis.spectrum import dominant_root, rightmost_root
 from delayform.characteristic import factors
-from delayform.errors import DelayError, GainError, InputError
+from delayform.errors import DelayError, GainError, InputError, ResourceLimitError
 from delayform.topology import Topology, grid, paper_six, ring
 
 
@@ -109,7 +109,7 @@ def test_region_input_errors() -> None:
         lambda_region(1.0, 0.5, 1.0, 1.0).unstable_count(np.nan)
     with pytest.raises(InputError, match="at most"):
         lambda_region(1.0, 0.5, 1.0, 1.0).unstable_count(1e6)
-    with pytest.raises(DelayError, match="samples"):  # refused up front, with what it would need
+    with pytest.raises(ResourceLimitError, match="samples"):  # refused up front, with what it would need
         lambda_region(1.0, 0.5, 1e6, 1.0).is_stable(0.5)
     with pytest.raises(InputError):
         lambda_region(1.0, 0.5, 1.0, 1.0).team_is_stable("paper")  # type: ignore[arg-type]
@@ -361,7 +361,7 @@ def test_safe_set_boundary_lies_on_the_drawn_curves(P: float, D: float, spectrum
 
 
 def test_too_large_a_window_is_refused_up_front() -> None:
-    with pytest.raises(DelayError, match="GiB"):
+    with pytest.raises(ResourceLimitError, match="GiB"):
         safe_delays(1.0, 0.5, 2000.0, 2000.0)
     m = safe_delays(1.0, 0.5, 4.0, 4.0, spectrum="interval:-0.5,0.9")
     assert m.envelope_note == ""

@@ -53,13 +53,15 @@ from scipy.sparse import csgraph
 
 from delayform.analysis.certificates import ANY, UNDIRECTED, SpectrumSet
 from delayform.errors import InputError
+from delayform.resources import memory_limit
 from delayform.topology import Topology
 
 __all__ = ["SpectrumBound", "spectrum_bound", "factor_memory_estimate", "FACTOR_MEMORY_BUDGET", "DENSE_BOUND_LIMIT"]
 
 #: Below this many agents the bound comes from dense symmetric eigenvalues.
 DENSE_BOUND_LIMIT = 2000
-#: Largest estimated memory (bytes) a sparse factorization may take; above it the ends stay -1 and 1.
+#: Largest estimated memory (bytes) a sparse factorization may take (and at most the job limit of
+#: :func:`delayform.resources.memory_limit`); above it the ends stay -1 and 1.
 FACTOR_MEMORY_BUDGET = 12 * 2**30
 _PIVOT_TOL = 1e-10
 
@@ -220,11 +222,11 @@ def spectrum_bound(topology: Topology) -> SpectrumBound:
         vals = np.linalg.eigvalsh(S.toarray())
         lam_min, lam2 = float(vals[0]), float(vals[-2])
         res_min = res2 = 1e-12 * n
-    elif (need := factor_memory_estimate(A)) > FACTOR_MEMORY_BUDGET:
+    elif (need := factor_memory_estimate(A)) > min(FACTOR_MEMORY_BUDGET, memory_limit()):
         # the sparse factorization could exhaust the machine: keep the theorem's ends -1 and 1
         method = (f"undirected: C similar to symmetric S, spectrum in [-1, 1] (theorem); not tightened: "
                   f"a sparse factorization would need about {need / 2**30:.1f} GiB "
-                  f"(budget {FACTOR_MEMORY_BUDGET / 2**30:.0f} GiB)")
+                  f"(budget {min(FACTOR_MEMORY_BUDGET, memory_limit()) / 2**30:.0f} GiB)")
         return SpectrumBound(UNDIRECTED, n, True, method, bipartite, False, (-1.0 if bipartite else np.nan, np.nan),
                              time.perf_counter() - start)
     else:

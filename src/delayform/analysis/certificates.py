@@ -71,6 +71,7 @@ from delayform.analysis.boundary_curve import omega_limit
 from delayform.analysis.ctcr import StabilityMap, _lam_factor, crossing_map
 from delayform.analysis.envelope import envelope_of_family, tangency_parabola
 from delayform.errors import DelayError, InputError
+from delayform.resources import require
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from matplotlib.axes import Axes
@@ -593,9 +594,11 @@ def safe_delays(
     GainError, InputError
         For bad gains or spectrum.
     DelayError
-        For a window that is not positive, or so large that the exact CTCR
-        maps of the base factors would need more than :data:`MAX_MAP_IMAGES`
-        offspring images (the message says how much memory).
+        For a window that is not positive.
+    ResourceLimitError
+        For a window so large that the exact CTCR maps of the base factors
+        would not fit the machine (:mod:`delayform.resources`; the message says
+        how much memory).
 
     Examples
     --------
@@ -619,12 +622,12 @@ def safe_delays(
         elif abs(d1 - S.radius) <= 1e-12 * max(1.0, S.radius) and S.center.imag != 0.0:
             reason = "the boundary curve crosses the disc's circle at lam = 1 (not tangent): points inside are unstable"
     images = _lattice_images(P, D, S, t1, t2)
-    if images > MAX_MAP_IMAGES:
-        # the exact CTCR maps of the base factors grow with the number of offspring images
-        raise DelayError(
-            f"the window [0, {t1:g}] x [0, {t2:g}] needs about {images:,} offspring images of the CTCR curves "
-            f"(about {images * _BYTES_PER_IMAGE / 2**30:.0f} GiB); at most {MAX_MAP_IMAGES:,}: choose a smaller window"
-        )
+    # the exact CTCR maps of the base factors grow with the number of offspring images
+    require(
+        what=f"a safe-delay map of the window [0, {t1:g}] x [0, {t2:g}] s (about {images:,} offspring images)",
+        setting="the window (--tau1-max, --tau2-max)",
+        nbytes=images * _BYTES_PER_IMAGE, seconds=images * _SECONDS_PER_IMAGE,
+    )
     bases = [] if reason else [S.base]
     if S.kind == "interval" and S.high < 1.0 and not reason:
         bases.append(complex(S.high))
@@ -635,9 +638,9 @@ def safe_delays(
 # ===================================================================== the envelope
 #: Most lattice images (delay shifts 2 pi n / omega of each phase) the envelope is traced on.
 MAX_LATTICE_IMAGES = 2500
-#: Most lattice images a safe-delay map accepts (its base CTCR maps take about 0.15 MB per image).
-MAX_MAP_IMAGES = 25_000
+#: Memory and time per lattice image of the base CTCR maps (measured: about 0.15 MB, 1 ms).
 _BYTES_PER_IMAGE = 160_000
+_SECONDS_PER_IMAGE = 1e-3
 
 
 def _lattice_images(P: float, D: float, S: SpectrumSet, tau1_max: float, tau2_max: float) -> int:

@@ -63,7 +63,7 @@ from delayform._validation import check_complex_array, check_delay, check_gains
 from delayform.analysis.bounds import SpectrumBound, spectrum_bound
 from delayform.analysis.boundary_curve import ab_terms, omega_limit
 from delayform.analysis.certificates import SafeDelayMap, SpectrumSet, parse_spectrum, safe_delays
-from delayform.errors import DelayError, InputError
+from delayform.errors import InputError, ResourceLimitError
 from delayform.topology import Topology
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
@@ -262,9 +262,9 @@ class LambdaRegion:
         r = max(2.0, float(radius))
         need = 2.0 * omega_limit(self.P, self.D, r) * max(self.tau1, self.tau2) / _PHASE_STEP
         if need > MAX_SAMPLES:
-            raise DelayError(
-                f"delays ({self.tau1:g}, {self.tau2:g}) with |lam| up to {r:g} need about {need:,.0f} samples of the "
-                f"boundary curve (at most {MAX_SAMPLES:,}; about {need * 24 / 2**20:,.0f} MiB)"
+            raise ResourceLimitError(
+                f"the eigenvalue plane at delays ({self.tau1:g}, {self.tau2:g}) with |lam| up to {r:g} would need about "
+                f"{need:,.0f} samples of the boundary curve, more than {MAX_SAMPLES:,}; reduce the delays"
             )
         best = self._cache.get("curve")
         if best is None or best.radius < r:
