@@ -390,3 +390,108 @@ def plot_gain_plane(
     if result.chosen is not None or curves:
         ax.legend(loc="upper right", fontsize="small")
     return ax
+
+
+# === section: the eigenvalue plane and certificates for classes of teams (issue 11) ===
+def lambda_region_plot(
+    region: Any, ax: Axes | None = None, eigenvalues: Any = None, *, radius: float = 1.6, resolution: int = 301
+) -> Axes:
+    """The stable region of the eigenvalue plane (shaded), its boundary ``L(j omega)``, the unit disc.
+
+    ``region`` is a :class:`delayform.analysis.region.LambdaRegion`; the
+    optional ``eigenvalues`` of a team's C are marked green where stable and
+    red where not (the centroid eigenvalue 1 as a black square).
+
+    Parameters
+    ----------
+    region
+        The region to draw.
+    ax
+        Axes to draw on; new ones when None.
+    eigenvalues
+        Complex eigenvalues to mark, or None.
+    radius
+        Half-width of the drawn square of the lam plane.
+    resolution
+        Grid points per axis used to shade the region.
+
+    Returns
+    -------
+    Axes
+    """
+    ax = _axes(ax)
+    x = np.linspace(-radius, radius, resolution)
+    z = x[None, :] + 1j * x[:, None]
+    stable = region.is_stable(z).astype(float)
+    ax.contourf(x, x, stable, levels=[0.5, 1.5], colors=["0.8"])
+    curve = region.boundary(radius * 1.5)
+    ax.plot(curve.real, curve.imag, color="tab:red", lw=0.9, label=r"boundary $L(j\omega)$")
+    phi = np.linspace(0.0, 2.0 * np.pi, 361)
+    ax.plot(np.cos(phi), np.sin(phi), color="0.3", lw=0.8, ls="--", label="unit disc")
+    if eigenvalues is not None:
+        lam = np.asarray(eigenvalues, dtype=complex)
+        centroid = np.abs(lam - 1.0) <= 1e-9
+        ok = region.is_stable(lam)
+        ax.plot(lam[ok & ~centroid].real, lam[ok & ~centroid].imag, "o", color="tab:green", ms=4, label="eigenvalue, stable")
+        ax.plot(lam[~ok & ~centroid].real, lam[~ok & ~centroid].imag, "o", color="tab:red", ms=4, mfc="none",
+                label="eigenvalue, unstable")
+        ax.plot(lam[centroid].real, lam[centroid].imag, "ks", ms=4, label="centroid (lam = 1)")
+    ax.set_xlim(-radius, radius)
+    ax.set_ylim(-radius, radius)
+    ax.set_aspect("equal")
+    ax.set_xlabel(r"Re $\lambda$")
+    ax.set_ylabel(r"Im $\lambda$")
+    ax.set_title(rf"Stable eigenvalues (shaded), $\tau_1$ = {region.tau1:g}, $\tau_2$ = {region.tau2:g}")
+    ax.legend(loc="lower left", fontsize="x-small")
+    return ax
+
+
+def safe_delay_chart(
+    smap: Any, ax: Axes | None = None, points: Mapping[str, tuple[float, float]] | None = None,
+    *, resolution: int = 200, shade: str = "tab:green",
+) -> Axes:
+    """The delays safe for a whole class of teams, drawn like the CTCR chart.
+
+    ``smap`` is a :class:`delayform.analysis.certificates.SafeDelayMap`: the
+    certified safe set shaded, the exact CTCR curves of the factors at the
+    ends of the spectrum set (kernel red, offspring blue) and the envelope
+    of the interior eigenvalues where present.
+
+    Parameters
+    ----------
+    smap
+        The map to draw.
+    ax
+        Axes to draw on; new ones when None.
+    points
+        Label -> (tau1, tau2) to mark.
+    resolution
+        Grid cells per axis used to shade the safe set.
+    shade
+        Colour of the safe set.
+
+    Returns
+    -------
+    Axes
+    """
+    ax = _axes(ax)
+    t1, t2, safe = smap.grid(resolution)
+    if np.any(safe):
+        ax.contourf(t1, t2, safe.astype(float), levels=[0.5, 1.5], colors=[shade], alpha=0.45)
+    for base in smap.base_maps:
+        for kernel, color in ((False, "blue"), (True, "red")):
+            lines = [np.column_stack([c.tau1, c.tau2]) for c in base.curves if c.is_kernel == kernel]
+            if lines:
+                ax.add_collection(LineCollection(lines, colors=color, linewidths=0.7, alpha=0.8))
+    for line in getattr(smap, "envelope", ()):
+        ax.plot(line[:, 0], line[:, 1], color="black", lw=1.0)
+    for name, (a, b) in (points or {}).items():
+        ax.plot([a], [b], "ko", ms=4)
+        ax.annotate(f"{name}", (a, b), xytext=(4, 4), textcoords="offset points", fontweight="bold")
+    ax.set_xlim(0.0, smap.tau1_max)
+    ax.set_ylim(0.0, smap.tau2_max)
+    ax.set_xlabel(r"$\tau_1$ (s), position delay")
+    ax.set_ylabel(r"$\tau_2$ (s), velocity delay")
+    title = f"Safe for every team with spectrum in: {smap.spectrum.label}"
+    ax.set_title(title if not smap.never_safe else title + " (none)", fontsize="small")
+    return ax

@@ -41,6 +41,8 @@ __all__ = [
     "simulation_section",
     "CSV_AUTO_LIMIT",
     "settling_section",
+    "region_section",
+    "safe_delays_section",
     "scenario_sections",
     "paper_sections",
     "highlights",
@@ -731,6 +733,134 @@ def settling_section(sims: Sequence[Section]) -> Section:
     )
 
 
+# === section: the eigenvalue plane (issue 11) ===
+def region_section(scenario: Scenario, out: Path, *, tau1: float | None = None, tau2: float | None = None) -> Section:
+    """The stable region of the eigenvalue plane at the scenario's delays, with the team's eigenvalues.
+
+    Parameters
+    ----------
+    scenario
+        The validated scenario (topology, gains, delays).
+    out
+        Folder the section writes its files into.
+    tau1, tau2
+        Delays (s); default the scenario's.
+    """
+    from delayform.analysis.bounds import DENSE_BOUND_LIMIT, spectrum_bound
+    from delayform.analysis.certificates import safe_delays
+    from delayform.analysis.region import lambda_region
+
+    plt = _pyplot()
+    t1 = scenario.tau1 if tau1 is None else tau1
+    t2 = scenario.tau2 if tau2 is None else tau2
+    topo = scenario.topology
+    region = lambda_region(scenario.P, scenario.D, t1, t2)
+    window = (max(t1, 1e-3), max(t2, 1e-3))
+    certs = {name: bool(safe_delays(scenario.P, scenario.D, *window, spectrum=name).is_safe(t1, t2))
+             for name in ("undirected", "any")}  # fmt: skip
+    fig, ax = plt.subplots(figsize=(6.0, 6.0))
+    rows: list[tuple[Any, ...]] = []
+    if topo.n <= DENSE_BOUND_LIMIT:
+        lam = topo.eigenvalues
+        counts = region.unstable_count(lam)
+        region.plot(ax=ax, topology=topo)
+        rows = [(f"{z.real:.10g}", f"{z.imag:.10g}", int(n)) for z, n in zip(lam, counts, strict=True)]
+        stable = bool(np.all(counts == 0))
+        verdict = "stable (exact)" if stable else f"unstable, NU = {int(counts.sum())}"
+        summary: dict[str, Any] = {"eigenvalues": [complex(z) for z in lam], "unstable_roots": [int(n) for n in counts]}
+    else:
+        bound = spectrum_bound(topo)
+        region.plot(ax=ax)
+        ok = bool(safe_delays(scenario.P, scenario.D, *window, spectrum=bound).is_safe(t1, t2))
+        stable = ok
+        verdict = "stable (sufficient test on the spectrum bound)" if ok else "not certified by the spectrum bound"
+        summary = {"bound": bound.spectrum_set.label, "bound_method": bound.method}
+    files = list(_save(fig, out, "lambda_region"))
+    if rows:
+        files.append(_write_csv(out / "eigenvalue_region.csv", ("re", "im", "unstable_roots"), rows))
+    disc = region.stable_fraction_of_disc(resolution=121)
+    summary.update({"tau1": t1, "tau2": t2, "team_stable": stable, "stable_fraction_of_unit_disc": disc,
+                    "safe_for_every_undirected_team": certs["undirected"], "safe_for_every_team": certs["any"]})
+    table = [("delays", f"({t1:g}, {t2:g}) s"), ("team", verdict),
+             ("stable share of the unit disc", f"{disc:.3f}"),
+             ("safe for every undirected team", "yes" if certs["undirected"] else "no"),
+             ("safe for every team (unit disc)", "yes" if certs["any"] else "no")]  # fmt: skip
+    return Section(
+        key="region",
+        title="Stable eigenvalues of C (the eigenvalue plane)",
+        text=(
+            "Every factor of the characteristic equation is the same quasi-polynomial with the eigenvalue lam "
+            "of C as a parameter. The shaded set holds the eigenvalues whose factor is stable at these delays; "
+            "its boundary is lam = L(j omega). The team is stable exactly when all its eigenvalues (the "
+            "centroid 1 aside) lie in it, so a new graph can be checked by its eigenvalues alone."
+        ),
+        figures=(Figure("lambda_region", "Stable region of the eigenvalue plane",
+                        "Shaded: stable eigenvalues; red: the boundary L(j omega); dashed: the unit disc; "
+                        "dots: the team's eigenvalues (green stable, red not)."),),  # fmt: skip
+        table=tuple(table),
+        summary=summary,
+        files=tuple(files),
+    )
+
+
+def safe_delays_section(
+    out: Path, P: float, D: float, tau1_max: float, tau2_max: float, *, spectrum: object = "undirected",
+    points: Sequence[tuple[str, float, float]] = (),
+) -> Section:
+    """The delays safe for every team whose spectrum lies in a set, drawn like the stability chart.
+
+    Parameters
+    ----------
+    out
+        Folder the section writes its files into.
+    P, D
+        Gains of eq. protocol.
+    tau1_max, tau2_max
+        The delay window.
+    spectrum
+        What :func:`delayform.analysis.certificates.safe_delays` accepts.
+    points
+        ``(label, tau1, tau2)`` delay pairs to mark and classify.
+    """
+    from delayform.analysis.certificates import safe_delays
+
+    plt = _pyplot()
+    m = safe_delays(P, D, tau1_max, tau2_max, spectrum=spectrum)
+    fig, ax = plt.subplots(figsize=(6.4, 5.6))
+    m.plot(ax=ax, points={label: (a, b) for label, a, b in points})
+    files = list(_save(fig, out, "safe_delays"))
+    t1, t2, safe = m.grid(200)
+    np.savez_compressed(out / "safe_delays.npz", tau1=t1, tau2=t2, safe=safe)
+    files.append("safe_delays.npz")
+    fraction = float(safe.mean())
+    marks = [(label, a, b, bool(m.is_safe(a, b))) for label, a, b in points]
+    summary = {"spectrum": m.spectrum.label, "window": [tau1_max, tau2_max], "P": P, "D": D,
+               "safe_fraction": fraction, "never_safe": m.never_safe,
+               "points": [{"label": k, "tau1": a, "tau2": b, "safe": s} for k, a, b, s in marks]}  # fmt: skip
+    table = [("spectrum set", m.spectrum.label), ("window", f"[0, {tau1_max:g}] x [0, {tau2_max:g}] s"),
+             ("safe fraction of the window", f"{fraction:.3f}")]  # fmt: skip
+    method = getattr(spectrum, "method", None)
+    if method:  # a SpectrumBound of a team
+        table.append(("how the set was bounded", str(method)))
+        summary["bound_method"] = str(method)
+    if m.never_safe:
+        table.append(("why none", m.never_safe))
+    table += [(f"point {k} ({a:g}, {b:g})", "safe" if s else "not certified") for k, a, b, s in marks]
+    return Section(
+        key="safe_delays",
+        title="Delays safe for a whole class of teams",
+        text=(
+            "Shaded: delay pairs at which every team whose eigenvalues of C lie in the set is stable, whatever "
+            "its size or graph (a certified test; a sufficient condition for any one team). Red/blue: the exact "
+            "CTCR curves of the factors at the ends of the set; black: the envelope of the interior factors."
+        ),
+        figures=(Figure("safe_delays", "Safe delays", f"Safe for every team with spectrum in {m.spectrum.label}."),),
+        table=tuple(table),
+        summary=summary,
+        files=tuple(files),
+    )
+
+
 # ------------------------------------------------------------ whole reports
 def scenario_sections(
     scenario: Scenario, out: Path, *, progress: Progress | None = None, map_progress: MapProgress | None = None
@@ -751,6 +881,7 @@ def scenario_sections(
     steps: list[tuple[str, Callable[[], Section]]] = [
         ("factors", lambda: factors_section(scenario, out)),
         ("stability chart", lambda: chart_section(scenario, out)),
+        ("eigenvalue plane", lambda: region_section(scenario, out)),
         ("roots", lambda: roots_section(scenario, out)),
         ("dominant-root map", lambda: map_section(scenario, out, progress=map_progress)),
         ("delay scheduling", lambda: schedule_section(scenario, out, report_failure=True)),
@@ -795,6 +926,7 @@ def paper_sections(
         ("stability chart", lambda: chart_section(scenario, out)),
         ("simulation at a", lambda: simulation_section(scenario, out, label="a", tau1=a[0], tau2=a[1], gif=True)),
         ("simulation at b", lambda: simulation_section(scenario, out, label="b", tau1=b[0], tau2=b[1], traces=False)),
+        ("eigenvalue plane at c", lambda: region_section(scenario, out, tau1=c[0], tau2=c[1])),
         ("roots", lambda: roots_section(scenario, out)),
         ("dominant-root map", lambda: map_section(scenario, out, progress=map_progress)),
         ("delay scheduling", lambda: schedule_section(scenario, out)),
@@ -830,6 +962,10 @@ def highlights(sections: Sequence[Section]) -> tuple[tuple[str, str], ...]:
             (f"point {p['label']} ({p['tau1']:g}, {p['tau2']:g})", "stable" if p["stable"] else f"unstable, NU = {p['unstable_roots']}")
             for p in chart["points"]
         )  # fmt: skip
+    if "region" in by_key:
+        reg = by_key["region"]
+        rows.append((f"safe at ({reg['tau1']:g}, {reg['tau2']:g}) for every undirected team",
+                     "yes" if reg["safe_for_every_undirected_team"] else "no"))  # fmt: skip
     if "roots" in by_key:
         roots = by_key["roots"]
         rows.append((f"dominant root at ({roots['tau1']:g}, {roots['tau2']:g})", _fmt_complex(roots["dominant_root"])))
