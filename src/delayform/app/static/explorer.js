@@ -182,7 +182,9 @@ async function simulateAt(p) {
 function startAnimation(sim) {
   const settle = sim.settling_time === null ? "not settled" : `settles at ${fmt(sim.settling_time, 1)} s`;
   const diverged = sim.diverged_at === null ? "" : `; overflowed at ${fmt(sim.diverged_at, 1)} s`;
-  $("sim-info").textContent = `${sim.n} ${sim.model} robots, ${settle}${diverged}`;
+  const limits = sim.limits === null ? "" : ", with actuator limits";
+  $("sim-info").textContent = `${sim.n} ${sim.model} robots${limits}, ${settle}${diverged}`;
+  $("sim-info").title = [sim.limits || "", ...sim.warnings].join("\n");
   const err = sim.formation_error.map((e) => Math.max(e, 1e-12));
   Plotly.react("error", [{ type: "scatter", mode: "lines", x: sim.times, y: err, name: "formation error",
     line: { color: "#333" }, hovertemplate: "t = %{x:.1f} s: %{y:.3g}<extra></extra>" }], {
@@ -301,7 +303,7 @@ function tick(now) {
 // ------------------------------------------------------------------ controls
 function downloadParams() {
   return new URLSearchParams({ ...point(), ...gains(), duration: num("duration"),
-    tau1_max: num("tau1_max"), tau2_max: num("tau2_max") }).toString();
+    tau1_max: num("tau1_max"), tau2_max: num("tau2_max"), ...toggleParams() }).toString();
 }
 
 function updateDownloads() {
@@ -345,12 +347,15 @@ async function init() {
   for (const key of ["P", "D", "tau1", "tau2", "tau1_max", "tau2_max", "duration"]) $(key).value = info.defaults[key];
   $("P-range").value = info.defaults.P;
   $("D-range").value = info.defaults.D;
-  state.toggles = info.toggles || [];
+  state.toggles = Object.keys(info.toggles || {});
+  const names = { limits: "actuator limits", network: "network imperfections" };
   for (const t of state.toggles) {
     const label = document.createElement("label");
-    label.innerHTML = `<input type="checkbox" id="toggle-${t}"> ${t === "limits" ? "actuator limits" : "network imperfections"}`;
+    label.innerHTML = `<input type="checkbox" id="toggle-${t}"> ${names[t] || t}`;
     $("toggles").appendChild(label);
-    label.querySelector("input").addEventListener("change", () => simulateAt(point()));
+    const box = label.querySelector("input");
+    box.checked = Boolean(info.toggles[t]);
+    box.addEventListener("change", () => { simulateAt(point()); updateDownloads(); });
   }
   bindGain("P");
   bindGain("D");
