@@ -126,6 +126,7 @@ OPTION_CASES: list[tuple[tuple[str, ...], str]] = [
     (("chart", "--tau1-max", "nan"), "tau1_max"),
     (("chart", "--point", "=1,1"), "--point"),
     (("chart", "--point", "a=nan,1"), "tau1"),
+    (("chart", "--point", "a=0.3,0.2", "--point", "a=1,1"), "twice"),
     (("chart", "--P", "nan"), "gains.P"),
     (("chart", "--topology", "paper_six", "--n", "7"), "6 agents"),
     (("chart", "--topology", "random_digraph", "--n", "5"), "--p"),
@@ -176,6 +177,15 @@ def test_non_utf8_and_directory_scenarios(tmp_path: Path, monkeypatch: pytest.Mo
     assert "UTF-8" in one_line_error(capsys, "roots", "bin.toml")
     (tmp_path / "dir.toml").mkdir()
     assert "directory" in one_line_error(capsys, "factors", "dir.toml")
+    assert "not a regular file" in one_line_error(capsys, "factors", "/dev/zero")  # would never end
+    (tmp_path / "big.toml").write_bytes(b"#" * (17 * 2**20))
+    assert "too large" in one_line_error(capsys, "factors", "big.toml")
+
+
+def test_output_file_taken_by_a_folder(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    (tmp_path / "roots.csv").mkdir()  # the file roots writes cannot be created
+    line = one_line_error(capsys, "roots", "--out", str(tmp_path))
+    assert "roots.csv" in line
 
 
 # ================================================================ resource guard
@@ -300,7 +310,9 @@ def test_dominant_root_agrees_with_the_ctcr_map_on_tau1_zero(tau2: float) -> Non
     smap = stability_map(paper_six(), P, D, 8.0, 8.0)
     got = dominant_root(paper_six(), P, D, 0.0, tau2)
     assert got.is_stable == bool(smap.is_stable(0.0, tau2))
-    assert not got.is_centroid_drift  # the drift's zero never dominates
+    # the drift's zero is reported (continuity as tau1 -> 0) without making the team unstable
+    assert got.is_drift and got.root == 0 and got.time_constant == math.inf
+    assert got.formation_root.real < 0 and got.formation_time_constant < math.inf
 
 
 def test_dominant_root_agrees_with_the_ctcr_map(rng: np.random.Generator) -> None:
@@ -314,7 +326,7 @@ def test_dominant_root_agrees_with_the_ctcr_map(rng: np.random.Generator) -> Non
 def test_map_agrees_with_dominant_root_on_tau1_zero() -> None:
     m = dominant_root_map(paper_six(), P, D, [0.0, 0.3], [0.0, 0.2, 3.0])
     assert m.stable.all()
-    assert m.roots[0, 1] == pytest.approx(dominant_root(paper_six(), P, D, 0.0, 0.2).root, abs=1e-9)
+    assert m.roots[0, 1] == dominant_root(paper_six(), P, D, 0.0, 0.2).root == 0
 
 
 @pytest.mark.parametrize("tau1", [1e-12, 1e-9, 1e-6, 1e-5])

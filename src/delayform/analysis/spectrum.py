@@ -1306,16 +1306,19 @@ class DominantRoot:
     One meaning of *stable* throughout delayform (docs/theory.md): the team
     is stable when every root of every factor of eq. factorized has
     Re s < 0, except the centroid factor's roots at s = 0. The persistent
-    root 0 of eq. factor1 is the team's freedom to sit anywhere; on the line
-    tau1 = 0 the centroid factor has a second root at 0, a centroid that
-    drifts at constant speed. Neither changes the shape the agents reach,
-    so neither counts (the CTCR map treats the tau1 = 0 line the same way).
+    root 0 of eq. factor1 is the team's freedom to sit anywhere and is never
+    reported; on the line tau1 = 0 the centroid factor has a second root at
+    0, a centroid that drifts at constant speed. That root *is* reported
+    (it is the limit of the centroid's slow root -P tau1 / (1 + D tau2) as
+    tau1 -> 0, so maps stay continuous) but does not make the team unstable:
+    the shape the agents reach is the same. The CTCR map treats the tau1 = 0
+    line the same way.
 
     Attributes
     ----------
     root
-        The rightmost root over all factors, the centroid factor's roots at
-        s = 0 excluded; of a conjugate pair the member with Im >= 0.
+        The rightmost root over all factors, the persistent root 0 of the
+        centroid factor excluded; of a conjugate pair the member with Im >= 0.
     factor
         The factor it belongs to.
     tau1, tau2
@@ -1324,8 +1327,8 @@ class DominantRoot:
         The rightmost root of the disagreement factors (every factor but the
         centroid's): how fast the agents reach the formation's *shape*.
     centroid_root
-        The rightmost non-zero root of the centroid factor (how fast the
-        centroid's velocity settles), or None when it has none (tau1 = tau2 = 0).
+        The rightmost root of the centroid factor, its persistent 0 excluded:
+        how fast the centroid's speed settles (exactly 0 on tau1 = 0: the drift).
     """
 
     root: complex
@@ -1337,8 +1340,13 @@ class DominantRoot:
 
     @property
     def is_stable(self) -> bool:
-        """True when Re root < 0: every mode except the centroid's drift decays (Lemma 2)."""
-        return self.root.real < 0.0
+        """True when every mode decays except the centroid's drift at s = 0 (Lemma 2, docs/theory.md)."""
+        return self.root.real < 0.0 or (self.is_drift and _decays(self.formation_root))
+
+    @property
+    def is_drift(self) -> bool:
+        """True when the dominant root is the centroid's drift: s = 0 exactly, on tau1 = 0."""
+        return bool(self.factor.is_centroid) and self.root == 0.0
 
     @property
     def time_constant(self) -> float:
@@ -1356,9 +1364,9 @@ class DominantRoot:
         return _decay_time(self.root if self.formation_root is None else self.formation_root)
 
     @property
-    def centroid_time_constant(self) -> float | None:
-        """Time constant of the centroid's velocity, None when the centroid factor has no non-zero root."""
-        return None if self.centroid_root is None else _decay_time(self.centroid_root)
+    def centroid_time_constant(self) -> float:
+        """Time constant of the centroid's speed; ``math.inf`` for the drift on tau1 = 0."""
+        return _decay_time(self.root if self.centroid_root is None else self.centroid_root)
 
     @property
     def is_centroid_drift(self) -> bool:
@@ -1366,26 +1374,12 @@ class DominantRoot:
         return bool(self.factor.is_centroid)
 
 
+def _decays(root: complex | None) -> bool:
+    return root is None or root.real < 0.0
+
+
 def _decay_time(root: complex) -> float:
     return 1.0 / -root.real if root.real < 0.0 else math.inf
-
-
-def _centroid_rightmost(factor: CharacteristicFactor, t1: float, t2: float) -> complex | None:
-    """Rightmost root of the centroid factor with its roots at s = 0 removed.
-
-    For tau1 > 0 the factor has the single persistent root 0, deflated by
-    :func:`rightmost_root`. On tau1 = 0 it is s (s + D - D e^{-tau2 s}): the
-    second factor r has a simple root at 0 too (the drift), so its deflated
-    rightmost root is the answer; for tau2 = 0 as well, r = s has no other root.
-    """
-    if t1 > 0.0:
-        return rightmost_root(factor, t1, t2)
-    if t2 == 0.0:
-        return None
-    D = factor.D
-    r = TwoDelayQuasiPolynomial([D, 1.0], [], [-D])
-    prob = _problem_of_qp(r)
-    return _rightmost(_Problem(prob.terms, prob.A, prob.delayed, prob.mirror, True), t1, t2)
 
 
 def _checked_factors(topology: Topology, P: float, D: float) -> tuple[CharacteristicFactor, ...]:
@@ -1423,12 +1417,11 @@ def dominant_root(topology: Topology, P: float, D: float, tau1: float, tau2: flo
     """
     t1, t2 = check_delay("tau1", tau1), check_delay("tau2", tau2)
     fs = _checked_factors(topology, P, D)
-    centroid = next(f for f in fs if f.is_centroid)
-    shape = [(rightmost_root(f, t1, t2), f) for f in fs if not f.is_centroid]
-    drift = _centroid_rightmost(centroid, t1, t2)
-    formation = max(shape, key=lambda rf: rf[0].real)
-    best = formation if drift is None or formation[0].real >= drift.real else (drift, centroid)
-    return DominantRoot(best[0], best[1], t1, t2, formation_root=formation[0], centroid_root=drift)
+    rightmost = [(rightmost_root(f, t1, t2), f) for f in fs]
+    centroid = next(r for r, f in rightmost if f.is_centroid)
+    formation = max((rf for rf in rightmost if not rf[1].is_centroid), key=lambda rf: rf[0].real)
+    best = max(rightmost, key=lambda rf: rf[0].real)
+    return DominantRoot(best[0], best[1], t1, t2, formation_root=formation[0], centroid_root=centroid)
 
 
 @dataclass(frozen=True, eq=False)
@@ -1445,6 +1438,9 @@ class DominantRootMap:
         Index into ``factors`` of the factor the dominant root belongs to.
     factors
         The factors of eq. factorized.
+    formation_real
+        Re of the rightmost root of the disagreement factors (the shape), or
+        None; decides stability where the dominant root is the centroid's drift.
     """
 
     tau1_values: NDArray[np.float64]
@@ -1452,6 +1448,7 @@ class DominantRootMap:
     roots: NDArray[np.complex128]
     factor_index: NDArray[np.int64]
     factors: tuple[CharacteristicFactor, ...]
+    formation_real: NDArray[np.float64] | None = None
 
     @property
     def real(self) -> NDArray[np.float64]:
@@ -1460,8 +1457,16 @@ class DominantRootMap:
 
     @property
     def stable(self) -> NDArray[np.bool_]:
-        """True where Re(dominant root) < 0."""
-        return self.roots.real < 0.0
+        """True where every mode decays but the centroid's drift (one meaning of stable, :class:`DominantRoot`).
+
+        Where the dominant root is the centroid's drift s = 0 (on tau1 = 0)
+        the shape's modes decide; the map keeps the drift's Re = 0, so the
+        surface is continuous as tau1 -> 0.
+        """
+        centroid = np.array([f.is_centroid for f in self.factors])[self.factor_index]
+        drift = centroid & (self.roots == 0.0)
+        shape = self.formation_real if self.formation_real is not None else np.full(self.roots.shape, -np.inf)
+        return (self.roots.real < 0.0) | (drift & (shape < 0.0))
 
     @property
     def time_constant(self) -> NDArray[np.float64]:
@@ -1566,14 +1571,11 @@ def dominant_root_map(
     with _progress(progress, len(fs) * ax1.size * ax2.size) as advance:
         for k, f in enumerate(fs):
             per_factor[k] = _rightmost_grid(_problem_of_factor(f), ax1, ax2, advance)
-            if f.is_centroid:  # on tau1 = 0 the centroid's second zero is its drift, not instability
-                for i in np.flatnonzero(ax1 == 0.0):
-                    for j, t2 in enumerate(ax2):
-                        r = _centroid_rightmost(f, 0.0, float(t2))
-                        per_factor[k, i, j] = -np.inf if r is None else r
     index = np.argmax(per_factor.real, axis=0)
     roots = np.take_along_axis(per_factor, index[None], 0)[0]
-    return DominantRootMap(ax1, ax2, roots, index, fs)
+    shape = np.array([not f.is_centroid for f in fs])
+    formation_real = per_factor[shape].real.max(axis=0)
+    return DominantRootMap(ax1, ax2, roots, index, fs, formation_real)
 
 
 class _progress:
