@@ -1090,7 +1090,7 @@ def _rightmost(prob: _Problem, t1: float, t2: float) -> complex:
 
 def _pick_rightmost(prob: _Problem, roots: NDArray[np.complex128]) -> complex:
     if roots.size == 0:
-        raise NotConvergedError("no root right of the certified line", partial=roots)
+        raise NotConvergedError("no characteristic root was found right of the line that was checked; try slightly different delays", partial=roots)
     top = roots[np.argmax(roots.real)]
     # of a conjugate pair (or the mirror image), report the member with Im >= 0
     if prob.mirror or prob.is_real or np.all([np.all(c.imag == 0) for c, _, _ in prob.terms]):
@@ -1470,9 +1470,10 @@ class DominantRootMap:
 
     @property
     def time_constant(self) -> NDArray[np.float64]:
-        """1 / |Re(dominant root)| at each grid point."""
+        """1 / |Re(dominant root)| where the root decays, ``inf`` where it does not (never a number for a growing root)."""
+        re = self.roots.real
         with np.errstate(divide="ignore"):
-            return 1.0 / np.abs(self.roots.real)
+            return np.where(re < 0.0, 1.0 / np.abs(re), np.inf)
 
     def best(self) -> tuple[float, float, complex]:
         """The grid point with the leftmost dominant root: (tau1, tau2, root)."""
