@@ -32,8 +32,9 @@ STAGES: dict[str, int] = {
     "sweeps": 6,
     "scenario": 7,
     "report": 8,
-    "cli": 9,
-    "app": 10,
+    # the explorer is served by a CLI command (cli/explore.py), so it comes before the CLI
+    "app": 9,
+    "cli": 10,
     "__main__": 11,
     "": 11,  # delayform/__init__.py: lazy re-exports of everything
 }
