@@ -1238,6 +1238,18 @@ def _certify(
     return roots[np.arange(t1.size), best], certified, roots
 
 
+def _nearest_coarse(n: int, coarse: NDArray[np.int64]) -> NDArray[np.int64]:
+    """Index into ``coarse`` (sorted) of the nearest coarse point to each of 0..n-1, ties to the left.
+
+    O(n log n) memory-light (a distance table would be n x n / stride: 16 GB for 100000 points).
+    """
+    idx = np.arange(n)
+    if coarse.size == 1:
+        return np.zeros(n, dtype=np.int64)
+    k = np.clip(np.searchsorted(coarse, idx), 1, coarse.size - 1)
+    return np.where(idx - coarse[k - 1] <= coarse[k] - idx, k - 1, k).astype(np.int64)
+
+
 def _coarse_axis(n: int, stride: int) -> NDArray[np.int64]:
     idx = np.arange(0, n, stride)
     return idx if idx[-1] == n - 1 else np.append(idx, n - 1)
@@ -1271,8 +1283,7 @@ def _rightmost_grid(
     if advance is not None:
         advance(int(coarse.size))
     # nearest coarse point of every grid point; coarse rows of roots as seeds
-    near1 = np.abs(np.arange(n1)[:, None] - c1[None, :]).argmin(axis=1)
-    near2 = np.abs(np.arange(n2)[:, None] - c2[None, :]).argmin(axis=1)
+    near1, near2 = _nearest_coarse(n1, c1), _nearest_coarse(n2, c2)
     nearest = (near1[:, None] * c2.size + near2[None, :]).ravel()
     rest = np.flatnonzero(~done)
     rest = rest[~np.isin(rest, coarse[~cert])]  # failed coarse points go to the fallback
