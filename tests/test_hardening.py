@@ -88,6 +88,8 @@ SCENARIO_CASES: list[tuple[str, str | None, tuple[str, ...], str]] = [
      .replace('"hexagon"', '"line"'), ("factors",), "spanning tree"),
     ("300000 agents", BASE.replace('name = "paper_six"', 'name = "ring"\nn = 300000')
      .replace('"hexagon"', '"line"'), ("factors",), "memory"),
+    ("dense random digraph", BASE.replace('name = "paper_six"', 'name = "random_digraph"\nn = 50000\np = 0.5')
+     .replace('"hexagon"', '"line"'), ("factors",), "edges"),
     ("spacing huge", BASE.replace('shape = "hexagon"', 'shape = "hexagon"\nspacing = 1e308'), ("chart",), "spacing"),
     ("unknown shape", BASE.replace('"hexagon"', '"circle"'), ("roots",), "formation.shape"),
     ("map size 1e5 x 1e5", BASE + "[map]\nsize = [100000, 100000]\n", ("map",), "map.size"),
@@ -151,6 +153,8 @@ OPTION_CASES: list[tuple[tuple[str, ...], str]] = [
     (("factors", "--n", "5"), "--topology"),
     (("factors", "--topology", "ring", "--n", "1"), "--n"),
     (("factors", "--topology", "star", "--n", "100000"), "memory"),
+    (("factors", "--topology", "complete", "--n", "100000"), "edges"),
+    (("chart", "--topology", "random_digraph", "--n", "50000", "--p", "0.5"), "edges"),
     (("factors", "--topology", "random_digraph", "--n", "5", "--p", "2"), "--p"),
     (("factors", "--topology", "complete", "--n", "3", "--p", "0.5"), "--p"),
     (("factors", "--tau1", "1"), "--tau1"),
