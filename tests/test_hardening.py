@@ -398,6 +398,10 @@ def test_describe_drops_rounding_noise() -> None:
 
     q = TwoDelayQuasiPolynomial([1.0, 0.5, 1.0], [complex(-1.66533e-16, -8.32667e-17)], [0, -0.5])
     assert "e-1" not in q.describe()
+    from delayform.topology import ring
+
+    texts = [f.describe() for f in factors(ring(12), P, D)]  # the eigenvalues +-1j carry -1.4e-16 real parts
+    assert "lam = +- 1j: order 4, disagreement" in texts and not any("e-1" in t for t in texts)
 
 
 def test_jargon_free_messages() -> None:
