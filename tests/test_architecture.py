@@ -32,6 +32,7 @@ STAGES: dict[str, int] = {
     "sweeps": 6,
     "scenario": 7,
     "report": 8,
+    "report_gains": 8,
     # the explorer is served by a CLI command (cli/explore.py), so it comes before the CLI
     "app": 9,
     "cli": 10,

@@ -27,10 +27,16 @@ def _write_full_report(sc: Scenario, directory: Path, *, paper: bool, as_json: b
     from delayform.report import jsonable, paper_sections, scenario_sections, write_report
 
     build = paper_sections if paper else scenario_sections
-    steps = 9 if paper else 7
+    steps = 10 if paper else 7
     start = time.perf_counter()
     with _progress(steps, title="paper" if paper else "report") as step:
         sections = build(sc, directory, progress=step)
+        if paper:  # issue 12: what new gains do where the paper can only add delay
+            from delayform.report_gains import gain_comparison_section
+
+            step("gain design vs delay scheduling")
+            points = {k: (a, b) for k, a, b in sc.chart.points if k in "abc"}
+            sections.append(gain_comparison_section(sc, directory, points))
         step("writing index.html")
         seconds = time.perf_counter() - start
         if paper:
@@ -75,7 +81,8 @@ def paper_command(out: Path, as_json: bool) -> None:
     Eigenvalues and factors of the six-robot team, the stability chart with
     points a..e, x/y versus time at a and b, traces at a, the dominant-root
     surface and contour, the best delays by scheduling and the settling
-    times; all into --out with index.html and summary.json.
+    times, and gain design compared with delay scheduling at a, b and c;
+    all into --out with index.html and summary.json.
     """
     from delayform.scenario import paper_scenario
 
