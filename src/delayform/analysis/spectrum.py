@@ -1385,6 +1385,23 @@ class DominantRoot:
         return bool(self.factor.is_centroid)
 
 
+def _centroid_rightmost(factor: CharacteristicFactor, t1: float, t2: float) -> complex | None:
+    """Rightmost root of the centroid factor with *both* its roots at s = 0 removed (design/gains uses it).
+
+    For tau1 > 0 the factor has the single persistent root 0, deflated by
+    :func:`rightmost_root`. On tau1 = 0 it is s (s + D - D e^{-tau2 s}): the
+    second factor r has a simple root at 0 too (the drift), so its deflated
+    rightmost root is the answer; for tau2 = 0 as well, r = s has no other root (None).
+    """
+    if t1 > 0.0:
+        return rightmost_root(factor, t1, t2)
+    if t2 == 0.0:
+        return None
+    D = factor.D
+    prob = _problem_of_qp(TwoDelayQuasiPolynomial([D, 1.0], [], [-D]))
+    return _rightmost(_Problem(prob.terms, prob.A, prob.delayed, prob.mirror, True), t1, t2)
+
+
 def _decays(root: complex | None) -> bool:
     return root is None or root.real < 0.0
 
