@@ -317,6 +317,8 @@ def test_dominant_root_agrees_with_the_ctcr_map_on_tau1_zero(tau2: float) -> Non
     # the drift's zero is reported (continuity as tau1 -> 0) without making the team unstable
     assert got.is_drift and got.root == 0 and got.time_constant == math.inf
     assert got.formation_root.real < 0 and got.formation_time_constant < math.inf
+    # what decides stability beside the drift: the shape's root, or the centroid factor's next one
+    assert got.stability_root.real < 0 and got.stability_root.real >= got.formation_root.real
 
 
 def test_dominant_root_agrees_with_the_ctcr_map(rng: np.random.Generator) -> None:

@@ -1340,6 +1340,9 @@ class DominantRoot:
     centroid_root
         The rightmost root of the centroid factor, its persistent 0 excluded:
         how fast the centroid's speed settles (exactly 0 on tau1 = 0: the drift).
+    beside_drift
+        On tau1 = 0: the rightmost root with both centroid zeros removed
+        (see :attr:`stability_root`); None elsewhere.
     """
 
     root: complex
@@ -1348,11 +1351,22 @@ class DominantRoot:
     tau2: float
     formation_root: complex | None = None
     centroid_root: complex | None = None
+    beside_drift: complex | None = None
+
+    @property
+    def stability_root(self) -> complex:
+        """The rightmost root that decides stability: ``root``, or beside the drift on tau1 = 0.
+
+        On tau1 = 0, where ``root`` is the drift's s = 0, this is the rightmost
+        root of every factor with both centroid zeros removed (its real part is
+        the spectral abscissa the gain design minimises).
+        """
+        return self.beside_drift if self.is_drift and self.beside_drift is not None else self.root
 
     @property
     def is_stable(self) -> bool:
         """True when every mode decays except the centroid's drift at s = 0 (Lemma 2, docs/theory.md)."""
-        return self.root.real < 0.0 or (self.is_drift and _decays(self.formation_root))
+        return self.stability_root.real < 0.0 or (self.is_drift and _decays(self.formation_root))
 
     @property
     def is_drift(self) -> bool:
@@ -1449,7 +1463,12 @@ def dominant_root(topology: Topology, P: float, D: float, tau1: float, tau2: flo
     centroid = next(r for r, f in rightmost if f.is_centroid)
     formation = max((rf for rf in rightmost if not rf[1].is_centroid), key=lambda rf: rf[0].real)
     best = max(rightmost, key=lambda rf: rf[0].real)
-    return DominantRoot(best[0], best[1], t1, t2, formation_root=formation[0], centroid_root=centroid)
+    beside = None
+    if best[1].is_centroid and best[0] == 0.0:  # the drift on tau1 = 0: what decides stability is next to it
+        nxt = _centroid_rightmost(best[1], t1, t2)
+        beside = formation[0] if nxt is None or formation[0].real >= nxt.real else nxt
+    return DominantRoot(best[0], best[1], t1, t2, formation_root=formation[0], centroid_root=centroid,
+                        beside_drift=beside)  # fmt: skip
 
 
 @dataclass(frozen=True, eq=False)
