@@ -1,16 +1,30 @@
-"""Simulation of the team: agent and robot models, the delayed integrator, runs.
+"""Simulation of the team: agent and robot models, the delayed integrator, runs and commands.
 
-The public names of :mod:`delayform.simulation.runner` are re-exported here.
+Modules, by concept: :mod:`~delayform.simulation.integrator` (RK4 with a
+bounded Hermite history), :mod:`~delayform.simulation.robots` (agent models,
+robot limits, ideal commands), :mod:`~delayform.simulation.commands` (the
+commands each robot executes), :mod:`~delayform.simulation.trajectory` (the
+result and its metrics), :mod:`~delayform.simulation.runner` (``simulate``).
+Their public names are re-exported here.
 """
 
-from delayform.simulation.runner import (
-    MIN_SPEED,
-    MODELS,
-    SETTLING_FRACTION,
-    Trajectory,
-    paper_simulations,
-    simulate,
-    stated_order,
-)
+from delayform.simulation.commands import LimitExceedance, RobotCommands
+from delayform.simulation.integrator import stated_order
+from delayform.simulation.robots import IROBOT_CREATE, REST_SPEED, RobotLimits
+from delayform.simulation.runner import MODELS, paper_simulations, simulate
+from delayform.simulation.trajectory import SETTLING_FRACTION, STATUSES, Trajectory
 
-__all__ = ["MODELS", "MIN_SPEED", "SETTLING_FRACTION", "Trajectory", "simulate", "stated_order", "paper_simulations"]
+__all__ = [
+    "MODELS",
+    "REST_SPEED",
+    "SETTLING_FRACTION",
+    "STATUSES",
+    "IROBOT_CREATE",
+    "RobotLimits",
+    "RobotCommands",
+    "LimitExceedance",
+    "Trajectory",
+    "simulate",
+    "stated_order",
+    "paper_simulations",
+]
