@@ -371,7 +371,8 @@ def test_report_on_a_scenario_file(tmp_path: Path) -> None:
         assert (out / name).stat().st_size > 0, name
     html = (out / "index.html").read_text()
     # self-contained: every figure embedded, none fetched from elsewhere
-    assert html.count('src="data:image/png;base64,') == html.count("<img ") == 5
+    # chart, eigenvalue plane, surface, contour, x/y and paths: six figures, all embedded
+    assert html.count('src="data:image/png;base64,') == html.count("<img ") == 6
     # the map grid came from the file: [0, tau1_max] x [0, tau2_max] by default
     grid = np.load(out / "dominant_map.npz")
     assert grid["real_part"].shape == (11, 11) and grid["tau1"][-1] == 3.0
