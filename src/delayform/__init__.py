@@ -55,6 +55,17 @@ _EXPORTS: dict[str, str] = {
     "simulate": "simulation",
     "Trajectory": "simulation",
     "paper_simulations": "simulation",
+    # imperfect networks and Monte Carlo
+    "Network": "simulation.network",
+    "LinkDelays": "simulation.network",
+    "SmoothVariation": "simulation.network",
+    "Jitter": "simulation.network",
+    "BernoulliLoss": "simulation.network",
+    "GilbertElliott": "simulation.network",
+    "Sampling": "simulation.network",
+    "MeasurementNoise": "simulation.network",
+    "monte_carlo": "simulation.montecarlo",
+    "MonteCarloResult": "simulation.montecarlo",
     # scenario files
     "load_scenario": "scenario",
     "Scenario": "scenario",

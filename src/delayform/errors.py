@@ -19,6 +19,7 @@ The tree::
     |   |   +-- NeutralQuasiPolynomialError  not retarded: CTCR and roots refuse
     |   +-- FormationError                 desired shape of the wrong size
     |   +-- SimulationInputError           dt, duration, initial states
+    |   +-- NetworkError                   an imperfect-network model (delays, loss, sampling, noise)
     |   +-- ScenarioError                  a TOML scenario file
     +-- NotConvergedError (RuntimeError)   carries the partial result
 """
@@ -39,6 +40,7 @@ __all__ = [
     "NeutralQuasiPolynomialError",
     "FormationError",
     "SimulationInputError",
+    "NetworkError",
     "ScenarioError",
     "NotConvergedError",
 ]
@@ -90,6 +92,15 @@ class FormationError(InputError):
 
 class SimulationInputError(InputError):
     """A time step, duration or initial state that cannot be simulated."""
+
+
+class NetworkError(InputError):
+    """An imperfect-network model that cannot be simulated (:mod:`delayform.simulation.network`).
+
+    Raised for a probability outside [0, 1], a delay matrix of the wrong size,
+    jitter or variation that would make a delay negative or shorter than the
+    step, a negative noise level, or a sampling rate that is not positive.
+    """
 
 
 class ScenarioError(InputError):

@@ -89,6 +89,8 @@ from delayform.formation import (
     formation_forcing,
     named_formation,
 )
+from delayform.simulation.network import Network
+from delayform.simulation.reception import integrate_network
 from delayform.topology import Topology, paper_six
 
 __all__ = [
@@ -446,6 +448,7 @@ def simulate(
     dt: float,
     min_speed: float = MIN_SPEED,
     save_every: int | None = None,
+    network: Network | None = None,
 ) -> Trajectory:
     """Simulate n agents under eq. formation with delays tau1 (positions) and tau2 (velocities).
 
@@ -478,6 +481,10 @@ def simulate(
     save_every
         Keep every ``save_every``-th step; default: every step while
         ``samples x n <= 2e6``, else the smallest stride that fits.
+    network
+        An imperfect network (:class:`delayform.simulation.network.Network`:
+        per-link and varying delays, loss, sampling, noise); None or the
+        ideal network runs the integrator above, unchanged.
 
     Returns
     -------
@@ -497,6 +504,8 @@ def simulate(
     """
     if not isinstance(topology, Topology):
         raise SimulationInputError(f"topology must be a Topology, got {type(topology).__name__}")
+    if network is not None and not isinstance(network, Network):
+        raise SimulationInputError(f"network must be a Network, got {type(network).__name__}")
     P, D = check_gains(P, D)
     tau1, tau2 = check_delay("tau1", tau1), check_delay("tau2", tau2)
     dt = check_positive("dt", dt, SimulationInputError)
@@ -524,7 +533,12 @@ def simulate(
     C = topology.C_sparse.toarray() if n <= _DENSE_AGENTS else topology.C_sparse
     F = formation_forcing(topology, P, desired)
     out = None
-    if isinstance(agent, _DoubleIntegrator) and n <= _DENSE_AGENTS:
+    if network is not None and not network.is_ideal:
+        out = integrate_network(
+            x0, v0, topology, F, P, D, tau1, tau2, network=network, model=model, dt=dt, steps=steps,
+            save_every=save_every,
+        )
+    elif isinstance(agent, _DoubleIntegrator) and n <= _DENSE_AGENTS:
         out = _integrate_linear(x0, v0, C, F, P, D, tau1, tau2, dt, steps, save_every)
     if out is None:
         out = _integrate(agent, C, F, P, D, tau1, tau2, dt, steps, save_every, min_speed)
