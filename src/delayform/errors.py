@@ -20,6 +20,7 @@ The tree::
     |   +-- FormationError                 desired shape of the wrong size
     |   +-- SimulationInputError           dt, duration, initial states
     |   +-- NetworkError                   an imperfect-network model (delays, loss, sampling, noise)
+    |   +-- ClusterError                   Dask workers / scheduler address of a sweep
     |   +-- ScenarioError                  a TOML scenario file
     +-- NotConvergedError (RuntimeError)   carries the partial result
 """
@@ -41,6 +42,7 @@ __all__ = [
     "FormationError",
     "SimulationInputError",
     "NetworkError",
+    "ClusterError",
     "ScenarioError",
     "NotConvergedError",
 ]
@@ -101,6 +103,10 @@ class NetworkError(InputError):
     jitter or variation that would make a delay negative or shorter than the
     step, a negative noise level, or a sampling rate that is not positive.
     """
+
+
+class ClusterError(InputError):
+    """Where to run a sweep: a bad number of workers, or a Dask scheduler that cannot be reached."""
 
 
 class ScenarioError(InputError):

@@ -45,6 +45,8 @@ __all__ = [
     "Executor",
     "SerialExecutor",
     "run_seeds",
+    "make_setup",
+    "checked",
     "simulate_run",
     "monte_carlo",
     "collect",
@@ -427,31 +429,62 @@ def make_setup(
     tau2: float,
     formation: ArrayLike | str,
     *,
-    model: str,
-    network: Network | None,
+    model: str = "double_integrator",
+    network: Network | None = None,
     duration: float,
     dt: float,
-    initial_positions: ArrayLike | None,
-    initial_headings: ArrayLike | None,
-    initial_speed: float,
+    initial_positions: ArrayLike | None = None,
+    initial_headings: ArrayLike | None = None,
+    initial_speed: float = 1e-3,
 ) -> Setup:
-    """Check the scenario-like inputs once, up front, and build the :class:`Setup`."""
+    """The checked scenario-like inputs of a Monte Carlo or of a sweep's base point.
+
+    Parameters
+    ----------
+    topology, P, D, tau1, tau2, formation
+        Team, gains of eq. protocol, nominal delays, desired shape (array or name).
+    model
+        ``"double_integrator"`` or ``"unicycle"``.
+    network
+        Imperfect network, or None for the ideal one.
+    duration, dt
+        Length of each run and step (s).
+    initial_positions, initial_headings
+        Fixed initial state, or None to draw it per run.
+    initial_speed
+        Initial speed (the paper's 1e-3).
+
+    Raises
+    ------
+    SimulationInputError, NetworkError, GainError, DelayError, FormationError
+        The errors :func:`~delayform.simulation.simulate` raises for these inputs.
+    """
     if not isinstance(topology, Topology):
         raise SimulationInputError(f"topology must be a Topology, got {type(topology).__name__}")
-    if model not in MODELS:
-        raise SimulationInputError(f"unknown model {model!r}; choose one of {', '.join(MODELS)}")
-    if network is not None and not isinstance(network, Network):
-        raise SimulationInputError(f"network must be a Network, got {type(network).__name__}")
-    desired = check_formation(formation, topology.n)
     setup = Setup(
-        topology=topology, P=P, D=D, tau1=tau1, tau2=tau2, formation=desired, model=model,
-        network=network, duration=duration, dt=dt,
+        topology=topology, P=P, D=D, tau1=tau1, tau2=tau2, formation=check_formation(formation, topology.n),
+        model=model, network=network, duration=duration, dt=dt,
         initial_positions=None if initial_positions is None else np.asarray(initial_positions, dtype=np.float64),
         initial_headings=None if initial_headings is None else np.asarray(initial_headings, dtype=np.float64),
         initial_speed=initial_speed,
     )  # fmt: skip
-    # one short run validates gains, delays, step, initial state and network with simulate's own errors
-    simulate_run((replace(setup, duration=setup.dt * 2), 0, (0, 0)))
+    return checked(setup)
+
+
+def checked(setup: Setup) -> Setup:
+    """``setup`` after one two-step run, which raises simulate's own error for any bad input.
+
+    Parameters
+    ----------
+    setup
+        The inputs to check.
+    """
+    if setup.model not in MODELS:
+        raise SimulationInputError(f"unknown model {setup.model!r}; choose one of {', '.join(MODELS)}")
+    if setup.network is not None and not isinstance(setup.network, Network):
+        raise SimulationInputError(f"network must be a Network, got {type(setup.network).__name__}")
+    check_formation(setup.formation, setup.topology.n)
+    simulate_run((replace(setup, duration=2 * setup.dt), 0, (0, 0)))
     return setup
 
 
@@ -507,7 +540,6 @@ def monte_carlo(
     initial_headings: ArrayLike | None = None,
     initial_speed: float = 1e-3,
     executor: Executor | None = None,
-    workers: int = 1,
     progress: Progress | None = None,
 ) -> MonteCarloResult:
     """N seeded runs of eq. formation over ``network``: distributions of settling, error and commands.
@@ -533,9 +565,8 @@ def monte_carlo(
         Initial speed (the paper's 1e-3).
     executor
         Where the runs go (:class:`SerialExecutor` by default; see
-        :func:`delayform.sweeps.executor` for Dask).
-    workers
-        Number of parallel workers of ``executor``, for the memory and time guard only.
+        :func:`delayform.sweeps.executor` for Dask); its ``workers``
+        attribute, if any, enters the memory and time guard.
     progress
         Optional callback ``(runs done, runs)``.
 
@@ -563,7 +594,7 @@ def monte_carlo(
         topology, P, D, tau1, tau2, formation, model=model, network=network, duration=duration, dt=dt,
         initial_positions=initial_positions, initial_headings=initial_headings, initial_speed=initial_speed,
     )  # fmt: skip
-    guard(setup, runs, workers)
+    guard(setup, runs, int(getattr(executor, "workers", 1)))
     tasks = [(setup, r, s) for r, s in enumerate(run_seeds(seed, runs))]
     outcomes = (executor or SerialExecutor()).map(simulate_run, tasks, progress)
     return collect(setup, runs, seed, outcomes)
