@@ -31,6 +31,7 @@ STAGES: dict[str, int] = {
     "sweeps": 6,
     "scenario": 7,
     "report": 8,
+    "report_network": 8,  # split from report: network and Monte Carlo sections
     "cli": 9,
     "app": 10,
     "__main__": 11,

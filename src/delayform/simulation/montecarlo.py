@@ -315,9 +315,10 @@ class MonteCarloResult:
         """Rows ``(quantity, "median [5 %, 95 %]")`` for reports and the command line."""
 
         def cell(stats: dict[str, float], unit: str) -> str:
-            return "  ".join(
-                [f"{_fmt(stats['median'])}{unit}", f"[{_fmt(stats['q05'])}, {_fmt(stats['q95'])}]"]
-            )
+            def one(v: float) -> str:
+                return f"{v:.4g}{unit}" if np.isfinite(v) else "not settled"
+
+            return f"{one(stats['median'])}  [{one(stats['q05'])}, {one(stats['q95'])}]"
 
         s = self.summary()
         rows = [
@@ -362,10 +363,6 @@ class MonteCarloResult:
             (f"peak {self.command_names[0]}", self.peak_commands[:, 0]),
         ]
         return plot_histograms(panels, axes=axes)
-
-
-def _fmt(value: float) -> str:
-    return f"{value:.4g}" if np.isfinite(value) else "not settled"
 
 
 # ------------------------------------------------------------------- runs
