@@ -157,6 +157,7 @@ def executor(*, workers: int | None = None, scheduler: str | None = None, timeou
         finally:
             cluster.close()
         return
+    _reachable(scheduler, timeout)
     try:
         client = Client(scheduler, timeout=timeout)
     except (OSError, TimeoutError, ValueError) as exc:
@@ -165,6 +166,28 @@ def executor(*, workers: int | None = None, scheduler: str | None = None, timeou
         yield DaskExecutor(client)
     finally:
         client.close()
+
+
+def _reachable(address: str, timeout: float) -> None:
+    """Fail at once on a TCP address nobody listens at (the Client would retry until its timeout)."""
+    import socket
+    from urllib.parse import urlsplit
+
+    if not isinstance(address, str) or not address:
+        raise ClusterError(f"scheduler must be an address like tcp://host:8786, got {address!r}")
+    parts = urlsplit(address if "://" in address else f"tcp://{address}")
+    if parts.scheme != "tcp":
+        return  # tls, ucx, ...: left to the Client
+    try:
+        port = parts.port
+    except ValueError:
+        port = None
+    if parts.hostname is None or port is None:
+        raise ClusterError(f"scheduler must be an address like tcp://host:8786, got {address!r}")
+    try:
+        socket.create_connection((parts.hostname, port), timeout=timeout).close()
+    except OSError as exc:
+        raise ClusterError(f"cannot reach the Dask scheduler at {address!r} ({exc.strerror or type(exc).__name__})") from None
 
 
 @contextmanager

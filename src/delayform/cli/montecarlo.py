@@ -90,6 +90,7 @@ def montecarlo_command(scenario: Path | None, runs: int, seed: int, workers: int
     """
     from delayform.report_network import montecarlo_section
     from delayform.scenario import SimulationSpec
+    from delayform.simulation.montecarlo import guard, make_setup
     from delayform.sweeps import executor
 
     if workers is not None and scheduler is not None:
@@ -104,7 +105,15 @@ def montecarlo_command(scenario: Path | None, runs: int, seed: int, workers: int
         raise click.BadParameter(f"the step must be smaller than the duration {sim.duration:g}", param_hint="--dt")
     network = _network(sc.network, loss=loss, burst=burst, jitter=jitter, rate=rate, noise=noise, spread=spread)
     sc = replace(sc, simulation=sim, network=network)
-    directory = _out_dir(out, sc)
-    with executor(workers=workers, scheduler=scheduler) as ex, _inner_progress(f"montecarlo ({runs} runs)") as bar:
-        section = montecarlo_section(sc, directory, runs=runs, seed=seed, executor=ex, progress=bar)
+    # every input and the budget are checked before anything is started or written
+    setup = make_setup(
+        sc.topology, sc.P, sc.D, sc.tau1, sc.tau2, sc.desired_positions(), model=sim.model, network=network,
+        duration=sim.duration, dt=sim.dt, initial_positions=sc.initial_positions(),
+        initial_headings=sc.initial_headings(), initial_speed=sc.initial.speed,
+    )  # fmt: skip
+    guard(setup, runs, workers or 1)
+    with executor(workers=workers, scheduler=scheduler) as ex:
+        directory = _out_dir(out, sc)
+        with _inner_progress(f"montecarlo ({runs} runs)") as bar:
+            section = montecarlo_section(sc, directory, runs=runs, seed=seed, executor=ex, progress=bar)
     _emit(section, directory, as_json=as_json)
