@@ -108,3 +108,12 @@ def test_malformed_network_tables_name_the_key(table: str, needle: str) -> None:
     with pytest.raises(ScenarioError, match="x.toml: " + needle.replace(".", r"\.")) as info:
         parse_scenario(tomllib.loads(SMALL + f"[network]\n{table}\n"), source="x.toml")
     assert "\n" not in str(info.value)
+
+
+def test_the_shipped_lossy_example_loads() -> None:
+    from delayform.scenario import load_scenario
+    from delayform.simulation.network import GilbertElliott
+
+    sc = load_scenario(Path(__file__).resolve().parents[1] / "examples" / "lossy.toml")
+    assert isinstance(sc.network.loss, GilbertElliott) and sc.network.sampling.rate == 10.0
+    assert sc.network.packets and not sc.network.is_ideal
