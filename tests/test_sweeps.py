@@ -16,7 +16,7 @@ from delayform.simulation.montecarlo import (
     simulate_run,
 )
 from delayform.simulation.network import BernoulliLoss, Jitter, Network
-from delayform.sweeps import delay_sweep, executor, make_setup, network_sweep, sweep
+from delayform.sweeps import delay_sweep, executor_for, make_setup, network_sweep, sweep
 from delayform.topology import paper_six, ring
 
 NET = Network(loss=BernoulliLoss(0.3), jitter=Jitter(0.1, 0.05))
@@ -34,7 +34,7 @@ def test_forty_runs_serially_and_on_a_two_worker_dask_cluster_are_identical() ->
     nets = [None, NET]
     sweep_serial = network_sweep(setup, nets, ["ideal", "lossy"], runs=4, seed=2)
     seen: list[tuple[int, int]] = []
-    with executor(workers=2) as ex:
+    with executor_for(workers=2) as ex:
         assert ex.workers == 2
         parallel = monte_carlo(ring(3), 1.0, 0.5, 0.3, 0.2, "polygon", runs=40, executor=ex,
                                progress=lambda done, total: seen.append((done, total)), **TINY)  # fmt: skip
@@ -80,13 +80,13 @@ def test_delay_sweep_grid_and_labels() -> None:
 
 def test_bad_cluster_settings_and_budgets_are_refused() -> None:
     with pytest.raises(ClusterError, match="not both"):
-        with executor(workers=2, scheduler="tcp://127.0.0.1:1"):
+        with executor_for(workers=2, scheduler="tcp://127.0.0.1:1"):
             pass
     with pytest.raises(ClusterError, match="positive integer"):
-        with executor(workers=0):
+        with executor_for(workers=0):
             pass
     with pytest.raises(ClusterError, match="cannot reach"):
-        with executor(scheduler="tcp://127.0.0.1:1", timeout=1.0):
+        with executor_for(scheduler="tcp://127.0.0.1:1", timeout=1.0):
             pass
     with pytest.raises(SimulationInputError, match="would take about"):
         monte_carlo(paper_six(), 1.0, 0.5, 0.3, 0.2, "hexagon", runs=10_000, duration=1e4, dt=0.01)

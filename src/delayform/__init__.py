@@ -66,6 +66,15 @@ _EXPORTS: dict[str, str] = {
     "MeasurementNoise": "simulation.network",
     "monte_carlo": "simulation.montecarlo",
     "MonteCarloResult": "simulation.montecarlo",
+    "make_setup": "simulation.montecarlo",
+    # sweeps, here or on Dask
+    "executor_for": "sweeps",
+    "sweep": "sweeps",
+    "delay_sweep": "sweeps",
+    "gain_sweep": "sweeps",
+    "topology_sweep": "sweeps",
+    "network_sweep": "sweeps",
+    "SweepResult": "sweeps",
     # scenario files
     "load_scenario": "scenario",
     "Scenario": "scenario",

@@ -2,7 +2,7 @@
 
 A sweep runs :func:`~delayform.simulation.montecarlo.monte_carlo` at every
 point of a grid (delays, gains, topologies, networks). Where the runs go is
-chosen by :func:`executor`:
+chosen by :func:`executor_for`:
 
 * nothing: this process, one run after another;
 * ``workers=N``: a local ``dask.distributed.LocalCluster`` of N worker
@@ -60,7 +60,7 @@ from delayform.topology import Topology
 
 __all__ = [
     "DaskExecutor",
-    "executor",
+    "executor_for",
     "make_setup",
     "SweepResult",
     "sweep",
@@ -115,7 +115,7 @@ class DaskExecutor:
 
 
 @contextmanager
-def executor(*, workers: int | None = None, scheduler: str | None = None, timeout: float = 10.0) -> Iterator[Executor]:
+def executor_for(*, workers: int | None = None, scheduler: str | None = None, timeout: float = 10.0) -> Iterator[Executor]:
     """Where runs go: this process, a local Dask cluster, or an existing one (module doc).
 
     Parameters
@@ -336,7 +336,7 @@ def sweep(
     seed
         Seed of every point (common random numbers).
     workers, scheduler
-        Where the runs go (:func:`executor`).
+        Where the runs go (:func:`executor_for`).
     progress
         True for a Rich bar on stderr, or a callback ``(done, total)``.
 
@@ -363,7 +363,7 @@ def sweep(
     _guard_total(max(c[0] for c in costs), sum(c[1] for c in costs), len(points) * runs, n_workers)
     seeds = run_seeds(seed, runs)
     tasks = [(p, r, s) for p in points for r, s in enumerate(seeds)]
-    with executor(workers=workers, scheduler=scheduler) as ex:
+    with executor_for(workers=workers, scheduler=scheduler) as ex:
         if progress is True:
             with rich_progress(f"{parameter} sweep") as callback:
                 outcomes = ex.map(simulate_run, tasks, callback)

@@ -91,7 +91,7 @@ def montecarlo_command(scenario: Path | None, runs: int, seed: int, workers: int
     from delayform.report_network import montecarlo_section
     from delayform.scenario import SimulationSpec
     from delayform.simulation.montecarlo import guard, make_setup
-    from delayform.sweeps import executor
+    from delayform.sweeps import executor_for
 
     if workers is not None and scheduler is not None:
         raise click.UsageError("give either --workers (a local cluster) or --scheduler (an existing one), not both")
@@ -112,7 +112,7 @@ def montecarlo_command(scenario: Path | None, runs: int, seed: int, workers: int
         initial_headings=sc.initial_headings(), initial_speed=sc.initial.speed,
     )  # fmt: skip
     guard(setup, runs, workers or 1)
-    with executor(workers=workers, scheduler=scheduler) as ex:
+    with executor_for(workers=workers, scheduler=scheduler) as ex:
         directory = _out_dir(out, sc)
         with _inner_progress(f"montecarlo ({runs} runs)") as bar:
             section = montecarlo_section(sc, directory, runs=runs, seed=seed, executor=ex, progress=bar)
