@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Iterator, Mapping, Sequence
+import logging
 from contextlib import contextmanager
 from dataclasses import dataclass
 from itertools import product
@@ -145,18 +146,39 @@ def executor_for(*, workers: int | None = None, scheduler: str | None = None, ti
     if workers is None and scheduler is None:
         yield SerialExecutor()
         return
+    # the scheduler and client log every connection at INFO on stderr; a sweep reports through its result
+    quiet = logging.getLogger("distributed")
+    level = quiet.level
+    quiet.setLevel(logging.ERROR)
+    try:
+        if workers is not None:
+            with _local(workers) as ex:
+                yield ex
+        else:
+            with _remote(scheduler, timeout) as ex:
+                yield ex
+    finally:
+        quiet.setLevel(level)
+
+
+@contextmanager
+def _local(workers: int) -> Iterator[DaskExecutor]:
     from distributed import Client, LocalCluster
 
-    if workers is not None:
-        # processes with one thread each: the runs are pure Python/NumPy loops that hold the GIL
-        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                               dashboard_address=None, worker_dashboard_address=None, silence_logs=50)  # fmt: skip
-        try:
-            with Client(cluster) as client:
-                yield DaskExecutor(client)
-        finally:
-            cluster.close()
-        return
+    # processes with one thread each: the runs are pure Python/NumPy loops that hold the GIL
+    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                           dashboard_address=None, worker_dashboard_address=None, silence_logs=logging.ERROR)  # fmt: skip
+    try:
+        with Client(cluster) as client:
+            yield DaskExecutor(client)
+    finally:
+        cluster.close()
+
+
+@contextmanager
+def _remote(scheduler: str, timeout: float) -> Iterator[DaskExecutor]:
+    from distributed import Client
+
     _reachable(scheduler, timeout)
     try:
         client = Client(scheduler, timeout=timeout)
