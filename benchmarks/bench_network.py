@@ -80,9 +80,11 @@ def theirs(traj, times):
     dde.constant_past(np.column_stack([x0, v0]).ravel(), time=0.0)
     dde.set_integration_parameters(atol=1e-10, rtol=1e-10)
     dde.step_on_discontinuities()
-    out = np.array([dde.integrate(tt) for tt in times[1:]])
+    # with several delays it steps past t = 1 s: compare from where it stands, not by extrapolating back
+    later = times[times >= dde.t]
+    out = np.array([dde.integrate(tt) for tt in later])
     seconds = time.perf_counter() - start
-    return np.concatenate([x0[None], out.reshape(len(times) - 1, n, 4)[:, :, :2]]), seconds
+    return later, out.reshape(len(later), n, 4)[:, :, :2], seconds
 
 
 def mc_kwargs() -> dict:
@@ -102,13 +104,13 @@ def main() -> None:
     traj = runs[0][0]
     ours_t = [r[1] for r in runs]
     times = np.arange(0.0, DURATION + 1e-9, 1.0)
-    ref, theirs_t = theirs(traj, times)
-    stride = round(1.0 / args.dt)
-    diff = float(np.abs(traj.positions[::stride] - ref).max())
+    later, ref, theirs_t = theirs(traj, times)
+    rows = np.rint(later / args.dt).astype(int)
+    diff = float(np.abs(traj.positions[rows] - ref).max())
     print("| integrator | best (s) | median (s) |\n|---|---|---|")
     print(f"| delayform, network of per-link delays, dt = {args.dt} | {min(ours_t):.3f} | {statistics.median(ours_t):.3f} |")
     print(f"| jitcdde (incl. code generation and compilation), atol = rtol = 1e-10 | {theirs_t:.3f} | {theirs_t:.3f} |")
-    print(f"\nmax |delayform - jitcdde| over positions at t = 0, 1, ..., 60 s: {diff:.2e} (goal 1e-4)")
+    print(f"\nmax |delayform - jitcdde| over positions at t = {later[0]:g}, ..., 60 s: {diff:.2e} (goal 1e-4)")
 
     print("\n## monte_carlo, 40 runs, point a, loss 0.3, jitter +-0.05 s, 60 s, dt = 0.05\n")
     serial = []

@@ -147,9 +147,12 @@ def executor_for(*, workers: int | None = None, scheduler: str | None = None, ti
         yield SerialExecutor()
         return
     # the scheduler and client log every connection at INFO on stderr; a sweep reports through its result
-    quiet = logging.getLogger("distributed")
-    level = quiet.level
-    quiet.setLevel(logging.ERROR)
+    import distributed  # noqa: F401  (sets up its loggers, which are quieted below)
+
+    names = ["distributed"] + [n for n in logging.root.manager.loggerDict if n.startswith("distributed.")]
+    levels = {n: logging.getLogger(n).level for n in names}
+    for n in names:
+        logging.getLogger(n).setLevel(logging.ERROR)
     try:
         if workers is not None:
             with _local(workers) as ex:
@@ -158,7 +161,8 @@ def executor_for(*, workers: int | None = None, scheduler: str | None = None, ti
             with _remote(scheduler, timeout) as ex:
                 yield ex
     finally:
-        quiet.setLevel(level)
+        for n, level in levels.items():
+            logging.getLogger(n).setLevel(level)
 
 
 @contextmanager
