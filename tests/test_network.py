@@ -265,11 +265,46 @@ def test_noise_reaches_the_formation_and_is_seeded() -> None:
     assert 1e-3 < a.formation_error[-1] < 0.2  # the shape is kept up to the noise, not exactly
 
 
-def test_smooth_variation_of_zero_amplitude_needs_no_packets() -> None:
-    net = Network(variation=SmoothVariation(0.05, 0.05, period=5.0), seed=2)
+def test_smoothly_varying_delays_match_an_independent_integration() -> None:
+    """Continuous streams read x_k(t - d(t)); solve_ivp by steps with the same d(t) per link agrees."""
+    topo, shape = ring(3), named_formation("polygon", 3)
+    net = Network(variation=SmoothVariation(0.1, 0.05, period=4.0), seed=2)
     assert not net.packets and not net.is_ideal
-    traj = run(net, duration=40.0)
-    assert traj.formation_error[-1] < 0.02 * traj.formation_error[0]
+    x0 = np.array([[2.0, 0.0], [-1.0, 2.0], [0.0, -2.0]])
+    traj = simulate(topo, 1.0, 0.5, 0.4, 0.3, shape, model="double_integrator", initial_positions=x0,
+                    initial_headings=np.zeros(3), initial_speed=0.0, duration=10.0, dt=0.01, network=net)  # fmt: skip
+    rec = reception(net, topo, 0.4, 0.3, dt=0.01, steps=1)
+    # recover each link's phase from the send times the integrator used: d(t) = t - send
+    C, F = topo.C_sparse.toarray(), formation_forcing(topo, 1.0, shape)
+    phases = np.random.default_rng(np.random.SeedSequence(2).spawn(5)[1]).uniform(0, 2 * np.pi, size=(2, 3))
+    d0 = 0.4 + 0.1 * np.sin(phases[0])
+    assert np.allclose(0.0 - rec.send[0][0, 0], d0)  # the same draws: phases of the network's seed
+    starts: list[float] = []
+    sols: list = []
+
+    def state_at(t: float) -> np.ndarray:
+        if t <= 0.0:
+            return np.concatenate([x0.ravel(), np.zeros(6)])
+        return sols[bisect.bisect_right(starts, t) - 1](t)
+
+    def rhs(t: float, y: np.ndarray) -> np.ndarray:
+        x, v = y.reshape(2, 3, 2)
+        cx, cv = np.zeros((3, 2)), np.zeros((3, 2))
+        for e, (i, k) in enumerate(zip(rec.receivers, rec.informers, strict=True)):
+            d1 = 0.4 + 0.1 * np.sin(2 * np.pi * t / 4.0 + phases[0, e])
+            d2 = 0.3 + 0.05 * np.sin(2 * np.pi * t / 4.0 + phases[1, e])
+            cx[i] += C[i, k] * state_at(t - d1).reshape(2, 3, 2)[0, k]
+            cv[i] += C[i, k] * state_at(t - d2).reshape(2, 3, 2)[1, k]
+        return np.concatenate([v.ravel(), (1.0 * (cx - x) + 0.5 * (cv - v) + F).ravel()])
+
+    y, t0 = np.concatenate([x0.ravel(), np.zeros(6)]), 0.0
+    while t0 < 10.0 - 1e-12:  # segments no longer than the shortest delay, 0.25 s
+        sol = solve_ivp(rhs, (t0, min(t0 + 0.25, 10.0)), y, method="DOP853", rtol=1e-10, atol=1e-12, dense_output=True)
+        starts.append(t0)
+        sols.append(sol.sol)
+        y, t0 = sol.y[:, -1], min(t0 + 0.25, 10.0)
+    ref = np.array([state_at(t)[:6].reshape(3, 2) for t in traj.times[::50]])
+    assert np.max(np.abs(traj.positions[::50] - ref)) < 1e-4
 
 
 # ------------------------------------------------------------ bad input
