@@ -66,7 +66,7 @@ of Section "Feedback Linearization": under eq. transform2 the robot's
 position obeys ``x'' = u`` exactly while its speed is not zero, so its
 motion is that of the double integrator and its heading, speed and inputs
 ``(dv/dt, omega)`` are reconstructed from the velocity and acceleration
-(:func:`unicycle_outputs`); no regularisation of ``1/v`` is needed.
+(:func:`delayform.simulation.reception.unicycle_outputs`); no regularisation of ``1/v`` is needed.
 """
 
 from __future__ import annotations
