@@ -20,7 +20,7 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
-from delayform.errors import NetworkError
+from delayform.errors import NetworkError, SimulationInputError
 from delayform.simulation.network import BernoulliLoss, GilbertElliott, Network
 from delayform.topology import Topology
 
@@ -93,6 +93,26 @@ def network_memory(n_links: int, steps: int, packets: int, n: int) -> float:
     per_query = 2 * 3 * (steps + 1) * n_links * (8 + 8 + 8 + 4 * 8 + 2 * 8)  # send, packet, index, weights, noise
     per_packet = 2 * packets * n_links * (8 * 6)  # arrival, order, noise, loss
     return float(per_query + per_packet + 3 * (steps + 2) * n * 2 * 8)
+
+
+def _check_memory(network: Network, topology: Topology, dt: float, steps: int) -> None:
+    """Refuse, in one line, a run whose schedules would not fit in 3/4 of physical memory."""
+    import os
+
+    packets = 0
+    if network.packets:
+        period = dt if network.sampling is None else 1.0 / network.sampling.rate
+        packets = int((steps + 1) * dt / period) + 2
+    need = network_memory(int(topology.adjacency_sparse.nnz), steps, packets, topology.n)
+    try:
+        have = 0.75 * os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):
+        have = 8 * 2.0**30
+    if need > have:
+        raise SimulationInputError(
+            f"a run over this network would need about {need / 2**30:.3g} GiB of memory, more than the "
+            f"{have / 2**30:.3g} GiB available; shorten the duration, enlarge dt or lower the sampling rate"
+        )
 
 
 def _links(topology: Topology) -> tuple[NDArray[np.intp], NDArray[np.intp], _Array]:
@@ -366,6 +386,7 @@ def integrate_network(
         (``regularised`` is 0: the ideal unicycle needs none).
     """
     n = x0.shape[0]
+    _check_memory(network, topology, dt, steps)
     rec = reception(network, topology, tau1, tau2, dt=dt, steps=steps)
     E = rec.receivers.size
     # One gather per stage reads, for every link, both streams at both ends of their
