@@ -22,12 +22,15 @@ install: $(VENV)/.installed
 
 install-test: $(VENV)/.installed-test
 
-# Headless Chromium for tests/test_report_browser.py. Installed only when missing,
-# only as root and only where apt-get exists; otherwise that test skips and says why.
+# Headless Chromium (and a font for its text) for tests/test_report_browser.py and
+# tests/test_explorer_browser.py; the latter drives it with Playwright's Python package
+# (the `test` extra) through executable_path, so no browser is ever downloaded.
+# Installed only when missing, only as root and only where apt-get exists; otherwise
+# those tests skip and say why.
 browser:
 	@command -v chromium >/dev/null 2>&1 || { \
 	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
-	    (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null) \
+	    (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium fonts-liberation >/dev/null) \
 	      || echo "note: could not install chromium; the browser test will be skipped"; \
 	  else echo "note: chromium missing and not installable here; the browser test will be skipped"; fi; }
 

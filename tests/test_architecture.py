@@ -21,6 +21,7 @@ PACKAGE = Path(delayform.__file__).parent
 STAGES: dict[str, int] = {
     "errors": 0,
     "_validation": 0,
+    "resources": 0,  # a leaf: memory and time budget guard
     "plots": 0,  # a leaf: draws results by their attributes, imports no delayform module
     "topology": 1,
     "characteristic": 2,
@@ -32,8 +33,9 @@ STAGES: dict[str, int] = {
     "scenario": 7,
     "report": 8,
     "report_network": 8,  # split from report: network and Monte Carlo sections
-    "cli": 9,
-    "app": 10,
+    # the explorer is served by a CLI command (cli/explore.py), so it comes before the CLI
+    "app": 9,
+    "cli": 10,
     "__main__": 11,
     "": 11,  # delayform/__init__.py: lazy re-exports of everything
 }

@@ -22,13 +22,25 @@ ROOT = Path(__file__).resolve().parents[1]
 COMMANDS = ("chart", "roots", "map", "schedule", "simulate", "report")
 
 
+#: what Python's and numpy's warnings, and matplotlib's, print on stderr
+WARNING_TEXT = ("Warning:", "warnings.warn", "RuntimeWarning", "UserWarning", "No artists with labels")
+
+
+def assert_no_warning_text(stderr: str) -> None:
+    """No warning of any kind reaches the user's terminal (BRIEF: no warning text on stderr)."""
+    for text in WARNING_TEXT:
+        assert text not in stderr, stderr
+
+
 def run(*args: str, cwd: Path | None = None, timeout: float = 600) -> subprocess.CompletedProcess[str]:
-    """``python -m delayform ARGS`` with captured text output."""
-    return subprocess.run(
+    """``python -m delayform ARGS`` with captured text output; every run is checked for warning text."""
+    proc = subprocess.run(
         [sys.executable, "-m", "delayform", *args],
         capture_output=True, text=True, cwd=cwd, timeout=timeout,
         env={"MPLBACKEND": "Agg", "PATH": "/usr/bin:/bin", "HOME": str(cwd or ROOT)},
     )  # fmt: skip
+    assert_no_warning_text(proc.stderr)
+    return proc
 
 
 def assert_one_line_error(proc: subprocess.CompletedProcess[str], *needles: str) -> None:
@@ -86,9 +98,10 @@ def test_bad_option_exits_2_with_one_line(tmp_path: Path, args: tuple[str, ...],
 
 
 def test_override_that_does_not_fit_the_scenario(tmp_path: Path) -> None:
-    # the paper's hexagon cannot hold a ring of five
-    proc = run("chart", "--topology", "ring", "--n", "5", cwd=tmp_path)
-    assert_one_line_error(proc, "formation.shape", "hexagon")
+    # the paper's hexagon cannot hold a ring of five: only the commands that move robots need it
+    proc = run("report", "--topology", "ring", "--n", "5", "--out", str(tmp_path / "r"), cwd=tmp_path)
+    assert_one_line_error(proc, "formation.shape", "hexagon", "--formation")
+    assert not any((tmp_path / "r").iterdir())  # refused before anything was computed
 
 
 # -------------------------------------------------------------- --help

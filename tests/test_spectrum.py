@@ -7,6 +7,8 @@ argument principle, Lambert W), never against the module's own code path.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -67,7 +69,12 @@ def test_dominant_root_at_paper_points_matches_full_determinant(label: str) -> N
     # nothing right of it: dense argument principle on det(...)/s, a box far to the right
     f = ref.formation_function(team, P, D, tau1, tau2)
     assert round(ref.argument_count(f, (got.root.real + 1e-4, 3.0, -20.0, 20.0))) == 0
-    assert got.time_constant == pytest.approx(1.0 / abs(want.real), rel=1e-7)
+    if stable:
+        assert got.time_constant == pytest.approx(1.0 / abs(want.real), rel=1e-7)
+        assert got.growth_rate == 0.0
+    else:  # an unstable root has no time constant, it has a growth rate
+        assert got.time_constant == math.inf
+        assert got.growth_rate == pytest.approx(want.real, rel=1e-7)
 
 
 def test_dominant_root_is_a_root_of_the_full_characteristic() -> None:

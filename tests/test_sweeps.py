@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from delayform.analysis.spectrum import dominant_root
-from delayform.errors import ClusterError, SimulationInputError
+from delayform.errors import ClusterError, ResourceLimitError, SimulationInputError
 from delayform.simulation.montecarlo import (
     collect,
     monte_carlo,
@@ -88,7 +88,7 @@ def test_bad_cluster_settings_and_budgets_are_refused() -> None:
     with pytest.raises(ClusterError, match="cannot reach"):
         with executor_for(scheduler="tcp://127.0.0.1:1", timeout=1.0):
             pass
-    with pytest.raises(SimulationInputError, match="would take about"):
+    with pytest.raises(ResourceLimitError, match="would take about"):
         monte_carlo(paper_six(), 1.0, 0.5, 0.3, 0.2, "hexagon", runs=10_000, duration=1e4, dt=0.01)
     with pytest.raises(SimulationInputError, match="runs must be"):
         monte_carlo(paper_six(), 1.0, 0.5, 0.3, 0.2, "hexagon", runs=0, duration=1.0, dt=0.05)

@@ -78,6 +78,10 @@ _EXPORTS: dict[str, str] = {
     # scenario files
     "load_scenario": "scenario",
     "Scenario": "scenario",
+    # the browser explorer
+    "Explorer": "app",
+    "ExplorerLimits": "app",
+    "scenario_toml": "app",
 }
 
 __all__ = sorted(_EXPORTS) + ["errors", "__version__"]

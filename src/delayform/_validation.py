@@ -24,6 +24,11 @@ def _real_scalar(name: str, value: object, error: type[InputError]) -> float:
     return out
 
 
+#: gains outside this range overflow or underflow the characteristic equation's
+#: coefficients (products like P D lam); rescale time instead
+GAIN_RANGE = (1e-6, 1e6)
+
+
 def check_gain(name: str, value: object) -> float:
     """Return a control gain (P or D of eq. protocol) as float, or raise GainError.
 
@@ -33,6 +38,12 @@ def check_gain(name: str, value: object) -> float:
     out = _real_scalar(name, value, GainError)
     if out <= 0.0:
         raise GainError(f"{name} must be positive (eq. protocol), got {out}")
+    lo, hi = GAIN_RANGE
+    if not lo <= out <= hi:
+        raise GainError(
+            f"{name} = {out:g} is outside the range {lo:g} to {hi:g} the analysis handles; "
+            "choose a gain of moderate size (or rescale time)"
+        )
     return out
 
 

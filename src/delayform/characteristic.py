@@ -46,6 +46,7 @@ __all__ = [
     "characteristic_matrix",
     "product_of_factors",
     "tendency_sign",
+    "format_number",
 ]
 
 #: Delay of each term of eq. genfactor as (multiple of tau1, multiple of tau2):
@@ -67,7 +68,10 @@ def _coefficients(name: str, value: ArrayLike) -> NDArray[np.complex128]:
     if arr.ndim != 1:
         raise QuasiPolynomialError(f"{name} must be a 1-D coefficient sequence, got shape {arr.shape}")
     if not np.all(np.isfinite(arr)):
-        raise QuasiPolynomialError(f"{name} has non-finite coefficients")
+        raise QuasiPolynomialError(
+            f"the coefficients of {name} are not all finite numbers (infinite or NaN); "
+            "if they come from gains, choose P and D of moderate size"
+        )
     nonzero = np.flatnonzero(arr)
     return arr[: nonzero[-1] + 1] if nonzero.size else np.zeros(0, dtype=np.complex128)
 
@@ -240,15 +244,16 @@ class TwoDelayQuasiPolynomial:
     def describe(self) -> str:
         """The quasi-polynomial written out, one term per non-zero g_k."""
         parts = []
+        scale = max(float(np.abs(c).max(initial=0.0)) for c in self.coefficients)
         for c, name in zip(self.coefficients, _TERM_NAMES, strict=True):
-            if c.size:
+            # a coefficient that is zero to working precision (e.g. 1 - lam for lam = 1) is dropped
+            shown = [(p, v) for p, v in enumerate(c) if format_number(v, scale=scale) != "0"]
+            if shown:
                 poly = " + ".join(
-                    f"{_fmt(v)}" + ("" if p == 0 else (" s" if p == 1 else f" s^{p}"))
-                    for p, v in enumerate(c)
-                    if v != 0
+                    f"{_fmt(v, scale)}" + ("" if p == 0 else (" s" if p == 1 else f" s^{p}")) for p, v in shown
                 )
                 parts.append(f"({poly})" + ("" if name == "1" else f" {name}"))
-        return " + ".join(parts)
+        return " + ".join(parts) or "0"
 
 
 def tendency_sign(ds: NDArray[np.complex128]) -> NDArray[np.int64]:
@@ -264,10 +269,47 @@ def tendency_sign(ds: NDArray[np.complex128]) -> NDArray[np.int64]:
     return np.where(touching, 0, np.sign(re)).astype(np.int64)
 
 
-def _fmt(v: complex) -> str:
-    if v.imag == 0:
-        return f"{v.real:.6g}"
-    return f"({v.real:.6g}{v.imag:+.6g}j)"
+#: parts below this fraction of the scale are rounding noise (about 100 eps)
+_ZERO_TOL = 2e-14
+
+
+def format_number(value: complex, *, scale: float | None = None, digits: int = 6) -> str:
+    """A real or complex number for people: parts that are zero to working precision print as 0.
+
+    ``-1.3878e-16 + 1j`` prints as ``1j`` and ``1 + 1e-17j`` as ``1``: a part
+    smaller than about 100 machine epsilons of ``scale`` (default: the
+    number's modulus, at least 1) is rounding noise of a computation whose
+    exact result is 0.
+
+    Parameters
+    ----------
+    value
+        The number.
+    scale
+        The size the noise is relative to (e.g. the largest coefficient of
+        the polynomial the number belongs to).
+    digits
+        Significant digits.
+
+    >>> format_number(complex(-1.3878e-16, 1.0))
+    '1j'
+    >>> format_number(complex(-0.5, 0.25))
+    '-0.5 + 0.25j'
+    """
+    v = complex(value)
+    tol = _ZERO_TOL * max(1.0, abs(v) if scale is None else scale)
+    re = 0.0 if abs(v.real) <= tol else v.real
+    im = 0.0 if abs(v.imag) <= tol else v.imag
+    if im == 0.0:
+        return f"{re:.{digits}g}"
+    if re == 0.0:
+        return f"{im:.{digits}g}j"
+    return f"{re:.{digits}g} {'+' if im > 0 else '-'} {abs(im):.{digits}g}j"
+
+
+def _fmt(v: complex, scale: float = 1.0) -> str:
+    text = format_number(v, scale=scale)
+    return f"({text})" if " " in text else text
 
 
 @dataclass(frozen=True, eq=False)
@@ -367,6 +409,11 @@ def factors(topology: Topology, P: float, D: float) -> tuple[CharacteristicFacto
     P, D
         Positive gains of eq. protocol.
 
+    Raises
+    ------
+    NoSpanningTreeError
+        When the topology has no spanning tree (Lemma 3: no formation).
+
     Returns
     -------
     tuple of CharacteristicFactor
@@ -382,6 +429,9 @@ def factors(topology: Topology, P: float, D: float) -> tuple[CharacteristicFacto
     [2, 2, 2, 2, 4]
     """
     P, D = check_gains(P, D)
+    # Lemma 3: without a spanning tree C has eigenvalue 1 more than once, and the factor list
+    # would hold a second "centroid" factor whose persistent zero no formation can remove
+    topology.require_spanning_tree()
     return tuple(CharacteristicFactor(g, P, D) for g in topology.eigenvalue_groups)
 
 

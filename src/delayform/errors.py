@@ -22,6 +22,7 @@ The tree::
     |   +-- NetworkError                   an imperfect-network model (delays, loss, sampling, noise)
     |   +-- ClusterError                   Dask workers / scheduler address of a sweep
     |   +-- ScenarioError                  a TOML scenario file
+    |   +-- ResourceLimitError             a job larger than the machine's memory or time budget
     +-- NotConvergedError (RuntimeError)   carries the partial result
 """
 
@@ -44,6 +45,7 @@ __all__ = [
     "NetworkError",
     "ClusterError",
     "ScenarioError",
+    "ResourceLimitError",
     "NotConvergedError",
 ]
 
@@ -111,6 +113,14 @@ class ClusterError(InputError):
 
 class ScenarioError(InputError):
     """A scenario file that is missing a field, has an unknown key or a wrong value."""
+
+
+class ResourceLimitError(InputError):
+    """A job that would need more memory or time than the machine has or the budget allows.
+
+    Raised before the job starts (see :mod:`delayform.resources`); the
+    message says how much would be needed and which setting to change.
+    """
 
 
 class NotConvergedError(DelayformError, RuntimeError):

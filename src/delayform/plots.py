@@ -63,25 +63,45 @@ def stability_chart(
     -------
     Axes
     """
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
     ax = _axes(ax)
     t1 = (np.arange(resolution) + 0.5) * smap.tau1_max / resolution
     t2 = (np.arange(resolution) + 0.5) * smap.tau2_max / resolution
     stable = smap.is_stable(t1[None, :], t2[:, None]).astype(float)
-    ax.contourf(t1, t2, stable, levels=[0.5, 1.5], colors=[shade])
-    for kernel, color, label in ((False, offspring_color, "offspring"), (True, kernel_color, "kernel")):
+    handles: list[Any] = []
+    many = len(smap.curves) > _MANY_CURVES
+    # many curves (a large team) would cover the chart: thinner, translucent lines, the stable
+    # region drawn over them and its boundary outlined, so the reader still sees it
+    width = 0.9 if not many else max(0.15, 0.9 * (_MANY_CURVES / len(smap.curves)) ** 0.5)
+    alpha = 1.0 if not many else 0.35
+    for kernel, color, label in ((False, offspring_color, "offspring curves"), (True, kernel_color, "kernel curves")):
         lines = [np.column_stack([c.tau1, c.tau2]) for c in smap.curves if c.is_kernel == kernel]
         if lines:
-            ax.add_collection(LineCollection(lines, colors=color, linewidths=0.9, label=label))
+            ax.add_collection(LineCollection(lines, colors=color, linewidths=width, alpha=alpha, zorder=1))
+            handles.append(Line2D([], [], color=color, lw=1.2, label=f"{label} ({len(lines)})"))
+    if stable.any():
+        ax.contourf(t1, t2, stable, levels=[0.5, 1.5], colors=[shade], alpha=0.85 if many else 1.0,
+                    zorder=2 if many else 0)  # fmt: skip
+        if many and not stable.all():
+            ax.contour(t1, t2, stable, levels=[0.5], colors="black", linewidths=0.8, zorder=3)
+        handles.insert(0, Patch(facecolor=shade, edgecolor="black" if many else shade, label="stable (NU = 0)"))
     for name, (a, b) in (points or {}).items():
-        ax.plot([a], [b], "ko", ms=4)
-        ax.annotate(f"{name}", (a, b), xytext=(4, 4), textcoords="offset points", fontweight="bold")
+        ax.plot([a], [b], "ko", ms=4, zorder=4)
+        ax.annotate(f"{name}", (a, b), xytext=(4, 4), textcoords="offset points", fontweight="bold", zorder=4)
     ax.set_xlim(0.0, smap.tau1_max)
     ax.set_ylim(0.0, smap.tau2_max)
     ax.set_xlabel(r"$\tau_1$ (s), position delay")
     ax.set_ylabel(r"$\tau_2$ (s), velocity delay")
     ax.set_title("CTCR stability chart (shaded: stable)")
-    ax.legend(loc="upper right", fontsize="small")
+    if handles:
+        ax.legend(handles=handles, loc="upper right", fontsize="small", framealpha=0.9)
     return ax
+
+
+#: above this many crossing curves the chart thins its lines and draws the stable region on top
+_MANY_CURVES = 150
 
 
 def save_figure(
@@ -118,7 +138,7 @@ def plot_dominant_surface(result: Any, ax: Axes | None = None) -> Axes:
     ax.plot_surface(T1, T2, np.zeros_like(T1), color="black", alpha=0.35, linewidth=0)
     ax.set_xlabel(r"$\tau_1$ (s)")
     ax.set_ylabel(r"$\tau_2$ (s)")
-    ax.set_zlabel(r"Re$(s_{dom})$")
+    ax.set_zlabel(r"Re$(s_{dom})$ (1/s)")
     ax.set_title("Real part of the dominant root")
     return ax
 
@@ -132,7 +152,7 @@ def plot_dominant_contour(result: Any, ax: Axes | None = None, *, levels: int = 
     ax = _axes(ax)
     T1, T2 = _meshgrid_ij(result.tau1_values, result.tau2_values)
     filled = ax.contourf(T1, T2, result.real, levels=levels, cmap="viridis")
-    ax.figure.colorbar(filled, ax=ax, label=r"Re$(s_{dom})$")
+    ax.figure.colorbar(filled, ax=ax, label=r"Re$(s_{dom})$ (1/s)")
     if result.real.min() < 0.0 < result.real.max():
         ax.contour(T1, T2, result.real, levels=[0.0], colors="black", linewidths=2.0)
     ax.set_xlabel(r"$\tau_1$ (s)")

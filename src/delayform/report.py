@@ -20,7 +20,7 @@ import csv
 import html
 import json
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -126,10 +126,10 @@ def _fmt(value: float, digits: int = 4) -> str:
 
 
 def _fmt_complex(value: complex) -> str:
+    from delayform.characteristic import format_number
+
     # a real root polished in complex arithmetic keeps an imaginary part of rounding size
-    if abs(value.imag) <= 1e-12 * max(1.0, abs(value)):
-        return f"{value.real:.5g}"
-    return f"{value.real:.5g} {'+' if value.imag >= 0 else '-'} {abs(value.imag):.5g}j"
+    return format_number(value, digits=5)
 
 
 def _save(fig: Any, out: Path, stem: str) -> tuple[str, str]:
@@ -219,9 +219,16 @@ def factors_section(scenario: Scenario, out: Path) -> Section:
 
 
 def _chart_points(scenario: Scenario) -> tuple[tuple[str, float, float], ...]:
-    points = scenario.chart.points
-    if not points:
-        points = (("operating", scenario.tau1, scenario.tau2),)
+    """The scenario's marked points with its actual operating delays labelled "operating".
+
+    A point the file labels "operating" is replaced by the delays in use (the
+    command line may have changed them); the operating pair is added unless a
+    marked point already sits there.
+    """
+    op = (scenario.tau1, scenario.tau2)
+    points = tuple(p for p in scenario.chart.points if p[0] != "operating")
+    if not any((a, b) == op for _, a, b in points):
+        points = (("operating", *op), *points)
     return points
 
 
@@ -238,9 +245,14 @@ def chart_section(scenario: Scenario, out: Path) -> Section:
     from delayform.analysis.ctcr import stability_map
 
     plt = _pyplot()
-    cs = scenario.chart
-    smap = stability_map(scenario.topology, scenario.P, scenario.D, cs.tau1_max, cs.tau2_max)
     points = _chart_points(scenario)
+    # the window grows to hold the operating point, so it is always classified
+    cs = replace(
+        scenario.chart,
+        tau1_max=max([scenario.chart.tau1_max] + [a for _, a, _ in points]),
+        tau2_max=max([scenario.chart.tau2_max] + [b for _, _, b in points]),
+    )
+    smap = stability_map(scenario.topology, scenario.P, scenario.D, cs.tau1_max, cs.tau2_max)
     t1 = np.array([p[1] for p in points])
     t2 = np.array([p[2] for p in points])
     counts = np.asarray(smap.unstable_count(t1, t2))
@@ -342,18 +354,35 @@ def roots_section(
         d = dominant_root(team, P, D, a, b)
         at_points.append({"label": label, "tau1": a, "tau2": b, "root": complex(d.root),
                           "time_constant": _time_constant(complex(d.root))})  # fmt: skip
+    formation_root = complex(dom.formation_root if dom.formation_root is not None else s_dom)
     summary = {
         "tau1": scenario.tau1,
         "tau2": scenario.tau2,
         "dominant_root": s_dom,
+        "stable": bool(dom.is_stable),
         "time_constant": _time_constant(s_dom),
+        "growth_rate": float(dom.growth_rate),
+        "dominant_is_centroid": bool(dom.is_centroid_drift),
+        "formation_root": formation_root,
+        "formation_time_constant": _time_constant(formation_root),
+        "centroid_root": None if dom.centroid_root is None else complex(dom.centroid_root),
+        "centroid_time_constant": dom.centroid_time_constant,
         "region": list(region),
         "roots_in_region": [{"factor": r[0], "root": complex(r[3], r[4])} for r in rows],
         "points": at_points,
     }
-    table = [
-        (f"dominant root at ({scenario.tau1:g}, {scenario.tau2:g})", _fmt_complex(s_dom)),
-        ("time constant 1/|Re|", f"{_fmt(_time_constant(s_dom))} s"),
+    table = [(f"dominant root at ({scenario.tau1:g}, {scenario.tau2:g})", _fmt_complex(s_dom))]
+    if not dom.is_stable:
+        table.append(("growth rate Re (unstable)", f"{_fmt(dom.growth_rate)} 1/s"))
+    elif dom.is_centroid_drift:  # the slowest mode is the centroid's speed, not the shape
+        table += [
+            ("centroid time constant", f"{_fmt(_time_constant(s_dom))} s (the centroid's speed settles)"),
+            ("formation time constant", f"{_fmt(_time_constant(formation_root))} s (the shape settles, root "
+                                        f"{_fmt_complex(formation_root)})"),
+        ]  # fmt: skip
+    else:
+        table.append(("time constant 1/|Re|", f"{_fmt(_time_constant(s_dom))} s"))
+    table += [
         (f"roots in Re [{region[0]:g}, {region[1]:g}], Im [{region[2]:g}, {region[3]:g}]", str(len(rows))),
     ]
     table += [(f"dominant root at {p['label']} ({p['tau1']:g}, {p['tau2']:g})", _fmt_complex(p["root"]))
@@ -363,8 +392,10 @@ def roots_section(
         title="Characteristic roots and the dominant root",
         text=(
             "The dominant root is the rightmost characteristic root over all factors, the centroid "
-            "factor's persistent root s = 0 excluded; its real part sets how fast the formation converges "
-            "(time constant 1/|Re|). A positive real part means the delays are unstable."
+            "factor's roots at s = 0 excluded (the team's freedom to sit anywhere and, on tau1 = 0, to drift "
+            "at constant speed: neither changes the shape). Its real part sets how fast the team settles "
+            "(time constant 1/|Re|); when it is the centroid's, the shape's own time constant is given too. "
+            "A positive real part means the delays are unstable."
         ),
         table=tuple(table),
         summary=summary,
@@ -491,6 +522,18 @@ def schedule_section(
         "settling_time": float(result.settling_time),
         "hardware_root": hardware,
     }
+    settling_rows = [("predicted settling time ln(50)/|Re|", f"{_fmt(float(result.settling_time))} s")]
+    if result.factor.is_centroid:
+        # the slowest mode is the centroid's speed: say so, and give the shape's own settling time
+        from delayform.analysis.spectrum import SETTLING_FACTOR, dominant_root
+
+        shape = complex(dominant_root(scenario.topology, scenario.P, scenario.D, result.tau1, result.tau2).formation_root)
+        summary |= {"dominant_is_centroid": True, "formation_root": shape,
+                    "formation_settling_time": SETTLING_FACTOR / abs(shape.real)}  # fmt: skip
+        settling_rows = [
+            ("predicted settling of the centroid's speed", f"{_fmt(float(result.settling_time))} s"),
+            ("predicted settling of the formation's shape", f"{_fmt(SETTLING_FACTOR / abs(shape.real))} s"),
+        ]
     name = f"schedule{suffix}.json"
     (out / name).write_text(json.dumps(jsonable(summary), indent=2))
     verdict = "unstable" if hardware.real > 0 else "stable"
@@ -507,7 +550,7 @@ def schedule_section(
             ("dominant root at the hardware delays", f"{_fmt_complex(hardware)} ({verdict})"),
             ("best delays (tau1, tau2)", f"({result.tau1:.4g}, {result.tau2:.4g}) s"),
             ("dominant root there", _fmt_complex(root)),
-            ("predicted settling time ln(50)/|Re|", f"{_fmt(float(result.settling_time))} s"),
+            *settling_rows,
         ),
         summary=summary,
         files=(name,),

@@ -331,14 +331,29 @@ class Scenario:
         D: float | None = None,
         tau1: float | None = None,
         tau2: float | None = None,
+        formation: str | None = None,
     ) -> Scenario:
         """A copy with command-line overrides applied and checked like the file was.
+
+        Parameters
+        ----------
+        topology
+            A new topology (its size need not fit the formation: that is
+            checked only when the formation is built, see
+            :meth:`desired_positions`).
+        P, D
+            New gains of eq. protocol.
+        tau1, tau2
+            New operating delays; delay scheduling then starts from them
+            (``schedule.tau_min`` becomes the new delays, ``tau_max`` grows to
+            contain them).
+        formation
+            A named shape replacing the formation (its spacing kept).
 
         Raises
         ------
         ScenarioError
-            When an override is invalid or no longer fits the formation or
-            initial conditions (e.g. a topology of another size).
+            When an override is invalid.
         """
         reader = _Reader(self.source)
         new = replace(
@@ -349,17 +364,34 @@ class Scenario:
             tau1=self.tau1 if tau1 is None else reader.non_negative("delays.tau1", tau1),
             tau2=self.tau2 if tau2 is None else reader.non_negative("delays.tau2", tau2),
         )
+        if tau1 is not None or tau2 is not None:
+            # the hardware delays are the operating ones: schedule from what the user gave
+            lo = (new.tau1, new.tau2)
+            hi = (max(new.schedule.tau_max[0], lo[0]), max(new.schedule.tau_max[1], lo[1]))
+            new = replace(new, schedule=ScheduleSpec(tau_min=lo, tau_max=hi))
+        if formation is not None:
+            from delayform.formation import SHAPES
+
+            shape = reader.string("formation.shape", formation, tuple(SHAPES))
+            new = replace(new, formation=FormationSpec(shape=shape, spacing=self.formation.spacing))
         # the step is checked against overridden delays by simulate() itself, after a
         # command line has also overridden the step
         if topology is not None:
             new = replace(new, topology_spec=TopologySpec(name=topology.name))
-            _check_sizes(reader, new.topology.n, new.formation, new.initial)
         return new
 
     def desired_positions(self) -> np.ndarray:
-        """The desired formation as an ``(n, 2)`` array (named shapes built for this team)."""
+        """The desired formation as an ``(n, 2)`` array (named shapes built for this team).
+
+        Raises
+        ------
+        ScenarioError
+            When the formation or the initial conditions do not fit the team
+            (e.g. a hexagon for twelve agents after ``--topology ring --n 12``).
+        """
         from delayform.formation import named_formation
 
+        _check_sizes(_Reader(self.source), self.topology.n, self.formation, self.initial)
         if self.formation.positions is not None:
             return np.array(self.formation.positions, dtype=np.float64)
         return named_formation(self.formation.shape, self.topology.n, spacing=self.formation.spacing)
@@ -368,6 +400,7 @@ class Scenario:
         """Explicit initial positions, or None for random ones drawn from ``initial.seed``."""
         if self.initial.positions is None:
             return None
+        _check_sizes(_Reader(self.source), self.topology.n, self.formation, self.initial)
         return np.array(self.initial.positions, dtype=np.float64)
 
     def initial_headings(self) -> np.ndarray | None:
@@ -430,9 +463,13 @@ class _Reader:
         return out
 
     def gain(self, key: str, value: object) -> float:
+        from delayform._validation import GAIN_RANGE
+
         out = self.number(key, value)
         if out <= 0.0:
             raise self.error(key, "a positive number (eq. protocol)", value)
+        if not GAIN_RANGE[0] <= out <= GAIN_RANGE[1]:
+            raise self.error(key, f"a gain between {GAIN_RANGE[0]:g} and {GAIN_RANGE[1]:g}", value)
         return out
 
     def positive(self, key: str, value: object) -> float:
@@ -574,6 +611,8 @@ def _formation(reader: _Reader, data: Mapping[str, Any], n: int) -> FormationSpe
 
     shape = reader.string("formation.shape", data["shape"], tuple(SHAPES))
     spacing = reader.positive("formation.spacing", data.get("spacing", 1.0))
+    if spacing > 1e6:  # metres: beyond this the positions lose their precision in a simulation
+        raise reader.error("formation.spacing", "a spacing of at most 1e6 (metres)", spacing)
     try:
         named_formation(shape, n, spacing=spacing)  # e.g. a hexagon needs six agents
     except InputError as exc:
@@ -669,7 +708,9 @@ def _check_sizes(reader: _Reader, n: int, formation: FormationSpec, initial: Ini
         try:
             named_formation(formation.shape, n, spacing=formation.spacing)
         except InputError as exc:
-            raise ScenarioError(f"{reader.source}: formation.shape: {exc}") from None
+            raise ScenarioError(
+                f"{reader.source}: formation.shape: {exc}; choose a shape that fits {n} agents (e.g. --formation polygon)"
+            ) from None
     if formation.positions is not None and len(formation.positions) != n:
         raise reader.error("formation.positions", f"{n} rows, one per agent", found=f"{len(formation.positions)} rows")
     if initial.positions is not None and len(initial.positions) != n:

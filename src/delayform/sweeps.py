@@ -43,6 +43,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from delayform.errors import ClusterError, SimulationInputError
 from delayform.formation import named_formation
+from delayform.resources import require
 from delayform.simulation import montecarlo as mc
 from delayform.simulation.montecarlo import (
     Executor,
@@ -369,8 +370,9 @@ def sweep(
     Raises
     ------
     SimulationInputError, NetworkError, ClusterError
-        Bad inputs at some point (checked before any run), a sweep beyond the
-        memory or time budget, or a bad cluster setting.
+        Bad inputs at some point (checked before any run), or a bad cluster setting.
+    ResourceLimitError
+        A sweep beyond this machine's memory or time budget (:mod:`delayform.resources`).
     """
     runs, seed = mc._check_runs(runs, seed)
     if not changes:
@@ -401,17 +403,8 @@ def sweep(
 
 
 def _guard_total(nbytes: float, seconds: float, tasks: int, workers: int) -> None:
-    memory, budget = mc._budget()
-    if nbytes * min(workers, tasks) > memory:
-        raise SimulationInputError(
-            f"the sweep would need about {nbytes * min(workers, tasks) / 2**30:.3g} GiB of memory at once, more than "
-            f"the {memory / 2**30:.3g} GiB available; shorten the duration, enlarge dt or use fewer workers"
-        )
-    if seconds / workers > budget:
-        raise SimulationInputError(
-            f"the sweep ({tasks} runs) would take about {seconds / workers / 3600:.3g} h, more than the time budget "
-            f"of {budget / 3600:.3g} h (DELAYFORM_TIME_BUDGET); reduce the points, runs or duration, or add workers"
-        )
+    require(what=f"a sweep of {tasks} runs", setting="the points, runs, duration or dt (or add workers)",
+            nbytes=nbytes * max(1, min(workers, tasks)), seconds=seconds / max(workers, 1))  # fmt: skip
 
 
 def delay_sweep(

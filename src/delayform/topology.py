@@ -180,9 +180,23 @@ class Topology:
         are one edge.
         """
         try:
-            arr = np.asarray(list(edges), dtype=np.int64)
+            pairs = list(edges)
+            raw = np.asarray(pairs)
         except (TypeError, ValueError) as exc:
             raise TopologyError("edges must be pairs of integer agent indices") from exc
+        # numpy turns True into 1 silently; a bool names no agent
+        has_bool = any(
+            isinstance(v, (bool, np.bool_)) for pair in pairs if isinstance(pair, (tuple, list)) for v in pair
+        )
+        if has_bool:
+            raise TopologyError("agent indices in edges must be integers, got True or False")
+        if raw.size and raw.dtype.kind not in "iu":
+            # an index like 1.5 (or True) names no agent: refuse instead of truncating it
+            flat = raw.astype(object).ravel().tolist()
+            bad = [v for v in flat if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer))]
+            if bad:
+                raise TopologyError(f"agent indices in edges must be integers, got {bad[0]!r}")
+        arr = raw.astype(np.int64) if raw.size else np.zeros((0, 2), dtype=np.int64)
         if arr.size == 0:
             raise TopologyError("edges is empty: every agent needs an informer")
         if arr.ndim != 2 or arr.shape[1] != 2:
@@ -302,6 +316,15 @@ class Topology:
     @cached_property
     def eigenvalues(self) -> NDArray[np.complex128]:
         """All n eigenvalues of C, sorted by decreasing real part then imaginary part."""
+        from delayform.resources import require
+
+        # dense eigenvalues: about 5 copies of n x n doubles and ~25 n^3 flops at ~5 Gflop/s
+        require(
+            what=f"the eigenvalues of C for {self.n} agents",
+            setting="the number of agents (topology.n, --n)",
+            nbytes=5 * 8.0 * self.n**2,
+            seconds=25 * float(self.n) ** 3 / 5e9,
+        )
         C = self._C_dense if self.n <= DENSE_LIMIT else self.C_sparse.toarray()
         vals = np.linalg.eigvals(C).astype(np.complex128)
         order = np.lexsort((-vals.imag, -vals.real))
@@ -425,7 +448,7 @@ def random_digraph(n: int, p: float, seed: int | np.random.Generator | None = No
     (8, True)
     """
     n = _check_count(n, 2, "random_digraph")
-    if not (isinstance(p, (int, float, np.floating)) and 0.0 <= float(p) <= 1.0):
+    if isinstance(p, (bool, np.bool_)) or not (isinstance(p, (int, float, np.floating)) and 0.0 <= float(p) <= 1.0):
         raise TopologyError(f"random_digraph needs a probability 0 <= p <= 1, got {p!r}")
     rng = np.random.default_rng(seed)
     if n <= 2000:

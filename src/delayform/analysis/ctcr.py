@@ -107,6 +107,7 @@ import numpy.polynomial.polynomial as npoly
 from numpy.typing import ArrayLike, NDArray
 
 from delayform._validation import check_delay_array, check_positive
+from delayform.resources import require
 from delayform.characteristic import DELAY_MULTIPLES, TwoDelayQuasiPolynomial, factors
 from delayform.errors import DelayError, QuasiPolynomialError
 from delayform.topology import Topology
@@ -1315,6 +1316,29 @@ def _check_window(tau1_max: object, tau2_max: object) -> tuple[float, float]:
     return check_positive("tau1_max", tau1_max, DelayError), check_positive("tau2_max", tau2_max, DelayError)
 
 
+#: rough cost of one traced curve (measured: ~0.35 ms and ~150 points on the paper's chart)
+_SECONDS_PER_CURVE = 1e-3
+_BYTES_PER_CURVE = 5_000.0
+
+
+def _guard_window(qps: list[TwoDelayQuasiPolynomial], t1: float, t2: float) -> None:
+    """Refuse a window whose offspring curves would not fit the machine (delayform.resources).
+
+    Offspring repeat every 2 pi / omega along each delay, so a three-term
+    part with crossing frequencies up to Omega has about
+    (1 + tau1_max Omega / 2 pi)(1 + tau2_max Omega / 2 pi) curves in the window.
+    """
+    curves = sum(
+        (1.0 + t1 * _omega_bound(q) / (2 * np.pi)) * (1.0 + t2 * _omega_bound(q) / (2 * np.pi)) for q in qps
+    )
+    require(
+        what=f"a stability chart of the window [0, {t1:g}] x [0, {t2:g}] s (about {curves:.2g} crossing curves)",
+        setting="the window (chart.tau1_max, chart.tau2_max, --tau1-max, --tau2-max)",
+        nbytes=curves * _BYTES_PER_CURVE,
+        seconds=curves * _SECONDS_PER_CURVE,
+    )
+
+
 # ===================================================================== public entry points
 def crossing_map(qp: TwoDelayQuasiPolynomial, tau1_max: float, tau2_max: float) -> StabilityMap:
     """The CTCR stability map of one retarded quasi-polynomial of eq. genfactor.
@@ -1338,6 +1362,8 @@ def crossing_map(qp: TwoDelayQuasiPolynomial, tau1_max: float, tau2_max: float) 
         When a delayed term has the degree of g1.
     DelayError
         When the window is not positive and finite.
+    ResourceLimitError
+        When the window holds more crossing curves than the machine allows.
 
     Examples
     --------
@@ -1355,6 +1381,7 @@ def crossing_map(qp: TwoDelayQuasiPolynomial, tau1_max: float, tau2_max: float) 
         parts = [_Part(qp, 2, 0)]
     else:
         parts = [_Part(qp, 1, 0), _Part(_conjugate(qp), 1, 1)]
+    _guard_window([p.qp for p in parts], t1, t2)
     return _assemble([(qp, 1, parts)], t1, t2)
 
 
@@ -1383,6 +1410,10 @@ def stability_map(topology: Topology, P: float, D: float, tau1_max: float, tau2_
     Raises
     ------
     NoSpanningTreeError, GainError, DelayError
+        For a topology without a spanning tree or bad gains or window.
+    ResourceLimitError
+        When the window holds more crossing curves than the machine's memory
+        or the time budget allow (e.g. tau_max = 1e6).
 
     Examples
     --------
@@ -1401,6 +1432,7 @@ def stability_map(topology: Topology, P: float, D: float, tau1_max: float, tau2_
         else:
             parts = [_Part(_lam_factor(f.P, f.D, lam), 2 * mult, idx) for lam in (f.lam, np.conj(f.lam))]
         sources.append((f.quasi_polynomial, mult, parts))
+    _guard_window([p.qp for _, _, parts in sources for p in parts], t1, t2)
     return _assemble(sources, t1, t2)
 
 

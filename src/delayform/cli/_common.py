@@ -15,7 +15,8 @@ if TYPE_CHECKING:  # the command line imports the library lazily, to start fast
     from delayform.scenario import Scenario
     from delayform.topology import Topology
 
-TOPOLOGY_NAMES = ("paper_six", "ring", "complete", "star")
+TOPOLOGY_NAMES = ("paper_six", "ring", "complete", "star", "random_digraph")
+FORMATION_NAMES = ("polygon", "hexagon", "line", "grid", "v")
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -25,11 +26,24 @@ def _fail(message: str, *, code: int = 2) -> None:
     sys.exit(code)
 
 
-def _named_topology(name: str, n: int) -> Topology:
+def _named_topology(name: str, n: int | None, *, p: float | None = None, seed: int | None = None) -> Topology:
+    """A named topology from the command-line options, each option checked against the name."""
     from delayform import topology as topo
 
     if name == "paper_six":
+        if n is not None and n != 6:
+            raise click.BadParameter(f"the paper's topology has 6 agents, got --n {n}", param_hint="--n")
+        if p is not None:
+            raise click.UsageError("--p is only used with --topology random_digraph")
         return topo.paper_six()
+    if n is None:
+        raise click.UsageError(f"--topology {name} needs --n")
+    if name == "random_digraph":
+        if p is None:
+            raise click.UsageError("--topology random_digraph needs --p (probability of each extra edge)")
+        return topo.random_digraph(n, p, seed=0 if seed is None else seed)
+    if p is not None:
+        raise click.UsageError("--p is only used with --topology random_digraph")
     return getattr(topo, name)(n)
 
 
@@ -74,23 +88,56 @@ class LabelledPoint(click.ParamType):
         return (label, t1, t2)
 
 
+class OutDir(click.Path):
+    """An output folder; an empty string (which would mean the current folder) is refused."""
+
+    def __init__(self) -> None:
+        super().__init__(file_okay=False, path_type=Path)
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        if isinstance(value, str) and not value.strip():
+            self.fail("expected a folder, got an empty path", param, ctx)
+        return super().convert(value, param, ctx)
+
+
 POSITIVE = click.FloatRange(min=0.0, min_open=True)
 NON_NEGATIVE = click.FloatRange(min=0.0)
 
 
 # ------------------------------------------------------- shared options
+def _team_options() -> list[Callable[[F], F]]:
+    return [
+        click.argument("scenario", required=False, type=click.Path(path_type=Path)),
+        click.option("--topology", "topology_name", type=click.Choice(TOPOLOGY_NAMES),
+                     help="Replace the scenario's topology by a named one."),
+        click.option("--n", type=click.IntRange(min=2, max=100_000),
+                     help="Number of agents for --topology (paper_six has 6)."),
+        click.option("--p", type=click.FloatRange(0.0, 1.0),
+                     help="random_digraph only: probability of each extra edge."),
+        click.option("--seed", type=click.IntRange(min=0),
+                     help="Seed of random_digraph (and, for simulate, of the random initial state)."),
+        click.option("--P", "P", type=POSITIVE, help="Proportional gain P (overrides the scenario)."),
+        click.option("--D", "D", type=POSITIVE, help="Derivative gain D (overrides the scenario)."),
+    ]  # fmt: skip
+
+
+def team_options(func: F) -> F:
+    """The scenario argument and the topology and gain overrides (commands without delays)."""
+    for option in reversed([*_team_options(), click.option("--json", "as_json", is_flag=True,
+                                                             help="Print the summary as JSON on stdout.")]):
+        func = option(func)
+    return func
+
+
 def scenario_options(func: F) -> F:
     """The scenario argument and the overrides every analysis command shares."""
     options = [
-        click.argument("scenario", required=False, type=click.Path(dir_okay=False, path_type=Path)),
-        click.option("--topology", "topology_name", type=click.Choice(TOPOLOGY_NAMES),
-                     help="Replace the scenario's topology by a named one."),
-        click.option("--n", type=click.IntRange(min=2), help="Number of agents for --topology (not paper_six)."),
-        click.option("--P", "P", type=POSITIVE, help="Proportional gain P (overrides the scenario)."),
-        click.option("--D", "D", type=POSITIVE, help="Derivative gain D (overrides the scenario)."),
+        *_team_options(),
+        click.option("--formation", "formation_name", type=click.Choice(FORMATION_NAMES),
+                     help="Replace the scenario's formation shape (spacing kept)."),
         click.option("--tau1", type=NON_NEGATIVE, help="Position delay tau1 in seconds (overrides the scenario)."),
         click.option("--tau2", type=NON_NEGATIVE, help="Velocity delay tau2 in seconds (overrides the scenario)."),
-        click.option("--out", type=click.Path(file_okay=False, path_type=Path),
+        click.option("--out", type=OutDir(),
                      help="Output directory [default: out/<scenario name>]."),
         click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON on stdout."),
     ]  # fmt: skip
@@ -106,29 +153,56 @@ def _scenario(
     n: int | None,
     P: float | None,
     D: float | None,
-    tau1: float | None,
-    tau2: float | None,
+    tau1: float | None = None,
+    tau2: float | None = None,
+    p: float | None = None,
+    seed: int | None = None,
+    formation_name: str | None = None,
 ) -> Scenario:
-    """The scenario file (or the paper's example) with the command-line overrides applied."""
+    """The scenario file (or the paper's example) with the command-line overrides applied.
+
+    The formation is checked only by the commands that need it (simulate,
+    report): a chart of twelve robots does not need the paper's hexagon.
+    """
     from delayform.scenario import load_scenario, paper_scenario
 
+    if path is not None and path.is_dir():
+        raise click.BadParameter(f"{path} is a directory, expected a scenario file (.toml)", param_hint="SCENARIO")
     scenario = paper_scenario() if path is None else load_scenario(path)
     topology = None
     if topology_name is not None:
-        if topology_name != "paper_six" and n is None:
-            raise click.UsageError(f"--topology {topology_name} needs --n")
-        topology = _named_topology(topology_name, n or 6)
-    elif n is not None:
-        raise click.UsageError("--n is only used with --topology")
-    return scenario.with_changes(topology=topology, P=P, D=D, tau1=tau1, tau2=tau2)
+        topology = _named_topology(topology_name, n, p=p, seed=seed)
+    elif n is not None or p is not None:
+        raise click.UsageError(f"--{'n' if n is not None else 'p'} is only used with --topology")
+    return scenario.with_changes(topology=topology, P=P, D=D, tau1=tau1, tau2=tau2, formation=formation_name)
+
+
+def _safe_name(name: str) -> str:
+    """A scenario name as one harmless path component: no separators, no leading dots, not empty."""
+    import re
+
+    safe = re.sub(r"[^A-Za-z0-9._-]+", "_", name).strip("._-")
+    return safe[:100] or "scenario"
 
 
 def _out_dir(out: Path | None, scenario: Scenario) -> Path:
-    path = out if out is not None else Path("out") / scenario.name
+    """The output folder, created and proven writable before anything is computed.
+
+    Only ``--out`` (or ``out/<scenario name>``) is ever written to; the name
+    becomes a single path component, so ``name = "../../evil"`` stays inside.
+    """
+    import tempfile
+
+    if out is not None and str(out).strip() == "":
+        raise click.BadParameter("expected a folder, got an empty path", param_hint="--out")
+    path = out if out is not None else Path("out") / _safe_name(scenario.name)
     try:
         path.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=path):
+            pass
     except OSError as exc:
-        raise click.BadParameter(f"cannot create output directory {path}: {exc.strerror}", param_hint="--out")
+        reason = exc.strerror or type(exc).__name__
+        raise click.BadParameter(f"cannot write into the output folder {path}: {reason}", param_hint="--out")
     return path
 
 

@@ -11,56 +11,71 @@ import click
 
 from delayform.cli._common import (
     POSITIVE,
-    TOPOLOGY_NAMES,
     FloatTuple,
     LabelledPoint,
     _emit,
     _inner_progress,
-    _named_topology,
     _out_dir,
     _scenario,
     cli,
     scenario_options,
+    team_options,
 )
 
 if TYPE_CHECKING:
     pass
 
 
+#: above this many agents C is summarised, not printed
+_PRINT_C_UP_TO = 12
+#: factors listed in the text output (all of them are in --json)
+_LIST_FACTORS = 30
+
+
 @cli.command("factors")
-@click.option("--topology", "topology_name", type=click.Choice(TOPOLOGY_NAMES), default="paper_six",
-              show_default=True, help="Named topology.")
-@click.option("--n", type=int, default=6, show_default=True, help="Number of agents (not for paper_six).")
-@click.option("--P", "P", type=float, default=1.0, show_default=True, help="Proportional gain P.")
-@click.option("--D", "D", type=float, default=0.5, show_default=True, help="Derivative gain D.")
-@click.option("--json", "as_json", is_flag=True, help="Print eigenvalues and factors as JSON on stdout.")
-def factors_command(topology_name: str, n: int, P: float, D: float, as_json: bool) -> None:
-    """Print C, its eigenvalues and the factors of the characteristic equation (Lemma 1)."""
+@team_options
+def factors_command(scenario: Path | None, as_json: bool, **overrides: Any) -> None:
+    """Print C, its eigenvalues and the factors of the characteristic equation (Lemma 1).
+
+    Takes a scenario file like every analysis command (its topology and
+    gains; delays do not enter the factors). Large teams get a summary of C
+    instead of the matrix.
+    """
     import numpy as np
 
-    from delayform.characteristic import factors
+    from delayform.characteristic import factors, format_number
     from delayform.report import jsonable
 
-    topo = _named_topology(topology_name, n)
+    sc = _scenario(scenario, **overrides)
+    topo, P, D = sc.topology, sc.P, sc.D
     fs = factors(topo, P, D)
+    eig = topo.eigenvalues
     if as_json:
         click.echo(json.dumps(jsonable({
             "topology": topo.name, "agents": topo.n, "P": P, "D": D,
-            "eigenvalues": [complex(v) for v in topo.eigenvalues],
+            "eigenvalues": [complex(v) for v in eig],
             "factors": [{"lam": complex(f.lam), "order": f.order, "multiplicity": f.multiplicity,
                          "centroid": f.is_centroid, "quasi_polynomial": f.quasi_polynomial.describe()}
                         for f in fs],
         }), indent=2))  # fmt: skip
         return
-    with np.printoptions(precision=4, suppress=True, linewidth=120):
-        click.echo(f"Topology {topo.name}: {topo.n} agents, spanning tree: {topo.has_spanning_tree()}")
-        click.echo("C = Delta^-1 A =")
-        click.echo(str(topo.C))
-        click.echo("eigenvalues of C: " + ", ".join(f"{v:.4g}" for v in topo.eigenvalues))
+    click.echo(f"Topology {topo.name}: {topo.n} agents, spanning tree: {topo.has_spanning_tree()}")
+    if topo.n <= _PRINT_C_UP_TO:
+        dense = topo.C.toarray() if hasattr(topo.C, "toarray") else np.asarray(topo.C)
+        with np.printoptions(precision=4, suppress=True, linewidth=120):
+            click.echo("C = Delta^-1 A =")
+            click.echo(str(dense))
+    else:
+        nnz = int(topo.C.nnz) if hasattr(topo.C, "nnz") else int(np.count_nonzero(topo.C))
+        click.echo(f"C = Delta^-1 A: {topo.n} x {topo.n}, {nnz} non-zero entries, every row sums to 1")
+    shown = ", ".join(format_number(v, digits=4) for v in eig[:_LIST_FACTORS])
+    click.echo("eigenvalues of C: " + shown + (f" ... ({eig.size} in all)" if eig.size > _LIST_FACTORS else ""))
     click.echo(f"Factors of the characteristic equation (eq. factorized), P = {P:g}, D = {D:g}:")
-    for i, f in enumerate(fs, start=1):
+    for i, f in enumerate(fs[:_LIST_FACTORS], start=1):
         click.echo(f"  q{i}: {f.describe()}")
         click.echo(f"      {f.quasi_polynomial.describe()} = 0")
+    if len(fs) > _LIST_FACTORS:
+        click.echo(f"  ... {len(fs) - _LIST_FACTORS} more factors (all of them with --json)")
 
 
 @cli.command("chart")
@@ -86,9 +101,11 @@ def chart_command(scenario: Path | None, tau1_max: float | None, tau2_max: float
         sc.chart,
         tau1_max=sc.chart.tau1_max if tau1_max is None else tau1_max,
         tau2_max=sc.chart.tau2_max if tau2_max is None else tau2_max,
-        points=points or sc.chart.points,
     )
-    for label, a, b in chart.points:
+    # the scenario's own points outside a smaller window are left out; points asked for must fit
+    inside = tuple(p for p in sc.chart.points if p[1] <= chart.tau1_max and p[2] <= chart.tau2_max)
+    chart = replace(chart, points=points or inside)
+    for label, a, b in points:
         if a > chart.tau1_max or b > chart.tau2_max:
             raise click.BadParameter(
                 f"point {label} ({a:g}, {b:g}) lies outside the window [0, {chart.tau1_max:g}] x [0, {chart.tau2_max:g}]",
@@ -109,9 +126,11 @@ def roots_command(scenario: Path | None, region: tuple[float, float, float, floa
     """Dominant root and characteristic roots at one delay pair.
 
     The dominant root is the rightmost root over all factors, the centroid
-    factor's root s = 0 excluded; its time constant is 1/|Re|. Also lists
-    every root of every factor in --region (roots.csv) and the dominant root
-    at each of the scenario's chart points.
+    factor's roots at s = 0 excluded; its time constant is 1/|Re| (for an
+    unstable root: its growth rate; when it is the centroid's, the
+    formation's own time constant too). Also lists every root of every
+    factor in --region (roots.csv; a root on its edge is included) and the
+    dominant root at the operating delays and the scenario's chart points.
     """
     from delayform.report import roots_section
 

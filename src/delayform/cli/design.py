@@ -24,7 +24,8 @@ if TYPE_CHECKING:
 @cli.command("schedule")
 @scenario_options
 @click.option("--tau-min", type=FloatTuple(2, minimum=0.0),
-              help="Hardware delays T1,T2: delays can only be increased from here [default: schedule.tau_min].")
+              help="Hardware delays T1,T2: delays can only be increased from here "
+                   "[default: --tau1,--tau2 when given, else schedule.tau_min].")
 @click.option("--tau-max", type=FloatTuple(2, minimum=0.0),
               help="Largest acceptable delays T1,T2 [default: schedule.tau_max].")
 def schedule_command(scenario: Path | None, tau_min: tuple[float, float] | None,

@@ -56,8 +56,6 @@ def _network(base: Any, *, loss: float | None, burst: tuple[float, float] | None
 @cli.command("montecarlo")
 @scenario_options
 @click.option("--runs", type=click.IntRange(min=1), default=40, show_default=True, help="Number of seeded runs.")
-@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True,
-              help="Seed of the runs (per-run seeds from numpy SeedSequence.spawn).")
 @click.option("--workers", type=click.IntRange(min=1), help="Run on a local Dask cluster of this many processes.")
 @click.option("--scheduler", metavar="ADDRESS", help="Run on an existing Dask cluster, e.g. tcp://10.0.0.5:8786.")
 @click.option("--model", type=click.Choice(("unicycle", "double_integrator")),
@@ -74,7 +72,7 @@ def _network(base: Any, *, loss: float | None, burst: tuple[float, float] | None
               help="Measurement noise: std of positions (m) and velocities (m/s) (network.noise).")
 @click.option("--delay-spread", "spread", type=NON_NEGATIVE,
               help="Per-link delays drawn in tau (1 +- SPREAD), SPREAD < 1 (network.delay_spread).")
-def montecarlo_command(scenario: Path | None, runs: int, seed: int, workers: int | None, scheduler: str | None,
+def montecarlo_command(scenario: Path | None, runs: int, seed: int | None, workers: int | None, scheduler: str | None,
                        model: str | None, duration: float | None, dt: float | None, loss: float | None,
                        burst: tuple[float, float] | None, jitter: tuple[float, float] | None, rate: float | None,
                        noise: tuple[float, float] | None, spread: float | None, out: Path | None, as_json: bool,
@@ -87,6 +85,8 @@ def montecarlo_command(scenario: Path | None, runs: int, seed: int, workers: int
     and peak command (montecarlo_histograms.png/.svg), one CSV row per run
     and an NPZ; reports median and 5-95 % of each. The same seed gives the
     same numbers in this process, with --workers and with --scheduler.
+    --seed seeds the runs (per-run seeds from numpy SeedSequence.spawn;
+    default 0) and a random_digraph topology.
     """
     from delayform.report_network import montecarlo_section
     from delayform.scenario import SimulationSpec
@@ -95,7 +95,8 @@ def montecarlo_command(scenario: Path | None, runs: int, seed: int, workers: int
 
     if workers is not None and scheduler is not None:
         raise click.UsageError("give either --workers (a local cluster) or --scheduler (an existing one), not both")
-    sc = _scenario(scenario, **overrides)
+    sc = _scenario(scenario, seed=seed, **overrides)
+    seed = 0 if seed is None else seed
     sim = SimulationSpec(
         model=model or sc.simulation.model,
         duration=sc.simulation.duration if duration is None else duration,

@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Any
 import click
 
 from delayform.cli._common import (
+    OutDir,
     _emit,
     _out_dir,
     _progress,
@@ -65,11 +66,13 @@ def report_command(scenario: Path | None, out: Path | None, as_json: bool, **ove
     text per figure) and summary.json into --out.
     """
     sc = _scenario(scenario, **overrides)
+    sc.desired_positions()  # the simulation needs a formation that fits the team: say so before computing
+    sc.initial_positions()
     _write_full_report(sc, _out_dir(out, sc), paper=False, as_json=as_json)
 
 
 @cli.command("paper")
-@click.option("--out", type=click.Path(file_okay=False, path_type=Path), default=Path("out/paper"),
+@click.option("--out", type=OutDir(), default=Path("out/paper"),
               show_default=True, help="Output directory.")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON on stdout.")
 def paper_command(out: Path, as_json: bool) -> None:

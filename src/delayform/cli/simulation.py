@@ -28,7 +28,6 @@ if TYPE_CHECKING:
               help="Agent model [default: simulation.model].")
 @click.option("--duration", type=POSITIVE, help="Simulated time in seconds [default: simulation.duration].")
 @click.option("--dt", type=POSITIVE, help="Time step in seconds [default: simulation.dt].")
-@click.option("--seed", type=click.IntRange(min=0), help="Seed of the random initial state [default: initial.seed].")
 @click.option("--gif/--no-gif", default=False, show_default=True, help="Also write an animated GIF.")
 def simulate_command(scenario: Path | None, model: str | None, duration: float | None, dt: float | None,
                      seed: int | None, gif: bool, out: Path | None, as_json: bool,
@@ -43,7 +42,7 @@ def simulate_command(scenario: Path | None, model: str | None, duration: float |
     from delayform.report import simulation_section
     from delayform.scenario import SimulationSpec
 
-    sc = _scenario(scenario, **overrides)
+    sc = _scenario(scenario, seed=seed, **overrides)
     sim = SimulationSpec(
         model=model or sc.simulation.model,
         duration=sc.simulation.duration if duration is None else duration,

@@ -23,7 +23,6 @@ of ``tasks`` (:class:`SerialExecutor` here; Dask ones in :mod:`delayform.sweeps`
 from __future__ import annotations
 
 import math
-import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any, Protocol
@@ -32,6 +31,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from delayform.errors import SimulationInputError
+from delayform.resources import require
 from delayform.formation import check_formation
 from delayform.simulation.network import Network
 from delayform.simulation.reception import network_memory
@@ -388,34 +388,22 @@ def estimate_cost(setup: Setup, runs: int) -> tuple[float, float]:
     return nbytes, seconds
 
 
-def _budget() -> tuple[float, float]:
-    """(bytes, seconds) one job may plan: 3/4 of physical memory and one hour, or the environment's."""
-    try:
-        memory = 0.75 * os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
-    except (ValueError, OSError, AttributeError):
-        memory = 8 * 2.0**30
-    try:
-        seconds = float(os.environ.get("DELAYFORM_TIME_BUDGET", "3600"))
-    except ValueError:
-        seconds = 3600.0
-    return memory, seconds
-
-
 def guard(setup: Setup, runs: int, workers: int = 1) -> None:
-    """Refuse, in one line, a Monte Carlo that would not fit this machine's memory or time budget."""
+    """Refuse, in one line, a Monte Carlo beyond this machine's memory or time budget (:mod:`delayform.resources`).
+
+    Parameters
+    ----------
+    setup
+        What one run simulates.
+    runs
+        Number of runs.
+    workers
+        Runs in parallel: memory is needed for that many at once, time is shared among them.
+    """
     nbytes, seconds = estimate_cost(setup, runs)
-    memory, budget = _budget()
-    if nbytes * min(workers, runs) > memory:
-        raise SimulationInputError(
-            f"{runs} runs would need about {nbytes * min(workers, runs) / 2**30:.3g} GiB of memory "
-            f"({nbytes / 2**30:.3g} GiB per run), more than the {memory / 2**30:.3g} GiB available; "
-            "shorten the duration, enlarge dt or use fewer workers"
-        )
-    if seconds / max(workers, 1) > budget:
-        raise SimulationInputError(
-            f"{runs} runs would take about {seconds / max(workers, 1) / 3600:.3g} h, more than the time budget of "
-            f"{budget / 3600:.3g} h (DELAYFORM_TIME_BUDGET); reduce the runs or the duration, or add workers"
-        )
+    at_once = max(1, min(workers, runs))
+    require(what=f"a Monte Carlo of {runs} runs", setting="the runs, the duration or dt (or add workers)",
+            nbytes=nbytes * at_once, seconds=seconds / max(workers, 1))  # fmt: skip
 
 
 def make_setup(
@@ -574,8 +562,9 @@ def monte_carlo(
     Raises
     ------
     SimulationInputError, NetworkError, GainError, DelayError, FormationError
-        Bad inputs (checked once, before any run), or a Monte Carlo that
-        would exceed this machine's memory or time budget.
+        Bad inputs (checked once, before any run).
+    ResourceLimitError
+        A Monte Carlo beyond this machine's memory or time budget (:mod:`delayform.resources`).
 
     Examples
     --------

@@ -20,7 +20,8 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
-from delayform.errors import NetworkError, SimulationInputError
+from delayform.errors import NetworkError
+from delayform.resources import require
 from delayform.simulation.network import BernoulliLoss, GilbertElliott, Network
 from delayform.topology import Topology
 
@@ -96,23 +97,13 @@ def network_memory(n_links: int, steps: int, packets: int, n: int) -> float:
 
 
 def _check_memory(network: Network, topology: Topology, dt: float, steps: int) -> None:
-    """Refuse, in one line, a run whose schedules would not fit in 3/4 of physical memory."""
-    import os
-
+    """Refuse, in one line, a run whose schedules would not fit this machine (:mod:`delayform.resources`)."""
     packets = 0
     if network.packets:
         period = dt if network.sampling is None else 1.0 / network.sampling.rate
         packets = int((steps + 1) * dt / period) + 2
     need = network_memory(int(topology.adjacency_sparse.nnz), steps, packets, topology.n)
-    try:
-        have = 0.75 * os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
-    except (ValueError, OSError, AttributeError):
-        have = 8 * 2.0**30
-    if need > have:
-        raise SimulationInputError(
-            f"a run over this network would need about {need / 2**30:.3g} GiB of memory, more than the "
-            f"{have / 2**30:.3g} GiB available; shorten the duration, enlarge dt or lower the sampling rate"
-        )
+    require(what="a run over this network", setting="the duration, dt or the sampling rate", nbytes=need)
 
 
 def _links(topology: Topology) -> tuple[NDArray[np.intp], NDArray[np.intp], _Array]:

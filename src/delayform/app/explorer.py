@@ -1,0 +1,645 @@
+"""The computations behind the explorer page, one scenario at a time, without any web code.
+
+:class:`Explorer` answers the page's four questions with the library's own
+functions, so the page and the library can never disagree:
+
+* the chart: :func:`delayform.analysis.ctcr.stability_map` (exact CTCR curves)
+  and its ``unstable_count`` on a grid of cell centres for the shading;
+* a clicked point: the number of unstable roots NU from the same exact map,
+  :func:`delayform.analysis.spectrum.dominant_root`, and every root of every
+  factor of eq. factorized in a rectangle around the imaginary axis
+  (:func:`delayform.analysis.spectrum.roots_in`, certified by the argument principle);
+* the robots: :func:`delayform.simulation.simulate` with the scenario's model,
+  formation and initial state, thinned to animation frames;
+* downloads: the scenario as TOML and the figures of :mod:`delayform.plots`,
+  written into the explorer's output folder only.
+
+"Stable" means what it means in the library: NU = 0, the centroid factor's
+persistent root s = 0 (eq. factor1, Lemma 2) not counted.
+
+Every method takes checked values (see :mod:`delayform.app.params`) and
+refuses work beyond :class:`~delayform.app.params.ExplorerLimits` with an
+:class:`~delayform.errors.InputError` naming the limit.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+import threading
+import zipfile
+from collections import OrderedDict
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from delayform.analysis.ctcr import StabilityMap, stability_map
+from delayform.analysis.spectrum import DominantRoot, dominant_root, roots_in
+from delayform.app.params import ExplorerLimits, Param
+from delayform.app.scenario_toml import scenario_toml
+from delayform.characteristic import factors
+from delayform.errors import InputError, NotConvergedError
+from delayform.scenario import Scenario
+from delayform.simulation import Trajectory, simulate
+
+__all__ = ["Explorer", "PointReport", "RootsReport", "ChartData", "Animation", "crossing_frequency_bound"]
+
+#: maps kept per explorer (each a few hundred kB): the chart's and the clicks' windows
+_MAP_CACHE = 8
+#: trajectories kept for the figures download
+_TRAJECTORY_CACHE = 4
+#: simulated seconds of the robots' default run (the paper's team settles in about 26 s at point a)
+_DEFAULT_DURATION = 40.0
+#: half-width of the default root window around the imaginary axis (1/s)
+_ROOT_WINDOW_RE = 0.5
+_ROOT_WINDOW_IM = 3.0
+#: largest ``height x delay`` of the root window (rad): about six roots per chain
+_ROOT_WINDOW_PHASE = 20.0
+#: decimals of delays and positions sent to the page (far below a pixel)
+_DECIMALS = 5
+
+
+def _rounded(values: ArrayLike, decimals: int = _DECIMALS) -> list[Any]:
+    """A JSON-ready nested list rounded to ``decimals`` places (JSON has no NaN: it becomes None)."""
+    arr = np.round(np.asarray(values, dtype=np.float64), decimals)
+    if np.all(np.isfinite(arr)):
+        return arr.tolist()
+    return np.where(np.isfinite(arr), arr, None).tolist()
+
+
+def _complex_pairs(roots: NDArray[np.complex128]) -> list[list[float]]:
+    return [[float(r.real), float(r.imag)] for r in roots]
+
+
+def crossing_frequency_bound(P: float, D: float) -> float:
+    """Largest frequency at which a characteristic root can cross the imaginary axis.
+
+    A root ``s = j omega`` of a factor of eq. factorized,
+    ``s^2 + D s + P = lam (D s e^{-tau2 s} + P e^{-tau1 s})`` with ``|lam| <= 1``
+    (C is row-stochastic), needs ``omega^2 - P <= |P - omega^2 + j D omega| <= D omega + P``,
+    so ``omega <= (D + sqrt(D^2 + 8 P)) / 2`` whatever the delays. The CTCR
+    curves repeat every ``2 pi / omega`` along each delay, so the work of a map,
+    and the number of roots near the axis, grow with delay x this bound.
+
+    Parameters
+    ----------
+    P, D
+        Positive gains of eq. protocol.
+
+    Examples
+    --------
+    >>> round(crossing_frequency_bound(1.0, 0.5), 4)  # the paper's gains
+    1.6861
+    """
+    return (D + math.sqrt(D * D + 8.0 * P)) / 2.0
+
+
+# ==================================================================== results
+@dataclass(frozen=True, eq=False)
+class _AtPoint:
+    """Gains and delays an answer belongs to."""
+
+    P: float
+    D: float
+    tau1: float
+    tau2: float
+
+    def _where(self) -> dict[str, float]:
+        return {"P": self.P, "D": self.D, "tau1": self.tau1, "tau2": self.tau2}
+
+
+@dataclass(frozen=True, eq=False)
+class PointReport(_AtPoint):
+    """The verdict at one clicked delay pair.
+
+    Attributes
+    ----------
+    P, D, tau1, tau2
+        The gains and delays.
+    unstable_count
+        NU: roots of the characteristic equation with Re s > 0 (centroid's
+        persistent zero excepted), from the exact CTCR map.
+    dominant
+        :func:`~delayform.analysis.spectrum.dominant_root` at the point.
+    """
+
+    unstable_count: int
+    dominant: DominantRoot
+
+    @property
+    def stable(self) -> bool:
+        """True when NU = 0 (the library's meaning, :meth:`StabilityMap.is_stable`)."""
+        return self.unstable_count == 0
+
+    def as_json(self) -> dict[str, Any]:
+        """The report as JSON-ready values (``dominant_root`` as ``[re, im]``)."""
+        root = self.dominant.root
+        return self._where() | {
+            "stable": self.stable,
+            "unstable_count": self.unstable_count,
+            "dominant_root": [root.real, root.imag],
+            "dominant_root_stable": self.dominant.is_stable,
+            "time_constant": None if math.isinf(self.dominant.time_constant) else self.dominant.time_constant,
+            "dominant_factor": self.dominant.factor.describe(),
+        }  # fmt: skip
+
+
+@dataclass(frozen=True, eq=False)
+class RootsReport(_AtPoint):
+    """The roots of every factor near the imaginary axis at one delay pair.
+
+    Attributes
+    ----------
+    P, D, tau1, tau2
+        The gains and delays.
+    dominant
+        The dominant root the window is placed around.
+    roots
+        Roots of every factor in :attr:`region`, each once (a factor of
+        multiplicity m contributes each root m times to the characteristic
+        equation), centroid's persistent zero removed.
+    root_factors
+        Index of the factor (order of :func:`~delayform.characteristic.factors`) of each root.
+    factor_names
+        ``describe()`` of each factor.
+    region
+        ``(re_min, re_max, im_min, im_max)`` of the window.
+    certified
+        False when :func:`roots_in` did not reach the certified count for some factor
+        (the roots shown are then those found).
+    """
+
+    dominant: complex
+    roots: NDArray[np.complex128]
+    root_factors: tuple[int, ...]
+    factor_names: tuple[str, ...]
+    region: tuple[float, float, float, float]
+    certified: bool
+
+    def as_json(self) -> dict[str, Any]:
+        """The roots as ``[re, im]`` pairs with their factors and the window."""
+        return self._where() | {
+            "dominant_root": [self.dominant.real, self.dominant.imag],
+            "roots_near_axis": _complex_pairs(self.roots),
+            "root_factors": list(self.root_factors),
+            "factors": list(self.factor_names),
+            "region": list(self.region),
+            "roots_certified": self.certified,
+        }  # fmt: skip
+
+
+@dataclass(frozen=True, eq=False)
+class ChartData:
+    """The stability chart as the page draws it.
+
+    Attributes
+    ----------
+    smap
+        The exact CTCR map.
+    tau1_centres, tau2_centres
+        Cell centres of the shading grid.
+    counts
+        NU at the cell centres, ``(len(tau2_centres), len(tau1_centres))``.
+    points
+        The scenario's labelled points inside the window.
+    """
+
+    smap: StabilityMap
+    tau1_centres: NDArray[np.float64]
+    tau2_centres: NDArray[np.float64]
+    counts: NDArray[np.int64]
+    points: tuple[tuple[str, float, float], ...]
+
+    def as_json(self) -> dict[str, Any]:
+        """Curves as two polylines (kernel, offspring) with ``None`` between pieces, and the grid."""
+        lines: dict[str, dict[str, list[Any]]] = {"kernel": {"tau1": [], "tau2": []},
+                                                   "offspring": {"tau1": [], "tau2": []}}  # fmt: skip
+        for c in self.smap.curves:
+            target = lines["kernel" if c.is_kernel else "offspring"]
+            target["tau1"] += _rounded(c.tau1) + [None]
+            target["tau2"] += _rounded(c.tau2) + [None]
+        return {
+            "tau1_max": self.smap.tau1_max,
+            "tau2_max": self.smap.tau2_max,
+            "curves": lines,
+            "grid": {"tau1": _rounded(self.tau1_centres), "tau2": _rounded(self.tau2_centres),
+                     "unstable_count": self.counts.tolist()},  # fmt: skip
+            "stable_fraction": float(np.mean(self.counts == 0)),
+            "points": [{"label": k, "tau1": a, "tau2": b} for k, a, b in self.points],
+        }
+
+
+@dataclass(frozen=True, eq=False)
+class Animation:
+    """A simulated run thinned to animation frames.
+
+    Attributes
+    ----------
+    trajectory
+        The full run of :func:`~delayform.simulation.simulate`.
+    frames
+        Indices of the saved samples sent as frames (finite samples only).
+    diverged_at
+        Time of the first non-finite sample (an unstable run overflowing), or None.
+    """
+
+    trajectory: Trajectory
+    frames: NDArray[np.int64]
+    diverged_at: float | None
+
+    def as_json(self) -> dict[str, Any]:
+        """Times, positions, headings and formation error at the frames, and the run's metrics."""
+        tr, k = self.trajectory, self.frames
+        pos = tr.positions[k]
+        offset = np.mean(pos[-1] - tr.desired, axis=0)
+        return {
+            "model": tr.model, "dt": tr.dt, "n": tr.n, "tau1": tr.tau1, "tau2": tr.tau2,
+            "times": _rounded(tr.times[k]),
+            "x": _rounded(pos[:, :, 0]), "y": _rounded(pos[:, :, 1]),
+            "heading": _rounded(tr.headings[k], 4),
+            "formation_error": tr.formation_error[k].tolist(),
+            "desired_final": _rounded(tr.desired + offset),
+            "settling_time": None if math.isinf(tr.settling_time) else tr.settling_time,
+            "final_error": float(tr.formation_error[k[-1]]),
+            "min_distance": tr.min_distance if self.diverged_at is None else None,
+            "diverged_at": self.diverged_at,
+            "labels": [str(x) for x in tr.labels] if tr.labels else [str(i) for i in range(tr.n)],
+        }  # fmt: skip
+
+
+# ==================================================================== explorer
+class Explorer:
+    """The explorer's computations for one scenario, with caches and work limits.
+
+    Parameters
+    ----------
+    scenario
+        The team, gains, delays and settings the page starts from.
+    out_dir
+        The only folder the explorer writes to (created when a download is asked for).
+    limits
+        The most work one request may cause.
+
+    Raises
+    ------
+    InputError
+        When the team is larger than ``limits.max_agents``.
+    """
+
+    def __init__(self, scenario: Scenario, *, out_dir: str | Path, limits: ExplorerLimits | None = None) -> None:
+        self.scenario = scenario
+        self.limits = limits or ExplorerLimits()
+        self.out_dir = Path(out_dir).resolve()
+        n = scenario.topology.n
+        if n > self.limits.max_agents:
+            raise InputError(
+                f"the explorer opens teams of up to {self.limits.max_agents} agents "
+                f"(explorer limit max_agents), this scenario has {n}"
+            )
+        self._lock = threading.Lock()
+        self._maps: OrderedDict[tuple[float, ...], StabilityMap] = OrderedDict()
+        self._runs: OrderedDict[tuple[float, ...], tuple[Trajectory, int]] = OrderedDict()
+
+    # ------------------------------------------------------------ parameters
+    @property
+    def toggles(self) -> tuple[str, ...]:
+        """The optional effects the robots' simulation offers (switches on the page)."""
+        return ()
+
+    def _gain(self, name: str, default: float) -> Param:
+        return Param(name, "float", 0.0, self.limits.max_gain, default=default, open_low=True, limit="max_gain")
+
+    def _delay(self, name: str, default: float | None = None) -> Param:
+        return Param(name, "float", 0.0, self.limits.max_delay, default=default, limit="max_delay")
+
+    def _window(self, name: str, default: float) -> Param:
+        return Param(name, "float", 0.0, self.limits.max_delay, default=default, open_low=True, limit="max_delay")
+
+    def point_params(self) -> tuple[Param, ...]:
+        """Parameters of :meth:`point`: tau1 and tau2 required, P and D default to the scenario's."""
+        s = self.scenario
+        return (self._delay("tau1"), self._delay("tau2"), self._gain("P", s.P), self._gain("D", s.D))
+
+    def chart_params(self) -> tuple[Param, ...]:
+        """Parameters of :meth:`chart`: P, D, the window (the scenario's, within the limits) and the grid."""
+        s = self.scenario
+        side = self.limits.max_delay_bandwidth / crossing_frequency_bound(s.P, s.D)
+        w1, w2 = min(s.chart.tau1_max, side, self.limits.max_delay), min(s.chart.tau2_max, side, self.limits.max_delay)
+        return (
+            self._gain("P", s.P), self._gain("D", s.D),
+            self._window("tau1_max", w1), self._window("tau2_max", w2),
+            Param("grid", "int", 10, self.limits.max_grid, default=min(160, self.limits.max_grid), limit="max_grid"),
+        )  # fmt: skip
+
+    def animation_params(self) -> tuple[Param, ...]:
+        """Parameters of :meth:`animation`: the point, gains, duration and frame count."""
+        s = self.scenario
+        duration = min(s.simulation.duration, _DEFAULT_DURATION, self.limits.max_steps * s.simulation.dt)
+        return self.point_params() + (
+            Param("duration", "float", 0.0, math.inf, default=duration, open_low=True),
+            Param("frames", "int", 2, self.limits.max_frames, default=min(300, self.limits.max_frames),
+                  limit="max_frames"),
+        )  # fmt: skip
+
+    def download_params(self) -> tuple[Param, ...]:
+        """Parameters of the downloads: the point, gains, chart window and duration."""
+        chart = self.chart_params()
+        return self.animation_params()[:5] + chart[2:4]
+
+    # ------------------------------------------------------------ caches
+    def _cached(self, cache: OrderedDict[Any, Any], key: Any, size: int, make: Any) -> Any:
+        with self._lock:
+            if key in cache:
+                cache.move_to_end(key)
+                return cache[key]
+        value = make()  # outside the lock: two different requests may compute at once
+        with self._lock:
+            cache[key] = value
+            while len(cache) > size:
+                cache.popitem(last=False)
+        return value
+
+    def stability_map(self, P: float, D: float, tau1_max: float, tau2_max: float) -> StabilityMap:
+        """The exact CTCR map of the scenario's team (cached).
+
+        Parameters
+        ----------
+        P, D
+            Gains of eq. protocol.
+        tau1_max, tau2_max
+            The window.
+        """
+        key = (P, D, tau1_max, tau2_max)
+        topology = self.scenario.topology
+        return self._cached(self._maps, key, _MAP_CACHE, lambda: stability_map(topology, P, D, tau1_max, tau2_max))
+
+    def _map_covering(self, P: float, D: float, tau1: float, tau2: float) -> StabilityMap:
+        with self._lock:
+            for (p, d, w1, w2), smap in reversed(self._maps.items()):
+                if p == P and d == D and tau1 <= w1 and tau2 <= w2:
+                    return smap
+        chart = self.scenario.chart
+        return self.stability_map(P, D, max(chart.tau1_max, math.ceil(tau1)), max(chart.tau2_max, math.ceil(tau2)))
+
+    # ------------------------------------------------------------ answers
+    def chart(self, P: float, D: float, tau1_max: float, tau2_max: float, grid: int) -> ChartData:
+        """The stability chart: exact curves and NU on a ``grid x grid`` shading.
+
+        Parameters
+        ----------
+        P, D
+            Gains of eq. protocol.
+        tau1_max, tau2_max
+            The window.
+        grid
+            Cells per axis of the shading (<= ``limits.max_grid``).
+        """
+        self._check_bandwidth(P, D, max(tau1_max, tau2_max), "tau1_max, tau2_max")
+        smap = self.stability_map(P, D, tau1_max, tau2_max)
+        t1 = (np.arange(grid) + 0.5) * tau1_max / grid
+        t2 = (np.arange(grid) + 0.5) * tau2_max / grid
+        counts = smap.unstable_count(t1[None, :], t2[:, None])
+        points = tuple((k, a, b) for k, a, b in self.scenario.chart.points if a <= tau1_max and b <= tau2_max)
+        return ChartData(smap, t1, t2, counts, points)
+
+    def point(self, P: float, D: float, tau1: float, tau2: float) -> PointReport:
+        """Stability, NU and the dominant root at one delay pair.
+
+        Parameters
+        ----------
+        P, D
+            Gains of eq. protocol.
+        tau1, tau2
+            The delays.
+        """
+        self._check_bandwidth(P, D, max(tau1, tau2), "tau1, tau2")
+        count = int(self._map_covering(P, D, tau1, tau2).unstable_count(tau1, tau2))
+        return PointReport(P, D, tau1, tau2, count, dominant_root(self.scenario.topology, P, D, tau1, tau2))
+
+    def roots(self, P: float, D: float, tau1: float, tau2: float) -> RootsReport:
+        """The roots of every factor in a window around the imaginary axis and the dominant root.
+
+        The window reaches :data:`_ROOT_WINDOW_RE` left and right of the axis and
+        of the dominant root s*, and ``|Im s| < max(min(3, 20 / max(tau1, tau2)), |Im s*| + 0.5)``:
+        a chain of roots of a quasi-polynomial with delay h has about one root per
+        ``2 pi / h`` of height, so the window holds about six roots per chain
+        however long the delays (the certified count's cost grows with the roots in it).
+
+        Parameters
+        ----------
+        P, D
+            Gains of eq. protocol.
+        tau1, tau2
+            The delays.
+        """
+        self._check_bandwidth(P, D, max(tau1, tau2), "tau1, tau2")
+        topology = self.scenario.topology
+        dom = dominant_root(topology, P, D, tau1, tau2).root
+        height = max(min(_ROOT_WINDOW_IM, _ROOT_WINDOW_PHASE / max(tau1, tau2, 1e-12)), abs(dom.imag) + 0.5)
+        # irrational nudges keep the edges off roots exactly on the real axis or at s = 0
+        region = (
+            min(-_ROOT_WINDOW_RE, dom.real - _ROOT_WINDOW_RE) - 1.37e-3,
+            max(_ROOT_WINDOW_RE, dom.real + _ROOT_WINDOW_RE) + 1.13e-3,
+            -(height + 1.21e-3),
+            height + 1.21e-3,
+        )
+        found: list[NDArray[np.complex128]] = []
+        owners: list[int] = []
+        certified = True
+        fs = factors(topology, P, D)
+        for idx, f in enumerate(fs):
+            try:
+                roots = roots_in(f, tau1, tau2, region)
+            except NotConvergedError as exc:
+                certified = False
+                roots = np.asarray(exc.partial if exc.partial is not None else [], dtype=np.complex128)
+            if f.is_centroid and roots.size:
+                # Lemma 2: the persistent root s = 0 is the centroid's motion, not a mode
+                roots = np.delete(roots, np.argmin(np.abs(roots)))
+            found.append(roots)
+            owners += [idx] * roots.size
+        allroots = np.concatenate(found) if found else np.zeros(0, dtype=np.complex128)
+        names = tuple(f.describe() for f in fs)
+        return RootsReport(P, D, tau1, tau2, dom, allroots, tuple(owners), names, region, certified)
+
+    def _check_bandwidth(self, P: float, D: float, delay: float, what: str) -> None:
+        """Refuse delays whose product with the crossing-frequency bound exceeds the limit."""
+        omega = crossing_frequency_bound(P, D)
+        if delay * omega > self.limits.max_delay_bandwidth:
+            raise InputError(
+                f"{what}: {delay:g} s x crossing-frequency bound {omega:.3g} rad/s exceeds the explorer "
+                f"limit max_delay_bandwidth = {self.limits.max_delay_bandwidth:g} "
+                f"(at P = {P:g}, D = {D:g}: delays up to {self.limits.max_delay_bandwidth / omega:.3g} s)"
+            )
+
+    def _step(self, tau1: float, tau2: float) -> float:
+        """The scenario's step, shortened when a non-zero delay is smaller (simulate needs tau >= dt)."""
+        dt = self.scenario.simulation.dt
+        for tau in (tau1, tau2):
+            if 0.0 < tau < dt:
+                dt = tau
+        return dt
+
+    def _run_step(self, tau1: float, tau2: float, duration: float) -> float:
+        """The step of a run, after checking the run against the work limits."""
+        dt = self._step(tau1, tau2)
+        steps = math.ceil(duration / dt - 1e-9)
+        n = self.scenario.topology.n
+        if steps > self.limits.max_steps:
+            raise InputError(
+                f"duration: {duration:g} s at dt = {dt:g} s is {steps} steps; "
+                f"explorer limit max_steps = {self.limits.max_steps}"
+            )
+        if steps * n > self.limits.max_agent_steps:
+            raise InputError(
+                f"duration: {steps} steps x {n} agents exceeds the explorer limit "
+                f"max_agent_steps = {self.limits.max_agent_steps}"
+            )
+        return dt
+
+    def animation(self, P: float, D: float, tau1: float, tau2: float, duration: float, frames: int) -> Animation:
+        """Simulate the team at one point and thin the run to ``frames`` animation frames.
+
+        Parameters
+        ----------
+        P, D
+            Gains of eq. protocol.
+        tau1, tau2
+            The delays.
+        duration
+            Simulated time (s); ``duration / dt`` steps must stay within the explorer's limits.
+        frames
+            Number of frames to send.
+
+        Raises
+        ------
+        InputError
+            When the run would exceed ``limits.max_steps`` or ``limits.max_agent_steps``.
+        """
+        s = self.scenario
+        dt = self._run_step(tau1, tau2, duration)
+
+        def run() -> tuple[Trajectory, int]:
+            with np.errstate(over="ignore", invalid="ignore"):  # an unstable run may overflow; cut below
+                tr = simulate(
+                    s.topology, P, D, tau1, tau2, s.desired_positions(), model=s.simulation.model,
+                    initial_positions=s.initial_positions(), initial_headings=s.initial_headings(),
+                    initial_speed=s.initial.speed, seed=s.initial.seed, duration=duration, dt=dt,
+                )  # fmt: skip
+            finite = np.all(np.isfinite(tr.positions), axis=(1, 2)) & np.isfinite(tr.formation_error)
+            return tr, (tr.times.size if finite.all() else int(np.argmin(finite)))
+
+        # the page's run and the figures download share one simulation
+        tr, last = self._cached(self._runs, (P, D, tau1, tau2, duration), _TRAJECTORY_CACHE, run)
+        diverged = None if last == tr.times.size else float(tr.times[last])
+        idx = np.unique(np.linspace(0, max(last - 1, 0), frames).round().astype(np.int64))
+        return Animation(tr, idx, diverged)
+
+    # ------------------------------------------------------------ downloads
+    def _scenario_at(self, P: float, D: float, tau1: float, tau2: float, duration: float,
+                     tau1_max: float, tau2_max: float) -> Scenario:  # fmt: skip
+        s = self.scenario.with_changes(P=P, D=D, tau1=tau1, tau2=tau2)
+        return replace(
+            s,
+            chart=replace(s.chart, tau1_max=tau1_max, tau2_max=tau2_max),
+            simulation=replace(s.simulation, duration=duration, dt=self._step(tau1, tau2)),
+            source="<explorer>",
+        )
+
+    def _write(self, name: str, data: bytes) -> Path:
+        """Write one file into the output folder, and nowhere else."""
+        path = (self.out_dir / name).resolve()
+        if path.parent != self.out_dir:
+            raise InputError(f"refusing to write {name!r} outside {self.out_dir}")
+        self.out_dir.mkdir(parents=True, exist_ok=True)
+        path.write_bytes(data)
+        return path
+
+    @staticmethod
+    def _tag(P: float, D: float, tau1: float, tau2: float) -> str:
+        return f"P{P:g}_D{D:g}_tau{tau1:g}_{tau2:g}"
+
+    def scenario_file(self, P: float, D: float, tau1: float, tau2: float, duration: float,
+                      tau1_max: float, tau2_max: float) -> Path:  # fmt: skip
+        """Write the scenario at the current settings as TOML into the output folder.
+
+        Parameters
+        ----------
+        P, D
+            Gains of eq. protocol.
+        tau1, tau2
+            The operating delays (the clicked point).
+        duration
+            Simulated time of the file's ``[simulation]`` table.
+        tau1_max, tau2_max
+            The chart window of the file's ``[chart]`` table.
+
+        Returns
+        -------
+        Path
+            ``<out>/<name>_<tag>.toml``.
+        """
+        s = self._scenario_at(P, D, tau1, tau2, duration, tau1_max, tau2_max)
+        return self._write(f"{s.name}_{self._tag(P, D, tau1, tau2)}.toml", scenario_toml(s).encode("utf-8"))
+
+    def figures_file(self, P: float, D: float, tau1: float, tau2: float, duration: float,
+                     tau1_max: float, tau2_max: float) -> Path:  # fmt: skip
+        """Write a ZIP with the chart, the robots' figures, the point's numbers and the scenario.
+
+        Parameters
+        ----------
+        P, D
+            Gains of eq. protocol.
+        tau1, tau2
+            The clicked point.
+        duration
+            Simulated time of the robots' run.
+        tau1_max, tau2_max
+            The chart window.
+
+        Returns
+        -------
+        Path
+            ``<out>/<name>_<tag>_figures.zip`` holding ``stability_chart``,
+            ``traces`` and ``xy`` as PNG and SVG, ``point.json`` and ``scenario.toml``.
+        """
+        self._run_step(tau1, tau2, duration)  # refuse an oversized run before any drawing
+        from matplotlib.figure import Figure  # only downloads draw with matplotlib
+
+        from delayform.plots import plot_trajectory_traces, plot_trajectory_xy, stability_chart
+
+        chart = self.chart(P, D, tau1_max, tau2_max, 10)
+        run = self.animation(P, D, tau1, tau2, duration, 2)
+        point = self.point(P, D, tau1, tau2)
+        roots = self.roots(P, D, tau1, tau2)
+        s = self._scenario_at(P, D, tau1, tau2, duration, tau1_max, tau2_max)
+        tr = run.trajectory
+        if run.diverged_at is not None:  # draw the finite part of an overflowing run
+            keep = int(np.searchsorted(tr.times, run.diverged_at))
+            tr = replace(tr, times=tr.times[:keep], positions=tr.positions[:keep], headings=tr.headings[:keep])
+        marks = {k: (a, b) for k, a, b in chart.points} | {"here": (tau1, tau2)}
+        figures: dict[str, Figure] = {}
+        fig = Figure(figsize=(6, 5))
+        stability_chart(chart.smap, ax=fig.add_subplot(), points=marks)
+        figures["stability_chart"] = fig
+        fig = Figure(figsize=(6, 5))
+        plot_trajectory_traces(tr, ax=fig.add_subplot())
+        figures["traces"] = fig
+        fig = Figure(figsize=(7, 5))
+        axes = fig.subplots(2, 1, sharex=True)
+        plot_trajectory_xy(tr, ax=(axes[0], axes[1]))
+        figures["xy"] = fig
+        buffer = io.BytesIO()
+        with zipfile.ZipFile(buffer, "w", compression=zipfile.ZIP_DEFLATED) as zf:
+            for name, fig in figures.items():
+                for fmt in ("png", "svg"):
+                    data = io.BytesIO()
+                    fig.savefig(data, format=fmt, dpi=150, bbox_inches="tight")
+                    zf.writestr(f"{name}.{fmt}", data.getvalue())
+            zf.writestr("point.json", json.dumps(point.as_json() | roots.as_json(), indent=2))
+            zf.writestr("scenario.toml", scenario_toml(s))
+        return self._write(f"{s.name}_{self._tag(P, D, tau1, tau2)}_figures.zip", buffer.getvalue())
