@@ -321,6 +321,7 @@ class Scenario:
             "chart_window": [self.chart.tau1_max, self.chart.tau2_max],
             "map_grid": {"tau1": list(self.map.tau1), "tau2": list(self.map.tau2), "size": list(self.map.size)},
             "schedule": {"tau_min": list(self.schedule.tau_min), "tau_max": list(self.schedule.tau_max)},
+            "network": "ideal" if self.network is None else self.network.describe(),
         }
 
     def with_changes(
