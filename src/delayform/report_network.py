@@ -140,7 +140,7 @@ def promises_section(
     loss_probabilities: Sequence[float] = LOSS_PROBABILITIES,
     runs: int = 6,
     seed: int = 0,
-    dt: float = 0.05,
+    dt: float | None = None,
     progress: Callable[[int, int], None] | None = None,
 ) -> Section:
     """What the analysis still promises: the constant-delay prediction against Monte Carlo with jitter and loss.
@@ -168,6 +168,8 @@ def promises_section(
         Seed of the runs.
     dt
         Integration step (s); a jitter level must leave every delay at least ``dt``.
+        Default per point: ``min(0.1, (1 - largest fraction) min(tau1, tau2))``,
+        0.05 s at a and 0.1 s at b.
     progress
         Optional callback ``(levels done, levels)``.
     """
@@ -196,7 +198,8 @@ def promises_section(
         duration = max(60.0, min(2.0 * predicted, 300.0)) if math.isfinite(predicted) else 60.0
         # hold-newest under jitter hears, of many packets, nearly the quickest: the shortest delays
         shortest = [_predicted(scenario, t1 * (1 - f), t2 * (1 - f)) for f in jitters]
-        setup = _setup(scenario, tau1=t1, tau2=t2, duration=duration, dt=dt)
+        step = dt if dt is not None else min(0.1, (1.0 - max(jitters)) * min(t for t in (t1, t2) if t > 0))
+        setup = _setup(scenario, tau1=t1, tau2=t2, duration=duration, dt=step)
         nets_j = [Network(jitter=Jitter(f * t1, f * t2)) for f in jitters]
         nets_l = [Network(loss=BernoulliLoss(p)) for p in losses]
         sweeps = {}
@@ -212,7 +215,7 @@ def promises_section(
                              float(np.median(r.final_errors))))  # fmt: skip
         per_point.append({"label": label, "tau1": t1, "tau2": t2, "root": s, "stable": dom.is_stable,
                           "predicted_settling": predicted, "predicted_at_shortest": shortest,
-                          "duration": duration, "sweeps": sweeps})  # fmt: skip
+                          "duration": duration, "dt": step, "sweeps": sweeps})  # fmt: skip
 
     fig, axes = plt.subplots(1, 2, figsize=(11.0, 4.2))
     for p in per_point:
@@ -250,7 +253,7 @@ def promises_section(
                 cells.append(f"{v:g}: {_fmt(med)} s ({100 * r.settled_fraction:.0f} %)")
             table.append((f"{p['label']}: median settling vs {kind}", "; ".join(cells)))
     summary = {
-        "runs": runs, "seed": seed, "dt": dt, "jitter_fractions": jitters, "loss_probabilities": losses,
+        "runs": runs, "seed": seed, "jitter_fractions": jitters, "loss_probabilities": losses,
         "points": [{k: v for k, v in p.items() if k != "sweeps"} | {
             kind: [{"level": v, "settled_fraction": r.settled_fraction, **{
                 k: r.summary()["settling_time"][k] for k in ("median", "q05", "q95")}}
@@ -262,7 +265,7 @@ def promises_section(
         title="What the analysis still promises on a real network",
         text=(
             "The stability chart and the dominant root assume two constant delays on every link. Here the same "
-            f"team runs {runs} times per level (double-integrator motion, step {dt:g} s, the same seeds at every "
+            f"team runs {runs} times per level (double-integrator motion, the same seeds at every "
             "level) with jitter around each delay (each packet's delay uniform in tau (1 +- f)) and, separately, "
             "with independent packet loss (hold-last-value), a packet every step. Dotted: the settling the dominant "
             "root predicts at the nominal delays; dashed: at the shortest delays tau (1 - f). An agent keeps the "
