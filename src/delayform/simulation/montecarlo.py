@@ -122,7 +122,7 @@ class Setup:
         }  # fmt: skip
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class RunOutcome:
     """The metrics of one run (what a worker sends back: small)."""
 
@@ -535,7 +535,9 @@ def monte_carlo(
         As for :func:`~delayform.simulation.simulate`: team, gains of eq.
         protocol, nominal delays and the desired shape (array or name).
     model
-        ``"double_integrator"`` (default) or ``"unicycle"``.
+        ``"double_integrator"`` (default) or ``"unicycle"``; over a non-ideal
+        network the unicycle is the ideal robot rebuilt from the double
+        integrator (:mod:`delayform.simulation.network`).
     network
         The imperfect network (its seed is replaced per run); None: ideal.
     runs
