@@ -59,7 +59,7 @@ table and key; anything else is an error)::
     # tau2 = [[...], ...]
     jitter = [0.05, 0.05]               # bounds (s) of the random jitter on positions, velocities
     variation = { amplitude = [0.05, 0.05], period = 10.0 }   # smooth delay variation
-    loss = 0.1                          # independent loss probability, or bursty (Gilbert-Elliott):
+    loss = 0.1                          # independent loss probability (or n x n, per link), or bursty:
     # loss = { p_good_to_bad = 0.05, p_bad_to_good = 0.3, loss_good = 0.0, loss_bad = 1.0 }
     rate = 20.0                         # sampled transmission: packets per second (zero-order hold)
     noise = [0.01, 0.01]                # measurement noise: std of position (m), velocity (m/s)
@@ -840,13 +840,13 @@ def parse_network_table(reader: _Reader, data: Mapping[str, Any] | None, n: int)
         return None
     reader.keys(data, "network", _NETWORK_KEYS)
 
-    def matrix(key: str) -> list[list[float]] | None:
+    def matrix(key: str, what: str = "delays (s)") -> list[list[float]] | None:
         if key not in data:
             return None
         value = data[key]
         if not isinstance(value, list) or len(value) != n or not all(isinstance(r, list) and len(r) == n for r in value):
-            raise reader.error(f"network.{key}", f"a {n} x {n} array of delays (s), row i: what agent i hears", value)
-        return [[reader.non_negative(f"network.{key}[{i}][{k}]", x) for k, x in enumerate(r)] for i, r in enumerate(value)]
+            raise reader.error(f"network.{key}", f"a {n} x {n} array of {what}, row i: what agent i hears", value)
+        return [[reader.number(f"network.{key}[{i}][{k}]", x) for k, x in enumerate(r)] for i, r in enumerate(value)]
 
     def pair(key: str, value: object) -> tuple[float, float]:
         return reader.pair(f"network.{key}", value)
@@ -875,6 +875,8 @@ def parse_network_table(reader: _Reader, data: Mapping[str, Any] | None, n: int)
                     if key not in value:
                         raise ScenarioError(f"{reader.source}: network.loss.{key}: missing (bursty loss needs both transition probabilities)")
                 loss = GilbertElliott(**{k: reader.number(f"network.loss.{k}", v) for k, v in value.items()})
+            elif isinstance(value, list):  # one probability per link, row i: what agent i hears
+                loss = BernoulliLoss(matrix("loss", what="probabilities"))
             else:
                 loss = BernoulliLoss(reader.number("network.loss", value))
         sampling = Sampling(reader.positive("network.rate", data["rate"])) if "rate" in data else None
