@@ -48,6 +48,9 @@ _EXPORTS: dict[str, str] = {
     # design
     "schedule_delays": "design.scheduling",
     "DelaySchedule": "design.scheduling",
+    "design_gains": "design.gains",
+    "GainDesign": "design.gains",
+    "GainPlaneMap": "design.gains",
     # formation and simulation
     "formation_forcing": "formation",
     "named_formation": "formation",

@@ -38,6 +38,7 @@ __all__ = [
     "GainError",
     "DelayError",
     "NoStableDelaysError",
+    "NoStableGainsError",
     "QuasiPolynomialError",
     "NeutralQuasiPolynomialError",
     "FormationError",
@@ -137,3 +138,7 @@ class NotConvergedError(DelayformError, RuntimeError):
     def __init__(self, message: str, partial: Any = None) -> None:
         super().__init__(message)
         self.partial = partial
+
+
+class NoStableGainsError(GainError):
+    """No gains within the bounds given to gain design make the team converge."""

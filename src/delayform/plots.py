@@ -311,4 +311,63 @@ def plot_metric_against(
     ax.set_ylabel(ylabel)
     if label:
         ax.legend(fontsize="small")
+
+
+# === section: gain plane (issue 12) ===
+def plot_gain_plane(
+    result: Any, ax: Axes | None = None, points: Mapping[str, tuple[float, float]] | None = None,
+    *, levels: int = 20,
+) -> Axes:
+    """Contour map of the spectral abscissa over the gains (P, D), like Fig. contour for delays.
+
+    Filled contours of Re(dominant root) over a
+    :class:`~delayform.design.gains.GainPlaneMap`, the stable region's edge
+    (the zero level) in black, the exact curves with an imaginary root
+    (D-decomposition, when the map has them) dashed red, the designed gains
+    as a star and other labelled gains as dots.
+
+    Parameters
+    ----------
+    result
+        The map to draw (``P_values``, ``D_values``, ``abscissa``, ``chosen``).
+    ax
+        Axes to draw on; new ones when None.
+    points
+        Label -> (P, D) to mark, e.g. the paper's gains.
+    levels
+        Number of contour levels.
+
+    Returns
+    -------
+    Axes
+    """
+    ax = _axes(ax)
+    P, D = np.asarray(result.P_values), np.asarray(result.D_values)
+    A = np.asarray(result.abscissa, dtype=float)
+    top = float(np.nanmax(A))
+    shown = np.minimum(A, max(0.5 * abs(float(np.nanmin(A))), min(top, 0.5)))  # keep the stable side readable
+    filled = ax.contourf(P, D, shown.T, levels=levels, cmap="viridis")
+    ax.figure.colorbar(filled, ax=ax, label=r"Re $s_{dom}$ (1/s)")
+    if np.nanmin(A) < 0.0 < np.nanmax(A):
+        ax.contour(P, D, A.T, levels=[0.0], colors="k", linewidths=1.4)
+    curves = [c for c in getattr(result, "boundary", ()) if len(c) > 1]
+    if curves:  # the exact curves with an imaginary root; the stable region's edge lies on them
+        ax.add_collection(LineCollection(curves, colors="red", linewidths=0.8, linestyles="--",
+                                         label="imaginary root (exact)"))
+    if result.chosen is not None:
+        ax.plot([result.chosen[0]], [result.chosen[1]], marker="*", color="red", ms=14, mec="k", ls="none",
+                label="designed gains")
+    for name, (p, d) in (points or {}).items():
+        ax.plot([p], [d], "wo", ms=5, mec="k")
+        ax.annotate(name, (p, d), xytext=(4, 4), textcoords="offset points", color="w", fontweight="bold")
+    ax.set_xlabel("P (position gain)")
+    ax.set_ylabel("D (velocity gain)")
+    delays = np.asarray(result.delays)
+    where = (f"(tau1, tau2) = ({delays[0, 0]:g}, {delays[0, 1]:g}) s" if delays.shape[0] == 1
+             else f"worst of {delays.shape[0]} delay pairs")
+    ax.set_title(f"Spectral abscissa over the gains, {where}; black: Re = 0")
+    ax.set_xlim(P[0], P[-1])
+    ax.set_ylim(D[0], D[-1])
+    if result.chosen is not None or curves:
+        ax.legend(loc="upper right", fontsize="small")
     return ax

@@ -784,6 +784,13 @@ def highlights(sections: Sequence[Section]) -> tuple[tuple[str, str], ...]:
             lo = summary["tau_min"]
             rows.append((f"best delays from ({lo[0]:g}, {lo[1]:g})",
                          f"({summary['tau1']:.3g}, {summary['tau2']:.3g}) s, settling about {summary['settling_time']:.3g} s"))  # fmt: skip
+        if key == "gain_comparison":
+            for r in summary["rows"]:
+                if r["method"] == "gain design" and r.get("found", True):
+                    t = r["simulated_settling"]
+                    rows.append((f"designed gains at {r['point']} ({r['tau1']:g}, {r['tau2']:g})",
+                                 f"P = {r['P']:.3g}, D = {r['D']:.3g}, simulated settling "
+                                 + (f"{t:.3g} s" if np.isfinite(t) else "none")))  # fmt: skip
         if key.startswith("simulation_"):
             t = summary["settling_time"]
             rows.append((f"simulated settling at {summary['label']} ({summary['tau1']:g}, {summary['tau2']:g})",

@@ -28,10 +28,16 @@ def _write_full_report(sc: Scenario, directory: Path, *, paper: bool, as_json: b
 
     build = paper_sections if paper else scenario_sections
     network = paper or sc.network is not None  # the network section: promises (paper) or a Monte Carlo
-    steps = (9 if paper else 7) + network
+    steps = (10 if paper else 7) + network
     start = time.perf_counter()
     with _progress(steps, title="paper" if paper else "report") as step:
         sections = build(sc, directory, progress=step)
+        if paper:  # issue 12: what new gains do where the paper can only add delay
+            from delayform.report_gains import gain_comparison_section
+
+            step("gain design vs delay scheduling")
+            points = {k: (a, b) for k, a, b in sc.chart.points if k in "abc"}
+            sections.append(gain_comparison_section(sc, directory, points))
         if network:
             from delayform.report_network import montecarlo_section, promises_section
 
@@ -81,7 +87,8 @@ def paper_command(out: Path, as_json: bool) -> None:
     Eigenvalues and factors of the six-robot team, the stability chart with
     points a..e, x/y versus time at a and b, traces at a, the dominant-root
     surface and contour, the best delays by scheduling and the settling
-    times; all into --out with index.html and summary.json.
+    times, and gain design compared with delay scheduling at a, b and c;
+    all into --out with index.html and summary.json.
     """
     from delayform.scenario import paper_scenario
 
