@@ -25,7 +25,7 @@ from delayform.resources import require
 from delayform.simulation.network import BernoulliLoss, GilbertElliott, Network
 from delayform.topology import Topology
 
-__all__ = ["Reception", "reception", "integrate_network", "unicycle_outputs", "network_memory"]
+__all__ = ["Reception", "NetworkSamples", "reception", "integrate_network", "unicycle_outputs", "network_memory"]
 
 _Array = NDArray[np.float64]
 
@@ -34,6 +34,30 @@ _SUBSTEPS = (0.0, 0.5, 1.0)
 
 #: teams up to this size sum what they hear with a dense matrix
 _DENSE_AGENTS = 64
+
+#: a run stops when a position leaves this many times the initial scale
+_BLOWUP = 1e8
+
+
+@dataclass(frozen=True, eq=False)
+class NetworkSamples:
+    """Saved samples of a run over a network: the motion of the double integrator.
+
+    Attributes
+    ----------
+    times
+        ``(T,)`` saved times.
+    positions, velocities, accelerations
+        ``(T, n, 2)`` Cartesian position, velocity and input ``u`` of eq. protocol.
+    stopped
+        Time at which an unstable run was stopped before overflowing, or None.
+    """
+
+    times: _Array
+    positions: _Array
+    velocities: _Array
+    accelerations: _Array
+    stopped: float | None = None
 
 
 # ------------------------------------------------------------ reception
@@ -336,11 +360,10 @@ def integrate_network(
     tau2: float,
     *,
     network: Network,
-    model: str,
     dt: float,
     steps: int,
     save_every: int,
-) -> tuple[_Array, _Array, _Array, _Array, _Array, int]:
+) -> NetworkSamples:
     """RK4 of eq. protocol + forcing with what each agent hears over ``network`` (module doc).
 
     The step is that of :mod:`delayform.simulation.runner` (classical RK4,
@@ -363,8 +386,6 @@ def integrate_network(
         Nominal delays (s).
     network
         The imperfect network.
-    model
-        ``"double_integrator"`` or ``"unicycle"`` (the ideal unicycle, :func:`unicycle_outputs`).
     dt, steps
         Step (s) and number of steps.
     save_every
@@ -372,9 +393,10 @@ def integrate_network(
 
     Returns
     -------
-    (times, positions, headings, speeds, inputs, regularised)
-        The saved samples, as the integrators of the runner return them
-        (``regularised`` is 0: the ideal unicycle needs none).
+    NetworkSamples
+        Positions, velocities and accelerations at the saved steps; a run
+        whose positions leave ``1e8`` times their initial scale stops there
+        (``stopped``), before it overflows.
     """
     n = x0.shape[0]
     _check_memory(network, topology, dt, steps)
@@ -420,11 +442,13 @@ def integrate_network(
         return P * (cxd - x) + D * (cvd - v) + F  # eq. protocol + forcing of eq. formation
 
     half = 0.5 * dt
+    limit = _BLOWUP * (1.0 + max(float(np.abs(x0).max(initial=0.0)), float(np.abs(v0).max(initial=0.0))))
+    last, stopped = steps, None
     for k in range(steps + 1):
         x, v = S[k, :, 0], S[k, :, 1]
         u1 = accel(delayed(k, 0), x, v)
         S[k, :, 2] = u1
-        if k == steps:
+        if k == last:
             break
         x2, v2 = x + half * v, v + half * u1
         middle = delayed(k, 1)  # stages 2 and 3 share their time, hence what is heard
@@ -435,16 +459,15 @@ def integrate_network(
         u4 = accel(delayed(k, 2), x4, v4)
         S[k + 1, :, 0] = x + (dt / 6.0) * (v + 2.0 * (v2 + v3) + v4)
         S[k + 1, :, 1] = v + (dt / 6.0) * (u1 + 2.0 * (u2 + u3) + u4)
+        # an unstable run grows exponentially: stop before it overflows (the run reports where)
+        if k % 32 == 31 and not np.abs(S[k + 1, :, :2]).max() < limit:
+            last, stopped = k + 1, (k + 1) * dt
 
-    saved = np.arange(0, steps + 1, save_every)
-    if saved[-1] != steps:
-        saved = np.append(saved, steps)
-    pos, vel, acc = S[saved, :, 0], S[saved, :, 1], S[saved, :, 2]
-    if model == "unicycle":
-        head, spd, inp = unicycle_outputs(vel, acc)
-    else:
-        head, spd, inp = np.arctan2(vel[..., 1], vel[..., 0]), np.hypot(vel[..., 0], vel[..., 1]), acc
-    return saved * dt, pos, head, spd, inp, 0
+    saved = np.arange(0, last + 1, save_every)
+    if saved[-1] != last:
+        saved = np.append(saved, last)
+    return NetworkSamples(times=saved * dt, positions=S[saved, :, 0], velocities=S[saved, :, 1],
+                          accelerations=S[saved, :, 2], stopped=stopped)  # fmt: skip
 
 
 def _gather_plan(rec: Reception, dt: float, n: int) -> tuple[NDArray[np.intp], _Array]:

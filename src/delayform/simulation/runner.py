@@ -90,7 +90,7 @@ from delayform.formation import (
     named_formation,
 )
 from delayform.simulation.network import Network
-from delayform.simulation.reception import integrate_network
+from delayform.simulation.reception import integrate_network, unicycle_outputs
 from delayform.topology import Topology, paper_six
 
 __all__ = [
@@ -534,10 +534,14 @@ def simulate(
     F = formation_forcing(topology, P, desired)
     out = None
     if network is not None and not network.is_ideal:
-        out = integrate_network(
-            x0, v0, topology, F, P, D, tau1, tau2, network=network, model=model, dt=dt, steps=steps,
-            save_every=save_every,
-        )
+        run = integrate_network(x0, v0, topology, F, P, D, tau1, tau2, network=network, dt=dt, steps=steps,
+                                save_every=save_every)  # fmt: skip
+        if model == "unicycle":  # the ideal robot rebuilt from its double-integrator motion
+            head, spd, inp = unicycle_outputs(run.velocities, run.accelerations)
+        else:
+            vel = run.velocities
+            head, spd, inp = np.arctan2(vel[..., 1], vel[..., 0]), np.hypot(vel[..., 0], vel[..., 1]), run.accelerations
+        out = (run.times, run.positions, head, spd, inp, 0)
     elif isinstance(agent, _DoubleIntegrator) and n <= _DENSE_AGENTS:
         out = _integrate_linear(x0, v0, C, F, P, D, tau1, tau2, dt, steps, save_every)
     if out is None:
