@@ -37,7 +37,8 @@ def run(*args: str, cwd: Path | None = None, timeout: float = 600) -> subprocess
     proc = subprocess.run(
         [sys.executable, "-m", "delayform", *args],
         capture_output=True, text=True, cwd=cwd, timeout=timeout,
-        env={"MPLBACKEND": "Agg", "PATH": "/usr/bin:/bin", "HOME": str(cwd or ROOT)},
+        # PYTHONPATH: the tree under test, not whatever copy of delayform the venv has installed
+        env={"MPLBACKEND": "Agg", "PATH": "/usr/bin:/bin", "HOME": str(cwd or ROOT), "PYTHONPATH": str(ROOT / "src")},
     )  # fmt: skip
     assert_no_warning_text(proc.stderr)
     return proc
@@ -223,8 +224,73 @@ def test_simulate_json_matches_library(tmp_path: Path) -> None:
     assert out["min_distance"] == pytest.approx(traj.min_distance, rel=1e-9)
     saved = np.load(tmp_path / "sim_operating.npz")
     np.testing.assert_allclose(saved["positions"], traj.positions, atol=1e-12)
-    for name in ("sim_operating_xy.png", "sim_operating_traces.svg", "sim_operating.csv"):
+    for name in ("sim_operating_xy.png", "sim_operating_traces.svg", "sim_operating.csv",
+                 "sim_operating_commands.png", "sim_operating_commands.npz"):  # fmt: skip
         assert (tmp_path / name).stat().st_size > 0
+    assert out["status"] == traj.status and out["limits_exceeded"] == traj.commands.summary()
+
+
+# ------------------------------------------------------------- robot limits
+def test_simulate_with_limits_from_options_and_scenario(tmp_path: Path) -> None:
+    from dataclasses import replace
+
+    from delayform.formation import named_formation
+    from delayform.simulation import IROBOT_CREATE, simulate
+    from delayform.topology import paper_six
+
+    out = _json(run("simulate", "--json", "--duration", "6", "--dt", "0.02", "--max-turn-rate", "1.5",
+                    "--out", str(tmp_path), cwd=tmp_path))  # fmt: skip
+    lim = replace(IROBOT_CREATE, max_turn_rate=1.5)
+    traj = simulate(paper_six(), 1.0, 0.5, 0.3, 0.2, named_formation("hexagon", 6, spacing=2.0),
+                    limits=lim, duration=6.0, dt=0.02)  # fmt: skip
+    assert out["robot_limits"] == lim.describe() and "the limit is 1.5" in out["limits_exceeded"]
+    assert out["final_error"] == pytest.approx(traj.formation_error[-1], rel=1e-9)
+    saved = np.load(tmp_path / "sim_operating_commands.npz")
+    assert np.abs(saved["omega"]).max() <= 1.5 * (1 + 1e-9)
+    scenario = tmp_path / "robots.toml"
+    from delayform.scenario import PAPER_TOML
+
+    scenario.write_text(PAPER_TOML + "\n[robot]\nmax_speed = 0.3\n")
+    out = _json(run("simulate", str(scenario), "--json", "--duration", "4", "--dt", "0.02",
+                    "--out", str(tmp_path / "s"), cwd=tmp_path))  # fmt: skip
+    assert "|v| <= 0.3 m/s" in out["robot_limits"]
+    out = _json(run("simulate", str(scenario), "--json", "--duration", "4", "--dt", "0.02", "--no-limits",
+                    "--out", str(tmp_path / "s"), cwd=tmp_path))  # fmt: skip
+    assert out["robot_limits"] is None
+
+
+@pytest.mark.parametrize("args, needle", [
+    (("--max-turn-rate", "-1"), "--max-turn-rate"),
+    (("--max-speed", "fast"), "--max-speed"),
+    (("--no-limits", "--max-speed", "1"), "--no-limits"),
+    (("--model", "double_integrator", "--limits"), "limits"),
+])  # fmt: skip
+def test_malformed_limits_exit_2_with_one_line(tmp_path: Path, args: tuple[str, ...], needle: str) -> None:
+    proc = run("simulate", *args, "--duration", "1", "--out", str(tmp_path / "o"), cwd=tmp_path)
+    assert_one_line_error(proc, needle)
+
+
+def test_simulate_huge_delays_run_and_huge_runs_are_refused(tmp_path: Path) -> None:
+    import time
+
+    start = time.perf_counter()
+    proc = run("simulate", "--tau1", "1e6", "--tau2", "1e6", "--duration", "5", "--no-csv",
+               "--out", str(tmp_path), cwd=tmp_path)  # fmt: skip
+    assert proc.returncode == 0 and proc.stderr.strip() == "", proc.stderr
+    assert time.perf_counter() - start < 15.0  # the interpreter's start and the figures included
+    assert not (tmp_path / "sim_operating.csv").exists() and (tmp_path / "sim_operating.npz").exists()
+    proc = run("simulate", "--duration", "1e7", "--dt", "1e-4", "--out", str(tmp_path / "big"), cwd=tmp_path)
+    assert_one_line_error(proc, "would", "duration")
+
+
+def test_simulate_notes_a_diverging_run_on_stderr(tmp_path: Path) -> None:
+    proc = run("simulate", "--tau1", "1", "--tau2", "2", "--duration", "600", "--dt", "0.05",
+               "--model", "double_integrator", "--out", str(tmp_path), cwd=tmp_path)  # fmt: skip
+    assert proc.returncode == 0
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("delayform: note: the run diverged"), proc.stderr
+    assert "Warning" not in proc.stderr and "Traceback" not in proc.stderr
+    assert "no: stopped" in proc.stdout
 
 
 # ------------------------------------------------------------------ paper
@@ -232,7 +298,8 @@ PAPER_FILES = (
     "index.html", "summary.json", "factors.csv",
     "stability_chart.png", "stability_chart.svg", "ctcr_curves.csv", "ctcr_curves.npz",
     "sim_a_xy.png", "sim_a_xy.svg", "sim_a_traces.png", "sim_a_traces.svg", "sim_a.csv", "sim_a.npz", "sim_a.gif",
-    "sim_b_xy.png", "sim_b_xy.svg", "sim_b.csv", "sim_b.npz",
+    "sim_a_commands.png", "sim_a_commands.svg", "sim_a_commands.npz", "sim_a_commands.csv",
+    "sim_b_traces.png", "sim_b_traces.svg", "sim_b.csv", "sim_b.npz",
     "roots.csv", "dominant_surface.png", "dominant_surface.svg", "dominant_contour.png",
     "dominant_contour.svg", "dominant_map.npz", "dominant_map.csv", "schedule.json", "schedule_c.json",
 )  # fmt: skip

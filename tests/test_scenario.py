@@ -96,6 +96,11 @@ MALFORMED: list[tuple[str, str, str]] = [
     ("schedule bounds inverted", BASE + "[schedule]\ntau_min = [1.0, 1.0]\ntau_max = [0.5, 2.0]\n",
      "schedule.tau_max"),
     ("unknown key in simulation", BASE + "[simulation]\nsteps = 10\n", "simulation.steps"),
+    ("robot limit negative", BASE + "[robot]\nmax_speed = -0.5\n", "robot.max_speed"),
+    ("robot limit not a number", BASE + '[robot]\nmax_turn_rate = "fast"\n', "robot.max_turn_rate"),
+    ("robot unknown key", BASE + "[robot]\nmax_jerk = 1.0\n", "robot.max_jerk"),
+    ("robot limits on double integrators", BASE + '[simulation]\nmodel = "double_integrator"\n[robot]\n'
+     "max_speed = 1.0\n", "robot.limits"),
     ("not TOML", BASE + "this is = = not toml\n", "not valid TOML"),
 ]  # fmt: skip
 
@@ -171,11 +176,16 @@ def test_paper_example_file_is_the_embedded_default() -> None:
                                np.sort_complex(paper_six().eigenvalues))
 
 
-@pytest.mark.parametrize("name", ["paper", "ring12", "random50"])
+@pytest.mark.parametrize("name", ["paper", "ring12", "random50", "paper_create"])
 def test_shipped_examples_load(name: str) -> None:
     s = load_scenario(EXAMPLES / f"{name}.toml")
     assert s.name == name
     assert s.topology.has_spanning_tree()
+    assert (s.robot is not None) == (name == "paper_create")
+    if s.robot is not None:
+        from delayform.simulation import IROBOT_CREATE
+
+        assert s.robot.max_speed == IROBOT_CREATE.max_speed and s.robot.axle_length == IROBOT_CREATE.axle_length
 
 
 def test_overrides_are_checked() -> None:

@@ -27,6 +27,7 @@ _EXPORTS: dict[str, str] = {
     "complete": "topology",
     "star": "topology",
     "random_digraph": "topology",
+    "grid": "topology",
     # characteristic equation
     "TwoDelayQuasiPolynomial": "characteristic",
     "CharacteristicFactor": "characteristic",
@@ -45,6 +46,14 @@ _EXPORTS: dict[str, str] = {
     "dominant_root_map": "analysis.spectrum",
     "DominantRoot": "analysis.spectrum",
     "DominantRootMap": "analysis.spectrum",
+    # the eigenvalue plane (issue 11)
+    "lambda_region": "analysis.region",
+    "LambdaRegion": "analysis.region",
+    "safe_delays": "analysis.region",
+    "SafeDelayMap": "analysis.region",
+    "SpectrumSet": "analysis.region",
+    "spectrum_bound": "analysis.region",
+    "SpectrumBound": "analysis.region",
     # design
     "schedule_delays": "design.scheduling",
     "DelaySchedule": "design.scheduling",
@@ -58,6 +67,9 @@ _EXPORTS: dict[str, str] = {
     "simulate": "simulation",
     "Trajectory": "simulation",
     "paper_simulations": "simulation",
+    "RobotLimits": "simulation",
+    "IROBOT_CREATE": "simulation",
+    "RobotCommands": "simulation",
     # imperfect networks and Monte Carlo
     "Network": "simulation.network",
     "LinkDelays": "simulation.network",

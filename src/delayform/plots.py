@@ -173,25 +173,42 @@ from typing import Any  # noqa: E402
 import numpy as np  # noqa: E402
 
 
+def agent_colors(n: int) -> Any:
+    """``n`` distinguishable colours: tab10 up to 10 agents, tab20 up to 20, then a continuous map."""
+    if n <= 10:
+        return plt.get_cmap("tab10")(np.arange(n))
+    if n <= 20:
+        return plt.get_cmap("tab20")(np.arange(n))
+    return plt.get_cmap("turbo")(np.linspace(0.05, 0.95, n))
+
+
+def _agent_names(traj: Any) -> list[str]:
+    """People count from 1: agent i (index i - 1), whatever the topology's labels."""
+    return [f"agent {i + 1}" for i in range(traj.n)]
+
+
 def plot_trajectory_xy(traj: Any, ax: Any = None) -> Any:
     """x and y of every agent versus time, two panels (paper Figs. xy1 and xy2).
 
     ``ax`` is a pair of axes (x panel, y panel) or None for a new figure;
-    returns the pair.
+    returns the pair. Agents are numbered from 1; with up to 20 agents the
+    legend sits to the right of the panels, never over the curves.
     """
     if ax is None:
         _, ax = plt.subplots(2, 1, sharex=True)
     ax_x, ax_y = ax
+    colors = agent_colors(traj.n)
+    names = _agent_names(traj)
     for i in range(traj.n):
-        label = f"agent {traj.labels[i]}" if traj.labels else f"agent {i}"
-        ax_x.plot(traj.times, traj.positions[:, i, 0], lw=1, label=label)
-        ax_y.plot(traj.times, traj.positions[:, i, 1], lw=1)
-    ax_x.set_ylabel("x")
-    ax_y.set_ylabel("y")
+        ax_x.plot(traj.times, traj.positions[:, i, 0], lw=1, color=colors[i], label=names[i])
+        ax_y.plot(traj.times, traj.positions[:, i, 1], lw=1, color=colors[i])
+    ax_x.set_ylabel("x (m)")
+    ax_y.set_ylabel("y (m)")
     ax_y.set_xlabel("time (s)")
-    ax_x.set_title(f"{traj.model}, (tau1, tau2) = ({traj.tau1:g}, {traj.tau2:g})")
-    if traj.n <= 12:
-        ax_x.legend(fontsize="small", ncol=2)
+    ax_x.set_title(f"{traj.model}, (tau1, tau2) = ({traj.tau1:g}, {traj.tau2:g}) s")
+    if traj.n <= 20:
+        ax_x.legend(fontsize="small", ncol=1 if traj.n <= 10 else 2, loc="upper left",
+                    bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)  # fmt: skip
     return ax_x, ax_y
 
 
@@ -203,23 +220,80 @@ def _heading_marks(traj: Any, k: int, length: float) -> Any:
 
 
 def plot_trajectory_traces(traj: Any, ax: Axes | None = None, *, snapshots: int = 6) -> Axes:
-    """Paths in the plane with heading marks at ``snapshots`` instants (paper Fig. traces)."""
+    """Paths in the plane with heading marks at ``snapshots`` instants (paper Fig. traces).
+
+    Grey lines are the paths; black dots the positions at the snapshot
+    times, each with a short blue line along the robot's heading; open red
+    circles the final positions. The legend says so.
+    """
     from matplotlib.collections import LineCollection
 
     ax = _axes(ax)
     for i in range(traj.n):
-        ax.plot(traj.positions[:, i, 0], traj.positions[:, i, 1], lw=0.8, color="0.6")
+        ax.plot(traj.positions[:, i, 0], traj.positions[:, i, 1], lw=0.8, color="0.6",
+                label="paths" if i == 0 else None)  # fmt: skip
     extent = float(np.ptp(traj.positions.reshape(-1, 2), axis=0).max()) or 1.0
-    for k in np.linspace(0, traj.times.size - 1, max(snapshots, 2)).round().astype(int):
-        ax.add_collection(LineCollection(_heading_marks(traj, k, 0.04 * extent), colors="tab:blue"))
-        ax.plot(traj.positions[k, :, 0], traj.positions[k, :, 1], "k.", ms=3)
+    ks = np.unique(np.linspace(0, traj.times.size - 1, max(snapshots, 2)).round().astype(int))
+    for j, k in enumerate(ks):
+        ax.add_collection(LineCollection(_heading_marks(traj, k, 0.04 * extent), colors="tab:blue",
+                                         label="heading" if j == 0 else None))  # fmt: skip
+        ax.plot(traj.positions[k, :, 0], traj.positions[k, :, 1], "k.", ms=3,
+                label="positions at " + ", ".join(f"{traj.times[q]:.3g}" for q in ks) + " s" if j == 0 else None)  # fmt: skip
     final = traj.positions[-1]
-    ax.plot(final[:, 0], final[:, 1], "o", mfc="none", color="tab:red", label="final")
+    ax.plot(final[:, 0], final[:, 1], "o", mfc="none", color="tab:red", label=f"final (t = {traj.times[-1]:.4g} s)")
     ax.set_aspect("equal", adjustable="datalim")
-    ax.set_xlabel("x")
-    ax.set_ylabel("y")
-    ax.set_title(f"traces, (tau1, tau2) = ({traj.tau1:g}, {traj.tau2:g})")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_title(f"paths, (tau1, tau2) = ({traj.tau1:g}, {traj.tau2:g}) s")
+    ax.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
     return ax
+
+
+def plot_commands(commands: Any, ax: Any = None, *, max_lines: int = 10) -> Any:
+    """Speed, turn rate and wheel speeds of each robot over time, with the limits dashed.
+
+    ``commands`` is a :class:`delayform.simulation.RobotCommands`; ``ax`` three
+    axes (speed, turn rate, wheels) or None for a new figure. Up to
+    ``max_lines`` robots are drawn one line each (numbered from 1); larger
+    teams are drawn as the band between the smallest and largest value over
+    the robots. Returns the three axes.
+    """
+    if ax is None:
+        _, ax = plt.subplots(3, 1, sharex=True, figsize=(7.0, 7.5))
+    ax_v, ax_w, ax_wheel = ax
+    t = commands.times
+    n = commands.speed.shape[1]
+    lim = commands.robot
+    colors = agent_colors(n)
+    panels = (
+        (ax_v, [commands.speed], lim.max_speed, "v (m/s)"),
+        (ax_w, [commands.turn_rate], lim.max_turn_rate, r"$\omega$ (rad/s)"),
+        (ax_wheel, [commands.wheel_left, commands.wheel_right], lim.max_wheel_speed, "wheel speed (rad/s)"),
+    )
+    for axis, series, limit, label in panels:
+        for s_idx, values in enumerate(series):
+            style = "-" if s_idx == 0 else ":"
+            if n <= max_lines:
+                for i in range(n):
+                    name = f"robot {i + 1}" if axis is ax_v else None
+                    axis.plot(t, values[:, i], style, lw=0.9, color=colors[i], label=name)
+            else:
+                axis.fill_between(t, values.min(axis=1), values.max(axis=1), color="tab:blue", alpha=0.3,
+                                  label=f"range over {n} robots" if axis is ax_v else None)  # fmt: skip
+        # drawn for ideal robots too: they show where the ideal commands exceed a real robot
+        axis.axhline(limit, color="k", ls="--", lw=0.8, label="limit" if axis is ax_v else None)
+        axis.axhline(-limit, color="k", ls="--", lw=0.8)
+        # a value far beyond the limit (an ideal turn at v ~ 0) would flatten the rest
+        finite = np.concatenate([np.abs(v[np.isfinite(v)]) for v in series])
+        top = min(float(finite.max(initial=0.0)), 5.0 * limit)
+        axis.set_ylim(-1.1 * max(top, limit), 1.1 * max(top, limit))
+        axis.set_ylabel(label)
+    ax_wheel.set_xlabel("time (s)")
+    ax_wheel.set_title("solid: left wheel, dotted: right wheel", fontsize="small")
+    kind = "with limits (saturated)" if commands.limited else "ideal robots (limits drawn for reference)"
+    ax_v.set_title(f"Commands, {kind}")
+    ax_v.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
+    return ax_v, ax_w, ax_wheel
 
 
 def save_trajectory_gif(traj: Any, path: Any, *, frames: int = 80, fps: int = 15) -> Any:
@@ -237,6 +311,8 @@ def save_trajectory_gif(traj: Any, path: Any, *, frames: int = 80, fps: int = 15
     ax.set_xlim(lo[0] - pad, hi[0] + pad)
     ax.set_ylim(lo[1] - pad, hi[1] + pad)
     ax.set_aspect("equal")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
     length = 0.04 * float((hi - lo).max() or 1.0)
     dots = ax.plot([], [], "o", ms=4, color="tab:red")[0]
     marks = LineCollection([], colors="tab:blue")
@@ -370,4 +446,109 @@ def plot_gain_plane(
     ax.set_ylim(D[0], D[-1])
     if result.chosen is not None or curves:
         ax.legend(loc="upper right", fontsize="small")
+    return ax
+
+
+# === section: the eigenvalue plane and certificates for classes of teams (issue 11) ===
+def lambda_region_plot(
+    region: Any, ax: Axes | None = None, eigenvalues: Any = None, *, radius: float = 1.6, resolution: int = 301
+) -> Axes:
+    """The stable region of the eigenvalue plane (shaded), its boundary ``L(j omega)``, the unit disc.
+
+    ``region`` is a :class:`delayform.analysis.region.LambdaRegion`; the
+    optional ``eigenvalues`` of a team's C are marked green where stable and
+    red where not (the centroid eigenvalue 1 as a black square).
+
+    Parameters
+    ----------
+    region
+        The region to draw.
+    ax
+        Axes to draw on; new ones when None.
+    eigenvalues
+        Complex eigenvalues to mark, or None.
+    radius
+        Half-width of the drawn square of the lam plane.
+    resolution
+        Grid points per axis used to shade the region.
+
+    Returns
+    -------
+    Axes
+    """
+    ax = _axes(ax)
+    x = np.linspace(-radius, radius, resolution)
+    z = x[None, :] + 1j * x[:, None]
+    stable = region.is_stable(z).astype(float)
+    ax.contourf(x, x, stable, levels=[0.5, 1.5], colors=["0.8"])
+    curve = region.boundary(radius * 1.5)
+    ax.plot(curve.real, curve.imag, color="tab:red", lw=0.9, label=r"boundary $L(j\omega)$")
+    phi = np.linspace(0.0, 2.0 * np.pi, 361)
+    ax.plot(np.cos(phi), np.sin(phi), color="0.3", lw=0.8, ls="--", label="unit disc")
+    if eigenvalues is not None:
+        lam = np.asarray(eigenvalues, dtype=complex)
+        centroid = np.abs(lam - 1.0) <= 1e-9
+        ok = region.is_stable(lam)
+        ax.plot(lam[ok & ~centroid].real, lam[ok & ~centroid].imag, "o", color="tab:green", ms=4, label="eigenvalue, stable")
+        ax.plot(lam[~ok & ~centroid].real, lam[~ok & ~centroid].imag, "o", color="tab:red", ms=4, mfc="none",
+                label="eigenvalue, unstable")
+        ax.plot(lam[centroid].real, lam[centroid].imag, "ks", ms=4, label="centroid (lam = 1)")
+    ax.set_xlim(-radius, radius)
+    ax.set_ylim(-radius, radius)
+    ax.set_aspect("equal")
+    ax.set_xlabel(r"Re $\lambda$")
+    ax.set_ylabel(r"Im $\lambda$")
+    ax.set_title(rf"Stable eigenvalues (shaded), $\tau_1$ = {region.tau1:g}, $\tau_2$ = {region.tau2:g}")
+    ax.legend(loc="lower left", fontsize="x-small")
+    return ax
+
+
+def safe_delay_chart(
+    smap: Any, ax: Axes | None = None, points: Mapping[str, tuple[float, float]] | None = None,
+    *, resolution: int = 200, shade: str = "tab:green",
+) -> Axes:
+    """The delays safe for a whole class of teams, drawn like the CTCR chart.
+
+    ``smap`` is a :class:`delayform.analysis.certificates.SafeDelayMap`: the
+    certified safe set shaded, the exact CTCR curves of the factors at the
+    ends of the spectrum set (kernel red, offspring blue) and the envelope
+    of the interior eigenvalues where present.
+
+    Parameters
+    ----------
+    smap
+        The map to draw.
+    ax
+        Axes to draw on; new ones when None.
+    points
+        Label -> (tau1, tau2) to mark.
+    resolution
+        Grid cells per axis used to shade the safe set.
+    shade
+        Colour of the safe set.
+
+    Returns
+    -------
+    Axes
+    """
+    ax = _axes(ax)
+    t1, t2, safe = smap.grid(resolution)
+    if np.any(safe):
+        ax.contourf(t1, t2, safe.astype(float), levels=[0.5, 1.5], colors=[shade], alpha=0.45)
+    for base in smap.base_maps:
+        for kernel, color in ((False, "blue"), (True, "red")):
+            lines = [np.column_stack([c.tau1, c.tau2]) for c in base.curves if c.is_kernel == kernel]
+            if lines:
+                ax.add_collection(LineCollection(lines, colors=color, linewidths=0.7, alpha=0.8))
+    for line in getattr(smap, "envelope", ()):
+        ax.plot(line[:, 0], line[:, 1], color="black", lw=1.0)
+    for name, (a, b) in (points or {}).items():
+        ax.plot([a], [b], "ko", ms=4)
+        ax.annotate(f"{name}", (a, b), xytext=(4, 4), textcoords="offset points", fontweight="bold")
+    ax.set_xlim(0.0, smap.tau1_max)
+    ax.set_ylim(0.0, smap.tau2_max)
+    ax.set_xlabel(r"$\tau_1$ (s), position delay")
+    ax.set_ylabel(r"$\tau_2$ (s), velocity delay")
+    title = f"Safe for every team with spectrum in: {smap.spectrum.label}"
+    ax.set_title(title if not smap.never_safe else title + " (none)", fontsize="small")
     return ax

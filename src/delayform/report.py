@@ -39,7 +39,10 @@ __all__ = [
     "map_section",
     "schedule_section",
     "simulation_section",
+    "CSV_AUTO_LIMIT",
     "settling_section",
+    "region_section",
+    "safe_delays_section",
     "scenario_sections",
     "paper_sections",
     "highlights",
@@ -557,6 +560,10 @@ def schedule_section(
     )
 
 
+#: the CSV of a run is written by default only below this estimated size (bytes); NPZ always
+CSV_AUTO_LIMIT = 20 * 2**20
+
+
 def simulation_section(
     scenario: Scenario,
     out: Path,
@@ -566,13 +573,21 @@ def simulation_section(
     tau2: float | None = None,
     traces: bool = True,
     gif: bool = False,
+    csv: bool | None = None,
+    progress: MapProgress | None = None,
 ) -> Section:
-    """Simulate the team at one delay pair: x/y versus time, traces, CSV and NPZ, optional GIF.
+    """Simulate the team at one delay pair: paths, x/y versus time, commands, NPZ (and CSV), optional GIF.
+
+    Files (``<stem> = sim_<label>``): ``<stem>_traces.png/.svg`` x(t) and
+    y(t); ``<stem>_xy.png/.svg`` the paths in the x-y plane (with ``traces``);
+    ``<stem>.npz`` the trajectory; for robots ``<stem>_commands.png/.svg``
+    and ``<stem>_commands.npz`` (v, omega, wheel speeds); the CSV versions
+    ``<stem>.csv`` and ``<stem>_commands.csv`` when ``csv`` says so.
 
     Parameters
     ----------
     scenario
-        The validated scenario (topology, gains, delays, windows).
+        The validated scenario (topology, gains, delays, windows, robot limits).
     out
         Folder the section writes its files into.
     label
@@ -580,9 +595,14 @@ def simulation_section(
     tau1, tau2
         Delays to simulate at; the scenario's operating delays by default.
     traces
-        Also draw the traces figure (Fig. traces).
+        Also draw the paths figure (paper Fig. traces), ``<stem>_xy``.
     gif
         Also write an animated GIF (slower).
+    csv
+        Write the CSV files: True always, False never, None (default) when
+        the trajectory's CSV would be below :data:`CSV_AUTO_LIMIT`.
+    progress
+        Optional callback ``(steps done, steps)`` while the run is integrated.
     """
     from delayform.simulation import simulate
 
@@ -590,66 +610,102 @@ def simulation_section(
     tau1 = scenario.tau1 if tau1 is None else tau1
     tau2 = scenario.tau2 if tau2 is None else tau2
     sim = scenario.simulation
+    limits = scenario.robot if sim.model == "unicycle" else None
     traj = simulate(
         scenario.topology, scenario.P, scenario.D, tau1, tau2, scenario.desired_positions(),
-        model=sim.model, initial_positions=scenario.initial_positions(),
+        model=sim.model, limits=limits, initial_positions=scenario.initial_positions(),
         initial_headings=scenario.initial_headings(), initial_speed=scenario.initial.speed,
-        seed=scenario.initial.seed, duration=sim.duration, dt=sim.dt,
+        seed=scenario.initial.seed, duration=sim.duration, dt=sim.dt, progress=progress,
     )  # fmt: skip
     stem = f"sim_{label}"
     files: list[str] = []
     figures = []
-    fig, axes = plt.subplots(2, 1, figsize=(7.0, 6.0), sharex=True)
+    n = scenario.topology.n
+    fig, axes = plt.subplots(2, 1, figsize=(8.0 if n <= 20 else 7.0, 6.0), sharex=True)
     traj.plot_xy(ax=axes)
-    files += _save(fig, out, f"{stem}_xy")
-    figures.append(Figure(f"{stem}_xy", f"x and y versus time at {label}",
-                          f"Positions of the {scenario.topology.n} agents in x (top) and y (bottom) "
+    files += _save(fig, out, f"{stem}_traces")
+    figures.append(Figure(f"{stem}_traces", f"x and y versus time at {label}",
+                          f"Positions (m) of the {n} agents, numbered from 1, in x (top) and y (bottom) "
                           f"at (tau1, tau2) = ({tau1:g}, {tau2:g}) s."))  # fmt: skip
     if traces:
-        fig, ax = plt.subplots(figsize=(6.4, 6.0))
+        fig, ax = plt.subplots(figsize=(8.0, 6.0))
         traj.plot_traces(ax=ax)
-        files += _save(fig, out, f"{stem}_traces")
-        figures.append(Figure(f"{stem}_traces", f"Traces at {label}",
-                              "Paths of the agents into the formation; short lines mark headings at snapshots."))  # fmt: skip
-    traj.to_csv(out / f"{stem}.csv")
-    files.append(f"{stem}.csv")
-    np.savez_compressed(out / f"{stem}.npz", times=traj.times, positions=traj.positions,
-                        headings=traj.headings, speeds=traj.speeds)  # fmt: skip
+        files += _save(fig, out, f"{stem}_xy")
+        figures.append(Figure(f"{stem}_xy", f"Paths at {label}",
+                              "Paths of the agents in the plane (m) into the formation; dots mark positions at "
+                              "snapshot times with a short line along each heading; open circles the final positions."))  # fmt: skip
+    write_csv = traj.csv_bytes() <= CSV_AUTO_LIMIT if csv is None else csv
+    if write_csv:
+        traj.to_csv(out / f"{stem}.csv")
+        files.append(f"{stem}.csv")
+    traj.to_npz(out / f"{stem}.npz")
     files.append(f"{stem}.npz")
+    commands = traj.commands
+    if commands is not None:
+        fig, axes = plt.subplots(3, 1, figsize=(8.0, 7.5), sharex=True)
+        commands.plot(ax=axes)
+        files += _save(fig, out, f"{stem}_commands")
+        reference = "the robots' limits" if commands.limited else "the iRobot Create's limits, for reference"
+        figures.append(Figure(f"{stem}_commands", f"Commands of the robots at {label}",
+                              f"Speed v, turn rate omega and wheel speeds each robot executes; dashed: {reference}."))  # fmt: skip
+        commands.to_npz(out / f"{stem}_commands.npz")
+        files.append(f"{stem}_commands.npz")
+        if write_csv:
+            commands.to_csv(out / f"{stem}_commands.csv")
+            files.append(f"{stem}_commands.csv")
     if gif:
         traj.save_gif(out / f"{stem}.gif")
         files.append(f"{stem}.gif")
         figures.append(Figure(f"{stem}", f"The robots moving into formation at {label}",
                               "Animation of the simulated positions and headings.", animated=True))  # fmt: skip
     settling = float(traj.settling_time)
+    limits_text = commands.summary() if commands is not None else None
     summary = {
         "label": label, "tau1": tau1, "tau2": tau2, "model": sim.model,
         "duration": sim.duration, "dt": sim.dt,
+        "status": traj.status, "warnings": list(traj.warnings),
         "settling_time": settling,
         "initial_error": float(traj.formation_error[0]),
         "final_error": float(traj.formation_error[-1]),
         "min_distance": float(traj.min_distance),
         "final_centroid": np.asarray(traj.final_centroid),
-        "regularised_steps": int(traj.regularisation_count),
+        "robot_limits": None if limits is None else limits.describe(),
+        "limits_exceeded": limits_text,
+        "csv_written": bool(write_csv),
     }  # fmt: skip
-    table = (
+    if traj.status == "settled":
+        settled_text = f"{_fmt(settling)} s"
+    elif traj.status == "not settled":
+        settled_text = f"not within {sim.duration:g} s"
+    else:
+        settled_text = f"no: {traj.status}"
+    table = [
         ("delays (tau1, tau2)", f"({tau1:g}, {tau2:g}) s"),
-        ("model", sim.model),
-        ("settling time (2 %)", f"{_fmt(settling)} s" if np.isfinite(settling) else f"not within {sim.duration:g} s"),
-        ("final formation error", _fmt(summary["final_error"])),
-        ("closest approach of two agents", _fmt(summary["min_distance"])),
-    )
+        ("model", sim.model + ("" if commands is None else (", with limits" if commands.limited else ", ideal robots"))),
+        ("settling time (2 %)", settled_text),
+        ("final formation error", f"{_fmt(summary['final_error'])} m"),
+        ("closest approach of two agents", f"{_fmt(summary['min_distance'])} m"),
+    ]
+    if commands is not None:
+        table.append(("beyond the limits" if commands.limited else "beyond an iRobot Create's limits", limits_text))
+    table += [("warning", w) for w in traj.warnings]
+    if not write_csv:
+        table.append(("CSV", "not written (large run): NPZ only; use --csv to force it"))
+    robots = "double-integrator agents"
+    if sim.model == "unicycle":
+        robots = ("differential-drive robots with actuator limits (saturated unicycle)" if limits is not None
+                  else "ideal differential-drive robots (unicycle, feedback linearization eq. transform2)")  # fmt: skip
     return Section(
         key=f"simulation_{label}",
         title=f"Simulation at {label}: (tau1, tau2) = ({tau1:g}, {tau2:g}) s",
         text=(
-            f"{scenario.topology.n} {'differential-drive robots (unicycle, feedback linearization eq. transform2)' if sim.model == 'unicycle' else 'double-integrator agents'} "
+            f"{n} {robots} "
             f"start from {'random' if scenario.initial.positions is None else 'given'} positions "
-            f"(seed {scenario.initial.seed}) with speed {scenario.initial.speed:g} and move into the "
+            f"(seed {scenario.initial.seed}) with speed {scenario.initial.speed:g} m/s and move into the "
             f"{scenario.formation.describe()} formation over {sim.duration:g} s (step {sim.dt:g} s)."
         ),
         figures=tuple(figures),
-        table=table,
+        table=tuple(table),
         summary=summary,
         files=tuple(files),
     )
@@ -677,6 +733,134 @@ def settling_section(sims: Sequence[Section]) -> Section:
     )
 
 
+# === section: the eigenvalue plane (issue 11) ===
+def region_section(scenario: Scenario, out: Path, *, tau1: float | None = None, tau2: float | None = None) -> Section:
+    """The stable region of the eigenvalue plane at the scenario's delays, with the team's eigenvalues.
+
+    Parameters
+    ----------
+    scenario
+        The validated scenario (topology, gains, delays).
+    out
+        Folder the section writes its files into.
+    tau1, tau2
+        Delays (s); default the scenario's.
+    """
+    from delayform.analysis.bounds import DENSE_BOUND_LIMIT, spectrum_bound
+    from delayform.analysis.certificates import safe_delays
+    from delayform.analysis.region import lambda_region
+
+    plt = _pyplot()
+    t1 = scenario.tau1 if tau1 is None else tau1
+    t2 = scenario.tau2 if tau2 is None else tau2
+    topo = scenario.topology
+    region = lambda_region(scenario.P, scenario.D, t1, t2)
+    window = (max(t1, 1e-3), max(t2, 1e-3))
+    certs = {name: bool(safe_delays(scenario.P, scenario.D, *window, spectrum=name).is_safe(t1, t2))
+             for name in ("undirected", "any")}  # fmt: skip
+    fig, ax = plt.subplots(figsize=(6.0, 6.0))
+    rows: list[tuple[Any, ...]] = []
+    if topo.n <= DENSE_BOUND_LIMIT:
+        lam = topo.eigenvalues
+        counts = region.unstable_count(lam)
+        region.plot(ax=ax, topology=topo)
+        rows = [(f"{z.real:.10g}", f"{z.imag:.10g}", int(n)) for z, n in zip(lam, counts, strict=True)]
+        stable = bool(np.all(counts == 0))
+        verdict = "stable (exact)" if stable else f"unstable, NU = {int(counts.sum())}"
+        summary: dict[str, Any] = {"eigenvalues": [complex(z) for z in lam], "unstable_roots": [int(n) for n in counts]}
+    else:
+        bound = spectrum_bound(topo)
+        region.plot(ax=ax)
+        ok = bool(safe_delays(scenario.P, scenario.D, *window, spectrum=bound).is_safe(t1, t2))
+        stable = ok
+        verdict = "stable (sufficient test on the spectrum bound)" if ok else "not certified by the spectrum bound"
+        summary = {"bound": bound.spectrum_set.label, "bound_method": bound.method}
+    files = list(_save(fig, out, "lambda_region"))
+    if rows:
+        files.append(_write_csv(out / "eigenvalue_region.csv", ("re", "im", "unstable_roots"), rows))
+    disc = region.stable_fraction_of_disc(resolution=121)
+    summary.update({"tau1": t1, "tau2": t2, "team_stable": stable, "stable_fraction_of_unit_disc": disc,
+                    "safe_for_every_undirected_team": certs["undirected"], "safe_for_every_team": certs["any"]})
+    table = [("delays", f"({t1:g}, {t2:g}) s"), ("team", verdict),
+             ("stable share of the unit disc", f"{disc:.3f}"),
+             ("safe for every undirected team", "yes" if certs["undirected"] else "no"),
+             ("safe for every team (unit disc)", "yes" if certs["any"] else "no")]  # fmt: skip
+    return Section(
+        key="region",
+        title="Stable eigenvalues of C (the eigenvalue plane)",
+        text=(
+            "Every factor of the characteristic equation is the same quasi-polynomial with the eigenvalue lam "
+            "of C as a parameter. The shaded set holds the eigenvalues whose factor is stable at these delays; "
+            "its boundary is lam = L(j omega). The team is stable exactly when all its eigenvalues (the "
+            "centroid 1 aside) lie in it, so a new graph can be checked by its eigenvalues alone."
+        ),
+        figures=(Figure("lambda_region", "Stable region of the eigenvalue plane",
+                        "Shaded: stable eigenvalues; red: the boundary L(j omega); dashed: the unit disc; "
+                        "dots: the team's eigenvalues (green stable, red not)."),),  # fmt: skip
+        table=tuple(table),
+        summary=summary,
+        files=tuple(files),
+    )
+
+
+def safe_delays_section(
+    out: Path, P: float, D: float, tau1_max: float, tau2_max: float, *, spectrum: object = "undirected",
+    points: Sequence[tuple[str, float, float]] = (),
+) -> Section:
+    """The delays safe for every team whose spectrum lies in a set, drawn like the stability chart.
+
+    Parameters
+    ----------
+    out
+        Folder the section writes its files into.
+    P, D
+        Gains of eq. protocol.
+    tau1_max, tau2_max
+        The delay window.
+    spectrum
+        What :func:`delayform.analysis.certificates.safe_delays` accepts.
+    points
+        ``(label, tau1, tau2)`` delay pairs to mark and classify.
+    """
+    from delayform.analysis.certificates import safe_delays
+
+    plt = _pyplot()
+    m = safe_delays(P, D, tau1_max, tau2_max, spectrum=spectrum)
+    fig, ax = plt.subplots(figsize=(6.4, 5.6))
+    m.plot(ax=ax, points={label: (a, b) for label, a, b in points})
+    files = list(_save(fig, out, "safe_delays"))
+    t1, t2, safe = m.grid(200)
+    np.savez_compressed(out / "safe_delays.npz", tau1=t1, tau2=t2, safe=safe)
+    files.append("safe_delays.npz")
+    fraction = float(safe.mean())
+    marks = [(label, a, b, bool(m.is_safe(a, b))) for label, a, b in points]
+    summary = {"spectrum": m.spectrum.label, "window": [tau1_max, tau2_max], "P": P, "D": D,
+               "safe_fraction": fraction, "never_safe": m.never_safe,
+               "points": [{"label": k, "tau1": a, "tau2": b, "safe": s} for k, a, b, s in marks]}  # fmt: skip
+    table = [("spectrum set", m.spectrum.label), ("window", f"[0, {tau1_max:g}] x [0, {tau2_max:g}] s"),
+             ("safe fraction of the window", f"{fraction:.3f}")]  # fmt: skip
+    method = getattr(spectrum, "method", None)
+    if method:  # a SpectrumBound of a team
+        table.append(("how the set was bounded", str(method)))
+        summary["bound_method"] = str(method)
+    if m.never_safe:
+        table.append(("why none", m.never_safe))
+    table += [(f"point {k} ({a:g}, {b:g})", "safe" if s else "not certified") for k, a, b, s in marks]
+    return Section(
+        key="safe_delays",
+        title="Delays safe for a whole class of teams",
+        text=(
+            "Shaded: delay pairs at which every team whose eigenvalues of C lie in the set is stable, whatever "
+            "its size or graph (a certified test; a sufficient condition for any one team). Red/blue: the exact "
+            "CTCR curves of the factors at the ends of the set; black: the envelope of the interior factors."
+        ),
+        figures=(Figure("safe_delays", "Safe delays", f"Safe for every team with spectrum in {m.spectrum.label}."),),
+        table=tuple(table),
+        summary=summary,
+        files=tuple(files),
+    )
+
+
 # ------------------------------------------------------------ whole reports
 def scenario_sections(
     scenario: Scenario, out: Path, *, progress: Progress | None = None, map_progress: MapProgress | None = None
@@ -697,6 +881,7 @@ def scenario_sections(
     steps: list[tuple[str, Callable[[], Section]]] = [
         ("factors", lambda: factors_section(scenario, out)),
         ("stability chart", lambda: chart_section(scenario, out)),
+        ("eigenvalue plane", lambda: region_section(scenario, out)),
         ("roots", lambda: roots_section(scenario, out)),
         ("dominant-root map", lambda: map_section(scenario, out, progress=map_progress)),
         ("delay scheduling", lambda: schedule_section(scenario, out, report_failure=True)),
@@ -741,6 +926,7 @@ def paper_sections(
         ("stability chart", lambda: chart_section(scenario, out)),
         ("simulation at a", lambda: simulation_section(scenario, out, label="a", tau1=a[0], tau2=a[1], gif=True)),
         ("simulation at b", lambda: simulation_section(scenario, out, label="b", tau1=b[0], tau2=b[1], traces=False)),
+        ("eigenvalue plane at c", lambda: region_section(scenario, out, tau1=c[0], tau2=c[1])),
         ("roots", lambda: roots_section(scenario, out)),
         ("dominant-root map", lambda: map_section(scenario, out, progress=map_progress)),
         ("delay scheduling", lambda: schedule_section(scenario, out)),
@@ -776,6 +962,10 @@ def highlights(sections: Sequence[Section]) -> tuple[tuple[str, str], ...]:
             (f"point {p['label']} ({p['tau1']:g}, {p['tau2']:g})", "stable" if p["stable"] else f"unstable, NU = {p['unstable_roots']}")
             for p in chart["points"]
         )  # fmt: skip
+    if "region" in by_key:
+        reg = by_key["region"]
+        rows.append((f"safe at ({reg['tau1']:g}, {reg['tau2']:g}) for every undirected team",
+                     "yes" if reg["safe_for_every_undirected_team"] else "no"))  # fmt: skip
     if "roots" in by_key:
         roots = by_key["roots"]
         rows.append((f"dominant root at ({roots['tau1']:g}, {roots['tau2']:g})", _fmt_complex(roots["dominant_root"])))

@@ -32,6 +32,15 @@ table and key; anything else is an error)::
     duration = 150.0                    # seconds
     dt = 0.01                           # seconds
 
+    [robot]                             # optional: actuator limits; robots are ideal without it
+    limits = true                       # false: ideal robots although the table is there
+    max_speed = 0.5                     # m/s; every key defaults to delayform.simulation.IROBOT_CREATE
+    max_turn_rate = 3.88                # rad/s
+    max_acceleration = 0.5              # m/s^2
+    max_wheel_speed = 13.9              # rad/s
+    wheel_radius = 0.036                # m
+    axle_length = 0.258                 # m
+
     [initial]                           # optional; random positions and headings from seed
     seed = 0
     speed = 1e-3                        # the paper's small initial speed (eq. transform2)
@@ -98,6 +107,7 @@ from delayform.simulation.network import (
     Sampling,
     SmoothVariation,
 )
+from delayform.simulation.robots import IROBOT_CREATE, RobotLimits
 from delayform.topology import Topology, complete, paper_six, random_digraph, ring, star
 
 __all__ = [
@@ -276,6 +286,8 @@ class Scenario:
         The operating delays (seconds).
     formation, simulation, initial, chart, map, schedule
         The optional tables, with their defaults filled in.
+    robot
+        Actuator limits of the robots (the ``[robot]`` table), or None for ideal robots.
     network
         The ``[network]`` table as a :class:`~delayform.simulation.network.Network`, or None.
     topology_spec
@@ -299,6 +311,7 @@ class Scenario:
     schedule: ScheduleSpec
     topology_spec: TopologySpec = field(default_factory=TopologySpec)
     source: str = "<scenario>"
+    robot: RobotLimits | None = None
     network: Network | None = None
 
     def summary(self) -> dict[str, Any]:
@@ -318,6 +331,7 @@ class Scenario:
             "duration": self.simulation.duration,
             "dt": self.simulation.dt,
             "seed": self.initial.seed,
+            "robot_limits": None if self.robot is None else self.robot.describe(),
             "chart_window": [self.chart.tau1_max, self.chart.tau2_max],
             "map_grid": {"tau1": list(self.map.tau1), "tau2": list(self.map.tau2), "size": list(self.map.size)},
             "schedule": {"tau_min": list(self.schedule.tau_min), "tau_max": list(self.schedule.tau_max)},
@@ -632,6 +646,29 @@ def _simulation(reader: _Reader, data: Mapping[str, Any]) -> SimulationSpec:
     return SimulationSpec(model=model, duration=duration, dt=dt)
 
 
+_ROBOT_KEYS = (
+    "wheel_radius", "axle_length", "max_wheel_speed", "max_speed", "max_turn_rate", "max_acceleration",
+    "slow_speed", "turn_time_constant",
+)  # fmt: skip
+
+
+def _robot(reader: _Reader, data: Mapping[str, Any] | None, model: str) -> RobotLimits | None:
+    """The ``[robot]`` table: actuator limits, defaults from IROBOT_CREATE; None without the table."""
+    if data is None:
+        return None
+    reader.keys(data, "robot", ("limits",) + _ROBOT_KEYS)
+    enabled = data.get("limits", True)
+    if not isinstance(enabled, bool):
+        raise reader.error("robot.limits", "true or false", enabled)
+    if not enabled:
+        return None
+    if model != "unicycle":
+        raise reader.error("robot.limits", "false for simulation.model = 'double_integrator' (limits apply to robots)",
+                           enabled)  # fmt: skip
+    values = {key: reader.positive(f"robot.{key}", data[key]) for key in _ROBOT_KEYS if key in data}
+    return replace(IROBOT_CREATE, **values)
+
+
 def _initial(reader: _Reader, data: Mapping[str, Any], n: int) -> InitialSpec:
     reader.keys(data, "initial", ("seed", "speed", "positions", "headings"))
     seed = reader.integer("initial.seed", data.get("seed", 0), minimum=0)
@@ -722,7 +759,7 @@ def _check_sizes(reader: _Reader, n: int, formation: FormationSpec, initial: Ini
 
 _TOP_KEYS = (
     "name", "description", "topology", "gains", "delays", "formation",
-    "simulation", "initial", "chart", "map", "schedule", "network",
+    "simulation", "initial", "robot", "chart", "map", "schedule", "network",
 )  # fmt: skip
 
 
@@ -770,13 +807,14 @@ def parse_scenario(data: Mapping[str, Any], *, source: str = "<scenario>", defau
     simulation = _simulation(reader, reader.table(data, "simulation", required=False) or {})
     _check_step(reader, simulation.dt, tau1, tau2)
     initial = _initial(reader, reader.table(data, "initial", required=False) or {}, n)
+    robot = _robot(reader, reader.table(data, "robot", required=False), simulation.model)
     chart = _chart(reader, reader.table(data, "chart", required=False) or {})
     grid = _map(reader, reader.table(data, "map", required=False) or {}, chart)
     schedule = _schedule(reader, reader.table(data, "schedule", required=False) or {}, (tau1, tau2), chart)
     return Scenario(
         name=name, description=description, topology=topology, P=P, D=D, tau1=tau1, tau2=tau2,
         formation=formation, simulation=simulation, initial=initial, chart=chart, map=grid,
-        schedule=schedule, topology_spec=spec, source=source,
+        schedule=schedule, topology_spec=spec, source=source, robot=robot,
         network=parse_network_table(reader, reader.table(data, "network", required=False), n),
     )  # fmt: skip
 

@@ -37,6 +37,7 @@ __all__ = [
     "complete",
     "star",
     "random_digraph",
+    "grid",
     "DENSE_LIMIT",
 ]
 
@@ -465,3 +466,35 @@ def random_digraph(n: int, p: float, seed: int | np.random.Generator | None = No
     mat = sp.csr_array((np.ones(rows.size), (rows, cols)), shape=(n, n))
     mat.data[:] = 1.0
     return Topology.from_adjacency(mat, name=f"random_digraph({n}, {float(p):g})")
+
+
+def grid(rows: int, cols: int) -> Topology:
+    """Undirected 2-D grid: agent ``r * cols + c`` linked both ways with its 4 lattice neighbours.
+
+    C of an undirected graph is similar to a symmetric matrix, so its
+    spectrum is real in [-1, 1]; a grid is bipartite, so -1 is an eigenvalue.
+    Built sparse, so 10^5-10^6 agents take well under a second.
+
+    Parameters
+    ----------
+    rows, cols
+        Grid size, each at least 1 and ``rows * cols >= 2``.
+
+    Examples
+    --------
+    >>> t = grid(2, 3)
+    >>> t.n, int(t.adjacency_sparse.nnz)
+    (6, 14)
+    """
+    r = _check_count(rows, 1, "grid rows")
+    c = _check_count(cols, 1, "grid cols")
+    if r * c < 2:
+        raise TopologyError("grid needs at least 2 agents")
+    idx = np.arange(r * c).reshape(r, c)
+    pairs = [np.column_stack([idx[:, :-1].ravel(), idx[:, 1:].ravel()]),
+             np.column_stack([idx[:-1, :].ravel(), idx[1:, :].ravel()])]
+    e = np.concatenate(pairs)
+    rows_ = np.concatenate([e[:, 0], e[:, 1]])
+    cols_ = np.concatenate([e[:, 1], e[:, 0]])
+    mat = sp.csr_array((np.ones(rows_.size), (rows_, cols_)), shape=(r * c, r * c))
+    return Topology.from_adjacency(mat, name=f"grid({r}x{c})")

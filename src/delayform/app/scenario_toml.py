@@ -20,6 +20,7 @@ Examples
 from __future__ import annotations
 
 from collections.abc import Iterable
+from dataclasses import fields
 
 from delayform.scenario import TOPOLOGY_NAMES, Scenario
 
@@ -137,6 +138,8 @@ def scenario_toml(scenario: Scenario) -> str:
         out.append(f"positions = {_rows(ini.positions)}")
     if ini.headings is not None:
         out.append(f"headings = {_array(ini.headings)}")
+    if s.robot is not None:  # actuator limits (delayform.simulation.RobotLimits)
+        out += ["", "[robot]"] + [f"{f.name} = {_number(getattr(s.robot, f.name))}" for f in fields(s.robot)]
     chart = s.chart
     out += ["", "[chart]", f"tau1_max = {_number(chart.tau1_max)}", f"tau2_max = {_number(chart.tau2_max)}"]
     if chart.points:

@@ -1,10 +1,18 @@
-"""Simulation of the team: agent and robot models, the delayed integrator, networks, Monte Carlo.
+"""Simulation of the team: agent and robot models, the delayed integrator, runs and commands, networks.
 
-The public names of :mod:`delayform.simulation.runner`,
-:mod:`delayform.simulation.network` and :mod:`delayform.simulation.montecarlo`
-are re-exported here.
+Modules, by concept: :mod:`~delayform.simulation.integrator` (RK4 with a
+bounded Hermite history), :mod:`~delayform.simulation.robots` (agent models,
+robot limits, ideal commands), :mod:`~delayform.simulation.commands` (the
+commands each robot executes), :mod:`~delayform.simulation.trajectory` (the
+result and its metrics), :mod:`~delayform.simulation.runner` (``simulate``),
+:mod:`~delayform.simulation.network` (imperfect networks),
+:mod:`~delayform.simulation.reception` (what each agent hears, the per-link
+integrator), :mod:`~delayform.simulation.montecarlo` (seeded Monte Carlo runs).
+Their public names are re-exported here.
 """
 
+from delayform.simulation.commands import LimitExceedance, RobotCommands
+from delayform.simulation.integrator import stated_order
 from delayform.simulation.montecarlo import MonteCarloResult, monte_carlo
 from delayform.simulation.network import (
     BernoulliLoss,
@@ -16,20 +24,19 @@ from delayform.simulation.network import (
     Sampling,
     SmoothVariation,
 )
-from delayform.simulation.runner import (
-    MIN_SPEED,
-    MODELS,
-    SETTLING_FRACTION,
-    Trajectory,
-    paper_simulations,
-    simulate,
-    stated_order,
-)
+from delayform.simulation.robots import IROBOT_CREATE, REST_SPEED, RobotLimits
+from delayform.simulation.runner import MODELS, paper_simulations, simulate
+from delayform.simulation.trajectory import SETTLING_FRACTION, STATUSES, Trajectory
 
 __all__ = [
     "MODELS",
-    "MIN_SPEED",
+    "REST_SPEED",
     "SETTLING_FRACTION",
+    "STATUSES",
+    "IROBOT_CREATE",
+    "RobotLimits",
+    "RobotCommands",
+    "LimitExceedance",
     "Trajectory",
     "simulate",
     "stated_order",

@@ -86,6 +86,9 @@ class Setup:
         Fixed initial state, or None to draw it per run.
     initial_speed
         Initial speed of every agent (the paper's 1e-3).
+    limits
+        Actuator limits of the robots (:class:`~delayform.simulation.robots.RobotLimits`),
+        or None for ideal ones; not over an imperfect network.
     """
 
     topology: Topology
@@ -101,6 +104,7 @@ class Setup:
     initial_positions: _Array | None = None
     initial_headings: _Array | None = None
     initial_speed: float = 1e-3
+    limits: Any = None
 
     def with_changes(self, **changes: Any) -> Setup:
         """A copy with some fields replaced (sweeps).
@@ -168,7 +172,7 @@ def simulate_run(task: tuple[Setup, int, tuple[int, int]]) -> RunOutcome:
         setup.topology, setup.P, setup.D, setup.tau1, setup.tau2, setup.formation,
         model=setup.model, initial_positions=setup.initial_positions,
         initial_headings=setup.initial_headings, initial_speed=setup.initial_speed,
-        seed=initial_seed, duration=setup.duration, dt=setup.dt, network=network,
+        seed=initial_seed, duration=setup.duration, dt=setup.dt, network=network, limits=setup.limits,
     )  # fmt: skip
     if setup.model == "unicycle":
         peaks = (float(np.abs(traj.inputs[..., 0]).max()), float(np.abs(traj.inputs[..., 1]).max()))

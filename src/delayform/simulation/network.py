@@ -61,12 +61,13 @@ Randomness
 
 Agent models
 ------------
-Double integrators are integrated directly. The unicycle is the ideal one
-of Section "Feedback Linearization": under eq. transform2 the robot's
-position obeys ``x'' = u`` exactly while its speed is not zero, so its
-motion is that of the double integrator and its heading, speed and inputs
-``(dv/dt, omega)`` are reconstructed from the velocity and acceleration
-(:func:`delayform.simulation.reception.unicycle_outputs`); no regularisation of ``1/v`` is needed.
+Double integrators are integrated directly. The unicycle is the ideal robot
+of Section "Feedback Linearization": under eq. transform2 its position obeys
+``x'' = u`` exactly, so its motion is that of the double integrator and its
+heading, speed and commands ``(dv/dt, omega)`` are rebuilt from the velocity
+and acceleration (:func:`delayform.simulation.robots.ideal_commands`), as for
+ideal robots without a network. Robots with actuator limits are not
+simulated over an imperfect network.
 """
 
 from __future__ import annotations

@@ -25,7 +25,7 @@ from delayform.resources import require
 from delayform.simulation.network import BernoulliLoss, GilbertElliott, Network
 from delayform.topology import Topology
 
-__all__ = ["Reception", "NetworkSamples", "reception", "integrate_network", "unicycle_outputs", "network_memory"]
+__all__ = ["Reception", "NetworkSamples", "reception", "integrate_network", "network_memory"]
 
 _Array = NDArray[np.float64]
 
@@ -313,40 +313,6 @@ def _hermite_reads(send: _Array, dt: float, n: int, informers: NDArray[np.intp])
         [2 * t**3 - 3 * t**2 + 1, (t**3 - 2 * t**2 + t) * dt, -2 * t**3 + 3 * t**2, (t**3 - t**2) * dt]
     )
     return left * n + informers, weights
-
-
-def unicycle_outputs(velocity: _Array, acceleration: _Array) -> tuple[_Array, _Array, _Array]:
-    """Heading, speed and inputs ``(dv/dt, omega)`` of the ideal unicycle moving like a double integrator.
-
-    Under eq. transform2 the robot's position obeys ``x'' = u`` while its
-    speed is not zero; conversely its heading is the direction of the
-    velocity and (eq. transform2 solved for the inputs)
-    ``dv/dt = (xdot . u) / |xdot|`` and ``omega = (xdot x u) / |xdot|^2``.
-
-    Parameters
-    ----------
-    velocity
-        ``(..., 2)`` Cartesian velocities.
-    acceleration
-        ``(..., 2)`` Cartesian accelerations ``u``.
-
-    Returns
-    -------
-    (headings, speeds, inputs)
-        Arrays of shapes ``(...)``, ``(...)`` and ``(..., 2)``; where the speed is
-        exactly zero the heading is 0 and omega 0 (the robot is at rest).
-
-    >>> h, v, inp = unicycle_outputs(np.array([[0.0, 2.0]]), np.array([[1.0, 0.0]]))
-    >>> float(h[0]), float(v[0]), inp[0].tolist()
-    (1.5707963267948966, 2.0, [0.0, -0.5])
-    """
-    vx, vy = velocity[..., 0], velocity[..., 1]
-    speed = np.hypot(vx, vy)
-    moving = speed > 0.0
-    safe = np.where(moving, speed, 1.0)
-    dv = np.where(moving, (vx * acceleration[..., 0] + vy * acceleration[..., 1]) / safe, np.hypot(acceleration[..., 0], acceleration[..., 1]))
-    omega = np.where(moving, (vx * acceleration[..., 1] - vy * acceleration[..., 0]) / safe**2, 0.0)
-    return np.arctan2(vy, vx), speed, np.stack([dv, omega], axis=-1)
 
 
 def integrate_network(

@@ -1,0 +1,263 @@
+"""The result of a simulation: motion, metrics, status and the robots' commands."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from delayform.simulation.commands import RobotCommands
+from delayform.simulation.robots import RobotLimits
+
+__all__ = ["Trajectory", "SETTLING_FRACTION", "STATUSES"]
+
+_Array = NDArray[np.float64]
+
+#: settling: the formation error stays below this fraction of its initial value
+SETTLING_FRACTION = 0.02
+
+#: what :attr:`Trajectory.status` can be
+STATUSES = ("settled", "not settled", "diverging", "stopped")
+
+#: a run whose formation error ends this many times above its initial value is diverging
+DIVERGING_GROWTH = 10.0
+
+
+@dataclass(frozen=True, eq=False)
+class Trajectory:
+    """A simulated run of eq. formation: the motion, its metrics and its status.
+
+    Attributes
+    ----------
+    times
+        Saved time points ``(T,)`` (s).
+    positions
+        ``(T, n, 2)`` positions x, y (m).
+    velocities
+        ``(T, n, 2)`` Cartesian velocities (m/s).
+    headings
+        ``(T, n)`` headings theta in (-pi, pi]; for the double integrator the
+        direction of the velocity.
+    speeds
+        ``(T, n)`` speeds: the signed v of the robot, ``|xdot|`` for the
+        double integrator.
+    inputs
+        ``(T, n, 2)``: the executed ``(dv/dt, omega)`` of eq. transform2 for
+        robots, ``u`` of eq. protocol for the double integrator.
+    desired
+        ``(n, 2)`` desired formation.
+    model, P, D, tau1, tau2, dt
+        What was simulated.
+    stated_order
+        Order of accuracy of the integrator for this run (4 or 2; 2 with limits).
+    formation_error
+        ``(T,)`` root-mean-square distance of the agents from the desired
+        shape after removing the common offset (the mean of positions minus
+        desired positions).
+    settling_time
+        First saved time after which the formation error stays below
+        :data:`SETTLING_FRACTION` of its initial value; ``inf`` when it never
+        does (see :attr:`status` and :attr:`warnings` for why).
+    final_centroid
+        Weighted centroid ``w^T x`` (eq. factor1) at the last time.
+    min_distance
+        Smallest distance between any two robots over the saved times.
+    commands
+        The robots' commands (:class:`RobotCommands`); None for double integrators.
+    limits
+        The actuator limits of a saturated run, or None for ideal robots.
+    status
+        One of :data:`STATUSES`: ``"settled"``; ``"not settled"`` within the
+        run; ``"diverging"`` (the error ended more than 10 times its start);
+        ``"stopped"`` (the state overflowed and integration stopped early).
+    warnings
+        Sentences for a reader about a run that did not settle.
+    labels
+        Agent labels of the topology (figures number agents from 1).
+    """
+
+    times: _Array
+    positions: _Array
+    velocities: _Array
+    headings: _Array
+    speeds: _Array
+    inputs: _Array
+    desired: _Array
+    model: str
+    P: float
+    D: float
+    tau1: float
+    tau2: float
+    dt: float
+    stated_order: int
+    formation_error: _Array
+    settling_time: float
+    final_centroid: _Array
+    min_distance: float
+    commands: RobotCommands | None = None
+    limits: RobotLimits | None = None
+    status: str = "settled"
+    warnings: tuple[str, ...] = ()
+    labels: tuple[Any, ...] = field(default=())
+
+    @property
+    def n(self) -> int:
+        """Number of agents."""
+        return int(self.positions.shape[1])
+
+    @property
+    def final_positions(self) -> _Array:
+        """``(n, 2)`` positions at the last saved time."""
+        return self.positions[-1]
+
+    def plot_xy(self, ax: Any = None) -> Any:
+        """x and y of every agent versus time (paper Figs. xy1, xy2); returns the axes (pair).
+
+        Parameters
+        ----------
+        ax
+            A pair of axes or None for a new figure.
+        """
+        from delayform.plots import plot_trajectory_xy
+
+        return plot_trajectory_xy(self, ax=ax)
+
+    def plot_traces(self, ax: Any = None, *, snapshots: int = 6) -> Any:
+        """Paths in the plane with heading marks at snapshots (paper Fig. traces).
+
+        Parameters
+        ----------
+        ax
+            Axes or None for a new figure.
+        snapshots
+            Number of instants at which positions and headings are marked.
+        """
+        from delayform.plots import plot_trajectory_traces
+
+        return plot_trajectory_traces(self, ax=ax, snapshots=snapshots)
+
+    def save_gif(self, path: str | Path, *, frames: int = 80, fps: int = 15) -> Path:
+        """Write an animated GIF of the robots moving into formation.
+
+        Parameters
+        ----------
+        path
+            File to write.
+        frames, fps
+            Number of frames and frames per second.
+        """
+        from delayform.plots import save_trajectory_gif
+
+        return save_trajectory_gif(self, path, frames=frames, fps=fps)
+
+    def to_csv(self, path: str | Path) -> Path:
+        """Write one row per (time, agent): time, agent (from 1), x, y, heading, speed, input1, input2.
+
+        Parameters
+        ----------
+        path
+            File to write.
+        """
+        path = Path(path)
+        T, n = self.headings.shape
+        cols = np.column_stack(
+            [
+                np.repeat(self.times, n),
+                np.tile(np.arange(1, n + 1), T),
+                self.positions.reshape(-1, 2),
+                self.headings.reshape(-1),
+                self.speeds.reshape(-1),
+                self.inputs.reshape(-1, 2),
+            ]
+        )
+        input_names = "dv_dt,omega" if self.model == "unicycle" else "u_x,u_y"
+        header = f"time,agent,x,y,heading,speed,{input_names}"
+        np.savetxt(path, cols, delimiter=",", header=header, comments="", fmt="%.10g")
+        return path
+
+    def to_npz(self, path: str | Path) -> Path:
+        """Write times, positions, velocities, headings, speeds, inputs and the error as compressed NPZ.
+
+        Parameters
+        ----------
+        path
+            File to write (``.npz``).
+        """
+        path = Path(path)
+        np.savez_compressed(
+            path, times=self.times, positions=self.positions, velocities=self.velocities,
+            headings=self.headings, speeds=self.speeds, inputs=self.inputs,
+            formation_error=self.formation_error, desired=self.desired,
+        )  # fmt: skip
+        return path
+
+    def csv_bytes(self) -> int:
+        """Approximate size (bytes) of :meth:`to_csv`'s file, to decide whether to write it."""
+        return int(self.headings.size * 8 * 13)
+
+
+# ---------------------------------------------------------------- metrics
+def formation_error(positions: _Array, desired: _Array) -> _Array:
+    """RMS distance from the desired shape after removing the common (mean) offset."""
+    dev = positions - desired[None]
+    dev -= dev.mean(axis=1, keepdims=True)
+    return np.sqrt(np.mean(np.sum(dev**2, axis=2), axis=1))
+
+
+def settling_time(times: _Array, error: _Array, scale: float) -> float:
+    """First time after which ``error`` stays below SETTLING_FRACTION of ``error[0]``.
+
+    Errors below ``1e-12 scale`` (rounding, for a team that starts in
+    formation) count as settled. A run whose error does not end below the
+    threshold has not settled: ``inf``.
+    """
+    above = np.flatnonzero(~(error <= max(SETTLING_FRACTION * error[0], 1e-12 * scale)))
+    if above.size == 0:
+        return float(times[0])
+    last = above[-1]
+    return float(times[last + 1]) if last + 1 < times.size else math.inf
+
+
+def min_distance(positions: _Array) -> float:
+    """Smallest distance between two robots over all samples, without an n x n matrix for large n."""
+    T, n, _ = positions.shape
+    if n < 2:
+        return math.inf
+    if n <= 64:
+        i, j = np.triu_indices(n, k=1)
+        diff = positions[:, i] - positions[:, j]
+        return float(np.sqrt(np.min(diff[..., 0] ** 2 + diff[..., 1] ** 2)))
+    from scipy.spatial import cKDTree
+
+    best = math.inf
+    for frame in positions:
+        d, _ = cKDTree(frame).query(frame, k=2)
+        best = min(best, float(d[:, 1].min()))
+    return best
+
+
+def run_status(
+    times: _Array, error: _Array, settled_at: float, stopped: float | None, duration: float
+) -> tuple[str, tuple[str, ...]]:
+    """The status of a run and sentences explaining a run that did not settle."""
+    if stopped is not None:
+        return "stopped", (
+            f"the run diverged: the state passed 1e8 times its initial size at t = {stopped:.4g} s "
+            f"and integration stopped there (the delays are probably unstable)",
+        )
+    if math.isfinite(settled_at):
+        return "settled", ()
+    growth = float(error[-1] / error[0]) if error[0] > 0 else math.inf
+    if growth > DIVERGING_GROWTH:
+        return "diverging", (
+            f"the formation error grew {growth:.3g}-fold over {times[-1]:.4g} s: the run is diverging "
+            f"(the delays are probably unstable)",
+        )
+    return "not settled", (
+        f"the formation error did not stay below {SETTLING_FRACTION:.0%} of its initial value within "
+        f"{duration:.4g} s (it ended at {error[-1] / error[0]:.2%}); simulate longer",
+    )
