@@ -110,7 +110,7 @@ def montecarlo_command(scenario: Path | None, runs: int, seed: int | None, worke
     setup = make_setup(
         sc.topology, sc.P, sc.D, sc.tau1, sc.tau2, sc.desired_positions(), model=sim.model, network=network,
         duration=sim.duration, dt=sim.dt, initial_positions=sc.initial_positions(),
-        initial_headings=sc.initial_headings(), initial_speed=sc.initial.speed,
+        initial_headings=sc.initial_headings(), initial_speed=sc.initial.speed, limits=sc.robot,
     )  # fmt: skip
     guard(setup, runs, workers or 1)
     with executor_for(workers=workers, scheduler=scheduler) as ex:

@@ -425,6 +425,7 @@ def make_setup(
     initial_positions: ArrayLike | None = None,
     initial_headings: ArrayLike | None = None,
     initial_speed: float = 1e-3,
+    limits: Any = None,
 ) -> Setup:
     """The checked scenario-like inputs of a Monte Carlo or of a sweep's base point.
 
@@ -442,6 +443,8 @@ def make_setup(
         Fixed initial state, or None to draw it per run.
     initial_speed
         Initial speed (the paper's 1e-3).
+    limits
+        Actuator limits of the robots, or None for ideal ones.
 
     Raises
     ------
@@ -455,7 +458,7 @@ def make_setup(
         model=model, network=network, duration=duration, dt=dt,
         initial_positions=None if initial_positions is None else np.asarray(initial_positions, dtype=np.float64),
         initial_headings=None if initial_headings is None else np.asarray(initial_headings, dtype=np.float64),
-        initial_speed=initial_speed,
+        initial_speed=initial_speed, limits=limits,
     )  # fmt: skip
     return checked(setup)
 
@@ -528,6 +531,7 @@ def monte_carlo(
     initial_positions: ArrayLike | None = None,
     initial_headings: ArrayLike | None = None,
     initial_speed: float = 1e-3,
+    limits: Any = None,
     executor: Executor | None = None,
     progress: Progress | None = None,
 ) -> MonteCarloResult:
@@ -554,6 +558,9 @@ def monte_carlo(
         Fixed initial state; None draws it per run.
     initial_speed
         Initial speed (the paper's 1e-3).
+    limits
+        Actuator limits of the robots (:class:`~delayform.simulation.robots.RobotLimits`),
+        or None for ideal ones; not over an imperfect network.
     executor
         Where the runs go (:class:`SerialExecutor` by default; see
         :func:`delayform.sweeps.executor` for Dask); its ``workers``
@@ -585,6 +592,7 @@ def monte_carlo(
     setup = make_setup(
         topology, P, D, tau1, tau2, formation, model=model, network=network, duration=duration, dt=dt,
         initial_positions=initial_positions, initial_headings=initial_headings, initial_speed=initial_speed,
+        limits=limits,
     )  # fmt: skip
     guard(setup, runs, int(getattr(executor, "workers", 1)))
     tasks = [(setup, r, s) for r, s in enumerate(run_seeds(seed, runs))]
