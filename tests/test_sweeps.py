@@ -68,6 +68,7 @@ def test_a_sweep_of_the_ideal_network_agrees_with_the_dominant_root() -> None:
         stable = dominant_root(paper_six(), 1.0, 0.5, t1, t2).is_stable
         assert (r.settled_fraction == 1.0) == stable, (t1, t2)
         assert (r.final_errors < r.initial_errors).all() == stable
+        assert set(r.statuses) == ({"settled"} if stable else {"diverging"})
 
 
 def test_delay_sweep_grid_and_labels() -> None:

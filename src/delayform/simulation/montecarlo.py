@@ -137,6 +137,7 @@ class RunOutcome:
     peak_commands: tuple[float, float]
     error_times: _Array
     errors: _Array
+    status: str = "settled"
 
 
 def run_seeds(seed: int, runs: int) -> list[tuple[int, int]]:
@@ -187,6 +188,7 @@ def simulate_run(task: tuple[Setup, int, tuple[int, int]]) -> RunOutcome:
         peak_commands=peaks,
         error_times=traj.times[keep],
         errors=traj.formation_error[keep],
+        status=traj.status,
     )
 
 
@@ -250,6 +252,9 @@ class MonteCarloResult:
         ``(|u|, 0)`` for double integrators, ``(|dv/dt|, |omega|)`` for unicycles.
     command_names
         Names of the two columns of ``peak_commands``.
+    statuses
+        ``(runs,)`` status of each run (:data:`delayform.simulation.STATUSES`:
+        settled, not settled, diverging, stopped).
     """
 
     setup: Setup
@@ -262,6 +267,7 @@ class MonteCarloResult:
     initial_errors: _Array
     peak_commands: _Array
     command_names: tuple[str, str] = field(default=("|u|", ""))
+    statuses: tuple[str, ...] = ()
 
     @property
     def settled_fraction(self) -> float:
@@ -301,7 +307,8 @@ class MonteCarloResult:
         infinite (reported as None in JSON).
         """
         out: dict[str, Any] = {"runs": self.runs, "seed": self.seed, "settled_fraction": self.settled_fraction,
-                               "setup": self.setup.describe(), "command_names": list(self.command_names)}  # fmt: skip
+                               "setup": self.setup.describe(), "command_names": list(self.command_names),
+                               "statuses": {k: self.statuses.count(k) for k in sorted(set(self.statuses))}}  # fmt: skip
         for name in _METRICS:
             if name == "peak_command_2" and not self.command_names[1]:
                 continue
@@ -329,6 +336,7 @@ class MonteCarloResult:
             ("runs (seed)", f"{self.runs} ({self.seed})"),
             ("network", s["setup"]["network"]),
             ("settled within the duration", f"{100 * self.settled_fraction:.0f} %"),
+            ("runs by status", ", ".join(f"{k}: {v}" for k, v in s["statuses"].items())),
             ("settling time: median [5 %, 95 %]", cell(s["settling_time"], " s")),
             ("final formation error", cell(s["final_error"], " m")),
             (f"peak {self.command_names[0]}", cell(s["peak_command_1"], "")),
@@ -511,6 +519,7 @@ def collect(setup: Setup, runs: int, seed: int, outcomes: Sequence[RunOutcome]) 
         initial_errors=np.array([o.initial_error for o in ordered]),
         peak_commands=np.array([o.peak_commands for o in ordered]),
         command_names=names,
+        statuses=tuple(o.status for o in ordered),
     )  # fmt: skip
 
 
