@@ -86,7 +86,8 @@ SCENARIO_CASES: list[tuple[str, str | None, tuple[str, ...], str]] = [
      .replace('"hexagon"', '"line"'), ("chart",), "topology.edges"),
     ("no spanning tree", BASE.replace('name = "paper_six"', "adjacency = [[0,1,0,0],[1,0,0,0],[0,0,0,1],[0,0,1,0]]")
      .replace('"hexagon"', '"line"'), ("factors",), "spanning tree"),
-    ("300000 agents", BASE.replace('name = "paper_six"', 'name = "ring"\nn = 300000')
+    # a star (a ring's C is circulant: its eigenvalues come from an FFT, no dense problem to refuse)
+    ("300000 agents", BASE.replace('name = "paper_six"', 'name = "star"\nn = 300000')
      .replace('"hexagon"', '"line"'), ("factors",), "memory"),
     ("spacing huge", BASE.replace('shape = "hexagon"', 'shape = "hexagon"\nspacing = 1e308'), ("chart",), "spacing"),
     ("unknown shape", BASE.replace('"hexagon"', '"circle"'), ("roots",), "formation.shape"),

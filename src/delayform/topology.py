@@ -317,17 +317,19 @@ class Topology:
     @cached_property
     def eigenvalues(self) -> NDArray[np.complex128]:
         """All n eigenvalues of C, sorted by decreasing real part then imaginary part."""
-        from delayform.resources import require
+        vals = _circulant_eigenvalues(self.C_sparse)
+        if vals is None:
+            from delayform.resources import require
 
-        # dense eigenvalues: about 5 copies of n x n doubles and ~25 n^3 flops at ~5 Gflop/s
-        require(
-            what=f"the eigenvalues of C for {self.n} agents",
-            setting="the number of agents (topology.n, --n)",
-            nbytes=5 * 8.0 * self.n**2,
-            seconds=25 * float(self.n) ** 3 / 5e9,
-        )
-        C = self._C_dense if self.n <= DENSE_LIMIT else self.C_sparse.toarray()
-        vals = np.linalg.eigvals(C).astype(np.complex128)
+            # dense eigenvalues: about 5 copies of n x n doubles and ~25 n^3 flops at ~5 Gflop/s
+            require(
+                what=f"the eigenvalues of C for {self.n} agents",
+                setting="the number of agents (topology.n, --n)",
+                nbytes=5 * 8.0 * self.n**2,
+                seconds=25 * float(self.n) ** 3 / 5e9,
+            )
+            C = self._C_dense if self.n <= DENSE_LIMIT else self.C_sparse.toarray()
+            vals = np.linalg.eigvals(C).astype(np.complex128)
         order = np.lexsort((-vals.imag, -vals.real))
         return vals[order]
 
@@ -359,6 +361,32 @@ def _cluster(values: NDArray[np.complex128], tol: float) -> list[NDArray[np.comp
     )
     n_comp, labels = csgraph.connected_components(graph, directed=False)
     return [values[labels == k] for k in range(n_comp)]
+
+
+def _circulant_eigenvalues(C: sp.csr_array) -> NDArray[np.complex128] | None:
+    """Eigenvalues of a circulant C (C[i, j] depends on (j - i) mod n only), else None.
+
+    Rings and other cyclic topologies are circulant; their eigenvalues are the
+    discrete Fourier transform of the first row (O(n log n) instead of a dense
+    O(n^3) eigenvalue problem), made exactly conjugate-symmetric.
+    """
+    n = C.shape[0]
+    coo = C.tocoo()
+    if n < 3 or coo.nnz == 0 or coo.nnz % n:
+        return None
+    offset = (coo.col - coo.row) % n
+    first = np.zeros(n)
+    row0 = coo.row == 0
+    first[offset[row0]] = coo.data[row0]
+    if np.count_nonzero(first) * n != coo.nnz or not np.array_equal(first[offset], coo.data):
+        return None
+    vals = np.fft.fft(first)
+    k = np.arange(1, (n + 1) // 2)
+    vals[n - k] = np.conj(vals[k])
+    vals[0] = vals[0].real
+    if n % 2 == 0:
+        vals[n // 2] = vals[n // 2].real
+    return vals.astype(np.complex128)
 
 
 def _group_eigenvalues(vals: NDArray[np.complex128]) -> tuple[EigenvalueGroup, ...]:

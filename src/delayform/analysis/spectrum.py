@@ -61,14 +61,50 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from functools import lru_cache
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import numpy.polynomial.polynomial as npoly
 from numpy.typing import ArrayLike, NDArray
 
 from delayform._validation import check_delay, check_gains
+# the internals live in one module per concept; the private names other modules
+# (design/scheduling.py) import from here stay importable from here
+from delayform.analysis._family import centroid_drift_roots, family_grid, family_rightmost, family_reach_scales
+from delayform.analysis._generator import (  # noqa: F401
+    _chebyshev,
+    _lagrange_rows,
+    _map_degree,
+    _delay_free_eigenvalues,
+    _igd_eigenvalues,
+    _igd_seeds,
+    _initial_degree,
+    _max_delay,
+    _root_scale,
+)
+from delayform.analysis._quasi import (  # noqa: F401
+    MAX_DEGREE,
+    RESIDUAL_TOL,
+    Region,
+    _cluster,
+    _evaluate,
+    _mirror_problem,
+    _multiplicity,
+    _polish,
+    _Problem,
+    _problem,
+    _problem_of_factor,
+    _problem_of_qp,
+)
+from delayform.analysis._rightmost import (  # noqa: F401
+    _BATCH_SEEDS,
+    _SEED_WINDOW,
+    _batch_distinct,
+    _certify,
+    _pick_rightmost,
+    _rightmost_grid,
+    _solve_rightmost,
+)
+from delayform.analysis.certificate import _batch_lines, _count_right_single, _region_count  # noqa: F401
 from delayform.characteristic import CharacteristicFactor, TwoDelayQuasiPolynomial, factors
 from delayform.errors import DelayError, InputError, NoStableDelaysError, NotConvergedError, ResourceLimitError
 from delayform.resources import require
@@ -92,167 +128,8 @@ __all__ = [
     "NoStableDelaysError",
 ]
 
-#: Acceptance threshold of the relative residual of a polished root.
-RESIDUAL_TOL = 1e-10
-#: Largest Chebyshev discretization degree tried before giving up.
-MAX_DEGREE = 192
 #: Settling time (2 % criterion) = ln(50) / |Re s_dom| ~ 3.9 time constants.
 SETTLING_FACTOR = math.log(50.0)
-
-_NEWTON_MAXITER = 50
-#: Delays below this seed Newton from the delay-free roots (a discretization of
-#: [-h, 0] would overflow; the polishing and the certificate use the exact q).
-_TINY_DELAY = 1e-10
-#: Largest distance of the certifying line Re s = c from the roots it separates.
-_LINE_OFFSET = 0.1
-#: Most sample points spent on one certified contour before giving up.
-_MAX_SAMPLES = 400_000
-
-Region = tuple[float, float, float, float]
-_Terms = tuple[tuple[NDArray[np.complex128], int, int], ...]
-
-
-# =====================================================================
-# the problem: a quasi-polynomial and a DDE whose characteristic function it is
-# =====================================================================
-@dataclass(frozen=True, eq=False)
-class _Problem:
-    """What the solvers work on.
-
-    ``terms`` is the quasi-polynomial polished and counted (eq. genfactor
-    terms as (coefficients, multiple of tau1, multiple of tau2)); ``A`` and
-    ``delayed`` a DDE realization whose characteristic function is q up to a
-    constant; ``mirror`` adds complex conjugates of the roots (a conjugate
-    pair factor solved through its complex second-order factor of lam);
-    ``deflate_zero`` removes the persistent root s = 0 of eq. factor1.
-    """
-
-    terms: _Terms
-    A: NDArray[np.complex128]
-    delayed: tuple[tuple[NDArray[np.complex128], int, int], ...]
-    mirror: bool = False
-    deflate_zero: bool = False
-
-    @property
-    def degree(self) -> int:
-        return int(self.terms[0][0].size - 1)
-
-    @property
-    def d(self) -> int:
-        return int(self.A.shape[0])
-
-    @property
-    def is_real(self) -> bool:
-        mats = [self.A] + [b for b, _, _ in self.delayed]
-        return all(np.all(m.imag == 0.0) for m in mats)
-
-
-def _problem_of_qp(qp: TwoDelayQuasiPolynomial) -> _Problem:
-    """Companion-form DDE of a retarded quasi-polynomial (eq. genfactor).
-
-    With x = (y, y', ..., y^(N-1)) and g1 made monic, the last row carries
-    -g1's lower coefficients (undelayed) and -g_k (delayed by h_k); the
-    characteristic function det(sI - A - sum B_k e^{-h_k s}) is q / lead(g1).
-    """
-    qp.require_retarded()
-    terms = qp.terms()
-    g1 = terms[0][0]
-    n = g1.size - 1
-    lead = g1[-1]
-    A = np.zeros((n, n), dtype=np.complex128)
-    A[np.arange(n - 1), np.arange(1, n)] = 1.0
-    A[-1, :] = -g1[:n] / lead
-    delayed = []
-    for c, a, b in terms[1:]:
-        B = np.zeros((n, n), dtype=np.complex128)
-        B[-1, : c.size] = -c / lead
-        delayed.append((B, a, b))
-    return _Problem(terms=terms, A=A, delayed=tuple(delayed))
-
-
-def _problem_of_factor(factor: CharacteristicFactor) -> _Problem:
-    """Subsystem of a factor (eq. subsystems); a pair is solved via lam alone.
-
-    The fourth-order factor of (lam, conj lam) is q_lam(s) q_conj(lam)(s) with
-    q_lam = s^2 + D s + P - lam (D s e^{-tau2 s} + P e^{-tau1 s}), and the roots
-    of q_conj(lam) are the conjugates of those of q_lam.
-    """
-    P, D, lam = factor.P, factor.D, complex(factor.lam)
-    if factor.group.is_complex_pair:
-        terms: _Terms = (
-            (np.array([P, D, 1.0], dtype=np.complex128), 0, 0),
-            (np.array([-lam * P], dtype=np.complex128), 1, 0),
-            (np.array([0.0, -lam * D], dtype=np.complex128), 0, 1),
-        )
-        A = np.array([[0.0, 1.0], [-P, -D]], dtype=np.complex128)
-        B1 = lam * np.array([[0.0, 0.0], [P, 0.0]], dtype=np.complex128)
-        B2 = lam * np.array([[0.0, 0.0], [0.0, D]], dtype=np.complex128)
-        return _Problem(terms=terms, A=A, delayed=((B1, 1, 0), (B2, 0, 1)), mirror=True)
-    A, B1, B2 = (np.asarray(m, dtype=np.complex128) for m in factor.state_matrices())
-    return _Problem(
-        terms=factor.quasi_polynomial.terms(),
-        A=A,
-        delayed=((B1, 1, 0), (B2, 0, 1)),
-        deflate_zero=factor.is_centroid,
-    )
-
-
-def _problem(qp: TwoDelayQuasiPolynomial | CharacteristicFactor) -> _Problem:
-    if isinstance(qp, CharacteristicFactor):
-        return _problem_of_factor(qp)
-    if isinstance(qp, TwoDelayQuasiPolynomial):
-        return _problem_of_qp(qp)
-    raise InputError(
-        f"expected a TwoDelayQuasiPolynomial or CharacteristicFactor, got {type(qp).__name__}"
-    )
-
-
-# =====================================================================
-# evaluation of q, q' and the term magnitudes (vectorized)
-# =====================================================================
-def _horner(c: NDArray[np.complex128], s: NDArray[Any]) -> NDArray[Any]:
-    out = np.zeros(np.shape(s), dtype=np.result_type(c, s)) + c[-1]
-    for coef in c[-2::-1]:
-        out = out * s + coef
-    return out
-
-
-@lru_cache(maxsize=256)
-def _derivative_coefficients(key: bytes, size: int) -> NDArray[np.complex128]:
-    c = np.frombuffer(key, dtype=np.complex128, count=size)
-    return npoly.polyder(c) if size > 1 else np.zeros(1, dtype=np.complex128)
-
-
-def _evaluate(
-    terms: _Terms, s: NDArray[np.complex128], t1: NDArray[np.float64], t2: NDArray[np.float64],
-    *, magnitude: bool = True,
-) -> tuple[NDArray[np.complex128], NDArray[np.complex128], NDArray[np.float64]]:
-    """q(s), dq/ds and sum of |monomial terms| (the residual's scale), broadcasting.
-
-    With ``magnitude=False`` the third array is empty (Newton iterations skip it).
-    """
-    shape = np.broadcast_shapes(np.shape(s), np.shape(t1), np.shape(t2))
-    q = np.zeros(shape, dtype=np.complex128)
-    dq = np.zeros(shape, dtype=np.complex128)
-    mag = np.zeros(shape if magnitude else (0,))
-    abs_s = np.abs(s) if magnitude else None
-    with np.errstate(all="ignore"):  # far-left spurious seeds overflow; filtered by callers
-        for c, a, b in terms:
-            p = _horner(c, s)
-            dp = _horner(_derivative_coefficients(c.tobytes(), c.size), s)
-            if a or b:
-                h = a * t1 + b * t2
-                e = np.exp(-h * s)
-                q += p * e
-                dq += (dp - h * p) * e
-                if magnitude:
-                    mag += _abs_poly(c, abs_s) * np.abs(e)
-            else:
-                q += p
-                dq += dp
-                if magnitude:
-                    mag += _abs_poly(c, abs_s)
-    return q, dq, mag
 
 
 def relative_residual(
@@ -291,458 +168,16 @@ def relative_residual(
 
 
 # =====================================================================
-# spectral discretization of the infinitesimal generator (batched)
-# =====================================================================
-@lru_cache(maxsize=64)
-def _chebyshev(N: int) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    """Chebyshev points cos(j pi / N), differentiation matrix and barycentric weights."""
-    j = np.arange(N + 1)
-    x = np.cos(np.pi * j / N)
-    c = np.where((j == 0) | (j == N), 2.0, 1.0) * (-1.0) ** j
-    dx = x[:, None] - x[None, :]
-    Dm = np.outer(c, 1.0 / c) / (dx + np.eye(N + 1))
-    Dm = Dm - np.diag(Dm.sum(axis=1))  # negative-sum trick (Trefethen, Spectral Methods in MATLAB)
-    w = (-1.0) ** j * np.where((j == 0) | (j == N), 0.5, 1.0)
-    return x, Dm, w
-
-
-def _lagrange_rows(N: int, xq: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Values of the N+1 Lagrange basis polynomials at points xq (barycentric formula)."""
-    x, _, w = _chebyshev(N)
-    diff = xq[..., None] - x
-    hit = np.abs(diff) < 1e-15
-    safe = np.where(hit, 1.0, diff)
-    t = w / safe
-    rows = t / t.sum(axis=-1, keepdims=True)
-    on_node = hit.any(axis=-1)
-    return np.where(on_node[..., None], hit.astype(float), rows)
-
-
-def _igd_eigenvalues(
-    prob: _Problem, N: int, t1: NDArray[np.float64], t2: NDArray[np.float64]
-) -> NDArray[np.complex128]:
-    """Eigenvalues of the degree-N discretized generator at each delay pair (shape (B, d(N+1))).
-
-    Rows 1..N collocate u' = d/dtheta u at the Chebyshev points of
-    [-h_max, 0]; row 0 is the DDE itself, the delayed states read off the
-    interpolating polynomial at theta = -h_k. All pairs must have h_max > 0.
-    """
-    d = prob.d
-    x, Dm, _ = _chebyshev(N)
-    Bstack = np.stack([b for b, _, _ in prob.delayed])  # (K, d, d)
-    h = np.stack([a * t1 + b * t2 for _, a, b in prob.delayed], axis=-1)  # (B, K)
-    hmax = h.max(axis=-1)
-    L = _lagrange_rows(N, 1.0 - 2.0 * h / hmax[:, None])  # (B, K, N+1)
-    real = prob.is_real
-    dtype = np.float64 if real else np.complex128
-    Bm = Bstack.real if real else Bstack
-    M = np.zeros((t1.size, N + 1, d, N + 1, d), dtype=dtype)
-    M[:, 0] = np.einsum("bkj,kpq->bpjq", L, Bm)
-    M[:, 0, :, 0, :] += prob.A.real if real else prob.A
-    M[:, 1:] = (2.0 / hmax)[:, None, None, None, None] * np.einsum(
-        "ij,pq->ipjq", Dm[1:], np.eye(d)
-    )
-    size = (N + 1) * d
-    return np.linalg.eigvals(M.reshape(t1.size, size, size)).astype(np.complex128)
-
-
-def _delay_free_eigenvalues(prob: _Problem) -> NDArray[np.complex128]:
-    """Roots at tau1 = tau2 = 0: eigenvalues of A + sum B_k."""
-    total = prob.A + sum(b for b, _, _ in prob.delayed)
-    return np.linalg.eigvals(total)
-
-
-def _max_delay(prob: _Problem, t1: float, t2: float) -> float:
-    """Largest delay of the realization; below :data:`_TINY_DELAY` it counts as none for seeding."""
-    h = max([a * t1 + b * t2 for _, a, b in prob.delayed] + [0.0])
-    return h if h >= _TINY_DELAY else 0.0
-
-
-# =====================================================================
-# Newton polishing
-# =====================================================================
-def _polish(
-    prob: _Problem, s0: NDArray[np.complex128], t1: NDArray[np.float64], t2: NDArray[np.float64]
-) -> tuple[NDArray[np.complex128], NDArray[np.bool_]]:
-    """Newton's method on q from the seeds s0 (broadcasting with t1, t2).
-
-    With ``deflate_zero`` the step is Maehly's q / (q' - q/s), Newton on q(s)/s,
-    so seeds are not drawn into the persistent root 0. Only the seeds still
-    moving are iterated. Returns the roots and a mask of those whose relative
-    residual is <= RESIDUAL_TOL.
-    """
-    shape = np.broadcast_shapes(np.shape(s0), np.shape(t1), np.shape(t2))
-    s = np.array(np.broadcast_to(s0, shape), dtype=np.complex128).ravel()
-    b1 = np.broadcast_to(t1, shape).ravel()
-    b2 = np.broadcast_to(t2, shape).ravel()
-    finite = np.isfinite(s)
-    s[~finite] = 0.0
-    act = np.flatnonzero(finite)
-    for _ in range(_NEWTON_MAXITER):
-        if act.size == 0:
-            break
-        sa = s[act]
-        q, dq, _ = _evaluate(prob.terms, sa, b1[act], b2[act], magnitude=False)
-        with np.errstate(all="ignore"):
-            step = q / (dq - q / sa) if prob.deflate_zero else q / dq
-        bad = ~np.isfinite(step)
-        if prob.deflate_zero:
-            bad |= sa == 0.0  # s = 0 hit exactly: settled by _deflated_zero
-        step[bad] = 0.0
-        s[act] = sa - step
-        moving = ~bad & (np.abs(step) > 4e-16 * (1.0 + np.abs(sa)))
-        act = act[moving]
-    s = s.reshape(shape)
-    b1, b2 = b1.reshape(shape), b2.reshape(shape)
-    zero_ok = np.ones(shape, dtype=bool)
-    if prob.deflate_zero:
-        s, zero_ok = _deflated_zero(prob, s, b1, b2)
-    q, _, mag = _evaluate(prob.terms, s, b1, b2)
-    with np.errstate(all="ignore"):
-        ok = finite.reshape(shape) & np.isfinite(mag) & (np.abs(q) <= RESIDUAL_TOL * mag)
-    return s, ok & zero_ok
-
-
-def _deflated_zero(
-    prob: _Problem, s: NDArray[np.complex128], t1: NDArray[np.float64], t2: NDArray[np.float64]
-) -> tuple[NDArray[np.complex128], NDArray[np.bool_]]:
-    """Settle seeds that reached s ~ 0 after deflating the persistent root of eq. factor1.
-
-    Near 0, Newton on q(s)/s cannot resolve a root better than about
-    sqrt(eps) (q's terms cancel), so a seed that ended there is replaced by
-    the root of the Taylor model of q(s)/s at 0,
-    ``d1 + d2 s / 2 + d3 s^2 / 6`` (dk the k-th derivative of q at 0):
-    exactly 0 when 0 is a double root (d1 = 0, e.g. tau1 = 0 for
-    eq. factor1), and otherwise the small genuine root a tiny delay puts next
-    to 0 (about -P tau1 / (1 + D tau2) for eq. factor1), accurate to O(s^3).
-    A seed near 0 when that root is not (a spurious seed) is rejected.
-    """
-    near = np.abs(s) < 1e-6
-    if not near.any():
-        return s, np.ones(s.shape, dtype=bool)
-    shape = np.broadcast_shapes(s.shape, np.shape(t1), np.shape(t2))
-    b1, b2 = np.broadcast_to(t1, shape), np.broadcast_to(t2, shape)
-    # derivatives at 0 of the terms p(s) e^{-h s}, each summed exactly (fsum): d1 is
-    # tiny when large terms cancel, and its relative accuracy is the root's
-    parts: list[list[list[complex]]] = [[[], [], []] for _ in range(int(np.prod(shape)))]
-    for c, a, b in prob.terms:
-        p0, p1, p2, p3 = (complex(c[k]) * math.factorial(k) if k < c.size else 0j for k in range(4))
-        for idx, h in enumerate((a * b1 + b * b2).ravel().tolist()):
-            parts[idx][0] += [p1, -h * p0]
-            parts[idx][1] += [p2, -2 * h * p1, h**2 * p0]
-            parts[idx][2] += [p3, -3 * h * p2, 3 * h**2 * p1, -(h**3) * p0]
-
-    def exact(k: int) -> NDArray[np.complex128]:
-        vals = [complex(math.fsum(z.real for z in part[k]), math.fsum(z.imag for z in part[k])) for part in parts]
-        return np.array(vals, dtype=np.complex128).reshape(shape)
-
-    d1, d2, d3 = exact(0), exact(1), exact(2)
-    double = d1 == 0.0  # summed exactly: any other value is a genuine small root
-    with np.errstate(all="ignore"):
-        lin = -2.0 * d1 / d2  # root of d1 + d2 s / 2, then one correction for the cubic term
-        model = lin - (d3 / 3.0) * lin**2 / d2
-    model = np.where(double, 0.0, model)
-    # q(s)/s is about linear within 1e-5 of 0, so its only root there is the model's
-    genuine = np.isfinite(model) & (np.abs(model) < 1e-5)
-    keep = ~near | double | genuine
-    return np.where(near & keep, model, s), keep
-
-
-def _cluster(roots: NDArray[np.complex128]) -> NDArray[np.complex128]:
-    """The distinct roots among polished seeds (many seeds may reach the same root)."""
-    if roots.size == 0:
-        return roots
-    order = np.lexsort((roots.imag, roots.real))
-    out: list[complex] = []
-    for z in roots[order]:
-        if not any(abs(z - y) <= 1e-7 * (1.0 + abs(y)) for y in out):
-            out.append(complex(z))
-    return np.asarray(out, dtype=np.complex128)
-
-
-def _nth_derivative(
-    terms: _Terms, s: NDArray[np.complex128], t1: float, t2: float, k: int
-) -> tuple[NDArray[np.complex128], NDArray[np.float64]]:
-    """d^k q / ds^k and the sum of the moduli of its terms (Leibniz rule on p(s) e^{-h s})."""
-    val = np.zeros(s.shape, dtype=np.complex128)
-    mag = np.zeros(s.shape)
-    for c, a, b in terms:
-        h = a * t1 + b * t2
-        e = np.exp(-h * s)
-        for j in range(k + 1):
-            dj = npoly.polyder(c, j) if j else c
-            if dj.size == 0:
-                continue
-            w = math.comb(k, j) * (-h) ** (k - j)
-            if w == 0.0:
-                continue
-            p = _horner(dj, s)
-            val = val + w * p * e
-            # scale at |s| >= 1: near s = 0 a derivative like 2 s is "small" only against 1
-            mag = mag + abs(w) * _abs_poly(dj, np.maximum(np.abs(s), 1.0)) * np.abs(e)
-    return val, mag
-
-
-def _multiplicity(
-    prob: _Problem, roots: NDArray[np.complex128], t1: float, t2: float
-) -> NDArray[np.int64]:
-    """Multiplicity of each polished root: the first derivative of q that is not negligible.
-
-    A root of multiplicity m is only accurate to about eps^(1/m), so the
-    derivatives below m are "negligible" at 1e-5 of their terms' scale; the
-    certified count catches a wrong call, which then triggers a finer pass.
-    """
-    mult = np.ones(roots.shape, dtype=np.int64)
-    if roots.size == 0:
-        return mult
-    undecided = np.ones(roots.shape, dtype=bool)
-    for k in range(1, 5):
-        val, mag = _nth_derivative(prob.terms, roots, t1, t2, k)
-        small = undecided & (np.abs(val) <= 1e-5 * mag)
-        mult = np.where(small, k + 1, mult)
-        undecided = small
-        if not undecided.any():
-            break
-    if prob.deflate_zero:  # the persistent zero is counted apart; q(s)/s has one less at 0
-        mult = np.where(np.abs(roots) < 1e-7, mult - 1, mult)
-    return mult
-
-
-# =====================================================================
-# argument principle with certified sampling
-# =====================================================================
-def _abs_poly(c: NDArray[np.complex128], rho: NDArray[np.float64]) -> NDArray[np.float64]:
-    """sum_i |c_i| rho^i, the bound of |c(s)| on |s| <= rho."""
-    absc = np.abs(c)
-    out = np.zeros(np.shape(rho)) + absc[-1]
-    for coef in absc[-2::-1]:
-        out = out * rho + coef
-    return out
-
-
-def _abs_poly_der(c: NDArray[np.complex128], rho: NDArray[np.float64]) -> NDArray[np.float64]:
-    if c.size < 2:
-        return np.zeros(np.shape(rho))
-    return _abs_poly(npoly.polyder(np.abs(c).astype(np.complex128)), rho)
-
-
-def _lipschitz(
-    terms: _Terms, rho: NDArray[np.float64], re_min: NDArray[np.float64], t1: Any, t2: Any
-) -> NDArray[np.float64]:
-    """Bound of |q'(s)| over |s| <= rho, Re s >= re_min (moduli of coefficients)."""
-    out = np.zeros(np.broadcast_shapes(np.shape(rho), np.shape(re_min), np.shape(t1), np.shape(t2)))
-    for c, a, b in terms:
-        h = a * np.asarray(t1) + b * np.asarray(t2)
-        with np.errstate(over="ignore"):
-            w = np.exp(-h * re_min)
-        out = out + w * (_abs_poly_der(c, rho) + h * _abs_poly(c, rho))
-    return out
-
-
-def _segment_winding(
-    terms: _Terms, t1: float, t2: float, s0: complex, s1: complex, *, budget: int
-) -> tuple[float, int] | None:
-    """Certified change of arg q along the segment s0 -> s1, and samples used.
-
-    Segments of the sampling are bisected until every one satisfies the
-    Lipschitz condition of the module docstring; None when ``budget`` samples
-    do not suffice (a root on or extremely close to the segment).
-    """
-    length = abs(s1 - s0)
-    t = np.linspace(0.0, 1.0, 65)
-    a1, a2 = np.asarray(t1), np.asarray(t2)
-    for _ in range(64):  # 64 bisections: segments far below rounding of s
-        if t.size > budget:
-            return None
-        s = s0 + t * (s1 - s0)
-        q, _, _ = _evaluate(terms, s, a1, a2)
-        absq = np.abs(q)
-        if not np.all(np.isfinite(absq)) or np.any(absq == 0.0):
-            return None
-        rho = np.maximum(np.abs(s[:-1]), np.abs(s[1:]))
-        re_min = np.minimum(s[:-1].real, s[1:].real)
-        L = _lipschitz(terms, rho, re_min, t1, t2) * length * np.diff(t)
-        bad = np.minimum(absq[:-1], absq[1:]) <= 0.5 * L
-        if not bad.any():
-            return float(np.angle(q[1:] / q[:-1]).sum()), int(t.size)
-        mids = 0.5 * (t[:-1] + t[1:])[bad]
-        t = np.sort(np.concatenate([t, mids]))
-    return None
-
-
-def _region_count(
-    prob: _Problem, t1: float, t2: float, region: Region, *, budget: int = _MAX_SAMPLES
-) -> int | None:
-    """Certified number of roots of q inside the rectangle (multiplicity counted)."""
-    x0, x1, y0, y1 = region
-    corners = [complex(x0, y0), complex(x1, y0), complex(x1, y1), complex(x0, y1)]
-    total = 0.0
-    for k in range(4):
-        piece = _segment_winding(prob.terms, t1, t2, corners[k], corners[(k + 1) % 4], budget=budget)
-        if piece is None:
-            return None
-        total += piece[0]
-    count = total / (2.0 * np.pi)
-    return int(round(count)) if abs(count - round(count)) < 0.1 else None
-
-
-def _cauchy_radius(
-    terms: _Terms, c: NDArray[np.float64], t1: NDArray[np.float64], t2: NDArray[np.float64]
-) -> NDArray[np.float64]:
-    """Omega with |g1(s)| > sum_k |g_k(s)| e^{-h_k c} whenever |s| >= Omega (Rouche on Re s = c).
-
-    The positive root of |a_N| r^N - sum_{i<N} (|a_i| + sum_k e^{-h_k c} |b_k,i|) r^i
-    (one sign change, so exactly one), found by bisection; the upper end is
-    returned, where the polynomial is strictly positive.
-    """
-    g1 = np.abs(terms[0][0])
-    n = g1.size - 1
-    shape = np.broadcast_shapes(c.shape, t1.shape, t2.shape)
-    low = np.zeros(shape + (n,))
-    low[...] = g1[:n]
-    for coef, a, b in terms[1:]:
-        with np.errstate(over="ignore"):
-            w = np.exp(-(a * t1 + b * t2) * c)
-        low[..., : coef.size] += w[..., None] * np.abs(coef)
-    lead = g1[n]
-    if n == 2:  # the second-order factors of eq. factorized: the quadratic formula
-        b1, b0 = low[..., 1], low[..., 0]
-        root = (b1 + np.sqrt(b1 * b1 + 4.0 * lead * b0)) / (2.0 * lead)
-        return root * (1.0 + 1e-9) + 1e-12
-    hi = np.maximum(1.0, low.sum(axis=-1) / lead) * (1.0 + 1e-12)
-    lo = np.zeros(shape)
-    powers = np.arange(n)
-
-    def p(r: NDArray[np.float64]) -> NDArray[np.float64]:
-        return lead * r**n - (low * r[..., None] ** powers).sum(axis=-1)
-
-    for _ in range(60):
-        mid = 0.5 * (lo + hi)
-        pos = p(mid) > 0.0
-        hi = np.where(pos, mid, hi)
-        lo = np.where(pos, lo, mid)
-    return hi * (1.0 + 1e-9) + 1e-12
-
-
-def _tail_winding(
-    terms: _Terms, g1_roots: NDArray[np.complex128], s_end: NDArray[np.complex128],
-    t1: NDArray[np.float64], t2: NDArray[np.float64], *, upper: bool,
-) -> NDArray[np.float64]:
-    """Arg change of q from c + i Omega up to c + i inf (upper) or from c - i inf to c - i Omega.
-
-    There |q/g1 - 1| < 1, so arg q = arg g1 + Arg(q/g1), with Arg(q/g1) -> 0
-    at infinity and arg g1 moving by sum over its roots z of the angle of s - z.
-    """
-    q, _, _ = _evaluate(terms, s_end, t1, t2)
-    g1 = _horner(terms[0][0], s_end)
-    ratio = np.angle(q / g1)
-    ang = np.angle(s_end[..., None] - g1_roots)
-    if upper:
-        return (np.pi / 2 - ang).sum(axis=-1) - ratio
-    return (ang + np.pi / 2).sum(axis=-1) + ratio
-
-
-def _g1_roots(terms: _Terms) -> NDArray[np.complex128]:
-    g1 = terms[0][0]
-    return np.roots(g1[::-1]) if g1.size > 1 else np.zeros(0, dtype=np.complex128)
-
-
-def _count_right_single(prob: _Problem, t1: float, t2: float, c: float) -> int | None:
-    """Certified number of roots of q with Re s > c (None if not certifiable)."""
-    a1, a2, cc = np.asarray(t1), np.asarray(t2), np.asarray(c, dtype=float)
-    omega = float(_cauchy_radius(prob.terms, cc, a1, a2))
-    piece = _segment_winding(
-        prob.terms, t1, t2, complex(c, -omega), complex(c, omega), budget=_MAX_SAMPLES
-    )
-    if piece is None:
-        return None
-    roots = _g1_roots(prob.terms)
-    top = _tail_winding(prob.terms, roots, np.asarray(complex(c, omega)), a1, a2, upper=True)
-    bottom = _tail_winding(prob.terms, roots, np.asarray(complex(c, -omega)), a1, a2, upper=False)
-    delta = piece[0] + float(top) + float(bottom)
-    count = prob.degree / 2.0 - delta / (2.0 * np.pi)
-    return int(round(count)) if abs(count - round(count)) < 0.1 else None
-
-
-def _count_right_batch(
-    prob: _Problem, t1: NDArray[np.float64], t2: NDArray[np.float64], c: NDArray[np.float64],
-    *, initial: int = 17, max_segments: int = 4096,
-) -> NDArray[np.float64]:
-    """Certified counts of roots in Re s > c for many delay pairs at once (NaN: not certified).
-
-    The adaptive sampling of :func:`_segment_winding`, vectorized: all lines'
-    segments live in flat arrays; each round bisects, in one evaluation, the
-    segments of every line that fail the Lipschitz condition, and the arg
-    increments of the segments that pass are summed per line. For a real q
-    only Im s >= 0 is walked (q(conj s) = conj q(s) doubles it).
-    """
-    nline = c.size
-    omega = _cauchy_radius(prob.terms, c, t1, t2)
-    real = all(np.all(cf.imag == 0.0) for cf, _, _ in prob.terms)
-    u = np.linspace(0.0 if real else -1.0, 1.0, initial)
-    w = omega[:, None] * u  # (B, M)
-    q, _, _ = _evaluate(prob.terms, c[:, None] + 1j * w, t1[:, None], t2[:, None], magnitude=False)
-    line = np.repeat(np.arange(nline), initial - 1)
-    wa, wb = w[:, :-1].ravel(), w[:, 1:].ravel()
-    qa, qb = q[:, :-1].ravel(), q[:, 1:].ravel()
-    total = np.zeros(nline)
-    failed = ~np.all(np.isfinite(q) & (q != 0.0), axis=1)
-    for _ in range(48):
-        rho = np.sqrt(c[line] ** 2 + np.maximum(wa * wa, wb * wb))
-        L = _lipschitz(prob.terms, rho, c[line], t1[line], t2[line]) * (wb - wa)
-        bad = np.minimum(np.abs(qa), np.abs(qb)) <= 0.5 * L
-        with np.errstate(all="ignore"):
-            total += np.bincount(line[~bad], np.angle(qb[~bad] / qa[~bad]), minlength=nline)
-        if not bad.any():
-            break
-        line, wa, wb, qa, qb = line[bad], wa[bad], wb[bad], qa[bad], qb[bad]
-        too_many = np.bincount(line, minlength=nline) > max_segments
-        failed |= too_many
-        keep = ~too_many[line]
-        line, wa, wb, qa, qb = line[keep], wa[keep], wb[keep], qa[keep], qb[keep]
-        wm = 0.5 * (wa + wb)
-        qm, _, _ = _evaluate(prob.terms, c[line] + 1j * wm, t1[line], t2[line], magnitude=False)
-        failed[line[~np.isfinite(qm) | (qm == 0.0)]] = True
-        line = np.concatenate([line, line])
-        wa, wb = np.concatenate([wa, wm]), np.concatenate([wm, wb])
-        qa, qb = np.concatenate([qa, qm]), np.concatenate([qm, qb])
-    else:
-        failed[line] = True
-    roots = _g1_roots(prob.terms)
-    top = _tail_winding(prob.terms, roots, c + 1j * omega, t1, t2, upper=True)
-    if real:
-        delta = 2.0 * (total + top)
-    else:
-        bottom = _tail_winding(prob.terms, roots, c - 1j * omega, t1, t2, upper=False)
-        delta = total + top + bottom
-    count = prob.degree / 2.0 - delta / (2.0 * np.pi)
-    good = ~failed & (np.abs(count - np.round(count)) < 0.1)
-    return np.where(good, np.round(count), np.nan)
-
-
-# =====================================================================
-# choosing the discretization and the certifying line
-# =====================================================================
-def _initial_degree(hmax: float, radius: float) -> int:
-    """Chebyshev degree resolving roots up to |s| = radius over a delay interval hmax.
-
-    A root s needs e^{s theta} resolved on [-hmax, 0]; Chebyshev interpolation
-    of it converges once N exceeds about |s| hmax / 2 (Bernstein ellipse), so
-    a margin of twice that plus a floor keeps the rightmost roots accurate
-    enough to seed Newton.
-    """
-    return int(min(MAX_DEGREE, max(12, math.ceil(1.2 * radius * hmax + 10))))
-
-
-def _root_scale(prob: _Problem) -> float:
-    """Radius of the delay-free roots plus the delayed gains: scale of the rightmost roots."""
-    total = prob.A + sum(b for b, _, _ in prob.delayed)
-    return float(max(1.0, np.max(np.abs(np.linalg.eigvals(total))), np.linalg.norm(prob.A, 2)))
-
-
 #: largest (delay x root scale) the rightmost-root path certifies reliably (measured on the
 #: paper's factors: 30 s works, 60 s does not; the scale there is about 1.2)
 _MAX_REACH = 40.0
+
+
+def _family_reach(fs: tuple[CharacteristicFactor, ...], t1: float, t2: float) -> None:
+    """:func:`_check_reach` of every factor at once (the checks of the per-factor path, in its order)."""
+    if max(t1, t2) * float(np.max(family_reach_scales(fs))) > _MAX_REACH:
+        for f in sorted(fs, key=lambda f: f.is_centroid):
+            _check_reach(_problem_of_factor(f), t1, t2)
 
 
 def _check_reach(prob: _Problem, t1: float, t2: float) -> None:
@@ -755,82 +190,6 @@ def _check_reach(prob: _Problem, t1: float, t2: float) -> None:
             f"delays up to about {_MAX_REACH / scale:.3g} s); choose shorter delays (the stability chart has no such limit)"
         )
 
-
-def _choose_line(reals: NDArray[np.float64], top: float) -> float:
-    """A line Re s = c in a gap left of ``top`` (reals: known root real parts, descending).
-
-    Roots whose real parts are within 1e-3 of each other stay on the same
-    side, so the line is never closer than 5e-4 to a known root; it is at
-    most :data:`_LINE_OFFSET` left of them, because e^{-h c} grows quickly as
-    c moves left and with it the Cauchy radius and the Lipschitz bounds. ``top`` is
-    the real part of the rightmost root wanted (the deflated zero of eq.
-    factor1 may lie right of it and is then simply counted).
-    """
-    k0 = int(np.argmax(reals <= top))
-    for k in range(k0, min(reals.size - 1, k0 + 8)):
-        gap = reals[k] - reals[k + 1]
-        if gap > 1e-3 * (1.0 + abs(reals[k])):
-            return float(reals[k] - min(0.5 * gap, _LINE_OFFSET))
-    return float(reals[min(reals.size - 1, k0 + 8)] - _LINE_OFFSET)
-
-
-def _known_reals(
-    prob: _Problem, roots: NDArray[np.complex128], mult: NDArray[np.int64]
-) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
-    """Real parts (descending) and multiplicities of the roots of q, incl. the deflated zero."""
-    if prob.deflate_zero:
-        roots = np.concatenate([roots, [0.0]])
-        mult = np.concatenate([mult, [1]])
-    order = np.argsort(-roots.real)
-    return roots.real[order], mult[order]
-
-
-@dataclass(frozen=True)
-class _SolveResult:
-    """Roots right of the certified line Re s = ``line`` at discretization ``degree``.
-
-    ``roots`` are roots of the solved q (no mirror images; the persistent zero
-    of eq. factor1 deflated), ``mult`` their multiplicities.
-    """
-
-    roots: NDArray[np.complex128]
-    mult: NDArray[np.int64]
-    line: float
-    degree: int
-
-
-def _solve_rightmost(prob: _Problem, t1: float, t2: float) -> _SolveResult:
-    """All roots right of a certified line, for one delay pair (the robust path)."""
-    hmax = _max_delay(prob, t1, t2)
-    a1, a2 = np.asarray(t1), np.asarray(t2)
-    N = _initial_degree(hmax, _root_scale(prob))
-    partial: NDArray[np.complex128] = np.zeros(0, dtype=np.complex128)
-    while True:
-        if hmax == 0.0:
-            eig = _delay_free_eigenvalues(prob)
-        else:
-            eig = _igd_eigenvalues(prob, N, a1.reshape(1), a2.reshape(1))[0]
-        if prob.deflate_zero:
-            eig = np.delete(eig, np.argmin(np.abs(eig)))
-        roots, ok = _polish(prob, eig, a1, a2)
-        roots = _cluster(roots[ok])
-        mult = _multiplicity(prob, roots, t1, t2)
-        partial = roots
-        if roots.size:
-            reals, m = _known_reals(prob, roots, mult)
-            c = _choose_line(reals, float(roots.real.max()))
-            expected = int(m[reals > c].sum())
-            if _count_right_single(prob, t1, t2, c) == expected:
-                keep = roots.real > c
-                return _SolveResult(roots[keep], mult[keep], c, N)
-        if hmax == 0.0 or N >= MAX_DEGREE:
-            raise NotConvergedError(
-                f"could not make sure that no characteristic root lies right of the rightmost one found "
-                f"at (tau1, tau2) = ({t1:g}, {t2:g}); roots there are too many or too close together, "
-                "try slightly different delays",
-                partial=partial,
-            )
-        N = min(MAX_DEGREE, 2 * N)
 
 
 # =====================================================================
@@ -1037,12 +396,6 @@ def count_roots_right_of(
     return n
 
 
-def _mirror_problem(prob: _Problem) -> _Problem:
-    terms = tuple((np.conj(c), a, b) for c, a, b in prob.terms)
-    delayed = tuple((np.conj(m), a, b) for m, a, b in prob.delayed)
-    return _Problem(terms, np.conj(prob.A), delayed, False, prob.deflate_zero)
-
-
 def rightmost_root(
     qp: TwoDelayQuasiPolynomial | CharacteristicFactor, tau1: float, tau2: float
 ) -> complex:
@@ -1086,214 +439,6 @@ def _rightmost(prob: _Problem, t1: float, t2: float) -> complex:
         return _pick_rightmost(prob, root)
     res = _solve_rightmost(prob, t1, t2)
     return _pick_rightmost(prob, res.roots)
-
-
-def _pick_rightmost(prob: _Problem, roots: NDArray[np.complex128]) -> complex:
-    if roots.size == 0:
-        raise NotConvergedError("no root right of the certified line", partial=roots)
-    top = roots[np.argmax(roots.real)]
-    # of a conjugate pair (or the mirror image), report the member with Im >= 0
-    if prob.mirror or prob.is_real or np.all([np.all(c.imag == 0) for c, _, _ in prob.terms]):
-        top = complex(top.real, abs(top.imag))
-    return complex(top)
-
-
-# =====================================================================
-# batched rightmost roots over many delay pairs (for maps)
-# =====================================================================
-#: Seeds per delay pair polished in the batched path (the rightmost eigenvalues).
-_BATCH_SEEDS = 8
-#: Seeds further than this left of a pair's rightmost seed are not polished.
-_SEED_WINDOW = 1.0
-#: Spacing (in grid points) of the coarse sub-grid solved by discretization in maps.
-_STRIDE = 5
-#: Delay pairs per batched eigenvalue call (bounds memory).
-_CHUNK = 2048
-
-
-def _map_degree(hmax: NDArray[np.float64], radius: float) -> NDArray[np.int64]:
-    """Degree for the batched pass: enough to seed Newton at the rightmost roots.
-
-    Lower than :func:`_initial_degree` on purpose: the certificate decides,
-    and the pairs it rejects get a discretization of twice the degree (then,
-    rarely, the robust single-pair path).
-    """
-    return np.clip(np.ceil(0.6 * radius * hmax + 4), 6, MAX_DEGREE).astype(np.int64)
-
-
-def _batch_distinct(
-    roots: NDArray[np.complex128], ok: NDArray[np.bool_]
-) -> NDArray[np.complex128]:
-    """Per row, the distinct accepted roots first (sorted), NaN after them.
-
-    Rows are sorted (numpy orders complex numbers by real, then imaginary
-    part), so seeds that reached the same root sit side by side; a repeat
-    that is not adjacent only inflates the expected count, which the
-    certificate then rejects (the point is recomputed), never a wrong root.
-    """
-    r = np.sort(np.where(ok, roots, np.nan), axis=1)  # NaN sorts last
-    close = np.abs(r[:, 1:] - r[:, :-1]) <= 1e-7 * (1.0 + np.abs(r[:, :-1]))
-    dup = np.concatenate([np.zeros((r.shape[0], 1), dtype=bool), close], axis=1)
-    r = np.where(dup, np.nan, r)
-    keep = np.isfinite(r).sum(axis=1).max(initial=0)
-    order = np.argsort(~np.isfinite(r), axis=1, kind="stable")
-    return np.take_along_axis(r, order, 1)[:, : max(int(keep), 1)]
-
-
-def _batch_lines(
-    prob: _Problem, roots: NDArray[np.complex128]
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    """Vectorized :func:`_choose_line`: the line c, the expected count and the rightmost real part."""
-    reals = roots.real  # NaN for missing
-    top = np.nanmax(np.where(np.isnan(reals), -np.inf, reals), axis=1)
-    if prob.deflate_zero:
-        reals = np.concatenate([reals, np.zeros((reals.shape[0], 1))], axis=1)
-    srt = -np.sort(np.where(np.isnan(reals), np.inf, -reals), axis=1)  # descending, -inf for missing
-    n_known = np.sum(np.isfinite(srt), axis=1)
-    c = np.full(srt.shape[0], np.nan)
-    k0 = np.argmax(srt <= top[:, None], axis=1)
-    for step in range(8):
-        k = k0 + step
-        valid = (k + 1 < n_known) & np.isnan(c)
-        kk = np.minimum(k, srt.shape[1] - 2)
-        hi = np.take_along_axis(srt, kk[:, None], 1)[:, 0]
-        lo = np.take_along_axis(srt, (kk + 1)[:, None], 1)[:, 0]
-        with np.errstate(invalid="ignore"):  # -inf - -inf where fewer roots are known
-            gap = hi - lo
-        take = valid & (gap > 1e-3 * (1.0 + np.abs(hi)))
-        c = np.where(take, hi - np.minimum(0.5 * gap, _LINE_OFFSET), c)
-    last = np.take_along_axis(srt, np.clip(np.minimum(k0 + 8, n_known - 1), 0, None)[:, None], 1)[:, 0]
-    c = np.where(np.isnan(c), last - _LINE_OFFSET, c)
-    expected = np.sum(srt > c[:, None], axis=1).astype(float)
-    return c, expected, top
-
-
-def _igd_seeds(
-    prob: _Problem, t1: NDArray[np.float64], t2: NDArray[np.float64], *, scale: float, k: int
-) -> NDArray[np.complex128]:
-    """The k rightmost eigenvalues of the discretized generator at each pair (NaN-padded).
-
-    One stacked np.linalg.eigvals call per bucket of equal degree; pairs
-    with no delay get the eigenvalues of A + sum B_k. The persistent zero of
-    eq. factor1, which the discretization keeps exactly, is dropped.
-    """
-    out = np.full((t1.size, k), np.nan + 0j, dtype=np.complex128)
-    hmax = np.maximum.reduce([a * t1 + b * t2 for _, a, b in prob.delayed] + [np.zeros(t1.size)])
-    degree = np.minimum(MAX_DEGREE, np.ceil(scale * _map_degree(hmax, _root_scale(prob)))).astype(int)
-    delayed = hmax >= _TINY_DELAY
-    groups = [(np.flatnonzero(~delayed), 0)] + [
-        (np.flatnonzero((degree == N) & delayed), int(N)) for N in np.unique(degree[delayed])
-    ]
-    for idx_all, N in groups:
-        for start in range(0, idx_all.size, _CHUNK):
-            idx = idx_all[start : start + _CHUNK]
-            if N == 0:
-                eig = np.tile(_delay_free_eigenvalues(prob), (idx.size, 1))
-            else:
-                eig = _igd_eigenvalues(prob, N, t1[idx], t2[idx])
-            if prob.deflate_zero:
-                eig[np.arange(idx.size), np.argmin(np.abs(eig), axis=1)] = -np.inf
-            if prob.is_real:  # roots pair up: keep one member, _certify adds the other
-                eig = np.where(eig.imag >= 0.0, eig, -np.inf)
-            order = np.argsort(-eig.real, axis=1)[:, :k]
-            top = np.take_along_axis(eig, order, 1)
-            top[~np.isfinite(top)] = np.nan
-            out[idx, : top.shape[1]] = top
-    return out
-
-
-def _certify(
-    prob: _Problem, t1: NDArray[np.float64], t2: NDArray[np.float64], seeds: NDArray[np.complex128]
-) -> tuple[NDArray[np.complex128], NDArray[np.bool_], NDArray[np.complex128]]:
-    """Polish seeds (B, K) at each pair; certify the rightmost; return (rightmost, certified, roots).
-
-    For a real q only seeds with Im >= 0 are polished and the conjugates of
-    the roots added afterwards (half the Newton work).
-    """
-    if prob.is_real:
-        seeds = np.where(seeds.imag >= 0.0, seeds, np.nan)
-    if prob.deflate_zero:  # a seed at the persistent 0 cannot move under Maehly's step
-        seeds = np.where(np.abs(seeds) < 1e-6, -1e-2, seeds)
-    # seeds far left of a row's rightmost one cannot matter for the line c (within
-    # _LINE_OFFSET of the top); dropping them saves Newton steps, and a wrong
-    # drop only costs a rejected certificate
-    with np.errstate(invalid="ignore"):
-        top_seed = np.nanmax(np.where(np.isfinite(seeds), seeds.real, -np.inf), axis=1)
-        seeds = np.where(seeds.real >= top_seed[:, None] - _SEED_WINDOW, seeds, np.nan)
-    roots, ok = _polish(prob, seeds, t1[:, None], t2[:, None])
-    ok &= np.isfinite(seeds)
-    if prob.is_real:  # distinct members with Im >= 0 first, then their mirror images
-        roots = _batch_distinct(np.where(roots.imag < 0.0, np.conj(roots), roots), ok)
-        pair = np.abs(roots.imag) > 1e-9 * (1.0 + np.abs(roots))
-        roots = np.concatenate([roots, np.where(pair, np.conj(roots), np.nan)], axis=1)
-    else:
-        roots = _batch_distinct(roots, ok)
-    c, expected, top = _batch_lines(prob, roots)
-    good = np.isfinite(top) & np.isfinite(c)
-    counts = np.full(t1.size, np.nan)
-    if good.any():
-        counts[good] = _count_right_batch(prob, t1[good], t2[good], c[good])
-    certified = good & (counts == expected)
-    best = np.argmax(np.where(np.isnan(roots.real), -np.inf, roots.real), axis=1)
-    return roots[np.arange(t1.size), best], certified, roots
-
-
-def _coarse_axis(n: int, stride: int) -> NDArray[np.int64]:
-    idx = np.arange(0, n, stride)
-    return idx if idx[-1] == n - 1 else np.append(idx, n - 1)
-
-
-def _rightmost_grid(
-    prob: _Problem, ax1: NDArray[np.float64], ax2: NDArray[np.float64],
-    advance: Callable[[int], None] | None = None, *, stride: int = _STRIDE,
-) -> NDArray[np.complex128]:
-    """Certified rightmost root of one factor at every point of a delay grid (shape (n1, n2)).
-
-    1. A coarse sub-grid (every ``stride``-th point) is solved by the stacked
-       discretization (:func:`_igd_seeds`) and Newton.
-    2. Every other grid point starts Newton from the roots of its nearest
-       coarse point (roots move continuously with the delays), all at once.
-    3. Every point is certified by the argument principle
-       (:func:`_count_right_batch`); points that fail get their own stacked
-       discretization at a higher degree, and the few left the robust
-       single-pair path (:func:`_solve_rightmost`).
-    """
-    n1, n2 = ax1.size, ax2.size
-    T1, T2 = np.meshgrid(ax1, ax2, indexing="ij")
-    t1, t2 = T1.ravel(), T2.ravel()
-    out = np.full(t1.size, np.nan + 0j, dtype=np.complex128)
-    done = np.zeros(t1.size, dtype=bool)
-    c1, c2 = _coarse_axis(n1, stride), _coarse_axis(n2, stride)
-    coarse = (c1[:, None] * n2 + c2[None, :]).ravel()
-    seeds = _igd_seeds(prob, t1[coarse], t2[coarse], scale=1.0, k=_BATCH_SEEDS)
-    root, cert, roots = _certify(prob, t1[coarse], t2[coarse], seeds)
-    out[coarse[cert]], done[coarse[cert]] = root[cert], True
-    if advance is not None:
-        advance(int(coarse.size))
-    # nearest coarse point of every grid point; coarse rows of roots as seeds
-    near1 = np.abs(np.arange(n1)[:, None] - c1[None, :]).argmin(axis=1)
-    near2 = np.abs(np.arange(n2)[:, None] - c2[None, :]).argmin(axis=1)
-    nearest = (near1[:, None] * c2.size + near2[None, :]).ravel()
-    rest = np.flatnonzero(~done)
-    rest = rest[~np.isin(rest, coarse[~cert])]  # failed coarse points go to the fallback
-    for start in range(0, rest.size, 4 * _CHUNK):
-        idx = rest[start : start + 4 * _CHUNK]
-        seed = roots[nearest[idx]]
-        r, ok, _ = _certify(prob, t1[idx], t2[idx], seed)
-        out[idx[ok]], done[idx[ok]] = r[ok], True
-        if advance is not None:
-            advance(int(idx.size))
-    left = np.flatnonzero(~done)
-    if left.size:
-        seeds = _igd_seeds(prob, t1[left], t2[left], scale=2.0, k=2 * _BATCH_SEEDS)
-        r, ok, _ = _certify(prob, t1[left], t2[left], seeds)
-        out[left[ok]], done[left[ok]] = r[ok], True
-    for i in np.flatnonzero(~done):
-        res = _solve_rightmost(prob, float(t1[i]), float(t2[i]))
-        out[i] = _pick_rightmost(prob, res.roots)
-    if prob.mirror or prob.is_real:
-        out = out.real + 1j * np.abs(out.imag)
-    return out.reshape(n1, n2)
 
 
 # =====================================================================
@@ -1423,9 +568,14 @@ def dominant_root(topology: Topology, P: float, D: float, tau1: float, tau2: flo
     """
     t1, t2 = check_delay("tau1", tau1), check_delay("tau2", tau2)
     fs = _checked_factors(topology, P, D)
-    centroid = next(f for f in fs if f.is_centroid)
-    shape = [(rightmost_root(f, t1, t2), f) for f in fs if not f.is_centroid]
-    drift = _centroid_rightmost(centroid, t1, t2)
+    # all factors in one batch (one stacked discretization, one vectorized certificate)
+    _family_reach(fs, t1, t2)
+    right = family_rightmost(fs, fs[0].P, fs[0].D, t1, t2)
+    k0 = next(k for k, f in enumerate(fs) if f.is_centroid)
+    centroid = fs[k0]
+    # the centroid's rightmost root without its roots at 0 (its drift on tau1 = 0)
+    drift = complex(right[k0]) if t1 > 0.0 else _centroid_rightmost(centroid, t1, t2)
+    shape = [(complex(right[k]), f) for k, f in enumerate(fs) if not f.is_centroid]
     formation = max(shape, key=lambda rf: rf[0].real)
     best = formation if drift is None or formation[0].real >= drift.real else (drift, centroid)
     return DominantRoot(best[0], best[1], t1, t2, formation_root=formation[0], centroid_root=drift)
@@ -1510,12 +660,14 @@ def dominant_root_map(
 ) -> DominantRootMap:
     """Dominant root at every point of a delay grid (paper Figs. dominant and contour).
 
-    Fast by design: per factor, every grid point's discretized generator is
-    solved in stacked eigenvalue calls (one degree per bucket of the largest
-    delay), the rightmost eigenvalues of all points are Newton-polished
-    together and certified together by the argument principle; only the
-    points the certificate rejects are redone one by one at higher degree.
-    A conjugate-pair factor is solved through its second-order factor of lam.
+    Fast by design: all factors (a conjugate pair through its second-order
+    factor of lam) and all grid points are one vectorized family
+    (:mod:`delayform.analysis._family`). The grid is visited coarse to fine:
+    the coarsest points are seeded by the discretized generator, every later
+    point by the roots of its nearest solved point; Newton's method and the
+    argument-principle certificate run on all rows at once, and only rows the
+    certificate rejects are redone (fresh discretization seeds, then the
+    generic per-factor path). Every point is certified.
 
     Parameters
     ----------
@@ -1564,13 +716,11 @@ def dominant_root_map(
         _check_reach(_problem_of_factor(f), float(ax1.max()), float(ax2.max()))
     per_factor = np.empty((len(fs), ax1.size, ax2.size), dtype=np.complex128)
     with _progress(progress, len(fs) * ax1.size * ax2.size) as advance:
-        for k, f in enumerate(fs):
-            per_factor[k] = _rightmost_grid(_problem_of_factor(f), ax1, ax2, advance)
-            if f.is_centroid:  # on tau1 = 0 the centroid's second zero is its drift, not instability
-                for i in np.flatnonzero(ax1 == 0.0):
-                    for j, t2 in enumerate(ax2):
-                        r = _centroid_rightmost(f, 0.0, float(t2))
-                        per_factor[k, i, j] = -np.inf if r is None else r
+        per_factor[:] = family_grid(fs, fs[0].P, fs[0].D, ax1, ax2, advance)
+        row0 = np.flatnonzero(ax1 == 0.0)
+        if row0.size:  # on tau1 = 0 the centroid's second zero is its drift, not instability
+            k0 = next(k for k, f in enumerate(fs) if f.is_centroid)
+            per_factor[k0, row0, :] = centroid_drift_roots(fs[k0].D, ax2)[None, :]
     index = np.argmax(per_factor.real, axis=0)
     roots = np.take_along_axis(per_factor, index[None], 0)[0]
     return DominantRootMap(ax1, ax2, roots, index, fs)
@@ -1606,3 +756,4 @@ class _progress:
     def __exit__(self, *exc: object) -> None:
         if self._bar is not None:
             self._bar.stop()
+

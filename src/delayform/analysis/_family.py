@@ -1,0 +1,530 @@
+"""Certified rightmost roots of all factors of eq. factorized at many delay pairs at once.
+
+Every factor of eq. factorized is (for a conjugate pair, through its complex
+second-order factor of lam) the same quasi-polynomial
+
+    q(s) = s^2 + D s + P - lam (P e^{-tau1 s} + D s e^{-tau2 s})
+
+with its own eigenvalue lam of C. So one *row* -- a factor at a delay pair --
+is described by (lam, tau1, tau2), and Newton's method, the line choice and
+the argument-principle certificate of :mod:`delayform.analysis.certificate`
+run on flat arrays of rows, all factors and all delay pairs in one NumPy
+expression each. The generic per-factor code pays a Python round trip per
+term and per factor; here q, dq/ds, the Lipschitz bound and the Cauchy radius
+are written out for this family (the same formulas, specialized).
+
+A map is solved by continuation: the delay grid is visited coarse to fine
+(:data:`_LEVELS`); the first level is seeded by the Chebyshev discretization
+of the generator, every later point by the roots of its nearest solved point.
+Every row is certified; rows whose certificate fails are redone by the
+generic batched path and, rarely, the robust single-pair path, exactly as
+before. A single delay pair discretizes all factors in one stacked eigenvalue
+call, whose matrices depend on lam only through one block (cached per delays).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from functools import lru_cache
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from delayform.analysis._generator import _chebyshev, _igd_seeds, _lagrange_rows
+from delayform.analysis._quasi import _TINY_DELAY, MAX_DEGREE, RESIDUAL_TOL, _problem_of_factor
+from delayform.analysis._rightmost import (
+    _BATCH_SEEDS,
+    _SEED_WINDOW,
+    _batch_distinct,
+    _certify,
+    _pick_rightmost,
+    _solve_rightmost,
+)
+from delayform.analysis.certificate import _batch_lines
+from delayform.characteristic import CharacteristicFactor
+
+#: Grid strides visited coarse to fine; the first level is seeded by discretization.
+_LEVELS = (27, 9, 3, 1)
+#: Known roots kept per row as seeds for its neighbours.
+_KEEP = 6
+#: Newton steps of the fast path (a seed still moving after them is left to the fallback).
+_FAST_NEWTON_STEPS = 16
+#: Initial samples of the certified walk along Re s = c (bisected where needed).
+_INITIAL_SAMPLES = 12
+
+
+class _Rows:
+    """Flat arrays describing rows (factor, delay pair): lam, tau1, tau2 and two flags."""
+
+    __slots__ = ("lam", "t1", "t2", "real", "deflate", "P", "D")
+
+    def __init__(
+        self, lam: NDArray[np.complex128], t1: NDArray[np.float64], t2: NDArray[np.float64],
+        real: NDArray[np.bool_], deflate: NDArray[np.bool_], P: float, D: float,
+    ) -> None:
+        self.lam, self.t1, self.t2, self.real, self.deflate = lam, t1, t2, real, deflate
+        self.P, self.D = P, D
+
+    def take(self, idx: NDArray[np.int64]) -> _Rows:
+        return _Rows(self.lam[idx], self.t1[idx], self.t2[idx], self.real[idx], self.deflate[idx], self.P, self.D)
+
+    @property
+    def size(self) -> int:
+        return int(self.lam.size)
+
+
+def _lams(fs: Sequence[CharacteristicFactor]) -> tuple[NDArray[np.complex128], NDArray[np.bool_], NDArray[np.bool_]]:
+    lam = np.array([complex(f.lam) for f in fs], dtype=np.complex128)
+    pair = np.array([f.group.is_complex_pair for f in fs], dtype=bool)
+    centroid = np.array([f.is_centroid for f in fs], dtype=bool)
+    return lam, ~pair, centroid
+
+
+# =====================================================================
+# q, dq/ds and the term moduli of the family
+# =====================================================================
+# Far-left seeds and lines overflow e^{-tau s}; such values fail the residual
+# test or the certificate, so the entry points (family_rightmost, family_grid)
+# silence floating-point warnings once instead of in every vectorized step.
+def _q(
+    s: NDArray[np.complex128], lam: NDArray[np.complex128], t1: NDArray[np.float64],
+    t2: NDArray[np.float64], P: float, D: float,
+) -> tuple[NDArray[np.complex128], NDArray[np.complex128], NDArray[np.complex128], NDArray[np.complex128]]:
+    """q(s), dq/ds and the two delayed terms lam P e^{-tau1 s}, lam D e^{-tau2 s} (broadcasting)."""
+    a = lam * P * np.exp(-t1 * s)
+    b = lam * D * np.exp(-t2 * s)
+    bs = b * s
+    q = (s + D) * s + P - a - bs
+    dq = 2.0 * s + D + t1 * a - b + t2 * bs
+    return q, dq, a, b
+
+
+def _polish_rows(seeds: NDArray[np.complex128], rows: _Rows) -> tuple[NDArray[np.complex128], NDArray[np.bool_]]:
+    """Newton on q from seeds (R, K); Maehly's step q / (q' - q/s) for the centroid rows.
+
+    Returns the roots and whether each has relative residual <= RESIDUAL_TOL
+    (as :func:`delayform.analysis._quasi._polish`; seeds that reach s ~ 0 in a
+    deflated row are rejected, the generic path settles a double zero).
+    """
+    R, K = seeds.shape
+    flat = seeds.ravel()
+    live = np.flatnonzero(np.isfinite(flat))  # NaN seeds (padding) cost nothing
+    rid = live // K
+    s = flat[live].copy()
+    lam, t1, t2, defl = rows.lam[rid], rows.t1[rid], rows.t2[rid], rows.deflate[rid]
+    act = np.arange(s.size)
+    for _ in range(_FAST_NEWTON_STEPS):
+        if act.size == 0:
+            break
+        sa = s[act]
+        q, dq, _, _ = _q(sa, lam[act], t1[act], t2[act], rows.P, rows.D)
+        den = np.where(defl[act], dq - q / sa, dq)
+        step = q / den
+        bad = ~np.isfinite(step)
+        step[bad] = 0.0
+        s[act] = sa - step
+        # quadratic convergence: after a step below 1e-8 |s| the error is ~1e-16 |s|
+        moving = ~bad & (np.abs(step) > 1e-8 * (1.0 + np.abs(sa)))
+        act = act[moving]
+    q, _, a, b = _q(s, lam, t1, t2, rows.P, rows.D)
+    abs_s = np.abs(s)
+    mag = (abs_s + rows.D) * abs_s + rows.P + np.abs(a) + np.abs(b) * abs_s
+    ok = np.isfinite(mag) & (np.abs(q) <= RESIDUAL_TOL * mag)
+    # s ~ 0 in a centroid row is a root of q(s)/s when 0 is double (q'(0) = 0, as at
+    # tau1 = 0); it is then exactly 0 (as _quasi._deflated_zero decides)
+    near = defl & (abs_s < 1e-6)
+    if near.any():
+        lz = lam[near]
+        # q'(0) = tau1 lam P + D (1 - lam), exactly 0 for the centroid (lam = 1) at tau1 = 0; a
+        # tiny tau1 puts a genuine root beside 0, which the generic path resolves (rejected here)
+        double = t1[near] * lz * rows.P + rows.D * (1.0 - lz) == 0.0
+        s[near] = np.where(double, 0.0, s[near])
+        ok[near] = double
+    out = np.full(R * K, np.nan + 0j)
+    out[live] = s
+    good = np.zeros(R * K, dtype=bool)
+    good[live] = ok
+    return out.reshape(R, K), good.reshape(R, K)
+
+
+# =====================================================================
+# the certificate, vectorized over rows (same bounds as certificate.py)
+# =====================================================================
+def _count_rows(
+    rows: _Rows, c: NDArray[np.float64], *, max_segments: int = 4096
+) -> NDArray[np.float64]:
+    """Certified number of roots of q with Re s > c per row (NaN: not certified).
+
+    The walk of :func:`delayform.analysis.certificate._count_right_batch` with
+    a second-order test: on the line Re s = c the delayed terms have constant
+    moduli E1 = |lam| P e^{-tau1 c}, E2 = |lam| D e^{-tau2 c}, so
+
+        |q''(s)| <= M2 = 2 + tau1^2 E1 + 2 tau2 E2 + tau2^2 E2 rho   (|s| <= rho),
+
+    and a segment [s_a, s_b] of length h is accepted when, from both ends,
+    ``|q'(s_e)| h / 2 + M2 h^2 / 8 < |q(s_e)|``: then on each half q(s) / q(s_e)
+    stays in the disc |z - 1| < 1 (Taylor), so each half changes arg q by less
+    than pi / 2 and the segment's change is exactly Arg(q(s_b) / q(s_a)). The
+    line is closed at infinity by the Cauchy radius (root of
+    ``r^2 = (D + E2) r + P + E1``, Rouche). Rows with real lam walk Im s >= 0
+    only (q(conj s) = conj q(s)).
+
+    On the line e^{-tau s} = e^{-tau c} e^{-i tau w}: the unit factors are
+    carried along the uniform initial samples by repeated rotation, and all
+    segments bisected in round k have the same length per line, so their
+    midpoints need one rotation per line and round instead of two complex
+    exponentials per sample.
+    """
+    P, D = rows.P, rows.D
+    n = c.size
+    lam, t1, t2 = rows.lam, rows.t1, rows.t2
+    x1, x2 = np.exp(-t1 * c), np.exp(-t2 * c)
+    A1, B1 = lam * (P * x1), lam * (D * x2)  # a = A1 e^{-i tau1 w}, b = B1 e^{-i tau2 w}
+    absl = np.abs(lam)
+    E1, E2 = absl * P * x1, absl * D * x2
+    b1, b0 = D + E2, P + E1
+    omega = (b1 + np.sqrt(b1 * b1 + 4.0 * b0)) / 2.0 * (1.0 + 1e-9) + 1e-12
+    m2_slope, m2_offset = t2 * t2 * E2, 2.0 + t1 * t1 * E1 + 2.0 * t2 * E2
+    # few lines: the Python cost of a bisection round outweighs extra samples
+    m = _INITIAL_SAMPLES if n > 64 else 4 * _INITIAL_SAMPLES
+    lo = np.where(rows.real, 0.0, -omega)
+    h = (omega - lo) / (m - 1)
+
+    def rotations(tau: NDArray[np.float64]) -> NDArray[np.complex128]:
+        z = np.empty((m, n), dtype=np.complex128)
+        z[0] = np.exp(-1j * tau * lo)
+        rot = np.exp(-1j * tau * h)
+        for j in range(1, m):
+            np.multiply(z[j - 1], rot, out=z[j])
+        return z
+
+    def value(
+        sv: NDArray[np.complex128], k1: NDArray[np.complex128], k2: NDArray[np.complex128], idx: Any
+    ) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
+        a = A1[idx] * k1
+        b = B1[idx] * k2
+        bs = b * sv
+        return (sv + D) * sv + P - a - bs, 2.0 * sv + D + t1[idx] * a - b + t2[idx] * bs
+
+    w = lo + h * np.arange(m)[:, None]  # (m, n)
+    k1, k2 = rotations(t1), rotations(t2)
+    q, dq = value(c + 1j * w, k1, k2, slice(None))
+    # segments j = 0..m-2 of every line, flattened line-major
+    line = np.repeat(np.arange(n), m - 1)
+    seg = (slice(None, -1), slice(1, None))
+    wa = w[seg[0]].T.ravel()
+    qa, qb = q[seg[0]].T.ravel(), q[seg[1]].T.ravel()
+    da, db = np.abs(dq[seg[0]].T.ravel()), np.abs(dq[seg[1]].T.ravel())
+    ka, kb = k1[seg[0]].T.ravel(), k2[seg[0]].T.ravel()
+    total = np.zeros(n)
+    failed = ~np.all(np.isfinite(q) & (q != 0.0), axis=0)
+    c2 = c * c
+    step = h.copy()
+    for _ in range(52):
+        hl = step[line]
+        wb = wa + hl
+        rho = np.sqrt(c2[line] + np.maximum(wa * wa, wb * wb))
+        quad = (m2_slope[line] * rho + m2_offset[line]) * (0.125 * hl * hl)
+        half = 0.5 * hl
+        bad = (da * half + quad >= np.abs(qa)) | (db * half + quad >= np.abs(qb))
+        good = ~bad
+        total += np.bincount(line[good], np.angle(qb[good] * np.conj(qa[good])), minlength=n)
+        if not bad.any():
+            break
+        line, wa, qa, qb, da, db, ka, kb = (
+            line[bad], wa[bad], qa[bad], qb[bad], da[bad], db[bad], ka[bad], kb[bad]
+        )
+        too_many = np.bincount(line, minlength=n) > max_segments
+        if too_many.any():
+            failed |= too_many
+            keep = ~too_many[line]
+            line, wa, qa, qb, da, db, ka, kb = (
+                line[keep], wa[keep], qa[keep], qb[keep], da[keep], db[keep], ka[keep], kb[keep]
+            )
+        step = 0.5 * step
+        wm = wa + step[line]
+        km = ka * np.exp(-1j * t1 * step)[line]
+        kbm = kb * np.exp(-1j * t2 * step)[line]
+        qm, dqm = value(c[line] + 1j * wm, km, kbm, line)
+        failed[line[~np.isfinite(qm) | (qm == 0.0)]] = True
+        dm = np.abs(dqm)
+        line = np.concatenate([line, line])
+        wa = np.concatenate([wa, wm])
+        qa, qb = np.concatenate([qa, qm]), np.concatenate([qm, qb])
+        da, db = np.concatenate([da, dm]), np.concatenate([dm, db])
+        ka, kb = np.concatenate([ka, km]), np.concatenate([kb, kbm])
+    else:
+        failed[line] = True
+    # tails beyond +-Omega: arg q = arg g1 + Arg(q / g1), g1 = s^2 + D s + P (Rouche)
+    disc = np.sqrt(complex(D * D - 4.0 * P))
+    z = np.array([(-D + disc) / 2.0, (-D - disc) / 2.0])
+    ends = c[:, None] + 1j * np.stack([omega, -omega], axis=1)
+    qe, _, _, _ = _q(ends, lam[:, None], t1[:, None], t2[:, None], P, D)
+    ratio = np.angle(qe / ((ends + D) * ends + P))
+    ang = np.angle(ends[..., None] - z)  # (n, 2, 2)
+    top = (np.pi / 2 - ang[:, 0]).sum(axis=-1) - ratio[:, 0]
+    bottom = (ang[:, 1] + np.pi / 2).sum(axis=-1) + ratio[:, 1]
+    delta = np.where(rows.real, 2.0 * (total + top), total + top + bottom)
+    count = 1.0 - delta / (2.0 * np.pi)
+    good = ~failed & np.isfinite(count) & (np.abs(count - np.round(count)) < 0.1)
+    return np.where(good, np.round(count), np.nan)
+
+
+def _certify_rows(
+    rows: _Rows, seeds: NDArray[np.complex128]
+) -> tuple[NDArray[np.complex128], NDArray[np.bool_], NDArray[np.complex128]]:
+    """Polish seeds (R, K) per row, certify the rightmost: (rightmost, certified, known roots).
+
+    The vectorized counterpart of :func:`delayform.analysis._rightmost._certify`
+    (same seed window, distinct roots, mirror images and line choice). The
+    rightmost root is reported with Im >= 0 (real lam: of a conjugate pair;
+    complex lam: the factor of conj(lam) mirrors it).
+    """
+    real = rows.real[:, None]
+    seeds = np.where(real & (seeds.imag < 0.0), np.conj(seeds), seeds)
+    seeds = np.where(rows.deflate[:, None] & (np.abs(seeds) < 1e-6), -1e-2, seeds)
+    top_seed = np.max(np.where(np.isfinite(seeds), seeds.real, -np.inf), axis=1)
+    seeds = np.where(seeds.real >= top_seed[:, None] - _SEED_WINDOW, seeds, np.nan)
+    roots, ok = _polish_rows(seeds, rows)
+    ok &= np.isfinite(seeds)
+    roots = np.where(real & (roots.imag < 0.0), np.conj(roots), roots)
+    distinct = _batch_distinct(roots, ok)
+    pair = real & (np.abs(distinct.imag) > 1e-9 * (1.0 + np.abs(distinct)))
+    roots = np.concatenate([distinct, np.where(pair, np.conj(distinct), np.nan)], axis=1)
+    c, expected, top = _batch_lines(rows.deflate, roots)
+    good = np.isfinite(top) & np.isfinite(c)
+    counts = np.full(rows.size, np.nan)
+    if good.any():
+        idx = np.flatnonzero(good)
+        counts[idx] = _count_rows(rows.take(idx), c[idx])
+    certified = good & (counts == expected)
+    best = np.argmax(np.where(np.isnan(roots.real), -np.inf, roots.real), axis=1)
+    right = roots[np.arange(rows.size), best]
+    return right.real + 1j * np.abs(right.imag), certified, distinct
+
+
+# =====================================================================
+# seeds: the discretized generator of every factor in one stacked call
+# =====================================================================
+@lru_cache(maxsize=32)
+def _generator_blocks(N: int, t1: float, t2: float, P: float, D: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(M0, M1) with the discretized generator of the factor of lam equal to M0 + lam M1.
+
+    The realization is eq. subsystems of the second-order factor:
+    A = [[0, 1], [-P, -D]], B1 = lam [[0, 0], [P, 0]], B2 = lam [[0, 0], [0, D]];
+    only the DDE row block depends on lam, through the interpolation of the
+    delayed states (depends on the delays alone, hence the cache).
+    """
+    x, Dm, _ = _chebyshev(N)
+    h = np.array([t1, t2])
+    hmax = float(h.max())
+    L = _lagrange_rows(N, 1.0 - 2.0 * h / hmax)  # (2, N+1)
+    size = 2 * (N + 1)
+    M0 = np.zeros((N + 1, 2, N + 1, 2))
+    M0[0, :, 0, :] = [[0.0, 1.0], [-P, -D]]
+    M0[1:] = (2.0 / hmax) * np.einsum("ij,pq->ipjq", Dm[1:], np.eye(2))
+    M1 = np.zeros((N + 1, 2, N + 1, 2))
+    M1[0, 1, :, 0] = P * L[0]
+    M1[0, 1, :, 1] = D * L[1]
+    return M0.reshape(size, size), M1.reshape(size, size)
+
+
+@lru_cache(maxsize=64)
+def _norm_a(P: float, D: float) -> float:
+    return float(np.linalg.norm(np.array([[0.0, 1.0], [-P, -D]]), 2))
+
+
+def _family_seeds(lam: NDArray[np.complex128], P: float, D: float, t1: float, t2: float, k: int) -> NDArray[np.complex128]:
+    """The k rightmost eigenvalues of every factor's discretized generator at one pair (F, k)."""
+    hmax = max(t1, t2)
+    F = lam.size
+    if hmax < _TINY_DELAY:  # delay-free: s^2 + D (1 - lam) s + P (1 - lam) = 0
+        b, c0 = D * (1.0 - lam), P * (1.0 - lam)
+        disc = np.sqrt(b * b - 4.0 * c0 + 0j)
+        eig = np.stack([(-b + disc) / 2.0, (-b - disc) / 2.0], axis=1)
+    else:
+        # as _generator._root_scale: delay-free roots and the norm of A
+        b, c0 = D * (1.0 - lam), P * (1.0 - lam)
+        disc = np.sqrt(b * b - 4.0 * c0 + 0j)
+        free = max(float(np.max(np.abs(-b + disc))), float(np.max(np.abs(-b - disc)))) / 2.0
+        radius = max(1.0, free, _norm_a(P, D))
+        N = int(np.clip(np.ceil(0.6 * radius * hmax + 4), 6, MAX_DEGREE))
+        M0, M1 = _generator_blocks(N, float(t1), float(t2), float(P), float(D))
+        # real lam in one real stacked call (LAPACK's real solver is several times cheaper)
+        real = lam.imag == 0.0
+        eig = np.empty((F, M0.shape[0]), dtype=np.complex128)
+        if real.any():
+            eig[real] = np.linalg.eigvals(M0 + lam.real[real][:, None, None] * M1)
+        if not real.all():
+            eig[~real] = np.linalg.eigvals(M0 + lam[~real][:, None, None] * M1)
+    order = np.argsort(-eig.real, axis=1)[:, :k]
+    out = np.full((F, k), np.nan + 0j)
+    top = np.take_along_axis(eig, order, 1)
+    out[:, : top.shape[1]] = top
+    return out
+
+
+def _generic_rightmost(
+    f: CharacteristicFactor, t1: NDArray[np.float64], t2: NDArray[np.float64]
+) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
+    """Rows the fast path could not certify, by the generic batched then robust path.
+
+    Returns the certified rightmost roots (Im >= 0) and the known roots (seeds for neighbours).
+    """
+    prob = _problem_of_factor(f)
+    out = np.full(t1.size, np.nan + 0j)
+    known = np.full((t1.size, _KEEP), np.nan + 0j)
+    left = np.arange(t1.size)
+    for scale, k in ((1.0, _BATCH_SEEDS), (2.0, 2 * _BATCH_SEEDS)):
+        if left.size == 0:
+            break
+        seeds = _igd_seeds(prob, t1[left], t2[left], scale=scale, k=k)
+        r, ok, roots = _certify(prob, t1[left], t2[left], seeds)
+        out[left[ok]] = r[ok]
+        if prob.is_real:  # mirror images are no new seeds
+            roots = np.where(roots.imag >= 0.0, roots, np.nan)
+        known[left[ok]] = _pad(roots[ok], _KEEP)
+        left = left[~ok]
+    for i in left:
+        res = _solve_rightmost(prob, float(t1[i]), float(t2[i]))
+        out[i] = _pick_rightmost(prob, res.roots)
+        known[i] = _pad(res.roots[None, :], _KEEP)[0]
+    return out.real + 1j * np.abs(out.imag), known
+
+
+def _pad(roots: NDArray[np.complex128], k: int) -> NDArray[np.complex128]:
+    """The k rightmost entries per row (NaN-padded)."""
+    key = np.where(np.isnan(roots.real), np.inf, -roots.real)
+    order = np.argsort(key, axis=1)[:, :k]
+    out = np.full((roots.shape[0], k), np.nan + 0j)
+    top = np.take_along_axis(roots, order, 1)
+    out[:, : top.shape[1]] = top
+    return out
+
+
+def family_reach_scales(fs: Sequence[CharacteristicFactor]) -> NDArray[np.float64]:
+    """The root scale of every factor (:func:`delayform.analysis._generator._root_scale`), in closed form.
+
+    A + B1 + B2 of the factor of lam is [[0, 1], [-P (1 - lam), -D (1 - lam)]]:
+    its eigenvalues are the delay-free roots of s^2 + D (1 - lam) s + P (1 - lam).
+    """
+    lam, _, _ = _lams(fs)
+    P, D = float(fs[0].P), float(fs[0].D)
+    b, c0 = D * (1.0 - lam), P * (1.0 - lam)
+    disc = np.sqrt(b * b - 4.0 * c0 + 0j)
+    free = np.maximum(np.abs(-b + disc), np.abs(-b - disc)) / 2.0
+    return np.maximum(np.maximum(1.0, free), _norm_a(P, D))
+
+
+def centroid_drift_roots(D: float, tau2: NDArray[np.float64]) -> NDArray[np.complex128]:
+    """Rightmost root of s + D - D e^{-tau2 s} other than 0 (Im >= 0), -inf where tau2 = 0.
+
+    On tau1 = 0 the centroid factor (eq. factor1) is s (s + D - D e^{-tau2 s}).
+    With u = s + D the second factor is tau2 u e^{tau2 u} = x, x = tau2 D e^{tau2 D} > 0,
+    so its roots are s_k = W_k(x) / tau2 - D over the branches k of Lambert's W
+    (Corless et al., "On the Lambert W function", 1996); the principal branch
+    gives s = 0 and, for x > 0, the branches k = +-1 the conjugate pair with
+    the next largest real part.
+    """
+    from scipy.special import lambertw
+
+    out = np.full(tau2.shape, -np.inf + 0j, dtype=np.complex128)
+    pos = tau2 > 0.0
+    t = tau2[pos]
+    s = lambertw(t * D * np.exp(t * D), k=1) / t - D
+    out[pos] = s.real + 1j * np.abs(s.imag)
+    return out
+
+
+# =====================================================================
+# drivers: one delay pair, a grid of delay pairs
+# =====================================================================
+@np.errstate(all="ignore")
+def family_rightmost(
+    fs: Sequence[CharacteristicFactor], P: float, D: float, tau1: float, tau2: float
+) -> NDArray[np.complex128]:
+    """Certified rightmost root (Im >= 0) of every factor at one delay pair, shape (F,)."""
+    lam, real, centroid = _lams(fs)
+    F = lam.size
+    rows = _Rows(lam, np.full(F, float(tau1)), np.full(F, float(tau2)), real, centroid, P, D)
+    seeds = _family_seeds(lam, P, D, float(tau1), float(tau2), _BATCH_SEEDS)
+    seeds = np.where(centroid[:, None] & (np.abs(seeds) < 1e-9), np.nan, seeds)
+    right, ok, _ = _certify_rows(rows, seeds)
+    for k in np.flatnonzero(~ok):
+        right[k] = _generic_rightmost(fs[k], rows.t1[k : k + 1], rows.t2[k : k + 1])[0][0]
+    return right
+
+
+def _axis_levels(n: int) -> list[NDArray[np.int64]]:
+    """Grid indices of each level (coarse to fine), each level containing the previous."""
+    out = []
+    for stride in _LEVELS:
+        idx = np.arange(0, n, stride)
+        out.append(idx if idx[-1] == n - 1 else np.append(idx, n - 1))
+    return out
+
+
+def _nearest(target: NDArray[np.int64], solved: NDArray[np.int64], axis: NDArray[np.float64]) -> NDArray[np.int64]:
+    """For each target index, the solved index with the nearest delay."""
+    pos = np.searchsorted(axis[solved], axis[target])
+    lo = solved[np.clip(pos - 1, 0, solved.size - 1)]
+    hi = solved[np.clip(pos, 0, solved.size - 1)]
+    return np.where(np.abs(axis[target] - axis[lo]) <= np.abs(axis[target] - axis[hi]), lo, hi)
+
+
+@np.errstate(all="ignore")
+def family_grid(
+    fs: Sequence[CharacteristicFactor], P: float, D: float,
+    ax1: NDArray[np.float64], ax2: NDArray[np.float64],
+    advance: Callable[[int], None] | None = None,
+) -> NDArray[np.complex128]:
+    """Certified rightmost root (Im >= 0) of every factor at every grid point, shape (F, n1, n2)."""
+    lam, real, centroid = _lams(fs)
+    F, n1, n2 = lam.size, ax1.size, ax2.size
+    npts = n1 * n2
+    right = np.full((F, npts), np.nan + 0j)
+    known = np.full((F, npts, _KEEP), np.nan + 0j)
+    solved = np.zeros(npts, dtype=bool)
+    T1, T2 = np.meshgrid(ax1, ax2, indexing="ij")
+    t1, t2 = T1.ravel(), T2.ravel()
+    prev1 = prev2 = None
+    for lev1, lev2 in zip(_axis_levels(n1), _axis_levels(n2)):
+        pts = (lev1[:, None] * n2 + lev2[None, :]).ravel()
+        pts = pts[~solved[pts]]
+        if pts.size == 0:
+            continue
+        if prev1 is None:  # first level: seeds from the discretized generator
+            seeds = np.concatenate(
+                [_family_seeds(lam, P, D, float(t1[p]), float(t2[p]), _BATCH_SEEDS) for p in pts], axis=1
+            ).reshape(F * pts.size, _BATCH_SEEDS)
+            seeds = np.where(np.repeat(centroid, pts.size)[:, None] & (np.abs(seeds) < 1e-9), np.nan, seeds)
+        else:  # later levels: the roots of the nearest solved point
+            i, j = pts // n2, pts % n2
+            src = _nearest(i, prev1, ax1) * n2 + _nearest(j, prev2, ax2)
+            seeds = known[:, src].reshape(F * pts.size, _KEEP)
+        rows = _Rows(
+            np.repeat(lam, pts.size), np.tile(t1[pts], F), np.tile(t2[pts], F),
+            np.repeat(real, pts.size), np.repeat(centroid, pts.size), P, D,
+        )
+        r, ok, roots = _certify_rows(rows, seeds)
+        roots = _pad(roots, _KEEP)
+        if not ok.all():  # a root the neighbours did not have: fresh discretization seeds
+            bad = np.flatnonzero(~ok)
+            fresh = np.concatenate([
+                _family_seeds(rows.lam[b : b + 1], P, D, float(rows.t1[b]), float(rows.t2[b]), 2 * _BATCH_SEEDS)
+                for b in bad
+            ])
+            fresh = np.where(rows.deflate[bad][:, None] & (np.abs(fresh) < 1e-9), np.nan, fresh)
+            r2, ok2, roots2 = _certify_rows(rows.take(bad), np.concatenate([fresh, seeds[bad]], axis=1))
+            r[bad[ok2]], ok[bad[ok2]], roots[bad[ok2]] = r2[ok2], True, _pad(roots2[ok2], _KEEP)
+        r, ok, roots = r.reshape(F, -1), ok.reshape(F, -1), roots.reshape(F, pts.size, _KEEP)
+        right[:, pts], known[:, pts] = r, roots
+        for k in np.flatnonzero((~ok).any(axis=1)):
+            bad = pts[~ok[k]]
+            right[k, bad], known[k, bad] = _generic_rightmost(fs[k], t1[bad], t2[bad])
+        solved[pts] = True
+        prev1, prev2 = lev1, lev2
+        if advance is not None:
+            advance(int(F * pts.size))
+    return right.reshape(F, n1, n2)

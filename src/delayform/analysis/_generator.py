@@ -1,0 +1,153 @@
+"""Chebyshev collocation of the infinitesimal generator: the seeds of Newton polishing.
+
+Breda, Maset and Vermiglio (SIAM J. Sci. Comput. 27, 2005): the eigenvalues
+of the discretized generator of ``dx/dt = A x + sum_k B_k x(t - h_k)``
+approximate the characteristic roots (eq. genfactor); stacked over delay
+pairs of equal degree, one np.linalg.eigvals call per bucket.
+"""
+
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+
+import numpy as np
+from numpy.typing import NDArray
+
+from delayform.analysis._quasi import _TINY_DELAY, MAX_DEGREE, _Problem
+
+#: Delay pairs per batched eigenvalue call (bounds memory).
+_CHUNK = 2048
+
+
+# =====================================================================
+# spectral discretization of the infinitesimal generator (batched)
+# =====================================================================
+@lru_cache(maxsize=64)
+def _chebyshev(N: int) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Chebyshev points cos(j pi / N), differentiation matrix and barycentric weights."""
+    j = np.arange(N + 1)
+    x = np.cos(np.pi * j / N)
+    c = np.where((j == 0) | (j == N), 2.0, 1.0) * (-1.0) ** j
+    dx = x[:, None] - x[None, :]
+    Dm = np.outer(c, 1.0 / c) / (dx + np.eye(N + 1))
+    Dm = Dm - np.diag(Dm.sum(axis=1))  # negative-sum trick (Trefethen, Spectral Methods in MATLAB)
+    w = (-1.0) ** j * np.where((j == 0) | (j == N), 0.5, 1.0)
+    return x, Dm, w
+
+
+def _lagrange_rows(N: int, xq: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Values of the N+1 Lagrange basis polynomials at points xq (barycentric formula)."""
+    x, _, w = _chebyshev(N)
+    diff = xq[..., None] - x
+    hit = np.abs(diff) < 1e-15
+    safe = np.where(hit, 1.0, diff)
+    t = w / safe
+    rows = t / t.sum(axis=-1, keepdims=True)
+    on_node = hit.any(axis=-1)
+    return np.where(on_node[..., None], hit.astype(float), rows)
+
+
+def _igd_eigenvalues(
+    prob: _Problem, N: int, t1: NDArray[np.float64], t2: NDArray[np.float64]
+) -> NDArray[np.complex128]:
+    """Eigenvalues of the degree-N discretized generator at each delay pair (shape (B, d(N+1))).
+
+    Rows 1..N collocate u' = d/dtheta u at the Chebyshev points of
+    [-h_max, 0]; row 0 is the DDE itself, the delayed states read off the
+    interpolating polynomial at theta = -h_k. All pairs must have h_max > 0.
+    """
+    d = prob.d
+    x, Dm, _ = _chebyshev(N)
+    Bstack = np.stack([b for b, _, _ in prob.delayed])  # (K, d, d)
+    h = np.stack([a * t1 + b * t2 for _, a, b in prob.delayed], axis=-1)  # (B, K)
+    hmax = h.max(axis=-1)
+    L = _lagrange_rows(N, 1.0 - 2.0 * h / hmax[:, None])  # (B, K, N+1)
+    real = prob.is_real
+    dtype = np.float64 if real else np.complex128
+    Bm = Bstack.real if real else Bstack
+    M = np.zeros((t1.size, N + 1, d, N + 1, d), dtype=dtype)
+    M[:, 0] = np.einsum("bkj,kpq->bpjq", L, Bm)
+    M[:, 0, :, 0, :] += prob.A.real if real else prob.A
+    M[:, 1:] = (2.0 / hmax)[:, None, None, None, None] * np.einsum(
+        "ij,pq->ipjq", Dm[1:], np.eye(d)
+    )
+    size = (N + 1) * d
+    return np.linalg.eigvals(M.reshape(t1.size, size, size)).astype(np.complex128)
+
+
+def _delay_free_eigenvalues(prob: _Problem) -> NDArray[np.complex128]:
+    """Roots at tau1 = tau2 = 0: eigenvalues of A + sum B_k."""
+    total = prob.A + sum(b for b, _, _ in prob.delayed)
+    return np.linalg.eigvals(total)
+
+
+def _max_delay(prob: _Problem, t1: float, t2: float) -> float:
+    """Largest delay of the realization; below :data:`_TINY_DELAY` it counts as none for seeding."""
+    h = max([a * t1 + b * t2 for _, a, b in prob.delayed] + [0.0])
+    return h if h >= _TINY_DELAY else 0.0
+
+
+def _initial_degree(hmax: float, radius: float) -> int:
+    """Chebyshev degree resolving roots up to |s| = radius over a delay interval hmax.
+
+    A root s needs e^{s theta} resolved on [-hmax, 0]; Chebyshev interpolation
+    of it converges once N exceeds about |s| hmax / 2 (Bernstein ellipse), so
+    a margin of twice that plus a floor keeps the rightmost roots accurate
+    enough to seed Newton.
+    """
+    return int(min(MAX_DEGREE, max(12, math.ceil(1.2 * radius * hmax + 10))))
+
+
+def _root_scale(prob: _Problem) -> float:
+    """Radius of the delay-free roots plus the delayed gains: scale of the rightmost roots."""
+    total = prob.A + sum(b for b, _, _ in prob.delayed)
+    return float(max(1.0, np.max(np.abs(np.linalg.eigvals(total))), np.linalg.norm(prob.A, 2)))
+
+
+
+def _map_degree(hmax: NDArray[np.float64], radius: float) -> NDArray[np.int64]:
+    """Degree for the batched pass: enough to seed Newton at the rightmost roots.
+
+    Lower than :func:`_initial_degree` on purpose: the certificate decides,
+    and the pairs it rejects get a discretization of twice the degree (then,
+    rarely, the robust single-pair path).
+    """
+    return np.clip(np.ceil(0.6 * radius * hmax + 4), 6, MAX_DEGREE).astype(np.int64)
+
+
+
+def _igd_seeds(
+    prob: _Problem, t1: NDArray[np.float64], t2: NDArray[np.float64], *, scale: float, k: int
+) -> NDArray[np.complex128]:
+    """The k rightmost eigenvalues of the discretized generator at each pair (NaN-padded).
+
+    One stacked np.linalg.eigvals call per bucket of equal degree; pairs
+    with no delay get the eigenvalues of A + sum B_k. The persistent zero of
+    eq. factor1, which the discretization keeps exactly, is dropped.
+    """
+    out = np.full((t1.size, k), np.nan + 0j, dtype=np.complex128)
+    hmax = np.maximum.reduce([a * t1 + b * t2 for _, a, b in prob.delayed] + [np.zeros(t1.size)])
+    degree = np.minimum(MAX_DEGREE, np.ceil(scale * _map_degree(hmax, _root_scale(prob)))).astype(int)
+    delayed = hmax >= _TINY_DELAY
+    groups = [(np.flatnonzero(~delayed), 0)] + [
+        (np.flatnonzero((degree == N) & delayed), int(N)) for N in np.unique(degree[delayed])
+    ]
+    for idx_all, N in groups:
+        for start in range(0, idx_all.size, _CHUNK):
+            idx = idx_all[start : start + _CHUNK]
+            if N == 0:
+                eig = np.tile(_delay_free_eigenvalues(prob), (idx.size, 1))
+            else:
+                eig = _igd_eigenvalues(prob, N, t1[idx], t2[idx])
+            if prob.deflate_zero:
+                eig[np.arange(idx.size), np.argmin(np.abs(eig), axis=1)] = -np.inf
+            if prob.is_real:  # roots pair up: keep one member, _certify adds the other
+                eig = np.where(eig.imag >= 0.0, eig, -np.inf)
+            order = np.argsort(-eig.real, axis=1)[:, :k]
+            top = np.take_along_axis(eig, order, 1)
+            top[~np.isfinite(top)] = np.nan
+            out[idx, : top.shape[1]] = top
+    return out
+
+

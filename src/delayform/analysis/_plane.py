@@ -1,0 +1,308 @@
+"""CTCR curves in the delay plane: kernel and offspring images of phase paths (eq. nltrans).
+
+A traced quasi-polynomial (:class:`_Part`) gives phase paths
+(:mod:`delayform.analysis._phase`); every image ``tau = (theta + 2 pi i) / omega``
+that meets the window becomes a :class:`CrossingCurve` with its root
+tendencies; the axes' crossings and the counts at the origin complete the data
+the CTCR count needs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from delayform.analysis._phase import (
+    TWO_PI,
+    _general_paths,
+    _single_delay_roots,
+    _three_term_paths,
+    _PhasePath,
+)
+from delayform.characteristic import TwoDelayQuasiPolynomial
+
+# ===================================================================== results
+@dataclass(frozen=True, eq=False)
+class CrossingCurve:
+    """One kernel or offspring curve piece inside (or touching) the window.
+
+    Attributes
+    ----------
+    tau1, tau2
+        Points of the curve, in order along it (a polyline).
+    omega
+        Crossing frequency at each point: ``s = j omega`` is a root there.
+    rt1, rt2
+        Root tendencies w.r.t. tau1 and tau2 at each point (Definition "Root Tendency"),
+        -1, 0 or +1 (stored as int8: large teams have millions of curve points).
+    kind
+        ``"kernel"`` when ``0 < omega tau_k < 2 pi`` for both delays, else ``"offspring"``.
+    shift
+        ``(i, k)`` of eq. nltrans: ``tau = tau_kernel + (2 pi i, 2 pi k) / omega``.
+    weight
+        Change of NU per unit of root tendency when the curve is crossed
+        (2 for a conjugate pair, 1 for one root of a complex qp; times the multiplicity).
+    source
+        Index into :attr:`StabilityMap.traced` of the quasi-polynomial whose
+        imaginary roots make the curve (``curve_residual(m.traced[c.source], c)``).
+    factor
+        Index of the characteristic factor (order of :func:`~delayform.characteristic.factors`;
+        0 for :func:`crossing_map`).
+    """
+
+    tau1: NDArray[np.float64]
+    tau2: NDArray[np.float64]
+    omega: NDArray[np.float64]
+    rt1: NDArray[np.int8]
+    rt2: NDArray[np.int8]
+    kind: str
+    shift: tuple[int, int]
+    weight: int
+    source: int
+    factor: int
+
+    @property
+    def is_kernel(self) -> bool:
+        """True for a kernel curve (Definition "Kernel curves")."""
+        return self.kind == "kernel"
+
+
+@dataclass(frozen=True)
+class _ZeroLine:
+    """The line ``q'(0) = c0 + c1 tau1 + c2 tau2 = 0`` of a real qp with a root s = 0."""
+
+    c0: float
+    c1: float
+    c2: float
+    qp: TwoDelayQuasiPolynomial
+    weight: int
+
+
+
+# ===================================================================== root tendency
+def _tendency(
+    qp: TwoDelayQuasiPolynomial, omega: NDArray[np.float64], t1: NDArray[np.float64], t2: NDArray[np.float64]
+) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """(RT1, RT2) = sgn Re ds/dtau_k at s = j omega (Definition "Root Tendency").
+
+    Unchecked delays, because curve polylines may run a little past the axes.
+    """
+    return qp.root_tendencies(omega, t1, t2)
+
+
+
+# ===================================================================== embedding in the plane
+def _embed(
+    path: _PhasePath, qp: TwoDelayQuasiPolynomial, window: tuple[float, float], weight: int, source: int,
+    factor: int,
+) -> list[CrossingCurve]:
+    """All kernel/offspring images (eq. nltrans) of a phase path that meet the window."""
+    om, u1, u2 = path.omega, path.theta1, path.theta2
+    t1max, t2max = window
+    margin1, margin2 = 0.02 * t1max, 0.02 * t2max
+    i_lo = int(np.ceil(np.min(-u1) / TWO_PI))
+    i_hi = int(np.floor(np.max(t1max * om - u1) / TWO_PI))
+    k_lo = int(np.ceil(np.min(-u2) / TWO_PI))
+    k_hi = int(np.floor(np.max(t2max * om - u2) / TWO_PI))
+    images = []
+    for i in range(i_lo, i_hi + 1):
+        p1 = u1 + TWO_PI * i
+        tau1 = p1 / om
+        in1 = (tau1 >= -margin1) & (tau1 <= t1max + margin1)
+        if not np.any(in1):
+            continue
+        for k in range(k_lo, k_hi + 1):
+            p2 = u2 + TWO_PI * k
+            tau2 = p2 / om
+            inside = in1 & (tau2 >= -margin2) & (tau2 <= t2max + margin2)
+            if np.any(inside):
+                images.append((tau1, tau2, p1, p2, inside))
+    if not images:
+        return []
+    # Root tendencies of all images in one vectorized call, then cut into pieces.
+    n = om.size
+    rt1, rt2 = _tendency(qp, np.tile(om, len(images)), np.concatenate([im[0] for im in images]),
+                         np.concatenate([im[1] for im in images]))
+    curves: list[CrossingCurve] = []
+    for j, (tau1, tau2, p1, p2, inside) in enumerate(images):
+        rts = (rt1[j * n : (j + 1) * n], rt2[j * n : (j + 1) * n])
+        curves.extend(_split_runs(om, tau1, tau2, p1, p2, inside, rts, weight, source, factor))
+    return curves
+
+
+def _split_runs(
+    om: NDArray, tau1: NDArray, tau2: NDArray, p1: NDArray, p2: NDArray, inside: NDArray,
+    rts: tuple[NDArray[np.int64], NDArray[np.int64]], weight: int, source: int, factor: int,
+) -> list[CrossingCurve]:
+    """Cut one image into runs near the window, each of one kind (kernel/offspring)."""
+    # Keep each inside point and its neighbours, so segments crossing the border survive.
+    keep = inside.copy()
+    keep[:-1] |= inside[1:]
+    keep[1:] |= inside[:-1]
+    i1 = np.floor(p1 / TWO_PI).astype(np.int64)
+    i2 = np.floor(p2 / TWO_PI).astype(np.int64)
+    kernel = (i1 == 0) & (i2 == 0)
+    # Run boundaries: where keep flips off, or the kind changes (shared vertex kept in both).
+    out: list[CrossingCurve] = []
+    idx = np.flatnonzero(keep)
+    if idx.size == 0:
+        return out
+    breaks = np.flatnonzero(np.diff(idx) > 1)
+    for run in np.split(idx, breaks + 1):
+        if run.size < 2:
+            continue
+        kinds = kernel[run]
+        # One piece per shift (i, k) of eq. nltrans; the last vertex is shared with the next piece.
+        cut = np.flatnonzero((i1[run][1:] != i1[run][:-1]) | (i2[run][1:] != i2[run][:-1])) + 1
+        bounds = np.concatenate([[0], cut, [run.size]])
+        for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+            sel = run[a : min(b + 1, run.size)]  # share the vertex with the next piece
+            if sel.size < 2:
+                continue
+            out.append(
+                CrossingCurve(
+                    tau1=tau1[sel], tau2=tau2[sel], omega=om[sel], rt1=rts[0][sel].astype(np.int8), rt2=rts[1][sel].astype(np.int8),
+                    kind="kernel" if kinds[a] else "offspring",
+                    shift=(int(i1[sel[0]]), int(i2[sel[0]])), weight=weight, source=source,
+                    factor=factor,
+                )
+            )
+    return out
+
+
+# ===================================================================== assembling a map
+@dataclass(frozen=True)
+class _Part:
+    """One qp traced for omega > 0 with its NU weight per unit RT.
+
+    ``lam`` is set when qp is the three-term factor of eq. factorized of that
+    eigenvalue of C (``s^2 + D s + P - lam (P z1 + D s z2)``): all such parts
+    are traced together by :mod:`delayform.analysis._family_curves`.
+    """
+
+    qp: TwoDelayQuasiPolynomial
+    weight: int
+    factor: int
+    lam: complex | None = None
+
+
+def _conjugate(qp: TwoDelayQuasiPolynomial) -> TwoDelayQuasiPolynomial:
+    """conj(q(conj s)): its omega > 0 crossings are the omega < 0 crossings of q."""
+    return TwoDelayQuasiPolynomial(*(np.conj(c) for c in qp.coefficients))
+
+
+def _is_three_term(qp: TwoDelayQuasiPolynomial) -> bool:
+    return qp.g4.size == 0 and qp.g5.size == 0 and qp.g6.size == 0
+
+
+def _part_curves(part: _Part, window: tuple[float, float], source: int) -> list[CrossingCurve]:
+    qp = part.qp
+    has1 = any(c.size for c, a, _ in qp.terms() if a)
+    has2 = any(c.size for c, _, b in qp.terms() if b)
+    if not has1 and not has2:
+        return []
+    if not has1 or not has2:
+        return _line_curves(part, window, source, vertical=has1)
+    if _is_three_term(qp):
+        paths = _three_term_paths(qp, window)
+    else:
+        paths = _general_paths(qp, window)
+    out: list[CrossingCurve] = []
+    for p in paths:
+        out.extend(_embed(p, qp, window, part.weight, source, part.factor))
+    return out
+
+
+def _line_curves(part: _Part, window: tuple[float, float], source: int, *, vertical: bool) -> list[CrossingCurve]:
+    """A qp in one delay only: its crossings are straight lines across the window."""
+    qp = part.qp
+    if vertical:
+        h0, h1, h2 = qp.g1, qp.g2, qp.g4
+    else:
+        h0, h1, h2 = qp.g1, qp.g3, qp.g5
+    omegas, thetas = _single_delay_roots(h0, h1, h2)
+    tmax, other = (window[0], window[1]) if vertical else (window[1], window[0])
+    out = []
+    for om, th in zip(omegas, thetas, strict=True):
+        for i in range(int(np.floor(tmax * om / TWO_PI)) + 1):
+            tau = (th + TWO_PI * i) / om
+            if tau <= 0 or tau > tmax:
+                continue
+            a = np.array([tau, tau])
+            b = np.array([-0.02 * other, other * 1.02])
+            t1, t2 = (a, b) if vertical else (b, a)
+            w = np.array([om, om])
+            rt1, rt2 = _tendency(qp, w, t1, t2)
+            out.append(CrossingCurve(t1, t2, w, rt1.astype(np.int8), rt2.astype(np.int8), "kernel" if i == 0 else "offspring",
+                                     (i, 0) if vertical else (0, i), part.weight, source, part.factor))
+    return out
+
+
+def _axis_crossings(parts: list[_Part], window: tuple[float, float], *, axis: int) -> tuple[NDArray, NDArray]:
+    """Crossings on the tau1 = 0 axis (axis=2: along tau2) or tau2 = 0 axis (axis=1)."""
+    where, delta = [], []
+    tmax = window[axis - 1]
+    for part in parts:
+        g = part.qp.coefficients
+        add = _padd
+        if axis == 2:   # tau1 = 0: z1 = 1
+            h0, h1, h2 = add(add(g[0], g[1]), g[3]), add(g[2], g[5]), g[4]
+        else:           # tau2 = 0: z2 = 1
+            h0, h1, h2 = add(add(g[0], g[2]), g[4]), add(g[1], g[5]), g[3]
+        h0, h1, h2 = (np.trim_zeros(np.asarray(h, complex), "b") for h in (h0, h1, h2))
+        omegas, thetas = _single_delay_roots(h0, h1, h2)
+        for om, th in zip(omegas, thetas, strict=True):
+            for i in range(int(np.floor(tmax * om / TWO_PI)) + 2):
+                tau = (th + TWO_PI * i) / om
+                if tau <= 1e-12 * tmax or tau > tmax:
+                    continue
+                t1, t2 = (np.array([0.0]), np.array([tau])) if axis == 2 else (np.array([tau]), np.array([0.0]))
+                rt1, rt2 = _tendency(part.qp, np.array([om]), t1, t2)
+                rt = rt2 if axis == 2 else rt1
+                where.append(tau)
+                delta.append(part.weight * int(rt[0]))
+    order = np.argsort(where)
+    return np.asarray(where, float)[order], np.asarray(delta, np.int64)[order]
+
+
+def _padd(a: NDArray[np.complex128], b: NDArray[np.complex128]) -> NDArray[np.complex128]:
+    """Sum of two coefficient arrays of any lengths (empty = zero polynomial)."""
+    out = np.zeros(max(a.size, b.size), complex)
+    out[: a.size] += a
+    out[: b.size] += b
+    return out
+
+
+def _origin_counts(qp: TwoDelayQuasiPolynomial, weight: int) -> tuple[int, int, _ZeroLine | None]:
+    """NU just off the origin along tau2 and along tau1, and the zero line if s = 0 is a root."""
+    p = qp.delay_free()
+    scale = np.max(np.abs(p))
+    m0 = 0
+    while m0 < p.size and abs(p[m0]) <= 1e-12 * scale:
+        m0 += 1
+    rest = p[m0:]
+    nz = np.flatnonzero(np.abs(rest) > 0)
+    rest = rest[: nz[-1] + 1]
+    roots = np.roots(rest[::-1]) if rest.size > 1 else np.zeros(0, complex)
+    tol = 1e-9 * np.maximum(1.0, np.abs(roots))
+    base = int(np.sum(roots.real > tol))
+    imag = roots[np.abs(roots.real) <= tol]
+    start2 = start1 = base
+    if imag.size:
+        ds = []
+        for k in (1, 2):
+            num = qp.delay_derivative(imag, 0.0, 0.0, delay=k)
+            ds.append((-num / qp.derivative(imag, 0.0, 0.0)).real)
+        start1 += int(np.sum(ds[0] > 0))
+        start2 += int(np.sum(ds[1] > 0))
+    line = None
+    if m0 >= 1 and qp.is_real:
+        c0 = float(sum(c[1].real for c, _, _ in qp.terms() if c.size > 1))
+        c1 = float(-sum(a * c[0].real for c, a, _ in qp.terms()))
+        c2 = float(-sum(b * c[0].real for c, _, b in qp.terms()))
+        line = _ZeroLine(c0, c1, c2, qp, weight)
+    return weight * start1, weight * start2, line
+
+

@@ -1,0 +1,215 @@
+"""Certified rightmost roots: one delay pair (robust path) and many pairs at once (batched path)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from delayform.analysis._generator import (
+    _CHUNK,
+    _delay_free_eigenvalues,
+    _igd_eigenvalues,
+    _igd_seeds,
+    _initial_degree,
+    _max_delay,
+    _root_scale,
+)
+from delayform.analysis._quasi import MAX_DEGREE, _cluster, _multiplicity, _polish, _Problem
+from delayform.analysis.certificate import (
+    _batch_lines,
+    _choose_line,
+    _count_right_batch,
+    _count_right_single,
+    _known_reals,
+)
+from delayform.errors import NotConvergedError
+
+# =====================================================================
+# batched rightmost roots over many delay pairs (for maps)
+# =====================================================================
+#: Seeds per delay pair polished in the batched path (the rightmost eigenvalues).
+_BATCH_SEEDS = 8
+#: Seeds further than this left of a pair's rightmost seed are not polished.
+_SEED_WINDOW = 1.0
+#: Spacing (in grid points) of the coarse sub-grid solved by discretization in maps.
+_STRIDE = 5
+#: Spacing (in grid points) of the coarse sub-grid solved by discretization in maps.
+
+
+@dataclass(frozen=True)
+class _SolveResult:
+    """Roots right of the certified line Re s = ``line`` at discretization ``degree``.
+
+    ``roots`` are roots of the solved q (no mirror images; the persistent zero
+    of eq. factor1 deflated), ``mult`` their multiplicities.
+    """
+
+    roots: NDArray[np.complex128]
+    mult: NDArray[np.int64]
+    line: float
+    degree: int
+
+
+def _solve_rightmost(prob: _Problem, t1: float, t2: float) -> _SolveResult:
+    """All roots right of a certified line, for one delay pair (the robust path)."""
+    hmax = _max_delay(prob, t1, t2)
+    a1, a2 = np.asarray(t1), np.asarray(t2)
+    N = _initial_degree(hmax, _root_scale(prob))
+    partial: NDArray[np.complex128] = np.zeros(0, dtype=np.complex128)
+    while True:
+        if hmax == 0.0:
+            eig = _delay_free_eigenvalues(prob)
+        else:
+            eig = _igd_eigenvalues(prob, N, a1.reshape(1), a2.reshape(1))[0]
+        if prob.deflate_zero:
+            eig = np.delete(eig, np.argmin(np.abs(eig)))
+        roots, ok = _polish(prob, eig, a1, a2)
+        roots = _cluster(roots[ok])
+        mult = _multiplicity(prob, roots, t1, t2)
+        partial = roots
+        if roots.size:
+            reals, m = _known_reals(prob, roots, mult)
+            c = _choose_line(reals, float(roots.real.max()))
+            expected = int(m[reals > c].sum())
+            if _count_right_single(prob, t1, t2, c) == expected:
+                keep = roots.real > c
+                return _SolveResult(roots[keep], mult[keep], c, N)
+        if hmax == 0.0 or N >= MAX_DEGREE:
+            raise NotConvergedError(
+                f"could not make sure that no characteristic root lies right of the rightmost one found "
+                f"at (tau1, tau2) = ({t1:g}, {t2:g}); roots there are too many or too close together, "
+                "try slightly different delays",
+                partial=partial,
+            )
+        N = min(MAX_DEGREE, 2 * N)
+
+
+
+def _pick_rightmost(prob: _Problem, roots: NDArray[np.complex128]) -> complex:
+    if roots.size == 0:
+        raise NotConvergedError("no root right of the certified line", partial=roots)
+    top = roots[np.argmax(roots.real)]
+    # of a conjugate pair (or the mirror image), report the member with Im >= 0
+    if prob.mirror or prob.is_real or np.all([np.all(c.imag == 0) for c, _, _ in prob.terms]):
+        top = complex(top.real, abs(top.imag))
+    return complex(top)
+
+
+
+def _batch_distinct(
+    roots: NDArray[np.complex128], ok: NDArray[np.bool_]
+) -> NDArray[np.complex128]:
+    """Per row, the distinct accepted roots first (sorted), NaN after them.
+
+    Rows are sorted (numpy orders complex numbers by real, then imaginary
+    part), so seeds that reached the same root sit side by side; a repeat
+    that is not adjacent only inflates the expected count, which the
+    certificate then rejects (the point is recomputed), never a wrong root.
+    """
+    r = np.sort(np.where(ok, roots, np.nan), axis=1)  # NaN sorts last
+    close = np.abs(r[:, 1:] - r[:, :-1]) <= 1e-7 * (1.0 + np.abs(r[:, :-1]))
+    dup = np.concatenate([np.zeros((r.shape[0], 1), dtype=bool), close], axis=1)
+    r = np.where(dup, np.nan, r)
+    keep = np.isfinite(r).sum(axis=1).max(initial=0)
+    order = np.argsort(~np.isfinite(r), axis=1, kind="stable")
+    return np.take_along_axis(r, order, 1)[:, : max(int(keep), 1)]
+
+
+
+def _certify(
+    prob: _Problem, t1: NDArray[np.float64], t2: NDArray[np.float64], seeds: NDArray[np.complex128]
+) -> tuple[NDArray[np.complex128], NDArray[np.bool_], NDArray[np.complex128]]:
+    """Polish seeds (B, K) at each pair; certify the rightmost; return (rightmost, certified, roots).
+
+    For a real q only seeds with Im >= 0 are polished and the conjugates of
+    the roots added afterwards (half the Newton work).
+    """
+    if prob.is_real:
+        seeds = np.where(seeds.imag >= 0.0, seeds, np.nan)
+    if prob.deflate_zero:  # a seed at the persistent 0 cannot move under Maehly's step
+        seeds = np.where(np.abs(seeds) < 1e-6, -1e-2, seeds)
+    # seeds far left of a row's rightmost one cannot matter for the line c (within
+    # _LINE_OFFSET of the top); dropping them saves Newton steps, and a wrong
+    # drop only costs a rejected certificate
+    with np.errstate(invalid="ignore"):
+        top_seed = np.nanmax(np.where(np.isfinite(seeds), seeds.real, -np.inf), axis=1)
+        seeds = np.where(seeds.real >= top_seed[:, None] - _SEED_WINDOW, seeds, np.nan)
+    roots, ok = _polish(prob, seeds, t1[:, None], t2[:, None])
+    ok &= np.isfinite(seeds)
+    if prob.is_real:  # distinct members with Im >= 0 first, then their mirror images
+        roots = _batch_distinct(np.where(roots.imag < 0.0, np.conj(roots), roots), ok)
+        pair = np.abs(roots.imag) > 1e-9 * (1.0 + np.abs(roots))
+        roots = np.concatenate([roots, np.where(pair, np.conj(roots), np.nan)], axis=1)
+    else:
+        roots = _batch_distinct(roots, ok)
+    c, expected, top = _batch_lines(prob.deflate_zero, roots)
+    good = np.isfinite(top) & np.isfinite(c)
+    counts = np.full(t1.size, np.nan)
+    if good.any():
+        counts[good] = _count_right_batch(prob, t1[good], t2[good], c[good])
+    certified = good & (counts == expected)
+    best = np.argmax(np.where(np.isnan(roots.real), -np.inf, roots.real), axis=1)
+    return roots[np.arange(t1.size), best], certified, roots
+
+
+def _coarse_axis(n: int, stride: int) -> NDArray[np.int64]:
+    idx = np.arange(0, n, stride)
+    return idx if idx[-1] == n - 1 else np.append(idx, n - 1)
+
+
+def _rightmost_grid(
+    prob: _Problem, ax1: NDArray[np.float64], ax2: NDArray[np.float64],
+    advance: Callable[[int], None] | None = None, *, stride: int = _STRIDE,
+) -> NDArray[np.complex128]:
+    """Certified rightmost root of one factor at every point of a delay grid (shape (n1, n2)).
+
+    1. A coarse sub-grid (every ``stride``-th point) is solved by the stacked
+       discretization (:func:`_igd_seeds`) and Newton.
+    2. Every other grid point starts Newton from the roots of its nearest
+       coarse point (roots move continuously with the delays), all at once.
+    3. Every point is certified by the argument principle
+       (:func:`_count_right_batch`); points that fail get their own stacked
+       discretization at a higher degree, and the few left the robust
+       single-pair path (:func:`_solve_rightmost`).
+    """
+    n1, n2 = ax1.size, ax2.size
+    T1, T2 = np.meshgrid(ax1, ax2, indexing="ij")
+    t1, t2 = T1.ravel(), T2.ravel()
+    out = np.full(t1.size, np.nan + 0j, dtype=np.complex128)
+    done = np.zeros(t1.size, dtype=bool)
+    c1, c2 = _coarse_axis(n1, stride), _coarse_axis(n2, stride)
+    coarse = (c1[:, None] * n2 + c2[None, :]).ravel()
+    seeds = _igd_seeds(prob, t1[coarse], t2[coarse], scale=1.0, k=_BATCH_SEEDS)
+    root, cert, roots = _certify(prob, t1[coarse], t2[coarse], seeds)
+    out[coarse[cert]], done[coarse[cert]] = root[cert], True
+    if advance is not None:
+        advance(int(coarse.size))
+    # nearest coarse point of every grid point; coarse rows of roots as seeds
+    near1 = np.abs(np.arange(n1)[:, None] - c1[None, :]).argmin(axis=1)
+    near2 = np.abs(np.arange(n2)[:, None] - c2[None, :]).argmin(axis=1)
+    nearest = (near1[:, None] * c2.size + near2[None, :]).ravel()
+    rest = np.flatnonzero(~done)
+    rest = rest[~np.isin(rest, coarse[~cert])]  # failed coarse points go to the fallback
+    for start in range(0, rest.size, 4 * _CHUNK):
+        idx = rest[start : start + 4 * _CHUNK]
+        seed = roots[nearest[idx]]
+        r, ok, _ = _certify(prob, t1[idx], t2[idx], seed)
+        out[idx[ok]], done[idx[ok]] = r[ok], True
+        if advance is not None:
+            advance(int(idx.size))
+    left = np.flatnonzero(~done)
+    if left.size:
+        seeds = _igd_seeds(prob, t1[left], t2[left], scale=2.0, k=2 * _BATCH_SEEDS)
+        r, ok, _ = _certify(prob, t1[left], t2[left], seeds)
+        out[left[ok]], done[left[ok]] = r[ok], True
+    for i in np.flatnonzero(~done):
+        res = _solve_rightmost(prob, float(t1[i]), float(t2[i]))
+        out[i] = _pick_rightmost(prob, res.roots)
+    if prob.mirror or prob.is_real:
+        out = out.real + 1j * np.abs(out.imag)
+    return out.reshape(n1, n2)
+
+

@@ -1,0 +1,287 @@
+"""Argument-principle certificates: certified counts of roots right of a line or inside a rectangle.
+
+The sampling of arg q is certified by a Lipschitz bound (the module
+docstring of :mod:`delayform.analysis.spectrum`); the line Re s = c is
+closed at infinity by a Cauchy-type radius (Rouche). Also the choice of the
+certifying line in a gap left of the rightmost known root.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from delayform.analysis._quasi import Region, _abs_poly, _abs_poly_der, _evaluate, _horner, _Problem, _Terms
+
+#: Largest distance of the certifying line Re s = c from the roots it separates.
+_LINE_OFFSET = 0.1
+#: Most sample points spent on one certified contour before giving up.
+_MAX_SAMPLES = 400_000
+
+
+# =====================================================================
+# argument principle with certified sampling
+# =====================================================================
+def _lipschitz(
+    terms: _Terms, rho: NDArray[np.float64], re_min: NDArray[np.float64], t1: Any, t2: Any
+) -> NDArray[np.float64]:
+    """Bound of |q'(s)| over |s| <= rho, Re s >= re_min (moduli of coefficients)."""
+    out = np.zeros(np.broadcast_shapes(np.shape(rho), np.shape(re_min), np.shape(t1), np.shape(t2)))
+    for c, a, b in terms:
+        h = a * np.asarray(t1) + b * np.asarray(t2)
+        with np.errstate(over="ignore"):
+            w = np.exp(-h * re_min)
+        out = out + w * (_abs_poly_der(c, rho) + h * _abs_poly(c, rho))
+    return out
+
+
+def _segment_winding(
+    terms: _Terms, t1: float, t2: float, s0: complex, s1: complex, *, budget: int
+) -> tuple[float, int] | None:
+    """Certified change of arg q along the segment s0 -> s1, and samples used.
+
+    Segments of the sampling are bisected until every one satisfies the
+    Lipschitz condition of the module docstring; None when ``budget`` samples
+    do not suffice (a root on or extremely close to the segment).
+    """
+    length = abs(s1 - s0)
+    t = np.linspace(0.0, 1.0, 65)
+    a1, a2 = np.asarray(t1), np.asarray(t2)
+    for _ in range(64):  # 64 bisections: segments far below rounding of s
+        if t.size > budget:
+            return None
+        s = s0 + t * (s1 - s0)
+        q, _, _ = _evaluate(terms, s, a1, a2)
+        absq = np.abs(q)
+        if not np.all(np.isfinite(absq)) or np.any(absq == 0.0):
+            return None
+        rho = np.maximum(np.abs(s[:-1]), np.abs(s[1:]))
+        re_min = np.minimum(s[:-1].real, s[1:].real)
+        L = _lipschitz(terms, rho, re_min, t1, t2) * length * np.diff(t)
+        bad = np.minimum(absq[:-1], absq[1:]) <= 0.5 * L
+        if not bad.any():
+            return float(np.angle(q[1:] / q[:-1]).sum()), int(t.size)
+        mids = 0.5 * (t[:-1] + t[1:])[bad]
+        t = np.sort(np.concatenate([t, mids]))
+    return None
+
+
+def _region_count(
+    prob: _Problem, t1: float, t2: float, region: Region, *, budget: int = _MAX_SAMPLES
+) -> int | None:
+    """Certified number of roots of q inside the rectangle (multiplicity counted)."""
+    x0, x1, y0, y1 = region
+    corners = [complex(x0, y0), complex(x1, y0), complex(x1, y1), complex(x0, y1)]
+    total = 0.0
+    for k in range(4):
+        piece = _segment_winding(prob.terms, t1, t2, corners[k], corners[(k + 1) % 4], budget=budget)
+        if piece is None:
+            return None
+        total += piece[0]
+    count = total / (2.0 * np.pi)
+    return int(round(count)) if abs(count - round(count)) < 0.1 else None
+
+
+def _cauchy_radius(
+    terms: _Terms, c: NDArray[np.float64], t1: NDArray[np.float64], t2: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """Omega with |g1(s)| > sum_k |g_k(s)| e^{-h_k c} whenever |s| >= Omega (Rouche on Re s = c).
+
+    The positive root of |a_N| r^N - sum_{i<N} (|a_i| + sum_k e^{-h_k c} |b_k,i|) r^i
+    (one sign change, so exactly one), found by bisection; the upper end is
+    returned, where the polynomial is strictly positive.
+    """
+    g1 = np.abs(terms[0][0])
+    n = g1.size - 1
+    shape = np.broadcast_shapes(c.shape, t1.shape, t2.shape)
+    low = np.zeros(shape + (n,))
+    low[...] = g1[:n]
+    for coef, a, b in terms[1:]:
+        with np.errstate(over="ignore"):
+            w = np.exp(-(a * t1 + b * t2) * c)
+        low[..., : coef.size] += w[..., None] * np.abs(coef)
+    lead = g1[n]
+    if n == 2:  # the second-order factors of eq. factorized: the quadratic formula
+        b1, b0 = low[..., 1], low[..., 0]
+        root = (b1 + np.sqrt(b1 * b1 + 4.0 * lead * b0)) / (2.0 * lead)
+        return root * (1.0 + 1e-9) + 1e-12
+    hi = np.maximum(1.0, low.sum(axis=-1) / lead) * (1.0 + 1e-12)
+    lo = np.zeros(shape)
+    powers = np.arange(n)
+
+    def p(r: NDArray[np.float64]) -> NDArray[np.float64]:
+        return lead * r**n - (low * r[..., None] ** powers).sum(axis=-1)
+
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        pos = p(mid) > 0.0
+        hi = np.where(pos, mid, hi)
+        lo = np.where(pos, lo, mid)
+    return hi * (1.0 + 1e-9) + 1e-12
+
+
+def _tail_winding(
+    terms: _Terms, g1_roots: NDArray[np.complex128], s_end: NDArray[np.complex128],
+    t1: NDArray[np.float64], t2: NDArray[np.float64], *, upper: bool,
+) -> NDArray[np.float64]:
+    """Arg change of q from c + i Omega up to c + i inf (upper) or from c - i inf to c - i Omega.
+
+    There |q/g1 - 1| < 1, so arg q = arg g1 + Arg(q/g1), with Arg(q/g1) -> 0
+    at infinity and arg g1 moving by sum over its roots z of the angle of s - z.
+    """
+    q, _, _ = _evaluate(terms, s_end, t1, t2)
+    g1 = _horner(terms[0][0], s_end)
+    ratio = np.angle(q / g1)
+    ang = np.angle(s_end[..., None] - g1_roots)
+    if upper:
+        return (np.pi / 2 - ang).sum(axis=-1) - ratio
+    return (ang + np.pi / 2).sum(axis=-1) + ratio
+
+
+def _g1_roots(terms: _Terms) -> NDArray[np.complex128]:
+    g1 = terms[0][0]
+    return np.roots(g1[::-1]) if g1.size > 1 else np.zeros(0, dtype=np.complex128)
+
+
+def _count_right_single(prob: _Problem, t1: float, t2: float, c: float) -> int | None:
+    """Certified number of roots of q with Re s > c (None if not certifiable)."""
+    a1, a2, cc = np.asarray(t1), np.asarray(t2), np.asarray(c, dtype=float)
+    omega = float(_cauchy_radius(prob.terms, cc, a1, a2))
+    piece = _segment_winding(
+        prob.terms, t1, t2, complex(c, -omega), complex(c, omega), budget=_MAX_SAMPLES
+    )
+    if piece is None:
+        return None
+    roots = _g1_roots(prob.terms)
+    top = _tail_winding(prob.terms, roots, np.asarray(complex(c, omega)), a1, a2, upper=True)
+    bottom = _tail_winding(prob.terms, roots, np.asarray(complex(c, -omega)), a1, a2, upper=False)
+    delta = piece[0] + float(top) + float(bottom)
+    count = prob.degree / 2.0 - delta / (2.0 * np.pi)
+    return int(round(count)) if abs(count - round(count)) < 0.1 else None
+
+
+def _count_right_batch(
+    prob: _Problem, t1: NDArray[np.float64], t2: NDArray[np.float64], c: NDArray[np.float64],
+    *, initial: int = 17, max_segments: int = 4096,
+) -> NDArray[np.float64]:
+    """Certified counts of roots in Re s > c for many delay pairs at once (NaN: not certified).
+
+    The adaptive sampling of :func:`_segment_winding`, vectorized: all lines'
+    segments live in flat arrays; each round bisects, in one evaluation, the
+    segments of every line that fail the Lipschitz condition, and the arg
+    increments of the segments that pass are summed per line. For a real q
+    only Im s >= 0 is walked (q(conj s) = conj q(s) doubles it).
+    """
+    nline = c.size
+    omega = _cauchy_radius(prob.terms, c, t1, t2)
+    real = all(np.all(cf.imag == 0.0) for cf, _, _ in prob.terms)
+    u = np.linspace(0.0 if real else -1.0, 1.0, initial)
+    w = omega[:, None] * u  # (B, M)
+    q, _, _ = _evaluate(prob.terms, c[:, None] + 1j * w, t1[:, None], t2[:, None], magnitude=False)
+    line = np.repeat(np.arange(nline), initial - 1)
+    wa, wb = w[:, :-1].ravel(), w[:, 1:].ravel()
+    qa, qb = q[:, :-1].ravel(), q[:, 1:].ravel()
+    total = np.zeros(nline)
+    failed = ~np.all(np.isfinite(q) & (q != 0.0), axis=1)
+    for _ in range(48):
+        rho = np.sqrt(c[line] ** 2 + np.maximum(wa * wa, wb * wb))
+        L = _lipschitz(prob.terms, rho, c[line], t1[line], t2[line]) * (wb - wa)
+        bad = np.minimum(np.abs(qa), np.abs(qb)) <= 0.5 * L
+        with np.errstate(all="ignore"):
+            total += np.bincount(line[~bad], np.angle(qb[~bad] / qa[~bad]), minlength=nline)
+        if not bad.any():
+            break
+        line, wa, wb, qa, qb = line[bad], wa[bad], wb[bad], qa[bad], qb[bad]
+        too_many = np.bincount(line, minlength=nline) > max_segments
+        failed |= too_many
+        keep = ~too_many[line]
+        line, wa, wb, qa, qb = line[keep], wa[keep], wb[keep], qa[keep], qb[keep]
+        wm = 0.5 * (wa + wb)
+        qm, _, _ = _evaluate(prob.terms, c[line] + 1j * wm, t1[line], t2[line], magnitude=False)
+        failed[line[~np.isfinite(qm) | (qm == 0.0)]] = True
+        line = np.concatenate([line, line])
+        wa, wb = np.concatenate([wa, wm]), np.concatenate([wm, wb])
+        qa, qb = np.concatenate([qa, qm]), np.concatenate([qm, qb])
+    else:
+        failed[line] = True
+    roots = _g1_roots(prob.terms)
+    top = _tail_winding(prob.terms, roots, c + 1j * omega, t1, t2, upper=True)
+    if real:
+        delta = 2.0 * (total + top)
+    else:
+        bottom = _tail_winding(prob.terms, roots, c - 1j * omega, t1, t2, upper=False)
+        delta = total + top + bottom
+    count = prob.degree / 2.0 - delta / (2.0 * np.pi)
+    good = ~failed & (np.abs(count - np.round(count)) < 0.1)
+    return np.where(good, np.round(count), np.nan)
+
+
+def _choose_line(reals: NDArray[np.float64], top: float) -> float:
+    """A line Re s = c in a gap left of ``top`` (reals: known root real parts, descending).
+
+    Roots whose real parts are within 1e-3 of each other stay on the same
+    side, so the line is never closer than 5e-4 to a known root; it is at
+    most :data:`_LINE_OFFSET` left of them, because e^{-h c} grows quickly as
+    c moves left and with it the Cauchy radius and the Lipschitz bounds. ``top`` is
+    the real part of the rightmost root wanted (the deflated zero of eq.
+    factor1 may lie right of it and is then simply counted).
+    """
+    k0 = int(np.argmax(reals <= top))
+    for k in range(k0, min(reals.size - 1, k0 + 8)):
+        gap = reals[k] - reals[k + 1]
+        if gap > 1e-3 * (1.0 + abs(reals[k])):
+            return float(reals[k] - min(0.5 * gap, _LINE_OFFSET))
+    return float(reals[min(reals.size - 1, k0 + 8)] - _LINE_OFFSET)
+
+
+def _known_reals(
+    prob: _Problem, roots: NDArray[np.complex128], mult: NDArray[np.int64]
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Real parts (descending) and multiplicities of the roots of q, incl. the deflated zero."""
+    if prob.deflate_zero:
+        roots = np.concatenate([roots, [0.0]])
+        mult = np.concatenate([mult, [1]])
+    order = np.argsort(-roots.real)
+    return roots.real[order], mult[order]
+
+
+
+def _batch_lines(
+    deflate_zero: bool | NDArray[np.bool_] | _Problem, roots: NDArray[np.complex128]
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Vectorized :func:`_choose_line`: the line c, the expected count and the rightmost real part.
+
+    ``deflate_zero`` (one flag, one per row, or a problem whose flag is read)
+    adds the persistent root 0 of eq. factor1 to the known roots of a row.
+    """
+    if isinstance(deflate_zero, _Problem):
+        deflate_zero = deflate_zero.deflate_zero
+    reals = roots.real  # NaN for missing
+    top = np.nanmax(np.where(np.isnan(reals), -np.inf, reals), axis=1)
+    if np.any(deflate_zero):
+        zero = np.where(np.broadcast_to(deflate_zero, top.shape), 0.0, np.nan)
+        reals = np.concatenate([reals, zero[:, None]], axis=1)
+    srt = -np.sort(np.where(np.isnan(reals), np.inf, -reals), axis=1)  # descending, -inf for missing
+    n_known = np.sum(np.isfinite(srt), axis=1)
+    c = np.full(srt.shape[0], np.nan)
+    k0 = np.argmax(srt <= top[:, None], axis=1)
+    width = srt.shape[1]
+    if width >= 2:  # the first of the 8 gaps below the top that is wide enough
+        k = k0[:, None] + np.arange(8)
+        kk = np.minimum(k, width - 2)
+        hi = np.take_along_axis(srt, kk, 1)
+        lo = np.take_along_axis(srt, kk + 1, 1)
+        with np.errstate(invalid="ignore"):  # -inf - -inf where fewer roots are known
+            gap = hi - lo
+        take = (k + 1 < n_known[:, None]) & (gap > 1e-3 * (1.0 + np.abs(hi)))
+        first = np.argmax(take, axis=1)[:, None]
+        hi1, gap1 = np.take_along_axis(hi, first, 1)[:, 0], np.take_along_axis(gap, first, 1)[:, 0]
+        c = np.where(take.any(axis=1), hi1 - np.minimum(0.5 * gap1, _LINE_OFFSET), c)
+    last = np.take_along_axis(srt, np.clip(np.minimum(k0 + 8, n_known - 1), 0, None)[:, None], 1)[:, 0]
+    c = np.where(np.isnan(c), last - _LINE_OFFSET, c)
+    expected = np.sum(srt > c[:, None], axis=1).astype(float)
+    return c, expected, top
+
+

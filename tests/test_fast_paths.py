@@ -1,0 +1,149 @@
+"""The vectorized fast paths (issue 13) against independent computations.
+
+* dominant-root maps by continuation and single points with all factors
+  batched: against the full 2n x 2n determinant (Muller from the map's root,
+  and a dense argument count that no root of the determinant lies right of it);
+* the family certificate (second-order walk, rotated exponentials): against
+  the first-order certified count of ``count_roots_right_of``;
+* the CTCR family path: circulant eigenvalues against dense ``eigvals``;
+  batched polynomial roots against polynomials built from known roots; the
+  closed-form turning test against the dense scan over images; NU of a ring
+  against the reference root count.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import ref_spectrum as ref
+from delayform.analysis import _family, _family_curves, _phase
+from delayform.analysis.ctcr import stability_map
+from delayform.analysis.spectrum import count_roots_right_of, dominant_root, dominant_root_map
+from delayform.characteristic import TwoDelayQuasiPolynomial, factors
+from delayform.topology import _circulant_eigenvalues, paper_six, random_digraph, ring, star
+from ref_roots_ctcr import system_unstable
+
+P, D = 1.0, 0.5
+
+
+def _check_against_determinant(team, tau1: float, tau2: float, root: complex) -> None:
+    """root is a root of det(...)/s (Muller from it stays within 1e-9) and none of it lies right of it."""
+    f = ref.formation_function(team, P, D, tau1, tau2)
+    # started next to it: at tau1 = 0 the centroid's zero is double and det/s is 0/0 at s = 0,
+    # where the reference itself resolves the root only to a few 1e-9
+    tol = 1e-9 if abs(root) > 1e-6 else 1e-8
+    assert abs(ref.muller(f, root + 1e-6) - root) < tol
+    # |s|^2 <= 3 |s| + 6 for a root with Re s > -0.2 and delays <= 8 (|lam| <= 1): |s| < 4.4
+    count = ref.argument_count(f, (root.real + 0.01, 6.0, -6.0, 6.0), points=12000)
+    assert abs(count) < 0.1, f"{count:.2f} roots right of the dominant root at ({tau1}, {tau2})"
+
+
+@pytest.fixture(scope="module")
+def paper_grid_map():
+    grid = np.linspace(0.0, 8.0, 100)
+    return grid, dominant_root_map(paper_six(), P, D, grid, grid)
+
+
+@pytest.mark.parametrize("ij", [(1, 37), (12, 5), (71, 18), (99, 99)])
+def test_continuation_map_equals_the_full_determinant(paper_grid_map, ij: tuple[int, int]) -> None:
+    grid, dmap = paper_grid_map
+    i, j = ij
+    _check_against_determinant(paper_six(), float(grid[i]), float(grid[j]), complex(dmap.roots[i, j]))
+
+
+def test_map_row_tau1_zero_drift_by_lambert_w_equals_the_certified_path(paper_grid_map) -> None:
+    # on tau1 = 0 the centroid factor is s (s + D - D e^{-tau2 s}); the map takes the second
+    # factor's rightmost non-zero root from Lambert's W, dominant_root from the certified path
+    grid, dmap = paper_grid_map
+    for j in (0, 1, 30, 62, 99):
+        single = dominant_root(paper_six(), P, D, 0.0, float(grid[j]))
+        assert abs(single.root - dmap.roots[0, j]) < 1e-9
+
+
+def test_continuation_map_equals_batched_single_points(paper_grid_map) -> None:
+    grid, dmap = paper_grid_map
+    rng = np.random.default_rng(13)
+    for i, j in rng.integers(0, grid.size, (12, 2)):
+        single = dominant_root(paper_six(), P, D, float(grid[i]), float(grid[j]))
+        assert abs(single.root - dmap.roots[i, j]) < 1e-9
+
+
+@pytest.mark.parametrize(("team", "tau1", "tau2"), [(random_digraph(6, 0.4, seed=5), 0.7, 1.9),
+                                                    (ring(5), 2.2, 0.4), (star(4), 0.05, 3.1)])
+def test_batched_single_point_equals_the_full_determinant(team, tau1: float, tau2: float) -> None:
+    _check_against_determinant(team, tau1, tau2, dominant_root(team, P, D, tau1, tau2).root)
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    lam_re=st.floats(-1.0, 1.0), lam_im=st.floats(-1.0, 1.0),
+    tau1=st.floats(0.0, 8.0), tau2=st.floats(0.0, 8.0), offset=st.floats(-0.6, 0.6),
+)
+def test_family_count_equals_first_order_count(lam_re: float, lam_im: float, tau1: float, tau2: float,
+                                               offset: float) -> None:
+    lam = complex(lam_re, lam_im)
+    real = lam_im == 0.0
+    rows = _family._Rows(np.array([lam]), np.array([tau1]), np.array([tau2]), np.array([real]),
+                         np.array([False]), P, D)
+    got = _family._count_rows(rows, np.array([offset]))[0]
+    qp = TwoDelayQuasiPolynomial([P, D, 1.0], [-lam * P], [0.0, -lam * D])
+    try:
+        want = count_roots_right_of(qp, tau1, tau2, offset)
+    except Exception:  # a root on the line: neither count is meaningful
+        return
+    if np.isfinite(got):
+        # a real-lam row counts the conjugate half too; a complex one only q_lam's roots
+        assert got == want
+
+
+# ----------------------------------------------------------------------------- CTCR family path
+@pytest.mark.parametrize("n", [3, 8, 25, 64])
+def test_circulant_eigenvalues_match_dense_eigvals(n: int) -> None:
+    C = ring(n).C_sparse
+    got = np.sort_complex(_circulant_eigenvalues(C))
+    want = np.sort_complex(np.linalg.eigvals(C.toarray()))
+    assert np.abs(got - want).max() < 1e-12
+    assert _circulant_eigenvalues(random_digraph(n, 0.3, seed=n).C_sparse) is None or n < 4
+
+
+def test_batched_positive_roots_match_constructed_polynomials() -> None:
+    rng = np.random.default_rng(7)
+    roots = rng.uniform(0.1, 5.0, (40, 4))
+    roots[::3, 1] = -roots[::3, 1]      # some negative roots, not reported
+    roots[1::3, 2] = roots[1::3, 3]     # double roots, reported once
+    coef = np.array([np.polynomial.polynomial.polyfromroots(r) for r in roots])
+    got = _family_curves._batch_positive_roots(coef)
+    for r, g in zip(roots, got, strict=True):
+        want = np.unique(np.round(r[r > 0], 9))
+        assert np.allclose(np.sort(g[np.isfinite(g)]), want, atol=1e-7)
+
+
+def test_closed_form_turning_test_equals_dense_scan() -> None:
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        n = int(rng.integers(5, 60))
+        om = np.cumsum(rng.uniform(0.01, 0.3, n)) + 0.05
+        om = om[rng.permutation(n)] if rng.random() < 0.2 else om
+        u2 = np.cumsum(rng.normal(0.0, 0.8, n))
+        m_om = 0.5 * (om[:-1] + om[1:]) * (1.0 + rng.normal(0.0, 0.01, n - 1))
+        m2 = 0.5 * (u2[:-1] + u2[1:]) + rng.normal(0.0, 0.05, n - 1)
+        want = _phase._turning_needs(om, u2, m_om, m2, 6.0, 6.0)
+        pid = np.zeros(n, np.int64)
+        got = _family_curves._turning_needs_flat(
+            om, u2, m_om, m2, pid, np.array([0]), np.array([n]), np.ones(n - 1, bool), 6.0, 6.0
+        )
+        assert np.array_equal(got, want)
+
+
+def test_family_ctcr_of_a_ring_matches_root_count() -> None:
+    team = ring(16)  # circulant: eigenvalues by FFT, all |lam| = 1
+    m = stability_map(team, 1.3, 0.6, 7.0, 7.0)
+    rng = np.random.default_rng(16)
+    t1, t2 = rng.uniform(0.0, 7.0, (2, 300))
+    want, uncertain = system_unstable(factors(team, 1.3, 0.6), t1, t2)
+    got = m.unstable_count(t1, t2)
+    assert uncertain.sum() <= 6
+    assert np.array_equal(got[~uncertain], want[~uncertain])
