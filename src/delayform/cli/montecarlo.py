@@ -80,7 +80,7 @@ def montecarlo_command(scenario: Path | None, runs: int, seed: int | None, worke
     """Monte Carlo of the scenario over an imperfect network: N seeded runs.
 
     The network comes from the scenario's [network] table and the options
-    above. Writes the quantile bands of the formation error
+    --loss, --burst, --jitter, --rate, --noise, --delay-spread. Writes the quantile bands of the formation error
     (montecarlo_bands.png/.svg), histograms of settling time, final error
     and peak command (montecarlo_histograms.png/.svg), one CSV row per run
     and an NPZ; reports median and 5-95 % of each. The same seed gives the
