@@ -73,7 +73,7 @@ def test_a_sweep_of_the_ideal_network_agrees_with_the_dominant_root() -> None:
 
 def test_delay_sweep_grid_and_labels() -> None:
     setup = make_setup(ring(3), 1.0, 0.5, 0.3, 0.2, "polygon", duration=2.0, dt=0.05)
-    result = delay_sweep(setup, [0.3, 1.0], [0.2, 2.0], runs=1, seed=1)
+    result = delay_sweep(setup, [0.3, 1.0], [0.2, 2.0], runs=1, seed=1, progress=True)  # a Rich bar on stderr
     assert [label for label, _ in result.table()] == ["(0.3, 0.2)", "(0.3, 2)", "(1, 0.2)", "(1, 2)"]
     assert result.summary()["points"][3]["value"] == (1.0, 2.0)
     assert [r.setup.tau2 for r in result.results] == [0.2, 2.0, 0.2, 2.0]
