@@ -105,3 +105,17 @@ def test_monte_carlo_result_figures_and_table() -> None:
     assert set(rows) >= {"settling time: median [5 %, 95 %]", "final formation error", "peak |omega|"}
     q = mc.quantiles((0.1, 0.9))
     assert np.all(q[0] <= q[1])
+
+
+def test_gain_and_topology_sweeps_change_what_they_say() -> None:
+    from delayform.sweeps import gain_sweep, topology_sweep
+
+    setup = make_setup(ring(3), 1.0, 0.5, 0.3, 0.2, "polygon", duration=2.0, dt=0.05)
+    gains = gain_sweep(setup, [0.5, 1.0], [0.5], runs=1, seed=1)
+    assert [(r.setup.P, r.setup.D) for r in gains.results] == [(0.5, 0.5), (1.0, 0.5)]
+    assert gains.labels == ("P=0.5, D=0.5", "P=1, D=0.5")
+    teams = topology_sweep(setup, [ring(3), ring(5)], shape="polygon", runs=1, seed=1)
+    assert [r.setup.topology.n for r in teams.results] == [3, 5]
+    assert [r.errors.shape[0] for r in teams.results] == [1, 1]
+    with pytest.raises(SimulationInputError, match="unknown sweep field"):
+        sweep(setup, [{"colour": 1}], runs=1)
