@@ -26,7 +26,7 @@ Links
 Continuous and packet streams
     Without jitter, loss, sampling or noise a stream is continuous: agent i
     hears ``x_k(t - d_ik(t))``, read from the computed solution by the cubic
-    Hermite interpolation of :mod:`delayform.simulation.runner`, with
+    Hermite interpolation of :mod:`delayform.simulation.integrator`, with
     ``d_ik(t)`` the link's constant delay plus its smooth variation (the
     delay is that of the value heard at time t). With any of the four, the
     stream is a sequence of packets: agent k samples its state at

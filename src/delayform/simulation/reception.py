@@ -6,7 +6,7 @@ the send time of every value each agent hears at every RK4 stage time
 streams read ``t - d(t)``, packet streams hold the newest packet received,
 the initial state before the first one). :func:`integrate_network` runs
 eq. protocol plus the forcing of eq. formation on those values, with the
-step of :mod:`delayform.simulation.runner` (classical RK4, cubic Hermite
+step of :mod:`delayform.simulation.integrator` (classical RK4, cubic Hermite
 reads of the computed solution), so that with every link at (tau1, tau2) it
 is the ordinary integrator up to rounding.
 """
@@ -251,7 +251,7 @@ def reception(
             zero = (base == 0.0) & (amp == 0.0)
             if np.any(~zero):
                 _check_delay_floor(f"a {name} delay", float((base[~zero] - amp).min()), dt, zero_allowed=False)
-            # relative position m = c - d(t) / dt of the value heard, in steps from t_k (as in runner._lookup)
+            # relative position m = c - d(t) / dt of the value heard, in steps from t_k (as in integrator._lookup)
             t = (k + c) * dt
             d = base[None, None, :] + (amp * np.sin(2.0 * math.pi * t / variation.period + phases[s]) if amp else 0.0)
             send.append(t - d)
@@ -295,12 +295,12 @@ def reception(
 def _hermite_reads(send: _Array, dt: float, n: int, informers: NDArray[np.intp]) -> tuple[NDArray[np.intp], _Array]:
     """Flat row indices ``(steps+1, 3, E)`` of the left grid point and the Hermite weights ``(4, ...)``.
 
-    Mirrors ``runner._lookup`` / ``_History.read``: a value within 1e-9 step of a
+    Mirrors ``integrator._lookup`` / ``_History.read``: a value within 1e-9 step of a
     grid point is read there; an interval that ends at or before t = 0 lies in
     the constant history and reads its value.
     """
     k = np.arange(send.shape[0], dtype=np.float64)[:, None, None]
-    m = send / dt - k  # steps from t_k, as ``c - tau / dt`` in runner._lookup
+    m = send / dt - k  # steps from t_k, as ``c - tau / dt`` in integrator._lookup
     right = np.ceil(m - 1e-9)
     theta = m - (right - 1.0)
     on_grid = np.abs(theta - 1.0) < 1e-9
@@ -332,7 +332,7 @@ def integrate_network(
 ) -> NetworkSamples:
     """RK4 of eq. protocol + forcing with what each agent hears over ``network`` (module doc).
 
-    The step is that of :mod:`delayform.simulation.runner` (classical RK4,
+    The step is that of :mod:`delayform.simulation.integrator` (classical RK4,
     cubic Hermite reads of the solution), with the delayed terms read per
     link at the send times of :func:`reception` and summed with the weights
     ``C_ik``: with every link at (tau1, tau2) it is the ordinary integrator
