@@ -194,7 +194,7 @@ function drawRegion(r) {
   const verdict = r.stable ? "every eigenvalue in the stable region" : `team NU = ${r.unstable_count}`;
   const layout = {
     title: { text: `eigenvalue plane of C (green: stable region): ${verdict}`, font: { size: 12 } },
-    xaxis: { title: { text: "Re \u03bb" }, range: [-R, R], zeroline: false },
+    xaxis: { title: { text: "Re \u03bb" }, range: [-R, R], zeroline: false, constrain: "domain" },
     yaxis: { title: { text: "Im \u03bb" }, range: [-R, R], scaleanchor: "x", zeroline: false },
     margin: { l: 45, r: 5, t: 25, b: 35 }, showlegend: true, legend: { font: { size: 9 } },
   };
