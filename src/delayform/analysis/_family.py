@@ -157,16 +157,20 @@ def _count_rows(
     """Certified number of roots of q with Re s > c per row (NaN: not certified).
 
     The walk of :func:`delayform.analysis.certificate._count_right_batch` with
-    a second-order test: on the line Re s = c the delayed terms have constant
-    moduli E1 = |lam| P e^{-tau1 c}, E2 = |lam| D e^{-tau2 c}, so
+    a chord test: on the line Re s = c the delayed terms have constant moduli
+    E1 = |lam| P e^{-tau1 c}, E2 = |lam| D e^{-tau2 c}, so
 
         |q''(s)| <= M2 = 2 + tau1^2 E1 + 2 tau2 E2 + tau2^2 E2 rho   (|s| <= rho),
 
-    and a segment [s_a, s_b] of length h is accepted when, from both ends,
-    ``|q'(s_e)| h / 2 + M2 h^2 / 8 < |q(s_e)|``: then on each half q(s) / q(s_e)
-    stays in the disc |z - 1| < 1 (Taylor), so each half changes arg q by less
-    than pi / 2 and the segment's change is exactly Arg(q(s_b) / q(s_a)). The
-    line is closed at infinity by the Cauchy radius (root of
+    and on a segment [s_a, s_b] of length h q differs from its chord
+    (the linear interpolation of q(s_a), q(s_b)) by at most M2 h^2 / 8 (the
+    Green's function of the second derivative). A segment is accepted when the
+    chord keeps a distance greater than that from 0: then q does not vanish on
+    it and arg q stays within pi / 2 of the chord's argument, which is exact at
+    both ends, so the segment's change of arg q is exactly Arg(q(s_b) / q(s_a)).
+    Near a root at distance delta from the line this accepts steps of order
+    sqrt(delta) instead of the first-order test's delta, and needs no q'.
+    The line is closed at infinity by the Cauchy radius (root of
     ``r^2 = (D + E2) r + P + E1``, Rouche). Rows with real lam walk Im s >= 0
     only (q(conj s) = conj q(s)).
 
@@ -199,60 +203,49 @@ def _count_rows(
             np.multiply(z[j - 1], rot, out=z[j])
         return z
 
-    def value(
-        sv: NDArray[np.complex128], k1: NDArray[np.complex128], k2: NDArray[np.complex128], idx: Any
-    ) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
-        a = A1[idx] * k1
-        b = B1[idx] * k2
-        bs = b * sv
-        return (sv + D) * sv + P - a - bs, 2.0 * sv + D + t1[idx] * a - b + t2[idx] * bs
-
     w = lo + h * np.arange(m)[:, None]  # (m, n)
     k1, k2 = rotations(t1), rotations(t2)
-    q, dq = value(c + 1j * w, k1, k2, slice(None))
+    sv = c + 1j * w
+    q = (sv + D) * sv + P - A1 * k1 - (B1 * k2) * sv
     # segments j = 0..m-2 of every line, flattened line-major
     line = np.repeat(np.arange(n), m - 1)
-    seg = (slice(None, -1), slice(1, None))
-    wa = w[seg[0]].T.ravel()
-    qa, qb = q[seg[0]].T.ravel(), q[seg[1]].T.ravel()
-    da, db = np.abs(dq[seg[0]].T.ravel()), np.abs(dq[seg[1]].T.ravel())
-    ka, kb = k1[seg[0]].T.ravel(), k2[seg[0]].T.ravel()
+    wa = w[:-1].T.ravel()
+    qa, qb = q[:-1].T.ravel(), q[1:].T.ravel()
+    ka, kb = k1[:-1].T.ravel(), k2[:-1].T.ravel()
     total = np.zeros(n)
     failed = ~np.all(np.isfinite(q) & (q != 0.0), axis=0)
     c2 = c * c
     step = h.copy()
     for _ in range(52):
         hl = step[line]
-        wb = wa + hl
-        rho = np.sqrt(c2[line] + np.maximum(wa * wa, wb * wb))
-        quad = (m2_slope[line] * rho + m2_offset[line]) * (0.125 * hl * hl)
-        half = 0.5 * hl
-        bad = (da * half + quad >= np.abs(qa)) | (db * half + quad >= np.abs(qb))
-        good = ~bad
+        rho2 = c2[line] + np.maximum(wa * wa, (wa + hl) * (wa + hl))
+        quad = (m2_slope[line] * np.sqrt(rho2) + m2_offset[line]) * (0.125 * hl * hl)
+        # squared distance from 0 to the chord [qa, qb]
+        d = qb - qa
+        dd = d.real * d.real + d.imag * d.imag
+        t = np.clip(-(d.real * qa.real + d.imag * qa.imag) / np.where(dd > 0.0, dd, 1.0), 0.0, 1.0)
+        near = qa + t * d
+        good = near.real * near.real + near.imag * near.imag > quad * quad
         total += np.bincount(line[good], np.angle(qb[good] * np.conj(qa[good])), minlength=n)
+        bad = ~good
         if not bad.any():
             break
-        line, wa, qa, qb, da, db, ka, kb = (
-            line[bad], wa[bad], qa[bad], qb[bad], da[bad], db[bad], ka[bad], kb[bad]
-        )
+        line, wa, qa, qb, ka, kb = line[bad], wa[bad], qa[bad], qb[bad], ka[bad], kb[bad]
         too_many = np.bincount(line, minlength=n) > max_segments
         if too_many.any():
             failed |= too_many
             keep = ~too_many[line]
-            line, wa, qa, qb, da, db, ka, kb = (
-                line[keep], wa[keep], qa[keep], qb[keep], da[keep], db[keep], ka[keep], kb[keep]
-            )
+            line, wa, qa, qb, ka, kb = line[keep], wa[keep], qa[keep], qb[keep], ka[keep], kb[keep]
         step = 0.5 * step
         wm = wa + step[line]
         km = ka * np.exp(-1j * t1 * step)[line]
         kbm = kb * np.exp(-1j * t2 * step)[line]
-        qm, dqm = value(c[line] + 1j * wm, km, kbm, line)
+        sm = c[line] + 1j * wm
+        qm = (sm + D) * sm + P - A1[line] * km - (B1[line] * kbm) * sm
         failed[line[~np.isfinite(qm) | (qm == 0.0)]] = True
-        dm = np.abs(dqm)
         line = np.concatenate([line, line])
         wa = np.concatenate([wa, wm])
         qa, qb = np.concatenate([qa, qm]), np.concatenate([qm, qb])
-        da, db = np.concatenate([da, dm]), np.concatenate([dm, db])
         ka, kb = np.concatenate([ka, km]), np.concatenate([kb, kbm])
     else:
         failed[line] = True
