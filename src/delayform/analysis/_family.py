@@ -199,7 +199,11 @@ def _count_rows(
     lo = np.where(rows.real, 0.0, -omega)
     h = (omega - lo) / (m - 1)
 
+    w = lo + h * np.arange(m)[:, None]  # (m, n)
+
     def rotations(tau: NDArray[np.float64]) -> NDArray[np.complex128]:
+        if n <= 64:  # a few lines: one exp call beats m Python-level rotations
+            return np.exp(-1j * tau * w)
         z = np.empty((m, n), dtype=np.complex128)
         z[0] = np.exp(-1j * tau * lo)
         rot = np.exp(-1j * tau * h)
@@ -207,7 +211,6 @@ def _count_rows(
             np.multiply(z[j - 1], rot, out=z[j])
         return z
 
-    w = lo + h * np.arange(m)[:, None]  # (m, n)
     k1, k2 = rotations(t1), rotations(t2)
     sv = c + 1j * w
     q = (sv + D) * sv + P - A1 * k1 - (B1 * k2) * sv
