@@ -359,8 +359,10 @@ def _family_seeds(lam: NDArray[np.complex128], P: float, D: float, t1: float, t2
         if not real.all():
             eig[~real] = np.linalg.eigvals(M0 + lam[~real][:, None, None] * M1)
     order = np.argsort(-eig.real, axis=1)[:, :k]
+    top = eig[np.arange(F)[:, None], order]
+    if top.shape[1] == k:
+        return top
     out = np.full((F, k), np.nan + 0j)
-    top = np.take_along_axis(eig, order, 1)
     out[:, : top.shape[1]] = top
     return out
 
@@ -397,8 +399,10 @@ def _pad(roots: NDArray[np.complex128], k: int) -> NDArray[np.complex128]:
     """The k rightmost entries per row (NaN-padded)."""
     key = np.where(np.isnan(roots.real), np.inf, -roots.real)
     order = np.argsort(key, axis=1)[:, :k]
+    top = roots[np.arange(roots.shape[0])[:, None], order]
+    if top.shape[1] == k:
+        return top
     out = np.full((roots.shape[0], k), np.nan + 0j)
-    top = np.take_along_axis(roots, order, 1)
     out[:, : top.shape[1]] = top
     return out
 
