@@ -155,6 +155,21 @@ def _polish_rows(seeds: NDArray[np.complex128], rows: _Rows) -> tuple[NDArray[np
 # =====================================================================
 # the certificate, vectorized over rows (same bounds as certificate.py)
 # =====================================================================
+def _chord_ok(
+    qa: NDArray[np.complex128], qb: NDArray[np.complex128], wa: NDArray[np.float64], h: Any,
+    m2_slope: Any, m2_offset: Any, c2: Any,
+) -> NDArray[np.bool_]:
+    """Segments [c + i wa, c + i (wa + h)] on which q keeps off 0 by the chord test (see _count_rows)."""
+    wb = wa + h
+    rho = np.sqrt(c2 + np.maximum(wa * wa, wb * wb))
+    quad = (m2_slope * rho + m2_offset) * (0.125 * h * h)
+    d = qb - qa
+    dd = d.real * d.real + d.imag * d.imag
+    t = np.clip(-(d.real * qa.real + d.imag * qa.imag) / np.where(dd > 0.0, dd, 1.0), 0.0, 1.0)
+    near = qa + t * d  # the chord's point nearest 0
+    return near.real * near.real + near.imag * near.imag > quad * quad
+
+
 def _count_rows(
     rows: _Rows, c: NDArray[np.float64], *, max_segments: int = 4096
 ) -> NDArray[np.float64]:
@@ -214,30 +229,18 @@ def _count_rows(
     k1, k2 = rotations(t1), rotations(t2)
     sv = c + 1j * w
     q = (sv + D) * sv + P - A1 * k1 - (B1 * k2) * sv
-    # segments j = 0..m-2 of every line, flattened line-major
-    line = np.repeat(np.arange(n), m - 1)
-    wa = w[:-1].T.ravel()
-    qa, qb = q[:-1].T.ravel(), q[1:].T.ravel()
-    ka, kb = k1[:-1].T.ravel(), k2[:-1].T.ravel()
-    total = np.zeros(n)
     failed = ~np.all(np.isfinite(q) & (q != 0.0), axis=0)
     c2 = c * c
+    # the initial segments are tested in their (m - 1, n) layout; only rejected ones are
+    # gathered into flat arrays and bisected
+    good = _chord_ok(q[:-1], q[1:], w[:-1], h, m2_slope, m2_offset, c2)
+    total = np.where(good, np.angle(q[1:] * np.conj(q[:-1])), 0.0).sum(axis=0)
+    j, line = np.nonzero(~good)
+    wa, qa, qb, ka, kb = w[j, line], q[j, line], q[j + 1, line], k1[j, line], k2[j, line]
     step = h.copy()
     for _ in range(52):
-        hl = step[line]
-        rho2 = c2[line] + np.maximum(wa * wa, (wa + hl) * (wa + hl))
-        quad = (m2_slope[line] * np.sqrt(rho2) + m2_offset[line]) * (0.125 * hl * hl)
-        # squared distance from 0 to the chord [qa, qb]
-        d = qb - qa
-        dd = d.real * d.real + d.imag * d.imag
-        t = np.clip(-(d.real * qa.real + d.imag * qa.imag) / np.where(dd > 0.0, dd, 1.0), 0.0, 1.0)
-        near = qa + t * d
-        good = near.real * near.real + near.imag * near.imag > quad * quad
-        total += np.bincount(line[good], np.angle(qb[good] * np.conj(qa[good])), minlength=n)
-        bad = ~good
-        if not bad.any():
+        if line.size == 0:
             break
-        line, wa, qa, qb, ka, kb = line[bad], wa[bad], qa[bad], qb[bad], ka[bad], kb[bad]
         too_many = np.bincount(line, minlength=n) > max_segments
         if too_many.any():
             failed |= too_many
@@ -254,6 +257,10 @@ def _count_rows(
         wa = np.concatenate([wa, wm])
         qa, qb = np.concatenate([qa, qm]), np.concatenate([qm, qb])
         ka, kb = np.concatenate([ka, km]), np.concatenate([kb, kbm])
+        good = _chord_ok(qa, qb, wa, step[line], m2_slope[line], m2_offset[line], c2[line])
+        total += np.bincount(line[good], np.angle(qb[good] * np.conj(qa[good])), minlength=n)
+        bad = ~good
+        line, wa, qa, qb, ka, kb = line[bad], wa[bad], qa[bad], qb[bad], ka[bad], kb[bad]
     else:
         failed[line] = True
     # tails beyond +-Omega: arg q = arg g1 + Arg(q / g1), g1 = s^2 + D s + P (Rouche)
