@@ -24,6 +24,7 @@ call, whose matrices depend on lam only through one block (cached per delays).
 
 from __future__ import annotations
 
+import cmath
 from collections.abc import Callable, Sequence
 from functools import lru_cache
 from typing import Any
@@ -264,11 +265,11 @@ def _count_rows(
     else:
         failed[line] = True
     # tails beyond +-Omega: arg q = arg g1 + Arg(q / g1), g1 = s^2 + D s + P (Rouche)
-    disc = np.sqrt(complex(D * D - 4.0 * P))
+    # (the walk's end samples are the points c +- i Omega; real rows use only the top one)
+    disc = cmath.sqrt(D * D - 4.0 * P)
     z = np.array([(-D + disc) / 2.0, (-D - disc) / 2.0])
-    ends = c[:, None] + 1j * np.stack([omega, -omega], axis=1)
-    qe, _, _, _ = _q(ends, lam[:, None], t1[:, None], t2[:, None], P, D)
-    ratio = np.angle(qe / ((ends + D) * ends + P))
+    ends = np.stack([sv[-1], sv[0]], axis=1)
+    ratio = np.angle(np.stack([q[-1], q[0]], axis=1) / ((ends + D) * ends + P))
     ang = np.angle(ends[..., None] - z)  # (n, 2, 2)
     top = (np.pi / 2 - ang[:, 0]).sum(axis=-1) - ratio[:, 0]
     bottom = (ang[:, 1] + np.pi / 2).sum(axis=-1) + ratio[:, 1]
