@@ -16,9 +16,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import delayform
+
 from test_scenario import MALFORMED  # the same malformed files as the in-process tests
 
 ROOT = Path(__file__).resolve().parents[1]
+PACKAGE_ROOT = str(Path(delayform.__file__).resolve().parents[1])
 COMMANDS = ("chart", "roots", "map", "schedule", "simulate", "report")
 
 
@@ -37,8 +40,8 @@ def run(*args: str, cwd: Path | None = None, timeout: float = 600) -> subprocess
     proc = subprocess.run(
         [sys.executable, "-m", "delayform", *args],
         capture_output=True, text=True, cwd=cwd, timeout=timeout,
-        # PYTHONPATH: the tree under test, not whatever copy of delayform the venv has installed
-        env={"MPLBACKEND": "Agg", "PATH": "/usr/bin:/bin", "HOME": str(cwd or ROOT), "PYTHONPATH": str(ROOT / "src")},
+        # the subprocess imports the same delayform as this test run (a worktree, not another install)
+        env={"MPLBACKEND": "Agg", "PATH": "/usr/bin:/bin", "HOME": str(cwd or ROOT), "PYTHONPATH": PACKAGE_ROOT},
     )  # fmt: skip
     assert_no_warning_text(proc.stderr)
     return proc
@@ -102,7 +105,7 @@ def test_override_that_does_not_fit_the_scenario(tmp_path: Path) -> None:
     # the paper's hexagon cannot hold a ring of five: only the commands that move robots need it
     proc = run("report", "--topology", "ring", "--n", "5", "--out", str(tmp_path / "r"), cwd=tmp_path)
     assert_one_line_error(proc, "formation.shape", "hexagon", "--formation")
-    assert not any((tmp_path / "r").iterdir())  # refused before anything was computed
+    assert not (tmp_path / "r").exists()  # refused before anything was computed or created
 
 
 # -------------------------------------------------------------- --help
@@ -368,7 +371,8 @@ def test_report_on_a_scenario_file(tmp_path: Path) -> None:
         assert (out / name).stat().st_size > 0, name
     html = (out / "index.html").read_text()
     # self-contained: every figure embedded, none fetched from elsewhere
-    assert html.count('src="data:image/png;base64,') == html.count("<img ") == 5
+    # chart, eigenvalue plane, surface, contour, x/y and paths: six figures, all embedded
+    assert html.count('src="data:image/png;base64,') == html.count("<img ") == 6
     # the map grid came from the file: [0, tau1_max] x [0, tau2_max] by default
     grid = np.load(out / "dominant_map.npz")
     assert grid["real_part"].shape == (11, 11) and grid["tau1"][-1] == 3.0

@@ -393,7 +393,12 @@ class CharacteristicFactor:
     def describe(self) -> str:
         """One line: eigenvalue, order, multiplicity and role."""
         lam = self.lam
-        value = f"{lam.real:.4g}" if not self.group.is_complex_pair else f"{lam.real:.4g} +- {lam.imag:.4g}j"
+        if not self.group.is_complex_pair:
+            value = format_number(lam.real, digits=4)
+        else:  # the pair's real part may be zero to working precision (e.g. +-1j on a ring)
+            re = format_number(complex(lam.real, 0.0), scale=abs(lam), digits=4)
+            value = f"{'' if re == '0' else re + ' '}+- {abs(lam.imag):.4g}j"
+
         role = "centroid (rigid-body mode s = 0)" if self.is_centroid else "disagreement"
         mult = f", multiplicity {self.multiplicity}" if self.multiplicity > 1 else ""
         return f"lam = {value}: order {self.order}{mult}, {role}"

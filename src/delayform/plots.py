@@ -170,7 +170,6 @@ def _meshgrid_ij(a: Any, b: Any) -> tuple[Any, Any]:
 # === section: formation and simulation figures (issue 5) ===
 from typing import Any  # noqa: E402
 
-import numpy as np  # noqa: E402
 
 
 def agent_colors(n: int) -> Any:

@@ -370,6 +370,7 @@ def roots_section(
         "formation_time_constant": _time_constant(formation_root),
         "centroid_root": None if dom.centroid_root is None else complex(dom.centroid_root),
         "centroid_time_constant": dom.centroid_time_constant,
+        "centroid_drifts": bool(dom.is_drift),
         "region": list(region),
         "roots_in_region": [{"factor": r[0], "root": complex(r[3], r[4])} for r in rows],
         "points": at_points,
@@ -378,8 +379,10 @@ def roots_section(
     if not dom.is_stable:
         table.append(("growth rate Re (unstable)", f"{_fmt(dom.growth_rate)} 1/s"))
     elif dom.is_centroid_drift:  # the slowest mode is the centroid's speed, not the shape
+        centroid = (("centroid", "drifts at constant speed (the second root s = 0 on tau1 = 0)") if dom.is_drift
+                    else ("centroid time constant", f"{_fmt(_time_constant(s_dom))} s (the centroid's speed settles)"))
         table += [
-            ("centroid time constant", f"{_fmt(_time_constant(s_dom))} s (the centroid's speed settles)"),
+            centroid,
             ("formation time constant", f"{_fmt(_time_constant(formation_root))} s (the shape settles, root "
                                         f"{_fmt_complex(formation_root)})"),
         ]  # fmt: skip

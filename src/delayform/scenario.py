@@ -791,6 +791,10 @@ def parse_scenario(data: Mapping[str, Any], *, source: str = "<scenario>", defau
     )  # fmt: skip
 
 
+#: a scenario file is a page of TOML; anything far larger is a mistake (a data file, a device)
+_MAX_FILE_BYTES = 16 * 2**20
+
+
 def load_scenario(path: str | Path) -> Scenario:
     """Read and validate a TOML scenario file.
 
@@ -808,6 +812,13 @@ def load_scenario(path: str | Path) -> Scenario:
     path = Path(path)
     source = str(path)
     try:
+        if path.is_dir():
+            raise ScenarioError(f"{source}: is a directory, expected a scenario file (.toml)")
+        if path.exists() and not path.is_file():  # a device or pipe (/dev/zero) would never end
+            raise ScenarioError(f"{source}: not a regular file")
+        if path.exists() and path.stat().st_size > _MAX_FILE_BYTES:
+            raise ScenarioError(f"{source}: {path.stat().st_size} bytes, too large for a scenario file "
+                                f"(at most {_MAX_FILE_BYTES // 2**20} MiB)")  # fmt: skip
         text = path.read_text(encoding="utf-8")
     except OSError as exc:
         raise ScenarioError(f"{source}: cannot read scenario file ({exc.strerror or exc})") from None

@@ -439,9 +439,18 @@ def ring(n: int) -> Topology:
     return Topology.from_edges(zip((idx - 1) % n, idx, strict=True), n, name=f"ring({n})")
 
 
+def _require_edges(count: float, what: str) -> None:
+    """Refuse a graph whose edge list would not fit in memory (~100 bytes per edge while building)."""
+    from delayform.resources import require
+
+    require(what=f"{what} (about {count:.3g} edges)", setting="the number of agents or the edge probability",
+            nbytes=100.0 * count)  # fmt: skip
+
+
 def complete(n: int) -> Topology:
     """Every agent receives from every other; C has eigenvalues 1 and -1/(n-1)."""
     n = _check_count(n, 2, "complete")
+    _require_edges(float(n) * (n - 1), f"a complete graph of {n} agents")
     A = np.ones((n, n)) - np.eye(n)
     return Topology.from_adjacency(A, name=f"complete({n})")
 
@@ -477,6 +486,8 @@ def random_digraph(n: int, p: float, seed: int | np.random.Generator | None = No
     (8, True)
     """
     n = _check_count(n, 2, "random_digraph")
+    if not isinstance(p, (bool, np.bool_)) and isinstance(p, (int, float, np.floating)):
+        _require_edges(n + float(n) * (n - 1) * float(p), f"a random digraph of {n} agents with p = {float(p):g}")
     if isinstance(p, (bool, np.bool_)) or not (isinstance(p, (int, float, np.floating)) and 0.0 <= float(p) <= 1.0):
         raise TopologyError(f"random_digraph needs a probability 0 <= p <= 1, got {p!r}")
     rng = np.random.default_rng(seed)

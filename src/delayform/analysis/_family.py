@@ -429,26 +429,6 @@ def family_reach_scales(fs: Sequence[CharacteristicFactor]) -> NDArray[np.float6
     return np.maximum(np.maximum(1.0, free), _norm_a(P, D))
 
 
-def centroid_drift_roots(D: float, tau2: NDArray[np.float64]) -> NDArray[np.complex128]:
-    """Rightmost root of s + D - D e^{-tau2 s} other than 0 (Im >= 0), -inf where tau2 = 0.
-
-    On tau1 = 0 the centroid factor (eq. factor1) is s (s + D - D e^{-tau2 s}).
-    With u = s + D the second factor is tau2 u e^{tau2 u} = x, x = tau2 D e^{tau2 D} > 0,
-    so its roots are s_k = W_k(x) / tau2 - D over the branches k of Lambert's W
-    (Corless et al., "On the Lambert W function", 1996); the principal branch
-    gives s = 0 and, for x > 0, the branches k = +-1 the conjugate pair with
-    the next largest real part.
-    """
-    from scipy.special import lambertw
-
-    out = np.full(tau2.shape, -np.inf + 0j, dtype=np.complex128)
-    pos = tau2 > 0.0
-    t = tau2[pos]
-    s = lambertw(t * D * np.exp(t * D), k=1) / t - D
-    out[pos] = s.real + 1j * np.abs(s.imag)
-    return out
-
-
 # =====================================================================
 # drivers: one delay pair, a grid of delay pairs
 # =====================================================================

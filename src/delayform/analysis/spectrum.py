@@ -69,7 +69,7 @@ from numpy.typing import ArrayLike, NDArray
 from delayform._validation import check_delay, check_gains
 # the internals live in one module per concept; the private names other modules
 # (design/scheduling.py) import from here stay importable from here
-from delayform.analysis._family import centroid_drift_roots, family_grid, family_rightmost, family_reach_scales
+from delayform.analysis._family import family_grid, family_rightmost, family_reach_scales
 from delayform.analysis._generator import (  # noqa: F401
     _chebyshev,
     _lagrange_rows,
@@ -100,6 +100,8 @@ from delayform.analysis._rightmost import (  # noqa: F401
     _SEED_WINDOW,
     _batch_distinct,
     _certify,
+    _coarse_axis,
+    _nearest_coarse,
     _pick_rightmost,
     _rightmost_grid,
     _solve_rightmost,
@@ -451,16 +453,19 @@ class DominantRoot:
     One meaning of *stable* throughout delayform (docs/theory.md): the team
     is stable when every root of every factor of eq. factorized has
     Re s < 0, except the centroid factor's roots at s = 0. The persistent
-    root 0 of eq. factor1 is the team's freedom to sit anywhere; on the line
-    tau1 = 0 the centroid factor has a second root at 0, a centroid that
-    drifts at constant speed. Neither changes the shape the agents reach,
-    so neither counts (the CTCR map treats the tau1 = 0 line the same way).
+    root 0 of eq. factor1 is the team's freedom to sit anywhere and is never
+    reported; on the line tau1 = 0 the centroid factor has a second root at
+    0, a centroid that drifts at constant speed. That root *is* reported
+    (it is the limit of the centroid's slow root -P tau1 / (1 + D tau2) as
+    tau1 -> 0, so maps stay continuous) but does not make the team unstable:
+    the shape the agents reach is the same. The CTCR map treats the tau1 = 0
+    line the same way.
 
     Attributes
     ----------
     root
-        The rightmost root over all factors, the centroid factor's roots at
-        s = 0 excluded; of a conjugate pair the member with Im >= 0.
+        The rightmost root over all factors, the persistent root 0 of the
+        centroid factor excluded; of a conjugate pair the member with Im >= 0.
     factor
         The factor it belongs to.
     tau1, tau2
@@ -469,8 +474,11 @@ class DominantRoot:
         The rightmost root of the disagreement factors (every factor but the
         centroid's): how fast the agents reach the formation's *shape*.
     centroid_root
-        The rightmost non-zero root of the centroid factor (how fast the
-        centroid's velocity settles), or None when it has none (tau1 = tau2 = 0).
+        The rightmost root of the centroid factor, its persistent 0 excluded:
+        how fast the centroid's speed settles (exactly 0 on tau1 = 0: the drift).
+    beside_drift
+        On tau1 = 0: the rightmost root with both centroid zeros removed
+        (see :attr:`stability_root`); None elsewhere.
     """
 
     root: complex
@@ -479,11 +487,27 @@ class DominantRoot:
     tau2: float
     formation_root: complex | None = None
     centroid_root: complex | None = None
+    beside_drift: complex | None = None
+
+    @property
+    def stability_root(self) -> complex:
+        """The rightmost root that decides stability: ``root``, or beside the drift on tau1 = 0.
+
+        On tau1 = 0, where ``root`` is the drift's s = 0, this is the rightmost
+        root of every factor with both centroid zeros removed (its real part is
+        the spectral abscissa the gain design minimises).
+        """
+        return self.beside_drift if self.is_drift and self.beside_drift is not None else self.root
 
     @property
     def is_stable(self) -> bool:
-        """True when Re root < 0: every mode except the centroid's drift decays (Lemma 2)."""
-        return self.root.real < 0.0
+        """True when every mode decays except the centroid's drift at s = 0 (Lemma 2, docs/theory.md)."""
+        return self.stability_root.real < 0.0 or (self.is_drift and _decays(self.formation_root))
+
+    @property
+    def is_drift(self) -> bool:
+        """True when the dominant root is the centroid's drift: s = 0 exactly, on tau1 = 0."""
+        return bool(self.factor.is_centroid) and self.root == 0.0
 
     @property
     def time_constant(self) -> float:
@@ -501,9 +525,9 @@ class DominantRoot:
         return _decay_time(self.root if self.formation_root is None else self.formation_root)
 
     @property
-    def centroid_time_constant(self) -> float | None:
-        """Time constant of the centroid's velocity, None when the centroid factor has no non-zero root."""
-        return None if self.centroid_root is None else _decay_time(self.centroid_root)
+    def centroid_time_constant(self) -> float:
+        """Time constant of the centroid's speed; ``math.inf`` for the drift on tau1 = 0."""
+        return _decay_time(self.root if self.centroid_root is None else self.centroid_root)
 
     @property
     def is_centroid_drift(self) -> bool:
@@ -511,26 +535,29 @@ class DominantRoot:
         return bool(self.factor.is_centroid)
 
 
-def _decay_time(root: complex) -> float:
-    return 1.0 / -root.real if root.real < 0.0 else math.inf
-
-
 def _centroid_rightmost(factor: CharacteristicFactor, t1: float, t2: float) -> complex | None:
-    """Rightmost root of the centroid factor with its roots at s = 0 removed.
+    """Rightmost root of the centroid factor with *both* its roots at s = 0 removed (design/gains uses it).
 
     For tau1 > 0 the factor has the single persistent root 0, deflated by
     :func:`rightmost_root`. On tau1 = 0 it is s (s + D - D e^{-tau2 s}): the
     second factor r has a simple root at 0 too (the drift), so its deflated
-    rightmost root is the answer; for tau2 = 0 as well, r = s has no other root.
+    rightmost root is the answer; for tau2 = 0 as well, r = s has no other root (None).
     """
     if t1 > 0.0:
         return rightmost_root(factor, t1, t2)
     if t2 == 0.0:
         return None
     D = factor.D
-    r = TwoDelayQuasiPolynomial([D, 1.0], [], [-D])
-    prob = _problem_of_qp(r)
+    prob = _problem_of_qp(TwoDelayQuasiPolynomial([D, 1.0], [], [-D]))
     return _rightmost(_Problem(prob.terms, prob.A, prob.delayed, prob.mirror, True), t1, t2)
+
+
+def _decays(root: complex | None) -> bool:
+    return root is None or root.real < 0.0
+
+
+def _decay_time(root: complex) -> float:
+    return 1.0 / -root.real if root.real < 0.0 else math.inf
 
 
 def _checked_factors(topology: Topology, P: float, D: float) -> tuple[CharacteristicFactor, ...]:
@@ -573,12 +600,17 @@ def dominant_root(topology: Topology, P: float, D: float, tau1: float, tau2: flo
     right = family_rightmost(fs, fs[0].P, fs[0].D, t1, t2)
     k0 = next(k for k, f in enumerate(fs) if f.is_centroid)
     centroid = fs[k0]
-    # the centroid's rightmost root without its roots at 0 (its drift on tau1 = 0)
-    drift = complex(right[k0]) if t1 > 0.0 else _centroid_rightmost(centroid, t1, t2)
-    shape = [(complex(right[k]), f) for k, f in enumerate(fs) if not f.is_centroid]
-    formation = max(shape, key=lambda rf: rf[0].real)
-    best = formation if drift is None or formation[0].real >= drift.real else (drift, centroid)
-    return DominantRoot(best[0], best[1], t1, t2, formation_root=formation[0], centroid_root=drift)
+    # on tau1 = 0 the centroid factor is s (s + D - D e^{-tau2 s}): its second zero, the drift, is exact
+    centroid_root = complex(right[k0]) if t1 > 0.0 else 0j
+    formation = max(((complex(right[k]), f) for k, f in enumerate(fs) if not f.is_centroid),
+                    key=lambda rf: rf[0].real)  # fmt: skip
+    best = formation if formation[0].real >= centroid_root.real else (centroid_root, centroid)
+    beside = None
+    if best[1].is_centroid and best[0] == 0.0:  # the drift on tau1 = 0: what decides stability is next to it
+        nxt = _centroid_rightmost(centroid, t1, t2)
+        beside = formation[0] if nxt is None or formation[0].real >= nxt.real else nxt
+    return DominantRoot(best[0], best[1], t1, t2, formation_root=formation[0], centroid_root=centroid_root,
+                        beside_drift=beside)  # fmt: skip
 
 
 @dataclass(frozen=True, eq=False)
@@ -595,6 +627,9 @@ class DominantRootMap:
         Index into ``factors`` of the factor the dominant root belongs to.
     factors
         The factors of eq. factorized.
+    formation_real
+        Re of the rightmost root of the disagreement factors (the shape), or
+        None; decides stability where the dominant root is the centroid's drift.
     """
 
     tau1_values: NDArray[np.float64]
@@ -602,6 +637,7 @@ class DominantRootMap:
     roots: NDArray[np.complex128]
     factor_index: NDArray[np.int64]
     factors: tuple[CharacteristicFactor, ...]
+    formation_real: NDArray[np.float64] | None = None
 
     @property
     def real(self) -> NDArray[np.float64]:
@@ -610,14 +646,23 @@ class DominantRootMap:
 
     @property
     def stable(self) -> NDArray[np.bool_]:
-        """True where Re(dominant root) < 0."""
-        return self.roots.real < 0.0
+        """True where every mode decays but the centroid's drift (one meaning of stable, :class:`DominantRoot`).
+
+        Where the dominant root is the centroid's drift s = 0 (on tau1 = 0)
+        the shape's modes decide; the map keeps the drift's Re = 0, so the
+        surface is continuous as tau1 -> 0.
+        """
+        centroid = np.array([f.is_centroid for f in self.factors])[self.factor_index]
+        drift = centroid & (self.roots == 0.0)
+        shape = self.formation_real if self.formation_real is not None else np.full(self.roots.shape, -np.inf)
+        return (self.roots.real < 0.0) | (drift & (shape < 0.0))
 
     @property
     def time_constant(self) -> NDArray[np.float64]:
-        """1 / |Re(dominant root)| at each grid point."""
+        """1 / |Re(dominant root)| where the root decays, ``inf`` where it does not (never a number for a growing root)."""
+        re = self.roots.real
         with np.errstate(divide="ignore"):
-            return 1.0 / np.abs(self.roots.real)
+            return np.where(re < 0.0, 1.0 / np.abs(re), np.inf)
 
     def best(self) -> tuple[float, float, complex]:
         """The grid point with the leftmost dominant root: (tau1, tau2, root)."""
@@ -718,12 +763,15 @@ def dominant_root_map(
     with _progress(progress, len(fs) * ax1.size * ax2.size) as advance:
         per_factor[:] = family_grid(fs, fs[0].P, fs[0].D, ax1, ax2, advance)
         row0 = np.flatnonzero(ax1 == 0.0)
-        if row0.size:  # on tau1 = 0 the centroid's second zero is its drift, not instability
+        if row0.size:  # on tau1 = 0 the centroid's second zero is its drift: kept (the surface stays
+            # continuous as tau1 -> 0); `stable` reads the shape's modes there
             k0 = next(k for k, f in enumerate(fs) if f.is_centroid)
-            per_factor[k0, row0, :] = centroid_drift_roots(fs[k0].D, ax2)[None, :]
+            per_factor[k0, row0, :] = 0.0
     index = np.argmax(per_factor.real, axis=0)
     roots = np.take_along_axis(per_factor, index[None], 0)[0]
-    return DominantRootMap(ax1, ax2, roots, index, fs)
+    shape = np.array([not f.is_centroid for f in fs])
+    formation_real = per_factor[shape].real.max(axis=0)
+    return DominantRootMap(ax1, ax2, roots, index, fs, formation_real)
 
 
 class _progress:

@@ -55,4 +55,9 @@ def main(argv: list[str] | None = None) -> None:
         _fail(str(exc).replace("\n", " "))
     except DelayformError as exc:  # a computation that did not succeed: not the user's input
         _fail(str(exc).replace("\n", " "), code=1)
+    except OSError as exc:  # e.g. an output file name taken by a folder, a full disk
+        where = f" {exc.filename}" if exc.filename else ""
+        _fail(f"cannot read or write{where}: {exc.strerror or exc}")
+    except MemoryError:
+        _fail("ran out of memory; make the job smaller (fewer agents, a smaller grid or window)", code=1)
     sys.exit(code if isinstance(code, int) else 0)

@@ -105,6 +105,10 @@ def chart_command(scenario: Path | None, tau1_max: float | None, tau2_max: float
     # the scenario's own points outside a smaller window are left out; points asked for must fit
     inside = tuple(p for p in sc.chart.points if p[1] <= chart.tau1_max and p[2] <= chart.tau2_max)
     chart = replace(chart, points=points or inside)
+    labels = [label for label, _, _ in points]
+    if len(set(labels)) != len(labels):
+        twice = next(label for label in labels if labels.count(label) > 1)
+        raise click.BadParameter(f"the label {twice!r} is given twice", param_hint="--point")
     for label, a, b in points:
         if a > chart.tau1_max or b > chart.tau2_max:
             raise click.BadParameter(

@@ -63,7 +63,7 @@ from delayform.analysis.spectrum import (
     dominant_root,
     dominant_root_map,
 )
-from delayform.characteristic import CharacteristicFactor, factors
+from delayform.characteristic import CharacteristicFactor
 from delayform.design._gain_roots import _lines, rightmost_roots, root_gradients
 from delayform.errors import DelayError, GainError, InputError, NoStableGainsError
 from delayform.resources import require
@@ -695,16 +695,16 @@ def design_gains(
         x, fx = np.array([Pg, Dg]), fg
     if not robust:
         dom = dominant_root(topology, float(x[0]), float(x[1]), box1[0], box2[0])
-        if dom.root.real > fg:  # cannot happen (both certified); never return worse than the map's best
+        if dom.stability_root.real > fg:  # cannot happen (both certified); never return worse than the map's best
             x = np.array([Pg, Dg])
             dom = dominant_root(topology, Pg, Dg, box1[0], box2[0])
         if not dom.is_stable:
             raise NoStableGainsError(
                 f"no gains in P in [{pb[0]:g}, {pb[1]:g}], D in [{db[0]:g}, {db[1]:g}] make the team "
-                f"converge at (tau1, tau2) = ({box1[0]:g}, {box2[0]:g}) s (best Re = {dom.root.real:.4g})"
+                f"converge at (tau1, tau2) = ({box1[0]:g}, {box2[0]:g}) s (best Re = {dom.stability_root.real:.4g})"
             )
         return GainDesign(
-            float(x[0]), float(x[1]), float(dom.root.real), complex(dom.root), dom.factor,
+            float(x[0]), float(x[1]), float(dom.stability_root.real), complex(dom.stability_root), dom.factor,
             box1[0], box2[0],
             "dominant root certified by the argument principle (no root of any factor right of it)",
             _marked(gmap, x, gain_crossing_curves(topology, box1[0], box2[0], P_bounds=pb, D_bounds=db)),
@@ -740,7 +740,7 @@ def _robust(
     if not dom.is_stable:
         raise NoStableGainsError(
             f"no gains in P in [{pb[0]:g}, {pb[1]:g}], D in [{db[0]:g}, {db[1]:g}] found that keep the team "
-            f"stable over {where} (best worst case Re = {dom.root.real:.4g} at ({t1w:g}, {t2w:g}))"
+            f"stable over {where} (best worst case Re = {dom.stability_root.real:.4g} at ({t1w:g}, {t2w:g}))"
         )
     smap = stability_map(topology, float(x[0]), float(x[1]), 1.05 * box1[1] + 0.1, 1.05 * box2[1] + 0.1)
     if not box_is_stable(smap, box1, box2):
@@ -750,7 +750,7 @@ def _robust(
             "of it): not certified"
         )
     return GainDesign(
-        float(x[0]), float(x[1]), float(dom.root.real), complex(dom.root), dom.factor, t1w, t2w,
+        float(x[0]), float(x[1]), float(dom.stability_root.real), complex(dom.stability_root), dom.factor, t1w, t2w,
         f"stable on the whole box {where} by the exact CTCR map (no crossing curve meets the box, "
         f"NU = 0 at its centre); worst case from a certified {_BOX_GRID} x {_BOX_GRID} dominant-root map of the box "
         "zoomed 3 times (a lower bound on the true worst case)",

@@ -149,7 +149,8 @@ def schedule_delays(
     if not coarse.stable.any():
         raise NoStableDelaysError(
             f"no stable delay pair in the box tau1 in [{lo[0]:g}, {hi[0]:g}], "
-            f"tau2 in [{lo[1]:g}, {hi[1]:g}] (grid {grid} x {grid})"
+            f"tau2 in [{lo[1]:g}, {hi[1]:g}] (grid {grid} x {grid}); allow larger delays (tau_max) "
+            "or choose other gains"
         )
 
     objective = _WarmDominant(tuple(_problem_of_factor(f) for f in fs), np.array(lo), np.array(hi))
