@@ -375,6 +375,43 @@ def _family_seeds(lam: NDArray[np.complex128], P: float, D: float, t1: float, t2
     return out
 
 
+def _row_seeds(
+    lam: NDArray[np.complex128], t1: NDArray[np.float64], t2: NDArray[np.float64], P: float, D: float, k: int
+) -> NDArray[np.complex128]:
+    """:func:`_family_seeds` of rows each at its own delay pair, shape (R, k).
+
+    Row r gets exactly the seeds of ``_family_seeds(lam[r:r+1], P, D, t1[r], t2[r], k)``;
+    rows whose discretizations have the same size share one stacked eigenvalue call
+    (the map's retries are scattered over many delay pairs, one factor each).
+    """
+    R = lam.size
+    out = np.full((R, k), np.nan + 0j)
+    hmax = np.maximum(t1, t2)
+    b, c0 = D * (1.0 - lam), P * (1.0 - lam)
+    disc = np.sqrt(b * b - 4.0 * c0 + 0j)
+    tiny = hmax < _TINY_DELAY
+    if tiny.any():  # delay-free: s^2 + D (1 - lam) s + P (1 - lam) = 0
+        free_roots = np.stack([(-b + disc) / 2.0, (-b - disc) / 2.0], axis=1)[tiny]
+        order = np.argsort(-free_roots.real, axis=1)[:, :k]
+        out[tiny, : order.shape[1]] = free_roots[np.arange(order.shape[0])[:, None], order]
+    free = np.maximum(np.abs(-b + disc), np.abs(-b - disc)) / 2.0
+    radius = np.maximum(np.maximum(1.0, free), _norm_a(P, D))
+    N = np.clip(np.ceil(0.6 * radius * hmax + 4), 6, MAX_DEGREE).astype(int)
+    for n in np.unique(N[~tiny]):
+        for real in (True, False):
+            idx = np.flatnonzero(~tiny & (N == n) & ((lam.imag == 0.0) == real))
+            if idx.size == 0:
+                continue
+            blocks = [_generator_blocks(int(n), float(t1[i]), float(t2[i]), float(P), float(D)) for i in idx]
+            M0 = np.stack([m0 for m0, _ in blocks])
+            M1 = np.stack([m1 for _, m1 in blocks])
+            lr = lam[idx].real if real else lam[idx]
+            eig = np.linalg.eigvals(M0 + lr[:, None, None] * M1)
+            order = np.argsort(-eig.real, axis=1)[:, :k]
+            out[idx, : order.shape[1]] = eig[np.arange(idx.size)[:, None], order]
+    return out
+
+
 def _generic_rightmost(
     f: CharacteristicFactor, t1: NDArray[np.float64], t2: NDArray[np.float64]
 ) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
@@ -503,10 +540,7 @@ def family_grid(
         roots = _pad(roots, _KEEP)
         if not ok.all():  # a root the neighbours did not have: fresh discretization seeds
             bad = np.flatnonzero(~ok)
-            fresh = np.concatenate([
-                _family_seeds(rows.lam[b : b + 1], P, D, float(rows.t1[b]), float(rows.t2[b]), 2 * _BATCH_SEEDS)
-                for b in bad
-            ])
+            fresh = _row_seeds(rows.lam[bad], rows.t1[bad], rows.t2[bad], P, D, 2 * _BATCH_SEEDS)
             fresh = np.where(rows.deflate[bad][:, None] & (np.abs(fresh) < 1e-9), np.nan, fresh)
             r2, ok2, roots2 = _certify_rows(rows.take(bad), np.concatenate([fresh, seeds[bad]], axis=1))
             r[bad[ok2]], ok[bad[ok2]], roots[bad[ok2]] = r2[ok2], True, _pad(roots2[ok2], _KEEP)
