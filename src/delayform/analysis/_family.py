@@ -302,10 +302,13 @@ def _certify_rows(
     roots = np.concatenate([distinct, np.where(pair, np.conj(distinct), np.nan)], axis=1)
     c, expected, top = _batch_lines(rows.deflate, roots)
     good = np.isfinite(top) & np.isfinite(c)
-    counts = np.full(rows.size, np.nan)
-    if good.any():
+    if good.all():
+        counts = _count_rows(rows, c)
+    else:
+        counts = np.full(rows.size, np.nan)
         idx = np.flatnonzero(good)
-        counts[idx] = _count_rows(rows.take(idx), c[idx])
+        if idx.size:
+            counts[idx] = _count_rows(rows.take(idx), c[idx])
     certified = good & (counts == expected)
     best = np.argmax(np.where(np.isnan(roots.real), -np.inf, roots.real), axis=1)
     right = roots[np.arange(rows.size), best]
