@@ -16,6 +16,7 @@ import tomllib
 import urllib.error
 import urllib.request
 import zipfile
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -29,6 +30,7 @@ from delayform.characteristic import factors
 from delayform.cli import main
 from delayform.errors import InputError
 from delayform.scenario import load_scenario, paper_scenario, parse_scenario
+from delayform.simulation import IROBOT_CREATE
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
@@ -109,6 +111,30 @@ def test_animation_frames_are_a_run_of_simulate(server) -> None:
     status, _, body = get(server, "/api/simulate?tau1=1&tau2=2&duration=60&frames=20")
     grow = json.loads(body, parse_constant=lambda c: pytest.fail(f"non-JSON number {c}"))
     assert status == 200 and grow["formation_error"][-1] > 10 * grow["formation_error"][0]
+
+
+def test_limits_switch_runs_the_saturated_robots(server) -> None:
+    assert get_json(server, "/api/scenario")["toggles"] == {"limits": False}  # the paper's robots are ideal
+    query = "/api/simulate?tau1=0.3&tau2=0.2&duration=20&frames=400"
+    ideal, limited = get_json(server, query), get_json(server, query + "&limits=1")
+    assert ideal["limits"] is None and limited["limits"].startswith("|v| <= 0.5 m/s")
+
+    def fastest(sim: dict) -> float:  # mean speed between frames: never above the top speed
+        xy = np.stack([np.array(sim["x"]), np.array(sim["y"])], axis=-1)
+        step = np.linalg.norm(np.diff(xy, axis=0), axis=-1) / np.diff(sim["times"])[:, None]
+        return float(step.max())
+
+    # positions travel with 5 decimals: over 0.05 s between frames that is up to 6e-4 m/s
+    assert fastest(ideal) > 1.0 > 0.5 + 1e-3 >= fastest(limited)
+    assert get(server, query + "&limits=2")[0] == 400
+
+
+def test_no_limits_switch_for_double_integrators(tmp_path: Path) -> None:
+    agents = replace(paper_scenario(), simulation=replace(paper_scenario().simulation, model="double_integrator"))
+    explorer = Explorer(agents, out_dir=tmp_path)
+    assert explorer.toggles == {}
+    with start(explorer) as running:
+        assert get(running, "/api/simulate?tau1=0.3&tau2=0.2&limits=1")[0] == 400
 
 
 def test_page_and_assets_come_from_this_server(server) -> None:
@@ -251,6 +277,9 @@ def test_downloads_round_trip_and_stay_in_the_output_folder(
     assert (again.P, again.D, again.tau1, again.tau2) == (0.8, 0.9, 1.5, 0.7)
     assert (again.chart.tau1_max, again.chart.tau2_max, again.simulation.duration) == (10.0, 6.0, 20.0)
     assert again.topology_spec.name == "paper_six" and again.chart.points == paper_scenario().chart.points
+    assert again.robot is None
+    status, _, body = get(server, f"/download/scenario.toml?{query}&limits=1")
+    assert status == 200 and parse_scenario(tomllib.loads(body.decode())).robot == IROBOT_CREATE
 
     status, kind, body = get(server, f"/download/figures.zip?{query}")
     assert status == 200 and kind == "application/zip"
@@ -260,8 +289,15 @@ def test_downloads_round_trip_and_stay_in_the_output_folder(
         assert zf.read("traces.png")[:8] == b"\x89PNG\r\n\x1a\n"
         assert json.loads(zf.read("point.json"))["tau1"] == 1.5
     saved = sorted(p.name for p in out_dir.iterdir())
-    assert saved == ["paper_P0.8_D0.9_tau1.5_0.7.toml", "paper_P0.8_D0.9_tau1.5_0.7_figures.zip"]
+    assert saved == ["paper_P0.8_D0.9_tau1.5_0.7.toml", "paper_P0.8_D0.9_tau1.5_0.7_figures.zip"]  # one name per point
     assert os.listdir(tmp_path) == []  # nothing written in the working directory
+
+
+def test_a_scenario_name_never_leads_outside_the_output_folder(tmp_path: Path) -> None:
+    sneaky = replace(paper_scenario(), name="../../x/..")
+    path = Explorer(sneaky, out_dir=tmp_path / "out").scenario_file(1.0, 0.5, 0.3, 0.2, 10.0, 8.0, 8.0)
+    assert path.parent == (tmp_path / "out").resolve() and path.name == "_.._x__P1_D0.5_tau0.3_0.2.toml"
+    assert sorted(p.name for p in tmp_path.rglob("*") if p.is_file()) == [path.name]
 
 
 @pytest.mark.parametrize("example", sorted(EXAMPLES.glob("*.toml")), ids=lambda p: p.stem)

@@ -19,6 +19,8 @@ The tree::
     |   |   +-- NeutralQuasiPolynomialError  not retarded: CTCR and roots refuse
     |   +-- FormationError                 desired shape of the wrong size
     |   +-- SimulationInputError           dt, duration, initial states
+    |   +-- NetworkError                   an imperfect-network model (delays, loss, sampling, noise)
+    |   +-- ClusterError                   Dask workers / scheduler address of a sweep
     |   +-- ScenarioError                  a TOML scenario file
     |   +-- ResourceLimitError             a job larger than the machine's memory or time budget
     +-- NotConvergedError (RuntimeError)   carries the partial result
@@ -41,6 +43,8 @@ __all__ = [
     "NeutralQuasiPolynomialError",
     "FormationError",
     "SimulationInputError",
+    "NetworkError",
+    "ClusterError",
     "ScenarioError",
     "ResourceLimitError",
     "NotConvergedError",
@@ -93,6 +97,19 @@ class FormationError(InputError):
 
 class SimulationInputError(InputError):
     """A time step, duration or initial state that cannot be simulated."""
+
+
+class NetworkError(InputError):
+    """An imperfect-network model that cannot be simulated (:mod:`delayform.simulation.network`).
+
+    Raised for a probability outside [0, 1], a delay matrix of the wrong size,
+    jitter or variation that would make a delay negative or shorter than the
+    step, a negative noise level, or a sampling rate that is not positive.
+    """
+
+
+class ClusterError(InputError):
+    """Where to run a sweep: a bad number of workers, or a Dask scheduler that cannot be reached."""
 
 
 class ScenarioError(InputError):

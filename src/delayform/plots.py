@@ -331,6 +331,63 @@ def save_trajectory_gif(traj: Any, path: Any, *, frames: int = 80, fps: int = 15
     return path
 
 
+# === section: imperfect networks and Monte Carlo (issue 14) ===
+def plot_error_bands(
+    times: Any, quantiles: Any, q: Sequence[float], ax: Axes | None = None, *, title: str = ""
+) -> Axes:
+    """Quantile bands of the formation error over time (log scale).
+
+    ``quantiles`` is ``(len(q), S)``; pairs ``q[i], q[-1 - i]`` are shaded,
+    a middle quantile (odd ``len(q)``) is drawn as a line.
+    """
+    ax = _axes(ax)
+    floor = 1e-12  # a log axis cannot show an error of exactly zero
+    k = len(q)
+    for i in range(k // 2):
+        lo, hi = np.maximum(quantiles[i], floor), np.maximum(quantiles[k - 1 - i], floor)
+        ax.fill_between(times, lo, hi, color="tab:blue", alpha=0.15 + 0.2 * i, lw=0,
+                        label=f"{100 * q[i]:g}-{100 * q[k - 1 - i]:g} %")  # fmt: skip
+    if k % 2:
+        ax.plot(times, np.maximum(quantiles[k // 2], floor), color="tab:blue", lw=1.5, label=f"{100 * q[k // 2]:g} % (median)")
+    ax.set_yscale("log")
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("formation error (m)")
+    if title:
+        ax.set_title(title, fontsize="medium")
+    ax.legend(fontsize="small")
+    return ax
+
+
+def plot_histograms(panels: Sequence[tuple[str, Any]], axes: Any = None) -> Any:
+    """One histogram per ``(label, values)`` panel; non-finite values are counted in the title."""
+    if axes is None:
+        _, axes = plt.subplots(1, len(panels), figsize=(4.0 * len(panels), 3.2))
+    for ax, (label, values) in zip(np.atleast_1d(axes), panels, strict=True):
+        values = np.asarray(values, dtype=np.float64)
+        finite = values[np.isfinite(values)]
+        if finite.size:
+            ax.hist(finite, bins=min(30, max(5, finite.size // 3)), color="tab:blue", alpha=0.8)
+        missing = values.size - finite.size
+        ax.set_xlabel(label)
+        ax.set_ylabel("runs")
+        if missing:
+            ax.set_title(f"{missing} of {values.size} runs did not settle", fontsize="small")
+    return axes
+
+
+def plot_metric_against(
+    x: Any, median: Any, low: Any, high: Any, ax: Axes | None = None, *, label: str = "", xlabel: str = "", ylabel: str = ""
+) -> Axes:
+    """A metric's median against a swept parameter, with a band from ``low`` to ``high``."""
+    ax = _axes(ax)
+    line = ax.plot(x, median, "o-", lw=1.5, label=label)[0]
+    ax.fill_between(x, low, high, color=line.get_color(), alpha=0.2, lw=0)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    if label:
+        ax.legend(fontsize="small")
+
+
 # === section: gain plane (issue 12) ===
 def plot_gain_plane(
     result: Any, ax: Axes | None = None, points: Mapping[str, tuple[float, float]] | None = None,

@@ -61,6 +61,18 @@ table and key; anything else is an error)::
     tau_min = [0.3, 0.2]                # what the hardware gives (defaults to [delays])
     tau_max = [8.0, 8.0]                # defaults to the chart window
 
+    [network]                           # optional: an imperfect network (delayform.simulation.network)
+    seed = 0                            # seed of everything random in the network
+    delay_spread = 0.2                  # per-link delays drawn in tau (1 +- 0.2)
+    # tau1 = [[...], ...]               # or per-link delay matrices, entry [i][k]: what i hears from k
+    # tau2 = [[...], ...]
+    jitter = [0.05, 0.05]               # bounds (s) of the random jitter on positions, velocities
+    variation = { amplitude = [0.05, 0.05], period = 10.0 }   # smooth delay variation
+    loss = 0.1                          # independent loss probability (or n x n, per link), or bursty:
+    # loss = { p_good_to_bad = 0.05, p_bad_to_good = 0.3, loss_good = 0.0, loss_bad = 1.0 }
+    rate = 20.0                         # sampled transmission: packets per second (zero-order hold)
+    noise = [0.01, 0.01]                # measurement noise: std of position (m), velocity (m/s)
+
 Validation happens on load: an unknown key, a value of the wrong type, a
 missing field or sizes that do not agree raise :class:`ScenarioError` with
 one line naming the file, the key and what was expected.
@@ -84,7 +96,17 @@ from typing import Any
 
 import numpy as np
 
-from delayform.errors import InputError, ScenarioError
+from delayform.errors import InputError, NetworkError, ScenarioError
+from delayform.simulation.network import (
+    BernoulliLoss,
+    GilbertElliott,
+    Jitter,
+    LinkDelays,
+    MeasurementNoise,
+    Network,
+    Sampling,
+    SmoothVariation,
+)
 from delayform.simulation.robots import IROBOT_CREATE, RobotLimits
 from delayform.topology import Topology, complete, paper_six, random_digraph, ring, star
 
@@ -99,6 +121,7 @@ __all__ = [
     "ScheduleSpec",
     "load_scenario",
     "parse_scenario",
+    "parse_network_table",
     "paper_scenario",
     "PAPER_TOML",
     "TOPOLOGY_NAMES",
@@ -265,6 +288,8 @@ class Scenario:
         The optional tables, with their defaults filled in.
     robot
         Actuator limits of the robots (the ``[robot]`` table), or None for ideal robots.
+    network
+        The ``[network]`` table as a :class:`~delayform.simulation.network.Network`, or None.
     topology_spec
         How the topology was described in the file.
     source
@@ -287,6 +312,7 @@ class Scenario:
     topology_spec: TopologySpec = field(default_factory=TopologySpec)
     source: str = "<scenario>"
     robot: RobotLimits | None = None
+    network: Network | None = None
 
     def summary(self) -> dict[str, Any]:
         """The scenario as plain JSON-ready values, for summaries and report tables."""
@@ -309,6 +335,7 @@ class Scenario:
             "chart_window": [self.chart.tau1_max, self.chart.tau2_max],
             "map_grid": {"tau1": list(self.map.tau1), "tau2": list(self.map.tau2), "size": list(self.map.size)},
             "schedule": {"tau_min": list(self.schedule.tau_min), "tau_max": list(self.schedule.tau_max)},
+            "network": "ideal" if self.network is None else self.network.describe(),
         }
 
     def with_changes(
@@ -732,7 +759,7 @@ def _check_sizes(reader: _Reader, n: int, formation: FormationSpec, initial: Ini
 
 _TOP_KEYS = (
     "name", "description", "topology", "gains", "delays", "formation",
-    "simulation", "initial", "robot", "chart", "map", "schedule",
+    "simulation", "initial", "robot", "chart", "map", "schedule", "network",
 )  # fmt: skip
 
 
@@ -788,6 +815,7 @@ def parse_scenario(data: Mapping[str, Any], *, source: str = "<scenario>", defau
         name=name, description=description, topology=topology, P=P, D=D, tau1=tau1, tau2=tau2,
         formation=formation, simulation=simulation, initial=initial, chart=chart, map=grid,
         schedule=schedule, topology_spec=spec, source=source, robot=robot,
+        network=parse_network_table(reader, reader.table(data, "network", required=False), n),
     )  # fmt: skip
 
 
@@ -834,3 +862,80 @@ def load_scenario(path: str | Path) -> Scenario:
 def paper_scenario() -> Scenario:
     """The paper's example (:data:`PAPER_TOML`), the default of every subcommand."""
     return parse_scenario(tomllib.loads(PAPER_TOML), source="<paper>", default_name="paper")
+
+
+# ------------------------------------------------------------ [network]
+_NETWORK_KEYS = ("seed", "delay_spread", "tau1", "tau2", "jitter", "variation", "loss", "rate", "noise")
+
+
+def parse_network_table(reader: _Reader, data: Mapping[str, Any] | None, n: int) -> Network | None:
+    """The ``[network]`` table (module doc) as a :class:`~delayform.simulation.network.Network`.
+
+    Parameters
+    ----------
+    reader
+        Names the file in error messages.
+    data
+        The table, or None when the file has none.
+    n
+        Number of agents (size of delay and loss matrices).
+
+    Raises
+    ------
+    ScenarioError
+        One line naming ``network.<key>`` and what was expected.
+    """
+    if data is None:
+        return None
+    reader.keys(data, "network", _NETWORK_KEYS)
+
+    def matrix(key: str, what: str = "delays (s)") -> list[list[float]] | None:
+        if key not in data:
+            return None
+        value = data[key]
+        if not isinstance(value, list) or len(value) != n or not all(isinstance(r, list) and len(r) == n for r in value):
+            raise reader.error(f"network.{key}", f"a {n} x {n} array of {what}, row i: what agent i hears", value)
+        return [[reader.number(f"network.{key}[{i}][{k}]", x) for k, x in enumerate(r)] for i, r in enumerate(value)]
+
+    def pair(key: str, value: object) -> tuple[float, float]:
+        return reader.pair(f"network.{key}", value)
+
+    try:
+        seed = reader.integer("network.seed", data.get("seed", 0), minimum=0)
+        tau1, tau2 = matrix("tau1"), matrix("tau2")
+        spread = reader.non_negative("network.delay_spread", data.get("delay_spread", 0.0))
+        delays = LinkDelays(tau1=tau1, tau2=tau2, spread=spread) if (tau1 or tau2 or spread) else None
+        jitter = Jitter(*pair("jitter", data["jitter"])) if "jitter" in data else None
+        variation = None
+        if "variation" in data:
+            table = data["variation"]
+            if not isinstance(table, Mapping):
+                raise reader.error("network.variation", "a table { amplitude = [a1, a2], period = T }", table)
+            reader.keys(table, "network.variation", ("amplitude", "period"))
+            amplitude = pair("variation.amplitude", table.get("amplitude", [0.0, 0.0]))
+            variation = SmoothVariation(*amplitude, period=reader.positive("network.variation.period", table.get("period", 10.0)))
+        loss: BernoulliLoss | GilbertElliott | None = None
+        if "loss" in data:
+            value = data["loss"]
+            if isinstance(value, Mapping):
+                keys = ("p_good_to_bad", "p_bad_to_good", "loss_good", "loss_bad")
+                reader.keys(value, "network.loss", keys)
+                for key in keys[:2]:
+                    if key not in value:
+                        raise ScenarioError(f"{reader.source}: network.loss.{key}: missing (bursty loss needs both transition probabilities)")
+                loss = GilbertElliott(**{k: reader.number(f"network.loss.{k}", v) for k, v in value.items()})
+            elif isinstance(value, list):  # one probability per link, row i: what agent i hears
+                loss = BernoulliLoss(matrix("loss", what="probabilities"))
+            else:
+                loss = BernoulliLoss(reader.number("network.loss", value))
+        sampling = Sampling(reader.positive("network.rate", data["rate"])) if "rate" in data else None
+        noise = None
+        if "noise" in data:
+            value = data["noise"]
+            if not isinstance(value, list) or len(value) != 2:
+                raise reader.error("network.noise", "[position std (m), velocity std (m/s)]", value)
+            noise = MeasurementNoise(reader.number("network.noise[0]", value[0]), reader.number("network.noise[1]", value[1]))
+        return Network(delays=delays, variation=variation, jitter=jitter, loss=loss, sampling=sampling, noise=noise, seed=seed)
+    except NetworkError as exc:
+        # the network model names the part; we add the file
+        raise ScenarioError(f"{reader.source}: network.{exc}") from None

@@ -27,6 +27,7 @@ from __future__ import annotations
 import io
 import json
 import math
+import re
 import threading
 import zipfile
 from collections import OrderedDict
@@ -44,7 +45,7 @@ from delayform.app.scenario_toml import scenario_toml
 from delayform.characteristic import factors
 from delayform.errors import InputError, NotConvergedError
 from delayform.scenario import Scenario
-from delayform.simulation import Trajectory, simulate
+from delayform.simulation import IROBOT_CREATE, RobotLimits, Trajectory, simulate
 
 __all__ = ["Explorer", "PointReport", "RootsReport", "ChartData", "Animation", "crossing_frequency_bound"]
 
@@ -144,6 +145,7 @@ class PointReport(_AtPoint):
             "dominant_root": [root.real, root.imag],
             "dominant_root_stable": self.dominant.is_stable,
             "time_constant": None if math.isinf(self.dominant.time_constant) else self.dominant.time_constant,
+            "growth_rate": max(root.real, 0.0),
             "dominant_factor": self.dominant.factor.describe(),
         }  # fmt: skip
 
@@ -267,6 +269,9 @@ class Animation:
             "final_error": float(tr.formation_error[k[-1]]),
             "min_distance": tr.min_distance if self.diverged_at is None else None,
             "diverged_at": self.diverged_at,
+            "status": tr.status,
+            "warnings": list(tr.warnings),
+            "limits": None if tr.limits is None else tr.limits.describe(),
             "labels": [str(x) for x in tr.labels] if tr.labels else [str(i) for i in range(tr.n)],
         }  # fmt: skip
 
@@ -306,9 +311,24 @@ class Explorer:
 
     # ------------------------------------------------------------ parameters
     @property
-    def toggles(self) -> tuple[str, ...]:
-        """The optional effects the robots' simulation offers (switches on the page)."""
-        return ()
+    def toggles(self) -> dict[str, bool]:
+        """The switches of the robots' run this team offers, each with its default.
+
+        ``limits``: actuator limits (the scenario's ``[robot]`` table, else
+        :data:`~delayform.simulation.IROBOT_CREATE`), for unicycle teams; on by
+        default when the scenario has the table.
+        """
+        out: dict[str, bool] = {}
+        if self.scenario.simulation.model == "unicycle":
+            out["limits"] = self.scenario.robot is not None
+        return out
+
+    def _limits(self, limits: bool) -> RobotLimits | None:
+        if not limits:
+            return None
+        if "limits" not in self.toggles:
+            raise InputError("limits: actuator limits apply to unicycle robots, not to double integrators")
+        return self.scenario.robot or IROBOT_CREATE
 
     def _gain(self, name: str, default: float) -> Param:
         return Param(name, "float", 0.0, self.limits.max_gain, default=default, open_low=True, limit="max_gain")
@@ -343,12 +363,15 @@ class Explorer:
             Param("duration", "float", 0.0, math.inf, default=duration, open_low=True),
             Param("frames", "int", 2, self.limits.max_frames, default=min(300, self.limits.max_frames),
                   limit="max_frames"),
-        )  # fmt: skip
+        ) + self._toggle_params()  # fmt: skip
+
+    def _toggle_params(self) -> tuple[Param, ...]:
+        return tuple(Param(name, "bool", default=on) for name, on in self.toggles.items())
 
     def download_params(self) -> tuple[Param, ...]:
-        """Parameters of the downloads: the point, gains, chart window and duration."""
+        """Parameters of the downloads: the point, gains, duration, chart window and switches."""
         chart = self.chart_params()
-        return self.animation_params()[:5] + chart[2:4]
+        return self.animation_params()[:5] + chart[2:4] + self._toggle_params()
 
     # ------------------------------------------------------------ caches
     def _cached(self, cache: OrderedDict[Any, Any], key: Any, size: int, make: Any) -> Any:
@@ -501,7 +524,8 @@ class Explorer:
             )
         return dt
 
-    def animation(self, P: float, D: float, tau1: float, tau2: float, duration: float, frames: int) -> Animation:
+    def animation(self, P: float, D: float, tau1: float, tau2: float, duration: float, frames: int,
+                  limits: bool = False) -> Animation:  # fmt: skip
         """Simulate the team at one point and thin the run to ``frames`` animation frames.
 
         Parameters
@@ -514,6 +538,8 @@ class Explorer:
             Simulated time (s); ``duration / dt`` steps must stay within the explorer's limits.
         frames
             Number of frames to send.
+        limits
+            Integrate the robots with actuator limits (see :attr:`toggles`).
 
         Raises
         ------
@@ -522,11 +548,12 @@ class Explorer:
         """
         s = self.scenario
         dt = self._run_step(tau1, tau2, duration)
+        robot = self._limits(limits)
 
         def run() -> tuple[Trajectory, int]:
             with np.errstate(over="ignore", invalid="ignore"):  # an unstable run may overflow; cut below
                 tr = simulate(
-                    s.topology, P, D, tau1, tau2, s.desired_positions(), model=s.simulation.model,
+                    s.topology, P, D, tau1, tau2, s.desired_positions(), model=s.simulation.model, limits=robot,
                     initial_positions=s.initial_positions(), initial_headings=s.initial_headings(),
                     initial_speed=s.initial.speed, seed=s.initial.seed, duration=duration, dt=dt,
                 )  # fmt: skip
@@ -534,17 +561,18 @@ class Explorer:
             return tr, (tr.times.size if finite.all() else int(np.argmin(finite)))
 
         # the page's run and the figures download share one simulation
-        tr, last = self._cached(self._runs, (P, D, tau1, tau2, duration), _TRAJECTORY_CACHE, run)
+        tr, last = self._cached(self._runs, (P, D, tau1, tau2, duration, limits), _TRAJECTORY_CACHE, run)
         diverged = None if last == tr.times.size else float(tr.times[last])
         idx = np.unique(np.linspace(0, max(last - 1, 0), frames).round().astype(np.int64))
         return Animation(tr, idx, diverged)
 
     # ------------------------------------------------------------ downloads
     def _scenario_at(self, P: float, D: float, tau1: float, tau2: float, duration: float,
-                     tau1_max: float, tau2_max: float) -> Scenario:  # fmt: skip
+                     tau1_max: float, tau2_max: float, limits: bool) -> Scenario:  # fmt: skip
         s = self.scenario.with_changes(P=P, D=D, tau1=tau1, tau2=tau2)
         return replace(
             s,
+            robot=self._limits(limits),
             chart=replace(s.chart, tau1_max=tau1_max, tau2_max=tau2_max),
             simulation=replace(s.simulation, duration=duration, dt=self._step(tau1, tau2)),
             source="<explorer>",
@@ -559,12 +587,13 @@ class Explorer:
         path.write_bytes(data)
         return path
 
-    @staticmethod
-    def _tag(P: float, D: float, tau1: float, tau2: float) -> str:
-        return f"P{P:g}_D{D:g}_tau{tau1:g}_{tau2:g}"
+    def _stem(self, P: float, D: float, tau1: float, tau2: float) -> str:
+        """``<scenario name>_P.._D.._tau.._..``: the name as letters, digits, ``._-`` only."""
+        name = re.sub(r"[^A-Za-z0-9_.-]", "_", self.scenario.name)[:40].strip(".") or "scenario"
+        return f"{name}_P{P:g}_D{D:g}_tau{tau1:g}_{tau2:g}"
 
     def scenario_file(self, P: float, D: float, tau1: float, tau2: float, duration: float,
-                      tau1_max: float, tau2_max: float) -> Path:  # fmt: skip
+                      tau1_max: float, tau2_max: float, limits: bool = False) -> Path:  # fmt: skip
         """Write the scenario at the current settings as TOML into the output folder.
 
         Parameters
@@ -577,17 +606,19 @@ class Explorer:
             Simulated time of the file's ``[simulation]`` table.
         tau1_max, tau2_max
             The chart window of the file's ``[chart]`` table.
+        limits
+            Write the actuator limits as the ``[robot]`` table (see :attr:`toggles`).
 
         Returns
         -------
         Path
             ``<out>/<name>_<tag>.toml``.
         """
-        s = self._scenario_at(P, D, tau1, tau2, duration, tau1_max, tau2_max)
-        return self._write(f"{s.name}_{self._tag(P, D, tau1, tau2)}.toml", scenario_toml(s).encode("utf-8"))
+        s = self._scenario_at(P, D, tau1, tau2, duration, tau1_max, tau2_max, limits)
+        return self._write(f"{self._stem(P, D, tau1, tau2)}.toml", scenario_toml(s).encode("utf-8"))
 
     def figures_file(self, P: float, D: float, tau1: float, tau2: float, duration: float,
-                     tau1_max: float, tau2_max: float) -> Path:  # fmt: skip
+                     tau1_max: float, tau2_max: float, limits: bool = False) -> Path:  # fmt: skip
         """Write a ZIP with the chart, the robots' figures, the point's numbers and the scenario.
 
         Parameters
@@ -600,6 +631,8 @@ class Explorer:
             Simulated time of the robots' run.
         tau1_max, tau2_max
             The chart window.
+        limits
+            Run the robots with actuator limits (see :attr:`toggles`).
 
         Returns
         -------
@@ -613,10 +646,10 @@ class Explorer:
         from delayform.plots import plot_trajectory_traces, plot_trajectory_xy, stability_chart
 
         chart = self.chart(P, D, tau1_max, tau2_max, 10)
-        run = self.animation(P, D, tau1, tau2, duration, 2)
+        run = self.animation(P, D, tau1, tau2, duration, 2, limits)
         point = self.point(P, D, tau1, tau2)
         roots = self.roots(P, D, tau1, tau2)
-        s = self._scenario_at(P, D, tau1, tau2, duration, tau1_max, tau2_max)
+        s = self._scenario_at(P, D, tau1, tau2, duration, tau1_max, tau2_max, limits)
         tr = run.trajectory
         if run.diverged_at is not None:  # draw the finite part of an overflowing run
             keep = int(np.searchsorted(tr.times, run.diverged_at))
@@ -642,4 +675,4 @@ class Explorer:
                     zf.writestr(f"{name}.{fmt}", data.getvalue())
             zf.writestr("point.json", json.dumps(point.as_json() | roots.as_json(), indent=2))
             zf.writestr("scenario.toml", scenario_toml(s))
-        return self._write(f"{s.name}_{self._tag(P, D, tau1, tau2)}_figures.zip", buffer.getvalue())
+        return self._write(f"{self._stem(P, D, tau1, tau2)}_figures.zip", buffer.getvalue())

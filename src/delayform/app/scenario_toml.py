@@ -71,6 +71,40 @@ def _topology_lines(s: Scenario) -> list[str]:
     return lines
 
 
+def _network_lines(s: Scenario) -> list[str]:
+    """The ``[network]`` table (delayform.scenario.parse_network_table reads it back)."""
+    from delayform.simulation.network import BernoulliLoss, GilbertElliott
+
+    net = s.network
+    if net is None:
+        return []
+    out = ["", "[network]", f"seed = {net.seed}"]
+    if net.delays is not None:
+        if net.delays.spread:
+            out.append(f"delay_spread = {_number(net.delays.spread)}")
+        for key in ("tau1", "tau2"):
+            matrix = getattr(net.delays, key)
+            if matrix is not None:
+                out.append(f"{key} = {_rows(matrix.tolist())}")
+    if net.variation is not None:
+        v = net.variation
+        out.append(f"variation = {{ amplitude = {_array((v.amplitude1, v.amplitude2))}, period = {_number(v.period)} }}")
+    if net.jitter is not None:
+        out.append(f"jitter = {_array((net.jitter.bound1, net.jitter.bound2))}")
+    if isinstance(net.loss, BernoulliLoss):
+        p = net.loss.probability
+        out.append(f"loss = {_number(p) if isinstance(p, float) else _rows(p.tolist())}")
+    elif isinstance(net.loss, GilbertElliott):
+        ge = net.loss
+        fields = ("p_good_to_bad", "p_bad_to_good", "loss_good", "loss_bad")
+        out.append("loss = { " + ", ".join(f"{k} = {_number(getattr(ge, k))}" for k in fields) + " }")
+    if net.sampling is not None:
+        out.append(f"rate = {_number(net.sampling.rate)}")
+    if net.noise is not None:
+        out.append(f"noise = {_array((net.noise.position, net.noise.velocity))}")
+    return out
+
+
 def scenario_toml(scenario: Scenario) -> str:
     """The scenario as the text of a TOML scenario file.
 
@@ -116,4 +150,5 @@ def scenario_toml(scenario: Scenario) -> str:
             f"size = {_array(grid.size)}"]  # fmt: skip
     sched = s.schedule
     out += ["", "[schedule]", f"tau_min = {_array(sched.tau_min)}", f"tau_max = {_array(sched.tau_max)}"]
+    out += _network_lines(s)
     return "\n".join(out) + "\n"

@@ -207,7 +207,7 @@ def create_app(explorer: Explorer) -> Any:
             "points": [{"label": k, "tau1": a, "tau2": b} for k, a, b in s.chart.points],
             "defaults": defaults | {"tau1": s.tau1, "tau2": s.tau2},
             "limits": explorer.limits.__dict__,
-            "toggles": list(explorer.toggles),
+            "toggles": explorer.toggles,
             "out_dir": str(explorer.out_dir),
         }
         return JSONResponse(body, headers=_SECURITY_HEADERS)

@@ -115,7 +115,7 @@ def _team_options() -> list[Callable[[F], F]]:
         click.option("--p", type=click.FloatRange(0.0, 1.0),
                      help="random_digraph only: probability of each extra edge."),
         click.option("--seed", type=click.IntRange(min=0),
-                     help="Seed of random_digraph (and, for simulate, of the random initial state)."),
+                     help="Seed of random_digraph (and, for simulate, of the random initial state; for montecarlo, of the runs)."),
         click.option("--P", "P", type=POSITIVE, help="Proportional gain P (overrides the scenario)."),
         click.option("--D", "D", type=POSITIVE, help="Derivative gain D (overrides the scenario)."),
     ]  # fmt: skip

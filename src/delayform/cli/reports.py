@@ -27,7 +27,8 @@ def _write_full_report(sc: Scenario, directory: Path, *, paper: bool, as_json: b
     from delayform.report import jsonable, paper_sections, scenario_sections, write_report
 
     build = paper_sections if paper else scenario_sections
-    steps = 10 if paper else 7
+    network = paper or sc.network is not None  # the network section: promises (paper) or a Monte Carlo
+    steps = (10 if paper else 7) + network
     start = time.perf_counter()
     with _progress(steps, title="paper" if paper else "report") as step:
         sections = build(sc, directory, progress=step)
@@ -37,6 +38,11 @@ def _write_full_report(sc: Scenario, directory: Path, *, paper: bool, as_json: b
             step("gain design vs delay scheduling")
             points = {k: (a, b) for k, a, b in sc.chart.points if k in "abc"}
             sections.append(gain_comparison_section(sc, directory, points))
+        if network:
+            from delayform.report_network import montecarlo_section, promises_section
+
+            step("imperfect network" if paper else "Monte Carlo over the network")
+            sections.append(promises_section(sc, directory) if paper else montecarlo_section(sc, directory, runs=20))
         step("writing index.html")
         seconds = time.perf_counter() - start
         if paper:

@@ -40,6 +40,7 @@ cleanly; its :attr:`Trajectory.status` says so.
 from __future__ import annotations
 
 import math
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -62,6 +63,8 @@ from delayform.simulation.integrator import (
     integrate_linear,
     stated_order,
 )
+from delayform.simulation.network import Network
+from delayform.simulation.reception import integrate_network
 from delayform.simulation.robots import (
     IROBOT_CREATE,
     REST_SPEED,
@@ -191,6 +194,7 @@ def simulate(
     rest_speed: float = REST_SPEED,
     save_every: int | None = None,
     progress: Progress | None = None,
+    network: Network | None = None,
 ) -> Trajectory:
     """Simulate n agents under eq. formation with delays tau1 (positions) and tau2 (velocities).
 
@@ -233,6 +237,12 @@ def simulate(
         ``samples x n <= 2e6``, else the smallest stride that fits.
     progress
         Optional callback ``progress(steps_done, steps)``, called now and then.
+    network
+        An imperfect network (:class:`~delayform.simulation.network.Network`:
+        per-link and varying delays, jitter, loss, sampling, noise), integrated
+        by :func:`~delayform.simulation.reception.integrate_network`; the
+        robots are then ideal ones. None or the ideal network: the paths above,
+        unchanged.
 
     Returns
     -------
@@ -263,6 +273,12 @@ def simulate(
     rest_speed = check_positive("rest_speed", rest_speed, SimulationInputError)
     if model not in MODELS:
         raise SimulationInputError(f"unknown model {model!r}; choose one of {', '.join(MODELS)}")
+    if network is not None and not isinstance(network, Network):
+        raise SimulationInputError(f"network must be a Network, got {type(network).__name__}")
+    if network is not None and network.is_ideal:
+        network = None  # the paper's network: exactly the ordinary integrators
+    if network is not None and limits is not None:
+        raise SimulationInputError("robots with limits over an imperfect network are not supported: give limits or network")
     if limits is not None and not isinstance(limits, RobotLimits):
         raise SimulationInputError(f"limits must be a RobotLimits or None, got {type(limits).__name__}")
     if limits is not None and model != "unicycle":
@@ -301,7 +317,12 @@ def simulate(
     C = topology.C_sparse.toarray() if n <= _DENSE_AGENTS else topology.C_sparse
     F = formation_forcing(topology, P, desired)
     run: Samples | None = None
-    if limits is not None:
+    if network is not None:
+        heard = integrate_network(x0, v0, topology, F, P, D, tau1, tau2, network=network, dt=dt, steps=steps,
+                                  save_every=save_every)  # fmt: skip
+        run = Samples(times=heard.times, positions=heard.positions, velocities=heard.velocities,
+                      accelerations=heard.accelerations, extras={}, states=None, stopped=heard.stopped)  # fmt: skip
+    elif limits is not None:
         agent = LimitedUnicycle(x0, th0, speed0, limits)
         run = integrate(agent, C, F, P, D, eff1, eff2, dt, steps, save_every, progress)
     else:

@@ -47,7 +47,7 @@ async function drawChart() {
     chart = await getJSON("/api/chart", params);
   } catch (err) { say(`chart: ${err.message}`); return; }
   if (seq !== state.chartSeq) return;
-  say("");
+  if ($("message").textContent.startsWith("chart:")) say("");
   const top = Math.max(2, ...chart.grid.unstable_count.map((row) => Math.max(...row)));
   const cut = 0.5 / top;
   const here = point();
@@ -121,7 +121,8 @@ async function selectPoint(p) {
   $("verdict").className = `verdict ${r.stable ? "stable" : "unstable"}`;
   $("unstable-count").textContent = String(r.unstable_count);
   $("dominant-root").textContent = complexText(r.dominant_root[0], r.dominant_root[1]);
-  $("time-constant").textContent = r.time_constant === null ? "\u221e" : `${fmt(r.time_constant, 2)} s`;
+  $("time-constant").textContent = r.time_constant === null
+    ? `\u221e (grows at ${fmt(r.growth_rate, 3)} 1/s)` : `${fmt(r.time_constant, 2)} s`;
   $("dominant-factor").textContent = r.dominant_factor;
   $("point-ms").textContent = `${ms.toFixed(0)} ms`;
   document.body.dataset.pointMs = ms.toFixed(1);
@@ -181,7 +182,9 @@ async function simulateAt(p) {
 function startAnimation(sim) {
   const settle = sim.settling_time === null ? "not settled" : `settles at ${fmt(sim.settling_time, 1)} s`;
   const diverged = sim.diverged_at === null ? "" : `; overflowed at ${fmt(sim.diverged_at, 1)} s`;
-  $("sim-info").textContent = `${sim.n} ${sim.model} robots, ${settle}${diverged}`;
+  const limits = sim.limits === null ? "" : ", with actuator limits";
+  $("sim-info").textContent = `${sim.n} ${sim.model} robots${limits}, ${settle}${diverged}`;
+  $("sim-info").title = [sim.limits || "", ...sim.warnings].join("\n");
   const err = sim.formation_error.map((e) => Math.max(e, 1e-12));
   Plotly.react("error", [{ type: "scatter", mode: "lines", x: sim.times, y: err, name: "formation error",
     line: { color: "#333" }, hovertemplate: "t = %{x:.1f} s: %{y:.3g}<extra></extra>" }], {
@@ -300,7 +303,7 @@ function tick(now) {
 // ------------------------------------------------------------------ controls
 function downloadParams() {
   return new URLSearchParams({ ...point(), ...gains(), duration: num("duration"),
-    tau1_max: num("tau1_max"), tau2_max: num("tau2_max") }).toString();
+    tau1_max: num("tau1_max"), tau2_max: num("tau2_max"), ...toggleParams() }).toString();
 }
 
 function updateDownloads() {
@@ -314,8 +317,22 @@ function debounce(fn, ms) {
   return (...args) => { clearTimeout(timer); timer = setTimeout(() => fn(...args), ms); };
 }
 
+// the server refuses windows beyond delay x crossing-frequency bound; shrink the window first
+function fitWindow() {
+  const { P, D } = gains();
+  const omega = (D + Math.sqrt(D * D + 8 * P)) / 2;
+  const side = Math.min(state.limits.max_delay, state.limits.max_delay_bandwidth / omega);
+  for (const key of ["tau1_max", "tau2_max"]) {
+    if (num(key) > side) {
+      $(key).value = Math.floor(side * 100) / 100;
+      say(`chart window reduced to ${$(key).value} s (explorer limit max_delay_bandwidth)`);
+    }
+  }
+}
+
 function bindGain(name) {
-  const redraw = debounce(() => { drawChart(); selectPoint(point()); }, 250);
+  // the point after the chart: its verdict then reads the map the chart just computed
+  const redraw = debounce(async () => { fitWindow(); await drawChart(); selectPoint(point()); }, 250);
   $(`${name}-range`).addEventListener("input", () => { $(name).value = $(`${name}-range`).value; redraw(); });
   $(name).addEventListener("change", () => { $(`${name}-range`).value = $(name).value; redraw(); });
 }
@@ -330,12 +347,15 @@ async function init() {
   for (const key of ["P", "D", "tau1", "tau2", "tau1_max", "tau2_max", "duration"]) $(key).value = info.defaults[key];
   $("P-range").value = info.defaults.P;
   $("D-range").value = info.defaults.D;
-  state.toggles = info.toggles || [];
+  state.toggles = Object.keys(info.toggles || {});
+  const names = { limits: "actuator limits", network: "network imperfections" };
   for (const t of state.toggles) {
     const label = document.createElement("label");
-    label.innerHTML = `<input type="checkbox" id="toggle-${t}"> ${t === "limits" ? "actuator limits" : "network imperfections"}`;
+    label.innerHTML = `<input type="checkbox" id="toggle-${t}"> ${names[t] || t}`;
     $("toggles").appendChild(label);
-    label.querySelector("input").addEventListener("change", () => simulateAt(point()));
+    const box = label.querySelector("input");
+    box.checked = Boolean(info.toggles[t]);
+    box.addEventListener("change", () => { simulateAt(point()); updateDownloads(); });
   }
   bindGain("P");
   bindGain("D");

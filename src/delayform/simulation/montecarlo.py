@@ -1,0 +1,609 @@
+"""Monte Carlo runs of the formation over an imperfect network.
+
+:func:`monte_carlo` simulates the same team N times, each run with its own
+random initial state (unless explicit initial positions are given) and its
+own draw of the network's randomness (jitter, losses, noise, drawn delays),
+and returns the distribution of what a user checks: settling time, final
+formation error and peak commands, plus the formation error over time.
+
+Reproducibility
+---------------
+Run r's seeds are child r of ``numpy.random.SeedSequence(seed).spawn(runs)``:
+each run is a pure function of (setup, run index, seed), so the numbers do
+not depend on the order in which runs finish, nor on where they run (this
+process, a local Dask cluster, a remote one: :mod:`delayform.sweeps`).
+
+Executors
+---------
+The runs are handed to an *executor*: any object with
+``map(fn, tasks, progress=None) -> list`` returning the results in the order
+of ``tasks`` (:class:`SerialExecutor` here; Dask ones in :mod:`delayform.sweeps`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, replace
+from typing import Any, Protocol
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from delayform.errors import SimulationInputError
+from delayform.resources import require
+from delayform.formation import check_formation
+from delayform.simulation.network import Network
+from delayform.simulation.reception import network_memory
+from delayform.simulation.runner import MODELS, simulate
+from delayform.topology import Topology
+
+__all__ = [
+    "Setup",
+    "RunOutcome",
+    "MonteCarloResult",
+    "Executor",
+    "SerialExecutor",
+    "run_seeds",
+    "make_setup",
+    "checked",
+    "simulate_run",
+    "monte_carlo",
+    "collect",
+    "estimate_cost",
+]
+
+_Array = NDArray[np.float64]
+
+#: Called with (runs done, runs in all) as runs finish.
+Progress = Callable[[int, int], None]
+
+#: points of the formation error kept per run for the quantile bands
+ERROR_SAMPLES = 301
+
+#: measured cost of one RK4 step of the network integrator (s): a fixed part and one per link
+_STEP_SECONDS = (2.0e-4, 2.0e-6)
+
+
+# ------------------------------------------------------------------ inputs
+@dataclass(frozen=True, eq=False)
+class Setup:
+    """Everything one run needs except its seeds: the scenario-like inputs of :func:`monte_carlo`.
+
+    Attributes
+    ----------
+    topology, P, D, tau1, tau2
+        Team, gains and nominal delays of eq. protocol.
+    formation
+        ``(n, 2)`` desired positions.
+    model
+        ``"double_integrator"`` or ``"unicycle"``.
+    network
+        The imperfect network, or None for the ideal one.
+    duration, dt
+        Length of each run and step (s).
+    initial_positions, initial_headings
+        Fixed initial state, or None to draw it per run.
+    initial_speed
+        Initial speed of every agent (the paper's 1e-3).
+    limits
+        Actuator limits of the robots (:class:`~delayform.simulation.robots.RobotLimits`),
+        or None for ideal ones; not over an imperfect network.
+    """
+
+    topology: Topology
+    P: float
+    D: float
+    tau1: float
+    tau2: float
+    formation: _Array
+    model: str = "double_integrator"
+    network: Network | None = None
+    duration: float = 60.0
+    dt: float = 0.01
+    initial_positions: _Array | None = None
+    initial_headings: _Array | None = None
+    initial_speed: float = 1e-3
+    limits: Any = None
+
+    def with_changes(self, **changes: Any) -> Setup:
+        """A copy with some fields replaced (sweeps).
+
+        Parameters
+        ----------
+        **changes
+            Field names and new values.
+        """
+        return replace(self, **changes)
+
+    def describe(self) -> dict[str, Any]:
+        """JSON-ready description for summaries."""
+        return {
+            "topology": self.topology.name, "agents": self.topology.n, "P": self.P, "D": self.D,
+            "tau1": self.tau1, "tau2": self.tau2, "model": self.model,
+            "network": "ideal" if self.network is None else self.network.describe(),
+            "duration": self.duration, "dt": self.dt,
+        }  # fmt: skip
+
+
+@dataclass(frozen=True, eq=False)
+class RunOutcome:
+    """The metrics of one run (what a worker sends back: small)."""
+
+    index: int
+    settling_time: float
+    final_error: float
+    initial_error: float
+    peak_commands: tuple[float, float]
+    error_times: _Array
+    errors: _Array
+    status: str = "settled"
+
+
+def run_seeds(seed: int, runs: int) -> list[tuple[int, int]]:
+    """(initial-state seed, network seed) of each run, from ``SeedSequence(seed).spawn(runs)``.
+
+    Parameters
+    ----------
+    seed
+        Non-negative integer seed of the whole Monte Carlo.
+    runs
+        Number of runs.
+
+    >>> run_seeds(1, 2) == run_seeds(1, 3)[:2]
+    True
+    """
+    children = np.random.SeedSequence(seed).spawn(runs)
+    return [tuple(int(v) for v in child.generate_state(2)) for child in children]  # type: ignore[misc]
+
+
+def simulate_run(task: tuple[Setup, int, tuple[int, int]]) -> RunOutcome:
+    """One Monte Carlo run: ``(setup, run index, (initial seed, network seed))`` -> metrics.
+
+    A module-level function of picklable arguments, so Dask workers can run it.
+
+    Parameters
+    ----------
+    task
+        The setup, the run's index and its two seeds (:func:`run_seeds`).
+    """
+    setup, index, (initial_seed, network_seed) = task
+    network = None if setup.network is None else setup.network.with_seed(network_seed)
+    traj = simulate(
+        setup.topology, setup.P, setup.D, setup.tau1, setup.tau2, setup.formation,
+        model=setup.model, initial_positions=setup.initial_positions,
+        initial_headings=setup.initial_headings, initial_speed=setup.initial_speed,
+        seed=initial_seed, duration=setup.duration, dt=setup.dt, network=network, limits=setup.limits,
+    )  # fmt: skip
+    if setup.model == "unicycle":
+        peaks = (float(np.abs(traj.inputs[..., 0]).max()), float(np.abs(traj.inputs[..., 1]).max()))
+    else:
+        peaks = (float(np.hypot(traj.inputs[..., 0], traj.inputs[..., 1]).max()), 0.0)
+    keep = np.unique(np.round(np.linspace(0, traj.times.size - 1, min(ERROR_SAMPLES, traj.times.size))).astype(int))
+    return RunOutcome(
+        index=index,
+        settling_time=float(traj.settling_time),
+        final_error=float(traj.formation_error[-1]),
+        initial_error=float(traj.formation_error[0]),
+        peak_commands=peaks,
+        error_times=traj.times[keep],
+        errors=traj.formation_error[keep],
+        status=traj.status,
+    )
+
+
+# --------------------------------------------------------------- executors
+class Executor(Protocol):
+    """Runs tasks somewhere and returns their results in the order of the tasks."""
+
+    def map(self, fn: Callable[[Any], Any], tasks: Sequence[Any], progress: Progress | None = None) -> list[Any]:
+        """``[fn(t) for t in tasks]``, calling ``progress(done, total)`` as results arrive."""
+        ...
+
+
+class SerialExecutor:
+    """Runs every task in this process, one after another."""
+
+    def map(self, fn: Callable[[Any], Any], tasks: Sequence[Any], progress: Progress | None = None) -> list[Any]:
+        """``[fn(t) for t in tasks]``, calling ``progress(done, total)`` after each.
+
+        Parameters
+        ----------
+        fn
+            A function of one task.
+        tasks
+            The tasks.
+        progress
+            Optional callback ``(done, total)``.
+        """
+        out = []
+        for task in tasks:
+            out.append(fn(task))
+            if progress is not None:
+                progress(len(out), len(tasks))
+        return out
+
+
+# ------------------------------------------------------------------ result
+_METRICS = ("settling_time", "final_error", "peak_command_1", "peak_command_2")
+
+
+@dataclass(frozen=True, eq=False)
+class MonteCarloResult:
+    """Distribution of the outcome of a formation over N seeded runs.
+
+    Attributes
+    ----------
+    setup
+        What was simulated.
+    runs, seed
+        Number of runs and the seed of :func:`run_seeds`.
+    times
+        ``(S,)`` times of the formation-error samples.
+    errors
+        ``(runs, S)`` formation error of each run (RMS distance from the
+        shape after removing the common offset).
+    settling_times
+        ``(runs,)`` 2 % settling times (``inf`` for a run that did not settle).
+    final_errors, initial_errors
+        ``(runs,)`` formation error at the end and at the start.
+    peak_commands
+        ``(runs, 2)`` largest command over time and agents:
+        ``(|u|, 0)`` for double integrators, ``(|dv/dt|, |omega|)`` for unicycles.
+    command_names
+        Names of the two columns of ``peak_commands``.
+    statuses
+        ``(runs,)`` status of each run (:data:`delayform.simulation.STATUSES`:
+        settled, not settled, diverging, stopped).
+    """
+
+    setup: Setup
+    runs: int
+    seed: int
+    times: _Array
+    errors: _Array
+    settling_times: _Array
+    final_errors: _Array
+    initial_errors: _Array
+    peak_commands: _Array
+    command_names: tuple[str, str] = field(default=("|u|", ""))
+    statuses: tuple[str, ...] = ()
+
+    @property
+    def settled_fraction(self) -> float:
+        """Fraction of runs that settled within the duration."""
+        return float(np.mean(np.isfinite(self.settling_times)))
+
+    def quantiles(self, q: ArrayLike = (0.05, 0.5, 0.95)) -> _Array:
+        """Quantiles of the formation error over time, ``(len(q), S)``.
+
+        Parameters
+        ----------
+        q
+            Probabilities in [0, 1].
+        """
+        return np.quantile(self.errors, np.asarray(q, dtype=np.float64), axis=0)
+
+    def metric(self, name: str) -> _Array:
+        """The per-run values of a metric: ``settling_time``, ``final_error``, ``peak_command_1`` or ``_2``.
+
+        Parameters
+        ----------
+        name
+            One of the four names.
+        """
+        values = {
+            "settling_time": self.settling_times, "final_error": self.final_errors,
+            "peak_command_1": self.peak_commands[:, 0], "peak_command_2": self.peak_commands[:, 1],
+        }  # fmt: skip
+        if name not in values:
+            raise SimulationInputError(f"unknown metric {name!r}; choose one of {', '.join(_METRICS)}")
+        return values[name]
+
+    def summary(self) -> dict[str, Any]:
+        """JSON-ready statistics: per metric the median, 5 % and 95 % quantiles, mean, min and max.
+
+        Quantiles of the settling time count runs that did not settle as
+        infinite (reported as None in JSON).
+        """
+        out: dict[str, Any] = {"runs": self.runs, "seed": self.seed, "settled_fraction": self.settled_fraction,
+                               "setup": self.setup.describe(), "command_names": list(self.command_names),
+                               "statuses": {k: self.statuses.count(k) for k in sorted(set(self.statuses))}}  # fmt: skip
+        for name in _METRICS:
+            if name == "peak_command_2" and not self.command_names[1]:
+                continue
+            v = self.metric(name)
+            finite = v[np.isfinite(v)]
+            q05, q50, q95 = (float(x) for x in np.quantile(v, (0.05, 0.5, 0.95), method="inverted_cdf"))
+            out[name] = {
+                "median": q50, "q05": q05, "q95": q95,
+                "mean": float(finite.mean()) if finite.size else math.inf,
+                "min": float(v.min()), "max": float(v.max()),
+            }  # fmt: skip
+        return out
+
+    def table(self) -> tuple[tuple[str, str], ...]:
+        """Rows ``(quantity, "median [5 %, 95 %]")`` for reports and the command line."""
+
+        def cell(stats: dict[str, float], unit: str) -> str:
+            def one(v: float) -> str:
+                return f"{v:.4g}{unit}" if np.isfinite(v) else "not settled"
+
+            return f"{one(stats['median'])}  [{one(stats['q05'])}, {one(stats['q95'])}]"
+
+        s = self.summary()
+        rows = [
+            ("runs (seed)", f"{self.runs} ({self.seed})"),
+            ("network", s["setup"]["network"]),
+            ("settled within the duration", f"{100 * self.settled_fraction:.0f} %"),
+            ("runs by status", ", ".join(f"{k}: {v}" for k, v in s["statuses"].items())),
+            ("settling time: median [5 %, 95 %]", cell(s["settling_time"], " s")),
+            ("final formation error", cell(s["final_error"], " m")),
+            (f"peak {self.command_names[0]}", cell(s["peak_command_1"], "")),
+        ]
+        if self.command_names[1]:
+            rows.append((f"peak {self.command_names[1]}", cell(s["peak_command_2"], "")))
+        return tuple(rows)
+
+    def plot(self, ax: Any = None, *, q: Sequence[float] = (0.05, 0.25, 0.5, 0.75, 0.95)) -> Any:
+        """Quantile bands of the formation error over time (log scale); returns the axes.
+
+        Parameters
+        ----------
+        ax
+            Axes to draw on; None makes a figure.
+        q
+            Symmetric quantiles: outer pairs become bands, the middle one a line.
+        """
+        from delayform.plots import plot_error_bands
+
+        return plot_error_bands(self.times, self.quantiles(q), tuple(q), ax=ax, title=self.setup.describe()["network"])
+
+    def plot_histograms(self, axes: Any = None) -> Any:
+        """Histograms of settling time, final error and peak command; returns the axes.
+
+        Parameters
+        ----------
+        axes
+            Three axes to draw on; None makes a figure.
+        """
+        from delayform.plots import plot_histograms
+
+        panels = [
+            ("settling time (s)", self.settling_times),
+            ("final formation error (m)", self.final_errors),
+            (f"peak {self.command_names[0]}", self.peak_commands[:, 0]),
+        ]
+        return plot_histograms(panels, axes=axes)
+
+
+# ------------------------------------------------------------------- runs
+def estimate_cost(setup: Setup, runs: int) -> tuple[float, float]:
+    """Rough (peak bytes of one run, seconds of all runs in one process).
+
+    Parameters
+    ----------
+    setup
+        What one run simulates.
+    runs
+        Number of runs.
+    """
+    steps = math.ceil(setup.duration / setup.dt - 1e-9)
+    n = setup.topology.n
+    links = int(setup.topology.adjacency_sparse.nnz)
+    packets = 0
+    if setup.network is not None and setup.network.packets:
+        period = setup.dt if setup.network.sampling is None else 1.0 / setup.network.sampling.rate
+        packets = int(setup.duration / period) + 2
+    nbytes = network_memory(links, steps, packets, n) + (steps + 1) * n * 8 * 8
+    seconds = runs * steps * (_STEP_SECONDS[0] + _STEP_SECONDS[1] * links)
+    return nbytes, seconds
+
+
+def guard(setup: Setup, runs: int, workers: int = 1) -> None:
+    """Refuse, in one line, a Monte Carlo beyond this machine's memory or time budget (:mod:`delayform.resources`).
+
+    Parameters
+    ----------
+    setup
+        What one run simulates.
+    runs
+        Number of runs.
+    workers
+        Runs in parallel: memory is needed for that many at once, time is shared among them.
+    """
+    nbytes, seconds = estimate_cost(setup, runs)
+    at_once = max(1, min(workers, runs))
+    require(what=f"a Monte Carlo of {runs} runs", setting="the runs, the duration or dt (or add workers)",
+            nbytes=nbytes * at_once, seconds=seconds / max(workers, 1))  # fmt: skip
+
+
+def make_setup(
+    topology: Topology,
+    P: float,
+    D: float,
+    tau1: float,
+    tau2: float,
+    formation: ArrayLike | str,
+    *,
+    model: str = "double_integrator",
+    network: Network | None = None,
+    duration: float,
+    dt: float,
+    initial_positions: ArrayLike | None = None,
+    initial_headings: ArrayLike | None = None,
+    initial_speed: float = 1e-3,
+    limits: Any = None,
+) -> Setup:
+    """The checked scenario-like inputs of a Monte Carlo or of a sweep's base point.
+
+    Parameters
+    ----------
+    topology, P, D, tau1, tau2, formation
+        Team, gains of eq. protocol, nominal delays, desired shape (array or name).
+    model
+        ``"double_integrator"`` or ``"unicycle"``.
+    network
+        Imperfect network, or None for the ideal one.
+    duration, dt
+        Length of each run and step (s).
+    initial_positions, initial_headings
+        Fixed initial state, or None to draw it per run.
+    initial_speed
+        Initial speed (the paper's 1e-3).
+    limits
+        Actuator limits of the robots, or None for ideal ones.
+
+    Raises
+    ------
+    SimulationInputError, NetworkError, GainError, DelayError, FormationError
+        The errors :func:`~delayform.simulation.simulate` raises for these inputs.
+    """
+    if not isinstance(topology, Topology):
+        raise SimulationInputError(f"topology must be a Topology, got {type(topology).__name__}")
+    setup = Setup(
+        topology=topology, P=P, D=D, tau1=tau1, tau2=tau2, formation=check_formation(formation, topology.n),
+        model=model, network=network, duration=duration, dt=dt,
+        initial_positions=None if initial_positions is None else np.asarray(initial_positions, dtype=np.float64),
+        initial_headings=None if initial_headings is None else np.asarray(initial_headings, dtype=np.float64),
+        initial_speed=initial_speed, limits=limits,
+    )  # fmt: skip
+    return checked(setup)
+
+
+def checked(setup: Setup) -> Setup:
+    """``setup`` after one two-step run, which raises simulate's own error for any bad input.
+
+    Parameters
+    ----------
+    setup
+        The inputs to check.
+    """
+    if setup.model not in MODELS:
+        raise SimulationInputError(f"unknown model {setup.model!r}; choose one of {', '.join(MODELS)}")
+    if setup.network is not None and not isinstance(setup.network, Network):
+        raise SimulationInputError(f"network must be a Network, got {type(setup.network).__name__}")
+    check_formation(setup.formation, setup.topology.n)
+    simulate_run((replace(setup, duration=2 * setup.dt), 0, (0, 0)))
+    return setup
+
+
+def _check_runs(runs: object, seed: object) -> tuple[int, int]:
+    if isinstance(runs, bool) or not isinstance(runs, (int, np.integer)) or runs < 1:
+        raise SimulationInputError(f"runs must be a positive integer, got {runs!r}")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise SimulationInputError(f"seed must be a non-negative integer, got {seed!r}")
+    return int(runs), int(seed)
+
+
+def collect(setup: Setup, runs: int, seed: int, outcomes: Sequence[RunOutcome]) -> MonteCarloResult:
+    """Assemble the result from the run outcomes (in any order; sorted by run index).
+
+    Parameters
+    ----------
+    setup
+        What was simulated.
+    runs, seed
+        As given to :func:`monte_carlo`.
+    outcomes
+        One :class:`RunOutcome` per run.
+    """
+    ordered = sorted(outcomes, key=lambda o: o.index)
+    names = ("|dv/dt|", "|omega|") if setup.model == "unicycle" else ("|u|", "")
+    return MonteCarloResult(
+        setup=setup, runs=runs, seed=seed,
+        times=ordered[0].error_times,
+        errors=np.array([o.errors for o in ordered]),
+        settling_times=np.array([o.settling_time for o in ordered]),
+        final_errors=np.array([o.final_error for o in ordered]),
+        initial_errors=np.array([o.initial_error for o in ordered]),
+        peak_commands=np.array([o.peak_commands for o in ordered]),
+        command_names=names,
+        statuses=tuple(o.status for o in ordered),
+    )  # fmt: skip
+
+
+def monte_carlo(
+    topology: Topology,
+    P: float,
+    D: float,
+    tau1: float,
+    tau2: float,
+    formation: ArrayLike | str,
+    *,
+    model: str = "double_integrator",
+    network: Network | None = None,
+    runs: int,
+    seed: int = 0,
+    duration: float,
+    dt: float,
+    initial_positions: ArrayLike | None = None,
+    initial_headings: ArrayLike | None = None,
+    initial_speed: float = 1e-3,
+    limits: Any = None,
+    executor: Executor | None = None,
+    progress: Progress | None = None,
+) -> MonteCarloResult:
+    """N seeded runs of eq. formation over ``network``: distributions of settling, error and commands.
+
+    Parameters
+    ----------
+    topology, P, D, tau1, tau2, formation
+        As for :func:`~delayform.simulation.simulate`: team, gains of eq.
+        protocol, nominal delays and the desired shape (array or name).
+    model
+        ``"double_integrator"`` (default) or ``"unicycle"``; over a non-ideal
+        network the unicycle is the ideal robot rebuilt from the double
+        integrator (:mod:`delayform.simulation.network`).
+    network
+        The imperfect network (its seed is replaced per run); None: ideal.
+    runs
+        Number of runs, positive.
+    seed
+        Seed of everything random (:func:`run_seeds`).
+    duration, dt
+        Length of each run and step (s).
+    initial_positions, initial_headings
+        Fixed initial state; None draws it per run.
+    initial_speed
+        Initial speed (the paper's 1e-3).
+    limits
+        Actuator limits of the robots (:class:`~delayform.simulation.robots.RobotLimits`),
+        or None for ideal ones; not over an imperfect network.
+    executor
+        Where the runs go (:class:`SerialExecutor` by default; see
+        :func:`delayform.sweeps.executor` for Dask); its ``workers``
+        attribute, if any, enters the memory and time guard.
+    progress
+        Optional callback ``(runs done, runs)``.
+
+    Returns
+    -------
+    MonteCarloResult
+
+    Raises
+    ------
+    SimulationInputError, NetworkError, GainError, DelayError, FormationError
+        Bad inputs (checked once, before any run).
+    ResourceLimitError
+        A Monte Carlo beyond this machine's memory or time budget (:mod:`delayform.resources`).
+
+    Examples
+    --------
+    >>> from delayform.topology import ring
+    >>> from delayform.simulation.network import BernoulliLoss, Network
+    >>> mc = monte_carlo(ring(3), 1.0, 0.5, 0.3, 0.2, "polygon", network=Network(loss=BernoulliLoss(0.2)),
+    ...                  runs=3, seed=1, duration=5.0, dt=0.05)
+    >>> mc.errors.shape[0], mc.settling_times.shape
+    (3, (3,))
+    """
+    runs, seed = _check_runs(runs, seed)
+    setup = make_setup(
+        topology, P, D, tau1, tau2, formation, model=model, network=network, duration=duration, dt=dt,
+        initial_positions=initial_positions, initial_headings=initial_headings, initial_speed=initial_speed,
+        limits=limits,
+    )  # fmt: skip
+    guard(setup, runs, int(getattr(executor, "workers", 1)))
+    tasks = [(setup, r, s) for r, s in enumerate(run_seeds(seed, runs))]
+    outcomes = (executor or SerialExecutor()).map(simulate_run, tasks, progress)
+    return collect(setup, runs, seed, outcomes)

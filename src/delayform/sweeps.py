@@ -1,0 +1,499 @@
+"""Monte Carlo runs and parameter sweeps: in this process, on a local Dask cluster, or on a remote one.
+
+A sweep runs :func:`~delayform.simulation.montecarlo.monte_carlo` at every
+point of a grid (delays, gains, topologies, networks). Where the runs go is
+chosen by :func:`executor_for`:
+
+* nothing: this process, one run after another;
+* ``workers=N``: a local ``dask.distributed.LocalCluster`` of N worker
+  processes with one thread each, started for the sweep and closed after it;
+* ``scheduler="tcp://host:8786"``: an existing Dask cluster.
+
+Every (point, run) pair is one task whose seeds are fixed up front
+(:func:`~delayform.simulation.montecarlo.run_seeds`), so the three give the
+same numbers, whatever the order in which tasks finish. Every point of a
+sweep uses the same seed, hence the same initial states and the same network
+draws (common random numbers): differences between points come from the
+parameter, not from luck. Long sweeps show a Rich progress bar on stderr
+with ``progress=True``.
+
+Examples
+--------
+>>> from delayform.simulation.network import Jitter, Network
+>>> from delayform.topology import ring
+>>> setup = make_setup(ring(3), 1.0, 0.5, 0.3, 0.2, "polygon", duration=4.0, dt=0.05)
+>>> nets = [Network(jitter=Jitter(b, b)) for b in (0.0, 0.1)]
+>>> result = network_sweep(setup, nets, ["0", "0.1"], runs=2, seed=3)
+>>> [r.runs for r in result.results]
+[2, 2]
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterator, Mapping, Sequence
+import logging
+from contextlib import contextmanager
+from dataclasses import dataclass
+from itertools import product
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from delayform.errors import ClusterError, SimulationInputError
+from delayform.formation import named_formation
+from delayform.resources import require
+from delayform.simulation import montecarlo as mc
+from delayform.simulation.montecarlo import (
+    Executor,
+    MonteCarloResult,
+    Progress,
+    SerialExecutor,
+    Setup,
+    collect,
+    estimate_cost,
+    make_setup,
+    run_seeds,
+    simulate_run,
+)
+from delayform.simulation.network import Network
+from delayform.topology import Topology
+
+__all__ = [
+    "DaskExecutor",
+    "executor_for",
+    "make_setup",
+    "SweepResult",
+    "sweep",
+    "delay_sweep",
+    "gain_sweep",
+    "topology_sweep",
+    "network_sweep",
+    "rich_progress",
+]
+
+
+# ---------------------------------------------------------------- executors
+class DaskExecutor:
+    """Runs tasks on a Dask cluster through a ``distributed.Client``.
+
+    Parameters
+    ----------
+    client
+        A connected ``distributed.Client``.
+    """
+
+    def __init__(self, client: Any) -> None:
+        self.client = client
+
+    @property
+    def workers(self) -> int:
+        """Number of worker processes the scheduler knows."""
+        return max(1, len(self.client.scheduler_info(n_workers=-1).get("workers", {})))
+
+    def map(self, fn: Callable[[Any], Any], tasks: Sequence[Any], progress: Progress | None = None) -> list[Any]:
+        """``[fn(t) for t in tasks]`` on the cluster, results in the order of ``tasks``.
+
+        Parameters
+        ----------
+        fn
+            A module-level function (workers import it by name).
+        tasks
+            Picklable tasks.
+        progress
+            Optional callback ``(done, total)``, called as tasks finish.
+        """
+        from distributed import as_completed
+
+        # pure=False: two equal-looking tasks are still two runs
+        futures = self.client.map(fn, list(tasks), pure=False)
+        done = 0
+        for _ in as_completed(futures):
+            done += 1
+            if progress is not None:
+                progress(done, len(futures))
+        return self.client.gather(futures)
+
+
+@contextmanager
+def executor_for(*, workers: int | None = None, scheduler: str | None = None, timeout: float = 10.0) -> Iterator[Executor]:
+    """Where runs go: this process, a local Dask cluster, or an existing one (module doc).
+
+    Parameters
+    ----------
+    workers
+        Start a local cluster of this many worker processes (one thread each).
+    scheduler
+        Address of an existing Dask scheduler, e.g. ``"tcp://10.0.0.5:8786"``.
+    timeout
+        Seconds to wait for the scheduler before giving up.
+
+    Yields
+    ------
+    Executor
+        :class:`~delayform.simulation.montecarlo.SerialExecutor` or :class:`DaskExecutor`.
+
+    Raises
+    ------
+    ClusterError
+        Both ``workers`` and ``scheduler`` given, ``workers`` below 1, or a
+        scheduler that cannot be reached.
+    """
+    if workers is not None and scheduler is not None:
+        raise ClusterError("give either workers (a local cluster) or scheduler (an existing one), not both")
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+        raise ClusterError(f"workers must be a positive integer, got {workers!r}")
+    if workers is None and scheduler is None:
+        yield SerialExecutor()
+        return
+    # the scheduler and client log every connection at INFO on stderr; a sweep reports through its result
+    import distributed  # noqa: F401  (sets up its loggers, which are quieted below)
+
+    names = ["distributed"] + [n for n in logging.root.manager.loggerDict if n.startswith("distributed.")]
+    levels = {n: logging.getLogger(n).level for n in names}
+    for n in names:
+        logging.getLogger(n).setLevel(logging.ERROR)
+    try:
+        if workers is not None:
+            with _local(workers) as ex:
+                yield ex
+        else:
+            with _remote(scheduler, timeout) as ex:
+                yield ex
+    finally:
+        for n, level in levels.items():
+            logging.getLogger(n).setLevel(level)
+
+
+@contextmanager
+def _local(workers: int) -> Iterator[DaskExecutor]:
+    from distributed import Client, LocalCluster
+
+    # processes with one thread each: the runs are pure Python/NumPy loops that hold the GIL
+    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                           dashboard_address=None, worker_dashboard_address=None, silence_logs=logging.ERROR)  # fmt: skip
+    try:
+        with Client(cluster) as client:
+            yield DaskExecutor(client)
+    finally:
+        cluster.close()
+
+
+@contextmanager
+def _remote(scheduler: str, timeout: float) -> Iterator[DaskExecutor]:
+    from distributed import Client
+
+    _reachable(scheduler, timeout)
+    try:
+        client = Client(scheduler, timeout=timeout)
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise ClusterError(f"cannot reach the Dask scheduler at {scheduler!r} ({type(exc).__name__})") from None
+    try:
+        yield DaskExecutor(client)
+    finally:
+        client.close()
+
+
+def _reachable(address: str, timeout: float) -> None:
+    """Fail at once on a TCP address nobody listens at (the Client would retry until its timeout)."""
+    import socket
+    from urllib.parse import urlsplit
+
+    if not isinstance(address, str) or not address:
+        raise ClusterError(f"scheduler must be an address like tcp://host:8786, got {address!r}")
+    parts = urlsplit(address if "://" in address else f"tcp://{address}")
+    if parts.scheme != "tcp":
+        return  # tls, ucx, ...: left to the Client
+    try:
+        port = parts.port
+    except ValueError:
+        port = None
+    if parts.hostname is None or port is None:
+        raise ClusterError(f"scheduler must be an address like tcp://host:8786, got {address!r}")
+    try:
+        socket.create_connection((parts.hostname, port), timeout=timeout).close()
+    except OSError as exc:
+        raise ClusterError(f"cannot reach the Dask scheduler at {address!r} ({exc.strerror or type(exc).__name__})") from None
+
+
+@contextmanager
+def rich_progress(title: str) -> Iterator[Progress]:
+    """A Rich progress bar on stderr; yields the ``(done, total)`` callback.
+
+    Parameters
+    ----------
+    title
+        Text in front of the bar.
+    """
+    from rich.console import Console
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeRemainingColumn,
+    )
+
+    console = Console(stderr=True)
+    with Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn(),
+                  console=console, transient=not console.is_terminal) as bar:  # fmt: skip
+        task = bar.add_task(title, total=None)
+
+        def callback(done: int, total: int) -> None:
+            bar.update(task, completed=done, total=total)
+
+        yield callback
+
+
+# ------------------------------------------------------------------ result
+@dataclass(frozen=True, eq=False)
+class SweepResult:
+    """Monte Carlo results at every point of a sweep.
+
+    Attributes
+    ----------
+    parameter
+        What was swept (``"delays"``, ``"gains"``, ``"topology"``, ``"network"``).
+    labels
+        One label per point.
+    values
+        The swept value(s) of each point, e.g. ``(tau1, tau2)``.
+    results
+        One :class:`~delayform.simulation.montecarlo.MonteCarloResult` per point.
+    """
+
+    parameter: str
+    labels: tuple[str, ...]
+    values: tuple[Any, ...]
+    results: tuple[MonteCarloResult, ...]
+
+    def statistic(self, metric: str = "settling_time", q: float = 0.5) -> NDArray[np.float64]:
+        """One quantile of a metric at every point.
+
+        Parameters
+        ----------
+        metric
+            ``settling_time``, ``final_error``, ``peak_command_1`` or ``peak_command_2``.
+        q
+            Probability of the quantile (runs that did not settle count as infinite).
+        """
+        return np.array([np.quantile(r.metric(metric), q, method="inverted_cdf") for r in self.results])
+
+    def table(self) -> tuple[tuple[str, str], ...]:
+        """Rows ``(point, settling median [5 %, 95 %] and settled fraction)``."""
+        rows = []
+        for label, r in zip(self.labels, self.results, strict=True):
+            s = r.summary()["settling_time"]
+            rows.append((label, f"{_fmt(s['median'])} s [{_fmt(s['q05'])}, {_fmt(s['q95'])}], "
+                                f"{100 * r.settled_fraction:.0f} % settled"))  # fmt: skip
+        return tuple(rows)
+
+    def summary(self) -> dict[str, Any]:
+        """JSON-ready: the parameter and each point's label, values and Monte Carlo summary."""
+        return {
+            "parameter": self.parameter,
+            "points": [
+                {"label": lab, "value": val, **r.summary()}
+                for lab, val, r in zip(self.labels, self.values, self.results, strict=True)
+            ],
+        }
+
+    def plot(self, ax: Any = None, *, x: ArrayLike | None = None, metric: str = "settling_time",
+             label: str = "", xlabel: str = "") -> Any:  # fmt: skip
+        """Median of a metric against the points (or ``x``), with the 5-95 % band; returns the axes.
+
+        Parameters
+        ----------
+        ax
+            Axes to draw on; None makes a figure.
+        x
+            Abscissa of each point; default 0, 1, 2, ...
+        metric
+            The metric (see :meth:`statistic`).
+        label, xlabel
+            Legend entry and x-axis label.
+        """
+        from delayform.plots import plot_metric_against
+
+        xs = np.arange(len(self.results)) if x is None else np.asarray(x, dtype=np.float64)
+        return plot_metric_against(
+            xs, self.statistic(metric, 0.5), self.statistic(metric, 0.05), self.statistic(metric, 0.95), ax=ax,
+            label=label, xlabel=xlabel or self.parameter, ylabel=metric.replace("_", " "),
+        )  # fmt: skip
+
+
+def _fmt(value: float) -> str:
+    return f"{value:.4g}" if math.isfinite(value) else "inf"
+
+
+# ------------------------------------------------------------------ sweeps
+def sweep(
+    setup: Setup,
+    changes: Sequence[Mapping[str, Any]],
+    *,
+    labels: Sequence[str] | None = None,
+    parameter: str = "points",
+    values: Sequence[Any] | None = None,
+    runs: int,
+    seed: int = 0,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    progress: bool | Progress = False,
+) -> SweepResult:
+    """Monte Carlo at ``setup`` changed by each entry of ``changes`` (fields of :class:`Setup`).
+
+    All (point, run) tasks go to one executor at once, so the workers stay
+    busy across points.
+
+    Parameters
+    ----------
+    setup
+        The base point (:func:`make_setup`).
+    changes
+        One mapping of field -> value per point, e.g. ``{"tau1": 1.0, "tau2": 0.5}``.
+    labels
+        One label per point; default ``"0"``, ``"1"``, ...
+    parameter
+        Name of what is swept, for tables and figures.
+    values
+        The swept value of each point, kept in the result; default the changes.
+    runs
+        Runs per point.
+    seed
+        Seed of every point (common random numbers).
+    workers, scheduler
+        Where the runs go (:func:`executor_for`).
+    progress
+        True for a Rich bar on stderr, or a callback ``(done, total)``.
+
+    Raises
+    ------
+    SimulationInputError, NetworkError, ClusterError
+        Bad inputs at some point (checked before any run), or a bad cluster setting.
+    ResourceLimitError
+        A sweep beyond this machine's memory or time budget (:mod:`delayform.resources`).
+    """
+    runs, seed = mc._check_runs(runs, seed)
+    if not changes:
+        raise SimulationInputError("a sweep needs at least one point")
+    labels = [str(i) for i in range(len(changes))] if labels is None else list(labels)
+    if len(labels) != len(changes):
+        raise SimulationInputError(f"{len(labels)} labels for {len(changes)} points")
+    points = []
+    for change in changes:
+        unknown = set(change) - set(Setup.__dataclass_fields__)
+        if unknown:
+            raise SimulationInputError(f"unknown sweep field(s) {', '.join(sorted(unknown))}")
+        points.append(mc.checked(setup.with_changes(**change)))
+    n_workers = 1 if workers is None else workers
+    costs = [estimate_cost(p, runs) for p in points]
+    _guard_total(max(c[0] for c in costs), sum(c[1] for c in costs), len(points) * runs, n_workers)
+    seeds = run_seeds(seed, runs)
+    tasks = [(p, r, s) for p in points for r, s in enumerate(seeds)]
+    with executor_for(workers=workers, scheduler=scheduler) as ex:
+        if progress is True:
+            with rich_progress(f"{parameter} sweep") as callback:
+                outcomes = ex.map(simulate_run, tasks, callback)
+        else:
+            outcomes = ex.map(simulate_run, tasks, progress or None)
+    results = tuple(collect(p, runs, seed, outcomes[i * runs : (i + 1) * runs]) for i, p in enumerate(points))
+    return SweepResult(parameter=parameter, labels=tuple(labels),
+                       values=tuple(changes if values is None else values), results=results)  # fmt: skip
+
+
+def _guard_total(nbytes: float, seconds: float, tasks: int, workers: int) -> None:
+    require(what=f"a sweep of {tasks} runs", setting="the points, runs, duration or dt (or add workers)",
+            nbytes=nbytes * max(1, min(workers, tasks)), seconds=seconds / max(workers, 1))  # fmt: skip
+
+
+def delay_sweep(
+    setup: Setup, tau1_values: Sequence[float], tau2_values: Sequence[float], *, runs: int, seed: int = 0,
+    workers: int | None = None, scheduler: str | None = None, progress: bool | Progress = False,
+) -> SweepResult:  # fmt: skip
+    """Monte Carlo on the grid ``tau1_values x tau2_values`` of nominal delays.
+
+    Parameters
+    ----------
+    setup
+        The base point.
+    tau1_values, tau2_values
+        Delays (s) to combine.
+    runs, seed, workers, scheduler, progress
+        As for :func:`sweep`.
+    """
+    return _grid(setup, ("tau1", "tau2"), tau1_values, tau2_values, "({:g}, {:g})", "delays",
+                 runs=runs, seed=seed, workers=workers, scheduler=scheduler, progress=progress)  # fmt: skip
+
+
+def gain_sweep(
+    setup: Setup, P_values: Sequence[float], D_values: Sequence[float], *, runs: int, seed: int = 0,
+    workers: int | None = None, scheduler: str | None = None, progress: bool | Progress = False,
+) -> SweepResult:  # fmt: skip
+    """Monte Carlo on the grid ``P_values x D_values`` of gains (eq. protocol).
+
+    Parameters
+    ----------
+    setup
+        The base point.
+    P_values, D_values
+        Gains to combine.
+    runs, seed, workers, scheduler, progress
+        As for :func:`sweep`.
+    """
+    return _grid(setup, ("P", "D"), P_values, D_values, "P={:g}, D={:g}", "gains",
+                 runs=runs, seed=seed, workers=workers, scheduler=scheduler, progress=progress)  # fmt: skip
+
+
+def _grid(setup: Setup, fields: tuple[str, str], first: Sequence[float], second: Sequence[float],
+          label: str, parameter: str, **options: Any) -> SweepResult:  # fmt: skip
+    pairs = [(float(a), float(b)) for a, b in product(first, second)]
+    changes = [dict(zip(fields, pair, strict=True)) for pair in pairs]
+    return sweep(setup, changes, labels=[label.format(*p) for p in pairs], parameter=parameter, values=pairs, **options)
+
+
+def topology_sweep(
+    setup: Setup, topologies: Sequence[Topology], *, shape: str, spacing: float = 1.0, runs: int, seed: int = 0,
+    workers: int | None = None, scheduler: str | None = None, progress: bool | Progress = False,
+) -> SweepResult:  # fmt: skip
+    """Monte Carlo for each topology, in the named shape built for its size.
+
+    Parameters
+    ----------
+    setup
+        The base point; its initial state must be drawn per run (None), as sizes differ.
+    topologies
+        The teams.
+    shape, spacing
+        Named formation (:data:`delayform.formation.SHAPES`) and its spacing.
+    runs, seed, workers, scheduler, progress
+        As for :func:`sweep`.
+    """
+    if setup.initial_positions is not None or setup.initial_headings is not None:
+        raise SimulationInputError("a topology sweep draws initial states per run: leave initial positions and headings unset")
+    changes = [{"topology": t, "formation": named_formation(shape, t.n, spacing=spacing)} for t in topologies]
+    labels = [f"{t.name} ({t.n} agents)" for t in topologies]
+    return sweep(setup, changes, labels=labels, parameter="topology", values=labels, runs=runs, seed=seed,
+                 workers=workers, scheduler=scheduler, progress=progress)  # fmt: skip
+
+
+def network_sweep(
+    setup: Setup, networks: Sequence[Network | None], labels: Sequence[str], *, runs: int, seed: int = 0,
+    workers: int | None = None, scheduler: str | None = None, progress: bool | Progress = False,
+) -> SweepResult:  # fmt: skip
+    """Monte Carlo for each network (e.g. growing jitter or loss).
+
+    Parameters
+    ----------
+    setup
+        The base point.
+    networks
+        The networks (None: ideal).
+    labels
+        One label per network.
+    runs, seed, workers, scheduler, progress
+        As for :func:`sweep`.
+    """
+    return sweep(setup, [{"network": net} for net in networks], labels=labels, parameter="network",
+                 values=list(labels), runs=runs, seed=seed, workers=workers, scheduler=scheduler,
+                 progress=progress)  # fmt: skip
