@@ -1,0 +1,311 @@
+"""The scenario: a team, its gains and delays, and what to compute (frozen dataclasses); the paper's example."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from delayform.scenario._reader import _check_sizes, _Reader
+from delayform.simulation.network import (
+    Network,
+)
+from delayform.simulation.robots import RobotLimits
+from delayform.topology import Topology
+
+TOPOLOGY_NAMES = ("paper_six", "ring", "complete", "star", "random_digraph")
+MODELS = ("unicycle", "double_integrator")
+
+#: The paper's example (Section "Simulation Examples"): the six robots of
+#: Fig. topol, P = 1, D = 0.5, point a, a hexagon, the chart window [0, 8]^2
+#: with points a..e. ``delayform paper`` and examples/paper.toml use it.
+PAPER_TOML = """\
+name = "paper"
+description = "Cepeda-Gomez and Perico: six robots of Fig. topol, P = 1, D = 0.5, point a, hexagon"
+
+[topology]
+name = "paper_six"
+
+[gains]
+P = 1.0
+D = 0.5
+
+[delays]
+tau1 = 0.3
+tau2 = 0.2
+
+[formation]
+shape = "hexagon"
+spacing = 2.0
+
+[simulation]
+model = "unicycle"
+duration = 150.0
+dt = 0.01
+
+[initial]
+seed = 0
+speed = 1e-3
+
+[chart]
+tau1_max = 8.0
+tau2_max = 8.0
+points = { a = [0.3, 0.2], b = [2.0, 1.0], c = [1.0, 2.0], d = [1.0, 5.5], e = [3.5, 2.0] }
+
+[map]
+tau1 = [0.0, 8.0]
+tau2 = [0.0, 8.0]
+size = [81, 81]
+
+[schedule]
+tau_min = [0.3, 0.2]
+tau_max = [8.0, 8.0]
+"""
+
+
+# ---------------------------------------------------------------- the result
+@dataclass(frozen=True)
+class TopologySpec:
+    """How the topology was given, kept for reports (the built one is ``Scenario.topology``)."""
+
+    name: str | None = None
+    n: int | None = None
+    p: float | None = None
+    seed: int | None = None
+    adjacency: tuple[tuple[int, ...], ...] | None = None
+    edges: tuple[tuple[int, int], ...] | None = None
+
+    def describe(self) -> str:
+        """One line for tables: the builder and its arguments."""
+        if self.adjacency is not None:
+            return f"adjacency matrix, {len(self.adjacency)} agents"
+        if self.edges is not None:
+            return f"edge list, {len(self.edges)} edges"
+        args = [f"n={self.n}"] if self.n is not None and self.name != "paper_six" else []
+        args += [f"p={self.p:g}"] if self.p is not None else []
+        args += [f"seed={self.seed}"] if self.seed is not None else []
+        return f"{self.name}({', '.join(args)})" if args else str(self.name)
+
+
+@dataclass(frozen=True)
+class FormationSpec:
+    """The desired formation: a named shape (with its spacing) or explicit positions."""
+
+    shape: str | None = None
+    spacing: float = 1.0
+    positions: tuple[tuple[float, float], ...] | None = None
+
+    def describe(self) -> str:
+        """One line for tables."""
+        if self.positions is not None:
+            return f"{len(self.positions)} explicit positions"
+        return f"{self.shape} (spacing {self.spacing:g})"
+
+
+@dataclass(frozen=True)
+class SimulationSpec:
+    """Agent model and integration grid of a simulation."""
+
+    model: str = "unicycle"
+    duration: float = 100.0
+    dt: float = 0.01
+
+
+@dataclass(frozen=True)
+class InitialSpec:
+    """Initial conditions: random from ``seed`` unless positions / headings are given."""
+
+    seed: int = 0
+    speed: float = 1e-3
+    positions: tuple[tuple[float, float], ...] | None = None
+    headings: tuple[float, ...] | None = None
+
+
+@dataclass(frozen=True)
+class ChartSpec:
+    """The CTCR window [0, tau1_max] x [0, tau2_max] and labelled points to mark."""
+
+    tau1_max: float = 8.0
+    tau2_max: float = 8.0
+    points: tuple[tuple[str, float, float], ...] = ()
+
+
+@dataclass(frozen=True)
+class MapSpec:
+    """A rectangular grid of delay pairs for the dominant-root map."""
+
+    tau1: tuple[float, float] = (0.0, 8.0)
+    tau2: tuple[float, float] = (0.0, 8.0)
+    size: tuple[int, int] = (81, 81)
+
+    def tau1_values(self) -> np.ndarray:
+        """The grid along tau1."""
+        return np.linspace(self.tau1[0], self.tau1[1], self.size[0])
+
+    def tau2_values(self) -> np.ndarray:
+        """The grid along tau2."""
+        return np.linspace(self.tau2[0], self.tau2[1], self.size[1])
+
+
+@dataclass(frozen=True)
+class ScheduleSpec:
+    """Bounds of delay scheduling: delays may only grow from ``tau_min`` up to ``tau_max``."""
+
+    tau_min: tuple[float, float]
+    tau_max: tuple[float, float]
+
+
+@dataclass(frozen=True, eq=False)
+class Scenario:
+    """A validated scenario: everything a ``delayform`` subcommand needs.
+
+    Attributes
+    ----------
+    name, description
+        For titles and reports.
+    topology
+        The built communication topology.
+    P, D
+        Gains of eq. protocol.
+    tau1, tau2
+        The operating delays (seconds).
+    formation, simulation, initial, chart, map, schedule
+        The optional tables, with their defaults filled in.
+    robot
+        Actuator limits of the robots (the ``[robot]`` table), or None for ideal robots.
+    network
+        The ``[network]`` table as a :class:`~delayform.simulation.network.Network`, or None.
+    topology_spec
+        How the topology was described in the file.
+    source
+        The file it came from (or ``"<paper>"`` for the embedded default).
+    """
+
+    name: str
+    description: str
+    topology: Topology
+    P: float
+    D: float
+    tau1: float
+    tau2: float
+    formation: FormationSpec
+    simulation: SimulationSpec
+    initial: InitialSpec
+    chart: ChartSpec
+    map: MapSpec
+    schedule: ScheduleSpec
+    topology_spec: TopologySpec = field(default_factory=TopologySpec)
+    source: str = "<scenario>"
+    robot: RobotLimits | None = None
+    network: Network | None = None
+
+    def summary(self) -> dict[str, Any]:
+        """The scenario as plain JSON-ready values, for summaries and report tables."""
+        return {
+            "name": self.name,
+            "description": self.description,
+            "source": self.source,
+            "topology": self.topology_spec.describe(),
+            "agents": self.topology.n,
+            "P": self.P,
+            "D": self.D,
+            "tau1": self.tau1,
+            "tau2": self.tau2,
+            "formation": self.formation.describe(),
+            "model": self.simulation.model,
+            "duration": self.simulation.duration,
+            "dt": self.simulation.dt,
+            "seed": self.initial.seed,
+            "robot_limits": None if self.robot is None else self.robot.describe(),
+            "chart_window": [self.chart.tau1_max, self.chart.tau2_max],
+            "map_grid": {"tau1": list(self.map.tau1), "tau2": list(self.map.tau2), "size": list(self.map.size)},
+            "schedule": {"tau_min": list(self.schedule.tau_min), "tau_max": list(self.schedule.tau_max)},
+            "network": "ideal" if self.network is None else self.network.describe(),
+        }
+
+    def with_changes(
+        self,
+        *,
+        topology: Topology | None = None,
+        P: float | None = None,
+        D: float | None = None,
+        tau1: float | None = None,
+        tau2: float | None = None,
+        formation: str | None = None,
+    ) -> Scenario:
+        """A copy with command-line overrides applied and checked like the file was.
+
+        Parameters
+        ----------
+        topology
+            A new topology (its size need not fit the formation: that is
+            checked only when the formation is built, see
+            :meth:`desired_positions`).
+        P, D
+            New gains of eq. protocol.
+        tau1, tau2
+            New operating delays; delay scheduling then starts from them
+            (``schedule.tau_min`` becomes the new delays, ``tau_max`` grows to
+            contain them).
+        formation
+            A named shape replacing the formation (its spacing kept).
+
+        Raises
+        ------
+        ScenarioError
+            When an override is invalid.
+        """
+        reader = _Reader(self.source)
+        new = replace(
+            self,
+            topology=self.topology if topology is None else topology,
+            P=self.P if P is None else reader.gain("gains.P", P),
+            D=self.D if D is None else reader.gain("gains.D", D),
+            tau1=self.tau1 if tau1 is None else reader.non_negative("delays.tau1", tau1),
+            tau2=self.tau2 if tau2 is None else reader.non_negative("delays.tau2", tau2),
+        )
+        if tau1 is not None or tau2 is not None:
+            # the hardware delays are the operating ones: schedule from what the user gave
+            lo = (new.tau1, new.tau2)
+            hi = (max(new.schedule.tau_max[0], lo[0]), max(new.schedule.tau_max[1], lo[1]))
+            new = replace(new, schedule=ScheduleSpec(tau_min=lo, tau_max=hi))
+        if formation is not None:
+            from delayform.formation import SHAPES
+
+            shape = reader.string("formation.shape", formation, tuple(SHAPES))
+            new = replace(new, formation=FormationSpec(shape=shape, spacing=self.formation.spacing))
+        # the step is checked against overridden delays by simulate() itself, after a
+        # command line has also overridden the step
+        if topology is not None:
+            new = replace(new, topology_spec=TopologySpec(name=topology.name))
+        return new
+
+    def desired_positions(self) -> np.ndarray:
+        """The desired formation as an ``(n, 2)`` array (named shapes built for this team).
+
+        Raises
+        ------
+        ScenarioError
+            When the formation or the initial conditions do not fit the team
+            (e.g. a hexagon for twelve agents after ``--topology ring --n 12``).
+        """
+        from delayform.formation import named_formation
+
+        _check_sizes(_Reader(self.source), self.topology.n, self.formation, self.initial)
+        if self.formation.positions is not None:
+            return np.array(self.formation.positions, dtype=np.float64)
+        return named_formation(self.formation.shape, self.topology.n, spacing=self.formation.spacing)
+
+    def initial_positions(self) -> np.ndarray | None:
+        """Explicit initial positions, or None for random ones drawn from ``initial.seed``."""
+        if self.initial.positions is None:
+            return None
+        _check_sizes(_Reader(self.source), self.topology.n, self.formation, self.initial)
+        return np.array(self.initial.positions, dtype=np.float64)
+
+    def initial_headings(self) -> np.ndarray | None:
+        """Explicit initial headings, or None for random ones drawn from ``initial.seed``."""
+        if self.initial.headings is None:
+            return None
+        return np.array(self.initial.headings, dtype=np.float64)
