@@ -89,8 +89,6 @@ def montecarlo_section(
     plt = _pyplot()
     net = scenario.network if network is None else network
     sim = scenario.simulation
-    if scenario.robot is not None and net is not None and not net.is_ideal:
-        raise ScenarioError(f"{scenario.source}: robot.limits: robots with limits over an imperfect network are not supported")
     mc = monte_carlo(
         scenario.topology, scenario.P, scenario.D, scenario.tau1, scenario.tau2, scenario.desired_positions(),
         model=sim.model, network=net, runs=runs, seed=seed, duration=sim.duration, dt=sim.dt,
