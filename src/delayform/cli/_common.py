@@ -105,6 +105,51 @@ NON_NEGATIVE = click.FloatRange(min=0.0)
 
 
 # ------------------------------------------------------- shared options
+#: command-line option -> field of delayform.simulation.RobotLimits
+_LIMIT_OPTIONS = (
+    ("max_speed", "--max-speed", "Largest linear speed |v| (m/s)."),
+    ("max_turn_rate", "--max-turn-rate", "Largest turn rate |omega| (rad/s)."),
+    ("max_acceleration", "--max-acceleration", "Largest linear acceleration |dv/dt| (m/s^2)."),
+    ("max_wheel_speed", "--max-wheel-speed", "Largest wheel speed (rad/s)."),
+    ("wheel_radius", "--wheel-radius", "Wheel radius (m)."),
+    ("axle_length", "--axle-length", "Distance between the wheels (m)."),
+)
+
+
+def limit_options(func: F) -> F:
+    """``--limits/--no-limits`` and one option per actuator limit (the scenario's ``[robot]`` table)."""
+    for field, flag, text in reversed(_LIMIT_OPTIONS):
+        func = click.option(flag, field, type=POSITIVE,
+                            help=f"{text} Implies --limits [default: robot.{field} or the iRobot Create's].")(func)  # fmt: skip
+    return click.option("--limits/--no-limits", "use_limits", default=None,
+                        help="Robots with actuator limits (the scenario's [robot] table, else the iRobot Create's) "
+                             "or ideal robots [default: limits when the scenario has a [robot] table].")(func)  # fmt: skip
+
+
+def _limits_given(overrides: dict[str, Any]) -> dict[str, float]:
+    """Pop the limit options from a command's keyword arguments; those given."""
+    given = {field: overrides.pop(field) for field, _, _ in _LIMIT_OPTIONS}
+    return {k: v for k, v in given.items() if v is not None}
+
+
+def _robot(robot: Any, use_limits: bool | None, given: dict[str, float], model: str) -> Any:
+    """The robots' limits from the scenario's ``[robot]`` table, ``--limits/--no-limits`` and the limit options."""
+    from dataclasses import replace
+
+    from delayform.simulation import IROBOT_CREATE
+
+    if use_limits is False:
+        if given:
+            raise click.UsageError("--no-limits cannot be combined with " + ", ".join(
+                flag for field, flag, _ in _LIMIT_OPTIONS if field in given))  # fmt: skip
+        return None
+    if use_limits or given:
+        robot = replace(robot or IROBOT_CREATE, **given)
+    if robot is not None and model != "unicycle":
+        raise click.UsageError("actuator limits apply to robots: use --model unicycle or --no-limits")
+    return robot
+
+
 def _team_options() -> list[Callable[[F], F]]:
     return [
         click.argument("scenario", required=False, type=click.Path(path_type=Path)),

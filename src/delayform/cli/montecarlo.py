@@ -14,9 +14,12 @@ from delayform.cli._common import (
     FloatTuple,
     _emit,
     _inner_progress,
+    _limits_given,
     _out_dir,
+    _robot,
     _scenario,
     cli,
+    limit_options,
     scenario_options,
 )
 
@@ -72,15 +75,19 @@ def _network(base: Any, *, loss: float | None, burst: tuple[float, float] | None
               help="Measurement noise: std of positions (m) and velocities (m/s) (network.noise).")
 @click.option("--delay-spread", "spread", type=NON_NEGATIVE,
               help="Per-link delays drawn in tau (1 +- SPREAD), SPREAD < 1 (network.delay_spread).")
+@limit_options
 def montecarlo_command(scenario: Path | None, runs: int, seed: int | None, workers: int | None, scheduler: str | None,
                        model: str | None, duration: float | None, dt: float | None, loss: float | None,
                        burst: tuple[float, float] | None, jitter: tuple[float, float] | None, rate: float | None,
-                       noise: tuple[float, float] | None, spread: float | None, out: Path | None, as_json: bool,
-                       **overrides: Any) -> None:  # fmt: skip
+                       noise: tuple[float, float] | None, spread: float | None, use_limits: bool | None,
+                       out: Path | None, as_json: bool, **overrides: Any) -> None:  # fmt: skip
     """Monte Carlo of the scenario over an imperfect network: N seeded runs.
 
     The network comes from the scenario's [network] table and the options
-    --loss, --burst, --jitter, --rate, --noise, --delay-spread. Writes the quantile bands of the formation error
+    --loss, --burst, --jitter, --rate, --noise, --delay-spread. Robots with
+    actuator limits (the scenario's [robot] table, --limits and the limit
+    options) are the saturated unicycle driven by what each robot hears.
+    Writes the quantile bands of the formation error
     (montecarlo_bands.png/.svg), histograms of settling time, final error
     and peak command (montecarlo_histograms.png/.svg), one CSV row per run
     and an NPZ; reports median and 5-95 % of each. The same seed gives the
@@ -95,6 +102,7 @@ def montecarlo_command(scenario: Path | None, runs: int, seed: int | None, worke
 
     if workers is not None and scheduler is not None:
         raise click.UsageError("give either --workers (a local cluster) or --scheduler (an existing one), not both")
+    given = _limits_given(overrides)
     sc = _scenario(scenario, seed=seed, **overrides)
     seed = 0 if seed is None else seed
     sim = SimulationSpec(
@@ -105,7 +113,7 @@ def montecarlo_command(scenario: Path | None, runs: int, seed: int | None, worke
     if sim.dt >= sim.duration:
         raise click.BadParameter(f"the step must be smaller than the duration {sim.duration:g}", param_hint="--dt")
     network = _network(sc.network, loss=loss, burst=burst, jitter=jitter, rate=rate, noise=noise, spread=spread)
-    sc = replace(sc, simulation=sim, network=network)
+    sc = replace(sc, simulation=sim, network=network, robot=_robot(sc.robot, use_limits, given, sim.model))
     # every input and the budget are checked before anything is started or written
     setup = make_setup(
         sc.topology, sc.P, sc.D, sc.tau1, sc.tau2, sc.desired_positions(), model=sim.model, network=network,
