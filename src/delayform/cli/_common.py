@@ -73,6 +73,35 @@ class FloatTuple(click.ParamType):
         return numbers
 
 
+class DelayValues(click.ParamType):
+    """``START:STOP:COUNT`` (evenly spaced, both ends included) or ``T1,T2,...``: delays in seconds."""
+
+    name = "START:STOP:COUNT"
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        import math
+
+        if isinstance(value, tuple):
+            return value
+        text = str(value)
+        try:
+            if ":" in text:
+                start, stop, count = text.split(":")
+                a, b, m = float(start), float(stop), int(count)
+                if m < 1 or m > 200:
+                    self.fail(f"COUNT must be between 1 and 200, got {m}", param, ctx)
+                values = tuple(a + (b - a) * i / (m - 1) for i in range(m)) if m > 1 else (a,)
+            else:
+                values = tuple(float(p) for p in text.split(","))
+        except ValueError:
+            self.fail(f"expected START:STOP:COUNT or comma-separated delays, got {value!r}", param, ctx)
+        if not all(math.isfinite(v) and v >= 0.0 for v in values):
+            self.fail(f"delays must be finite and >= 0, got {value!r}", param, ctx)
+        if len(set(values)) != len(values) or list(values) != sorted(values):
+            self.fail(f"delays must increase, got {value!r}", param, ctx)
+        return values
+
+
 class LabelledPoint(click.ParamType):
     """``LABEL=tau1,tau2``: a delay pair to mark on the chart."""
 
@@ -220,6 +249,18 @@ def _scenario(
     elif n is not None or p is not None:
         raise click.UsageError(f"--{'n' if n is not None else 'p'} is only used with --topology")
     return scenario.with_changes(topology=topology, P=P, D=D, tau1=tau1, tau2=tau2, formation=formation_name)
+
+
+def _simulation_spec(scenario: Scenario, *, model: str | None, duration: float | None, dt: float | None) -> Any:
+    """The scenario's ``[simulation]`` table with ``--model``, ``--duration`` and ``--dt`` applied."""
+    from delayform.scenario import SimulationSpec
+
+    sim = scenario.simulation
+    spec = SimulationSpec(model=model or sim.model, duration=sim.duration if duration is None else duration,
+                          dt=sim.dt if dt is None else dt)  # fmt: skip
+    if spec.dt >= spec.duration:
+        raise click.BadParameter(f"the step must be smaller than the duration {spec.duration:g}", param_hint="--dt")
+    return spec
 
 
 def _safe_name(name: str) -> str:

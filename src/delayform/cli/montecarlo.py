@@ -18,6 +18,7 @@ from delayform.cli._common import (
     _out_dir,
     _robot,
     _scenario,
+    _simulation_spec,
     cli,
     limit_options,
     scenario_options,
@@ -95,9 +96,8 @@ def montecarlo_command(scenario: Path | None, runs: int, seed: int | None, worke
     --seed seeds the runs (per-run seeds from numpy SeedSequence.spawn;
     default 0) and a random_digraph topology.
     """
-    from delayform.report_network import montecarlo_section
-    from delayform.scenario import SimulationSpec
-    from delayform.simulation.montecarlo import guard, make_setup
+    from delayform.report_network import montecarlo_section, scenario_setup
+    from delayform.simulation.montecarlo import guard
     from delayform.sweeps import executor_for
 
     if workers is not None and scheduler is not None:
@@ -105,21 +105,11 @@ def montecarlo_command(scenario: Path | None, runs: int, seed: int | None, worke
     given = _limits_given(overrides)
     sc = _scenario(scenario, seed=seed, **overrides)
     seed = 0 if seed is None else seed
-    sim = SimulationSpec(
-        model=model or sc.simulation.model,
-        duration=sc.simulation.duration if duration is None else duration,
-        dt=sc.simulation.dt if dt is None else dt,
-    )
-    if sim.dt >= sim.duration:
-        raise click.BadParameter(f"the step must be smaller than the duration {sim.duration:g}", param_hint="--dt")
+    sim = _simulation_spec(sc, model=model, duration=duration, dt=dt)
     network = _network(sc.network, loss=loss, burst=burst, jitter=jitter, rate=rate, noise=noise, spread=spread)
     sc = replace(sc, simulation=sim, network=network, robot=_robot(sc.robot, use_limits, given, sim.model))
     # every input and the budget are checked before anything is started or written
-    setup = make_setup(
-        sc.topology, sc.P, sc.D, sc.tau1, sc.tau2, sc.desired_positions(), model=sim.model, network=network,
-        duration=sim.duration, dt=sim.dt, initial_positions=sc.initial_positions(),
-        initial_headings=sc.initial_headings(), initial_speed=sc.initial.speed, limits=sc.robot,
-    )  # fmt: skip
+    setup = scenario_setup(sc)
     guard(setup, runs, workers or 1)
     with executor_for(workers=workers, scheduler=scheduler) as ex:
         directory = _out_dir(out, sc)

@@ -16,6 +16,7 @@ from delayform.cli._common import (
     _robot,
     _out_dir,
     _scenario,
+    _simulation_spec,
     cli,
     limit_options,
     scenario_options,
@@ -44,17 +45,10 @@ def simulate_command(scenario: Path | None, model: str | None, duration: float |
     command beyond a limit. A run that diverges is noted on stderr.
     """
     from delayform.report import simulation_section
-    from delayform.scenario import SimulationSpec
 
     given = _limits_given(overrides)
     sc = _scenario(scenario, seed=seed, **overrides)
-    sim = SimulationSpec(
-        model=model or sc.simulation.model,
-        duration=sc.simulation.duration if duration is None else duration,
-        dt=sc.simulation.dt if dt is None else dt,
-    )
-    if sim.dt >= sim.duration:
-        raise click.BadParameter(f"the step must be smaller than the duration {sim.duration:g}", param_hint="--dt")
+    sim = _simulation_spec(sc, model=model, duration=duration, dt=dt)
     robot = _robot(sc.robot, use_limits, given, sim.model)
     sc = replace(sc, simulation=sim, robot=robot,
                  initial=replace(sc.initial, seed=sc.initial.seed if seed is None else seed))  # fmt: skip
