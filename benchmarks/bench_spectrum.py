@@ -112,30 +112,37 @@ def main() -> None:
     def med(xs: list[tuple[float, float]], k: int) -> float:
         return statistics.median(x[k] for x in xs)
 
+    def best(xs: list[tuple[float, float]], k: int) -> float:
+        return min(x[k] for x in xs)
+
     load = os.getloadavg()
     print(f"machine: {os.cpu_count()} cores, Python {platform.python_version()}, numpy {np.__version__}; "
           f"load average {load[0]:.1f} / {load[1]:.1f} / {load[2]:.1f} (1 / 5 / 15 min; shared with other jobs)")
     print(f"{args.repeat} interleaved repeats; medians of wall time (and of process CPU time, less "
-          "sensitive to the other jobs)")
+          "sensitive to the other jobs); best = fastest repeat; goals judged on the median CPU times")
     print()
-    print("| point (tau1, tau2) | qpmr wall (CPU) ms | dominant_root wall (CPU) ms | speed-up wall (CPU) | goal |")
-    print("|---|---|---|---|---|")
+    print("| point (tau1, tau2) | qpmr wall (CPU) ms | dominant_root wall (CPU) ms | speed-up wall (CPU) | "
+          "best: qpmr / dominant_root CPU ms, speed-up | goal |")
+    print("|---|---|---|---|---|---|")
     for name, (t1, t2) in POINTS.items():
         qw, qc, sw, sc = med(q_t[name], 0), med(q_t[name], 1), med(s_t[name], 0), med(s_t[name], 1)
-        ok = "met" if qw / sw >= 20 else "NOT met"
+        qb, sb = best(q_t[name], 1), best(s_t[name], 1)
+        ok = "met" if qc / sc >= 20 else "NOT met"
         print(f"| {name} ({t1:g}, {t2:g}) | {1e3 * qw:.1f} ({1e3 * qc:.1f}) | {1e3 * sw:.2f} ({1e3 * sc:.2f}) | "
-              f"{qw / sw:.0f}x ({qc / sc:.0f}x) | >= 20x ({ok}) |")
+              f"{qw / sw:.0f}x ({qc / sc:.0f}x) | {1e3 * qb:.1f} / {1e3 * sb:.2f}, {qb / sb:.0f}x | >= 20x ({ok}) |")
     q_w = statistics.median(med(q_t[k], 0) for k in POINTS)
     q_c = statistics.median(med(q_t[k], 1) for k in POINTS)
     mw, mc = med(m_t, 0), med(m_t, 1)
     pw, pc = mw / grid.size**2, mc / grid.size**2
-    status = "met" if q_w / pw >= 1000 else "NOT met"
+    status = "met" if q_c / pc >= 1000 else "NOT met"
+    q_best = statistics.median(best(q_t[k], 1) for k in POINTS)
+    m_best = best(m_t, 1)
     print()
     print("| dominant_root_map, paper team, [0, 8]^2, certified at every point | wall (CPU) s | per pair wall (CPU) ms | "
-          "speed-up vs qpmr at a, b, c, wall (CPU) | goal | stable fraction |")
-    print("|---|---|---|---|---|---|")
+          "speed-up vs qpmr at a, b, c, wall (CPU) | best CPU s, speed-up vs qpmr's best | goal | stable fraction |")
+    print("|---|---|---|---|---|---|---|")
     print(f"| 100 x 100 | {mw:.3f} ({mc:.3f}) | {1e3 * pw:.4f} ({1e3 * pc:.4f}) | {q_w / pw:.0f}x ({q_c / pc:.0f}x) | "
-          f">= 1000x ({status}) | {dmap.stable.mean():.3f} |")
+          f"{m_best:.3f}, {q_best / (m_best / grid.size**2):.0f}x | >= 1000x ({status}) | {dmap.stable.mean():.3f} |")
 
     if args.sample > 0:
         rng = np.random.default_rng(20261123)

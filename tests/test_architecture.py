@@ -32,8 +32,6 @@ STAGES: dict[str, int] = {
     "sweeps": 6,
     "scenario": 7,
     "report": 8,
-    "report_network": 8,  # split from report: network and Monte Carlo sections
-    "report_gains": 8,
     # the explorer is served by a CLI command (cli/explore.py), so it comes before the CLI
     "app": 9,
     "cli": 10,

@@ -23,14 +23,16 @@ import numpy as np
 import pytest
 
 from delayform.analysis.ctcr import PAPER_POINTS, stability_map
-from delayform.analysis.spectrum import count_roots_right_of, dominant_root
+from delayform.analysis.region import lambda_region
+from delayform.analysis.spectrum import count_roots_right_of, dominant_root, rightmost_root
 from delayform.app import LOOPBACK, Explorer, ExplorerLimits, check_host, scenario_toml, start
 from delayform.app.server import bind
 from delayform.characteristic import factors
 from delayform.cli import main
 from delayform.errors import InputError
 from delayform.scenario import load_scenario, paper_scenario, parse_scenario
-from delayform.simulation import IROBOT_CREATE
+from delayform.simulation import IROBOT_CREATE, simulate
+from delayform.simulation.network import BernoulliLoss, Network
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
@@ -84,6 +86,48 @@ def test_point_agrees_with_dominant_root_and_the_argument_principle(server, labe
     assert roots.real.max() <= want.real + 1e-9
 
 
+@pytest.mark.parametrize("label", sorted(PAPER_POINTS))
+def test_region_verdicts_agree_with_the_argument_principle_per_factor(server, label: str) -> None:
+    t1, t2 = PAPER_POINTS[label]
+    got = get_json(server, f"/api/region?tau1={t1}&tau2={t2}")
+    team = paper_scenario().topology
+    eig = np.array(got["eigenvalues"]["re"]) + 1j * np.array(got["eigenvalues"]["im"])
+    counts = np.array(got["eigenvalue_unstable_count"])
+    assert np.allclose(np.sort_complex(eig), np.sort_complex(team.eigenvalues), atol=1e-5)
+    # each factor of eq. factorized counted by the argument principle in s, not in the lam plane
+    for f in factors(team, 1.0, 0.5):
+        members = np.abs(eig - f.lam) < 1e-4
+        if f.group.is_complex_pair:
+            members |= np.abs(eig - np.conj(f.lam)) < 1e-4
+        want = f.multiplicity * count_roots_right_of(f, t1, t2, 1e-6)
+        assert counts[members].sum() == want, (label, f.describe())
+        # and against the factor's rightmost root (the per-factor root behind dominant_root)
+        right = rightmost_root(f, t1, t2).real
+        assert bool(np.all(np.array(got["eigenvalue_stable"])[members])) is (right < 0), (label, right)
+    direct = lambda_region(1.0, 0.5, t1, t2).unstable_count(team.eigenvalues)
+    assert np.array_equal(np.sort(direct), np.sort(counts))
+    # the team's NU is the exact CTCR map's, and c is the only unstable point
+    assert got["unstable_count"] == get_json(server, f"/api/point?tau1={t1}&tau2={t2}")["unstable_count"]
+    assert got["stable"] is (label != "c")
+
+
+def test_region_boundary_is_the_closed_form_curve(server) -> None:
+    from scipy.spatial import cKDTree
+
+    got = get_json(server, "/api/region?tau1=1&tau2=2")
+    lam = np.array([complex(a, b) for a, b in zip(got["boundary"]["re"], got["boundary"]["im"], strict=True)
+                    if a is not None])  # fmt: skip
+    assert lam.size > 100 and np.all(np.abs(lam) <= got["radius"] + 1e-9)
+    # L(j omega) = (s^2 + D s + P) / (D s e^{-tau2 s} + P e^{-tau1 s}) densely sampled
+    s = 1j * np.linspace(-6.0, 6.0, 400_001)
+    closed = (s * s + 0.5 * s + 1.0) / (0.5 * s * np.exp(-2.0 * s) + np.exp(-1.0 * s))
+    closed = closed[np.abs(closed) <= got["radius"] + 0.1]
+    dist, _ = cKDTree(np.c_[closed.real, closed.imag]).query(np.c_[lam.real, lam.imag])
+    assert dist.max() < 2e-3
+    grid = np.array(got["grid"]["unstable_count"])
+    assert grid.shape == (len(got["grid"]["values"]),) * 2 and grid[grid.shape[0] // 2, grid.shape[1] // 2] == 0
+
+
 def test_point_with_other_gains_uses_them(server) -> None:
     got = get_json(server, "/api/point?tau1=1&tau2=2&P=0.4&D=1.5")
     want = dominant_root(paper_scenario().topology, 0.4, 1.5, 1.0, 2.0)
@@ -114,7 +158,8 @@ def test_animation_frames_are_a_run_of_simulate(server) -> None:
 
 
 def test_limits_switch_runs_the_saturated_robots(server) -> None:
-    assert get_json(server, "/api/scenario")["toggles"] == {"limits": False}  # the paper's robots are ideal
+    # the paper's robots are ideal, over the paper's network
+    assert get_json(server, "/api/scenario")["toggles"] == {"limits": False, "network": False}
     query = "/api/simulate?tau1=0.3&tau2=0.2&duration=20&frames=400"
     ideal, limited = get_json(server, query), get_json(server, query + "&limits=1")
     assert ideal["limits"] is None and limited["limits"].startswith("|v| <= 0.5 m/s")
@@ -129,10 +174,48 @@ def test_limits_switch_runs_the_saturated_robots(server) -> None:
     assert get(server, query + "&limits=2")[0] == 400
 
 
+def test_network_switch_runs_the_lossy_network(server) -> None:
+    query = "/api/simulate?tau1=0.3&tau2=0.2&duration=40&frames=50"
+    lossy = get_json(server, query + "&network=1&loss=0.3&jitter=0")
+    assert lossy["network"] == "loss 0.3" and lossy["limits"] is None
+    assert lossy["formation_error"][-1] < 0.05 * lossy["formation_error"][0]  # point a still settles
+    s = paper_scenario()
+    direct = simulate(s.topology, 1.0, 0.5, 0.3, 0.2, s.desired_positions(), model=s.simulation.model,
+                      network=Network(loss=BernoulliLoss(0.3), seed=s.initial.seed),
+                      initial_positions=s.initial_positions(), initial_headings=s.initial_headings(),
+                      initial_speed=s.initial.speed, seed=s.initial.seed, duration=40.0, dt=s.simulation.dt)  # fmt: skip
+    assert lossy["final_error"] == pytest.approx(float(direct.formation_error[-1]), rel=1e-9)
+    ideal = get_json(server, query)
+    assert ideal["network"] is None and ideal["final_error"] != lossy["final_error"]
+    both = get(server, query + "&network=1&limits=1")
+    assert both[0] == 400 and "choose one" in json.loads(both[2])["error"]
+    jittery = get_json(server, query + "&network=1&loss=0.1&jitter=0.05")
+    assert jittery["network"] == "jitter +-(0.05, 0.05) s, loss 0.1"
+
+
+def test_network_download_round_trips(tmp_path: Path) -> None:
+    query = "tau1=0.3&tau2=0.2&duration=20&tau1_max=8&tau2_max=8&network=1&loss=0.3&jitter=0.05"
+    with start(Explorer(paper_scenario(), out_dir=tmp_path / "paper")) as running:
+        status, _, body = get(running, f"/download/scenario.toml?{query}")
+    assert status == 200
+    again = parse_scenario(tomllib.loads(body.decode()))
+    assert again.robot is None and again.network is not None
+    assert again.network.loss.probability == 0.3 and (again.network.jitter.bound1, again.network.jitter.bound2) == (0.05, 0.05)
+    # a scenario with its own network keeps its other parts; the page sets loss and jitter
+    lossy = load_scenario(EXAMPLES / "lossy.toml")
+    explorer = Explorer(lossy, out_dir=tmp_path)
+    assert explorer.toggles == {"network": True}
+    path = explorer.scenario_file(1.0, 0.5, 0.3, 0.2, 30.0, 8.0, 8.0, network=True, loss=0.25, jitter=0.02)
+    net = load_scenario(path).network
+    assert net.loss.probability == 0.25 and net.jitter.bound1 == 0.02
+    assert (net.sampling, net.noise, net.delays.spread) == (lossy.network.sampling, lossy.network.noise, 0.2)
+    assert load_scenario(explorer.scenario_file(1.0, 0.5, 0.3, 0.2, 30.0, 8.0, 8.0)).network is None
+
+
 def test_no_limits_switch_for_double_integrators(tmp_path: Path) -> None:
     agents = replace(paper_scenario(), simulation=replace(paper_scenario().simulation, model="double_integrator"))
     explorer = Explorer(agents, out_dir=tmp_path)
-    assert explorer.toggles == {}
+    assert explorer.toggles == {"network": False}
     with start(explorer) as running:
         assert get(running, "/api/simulate?tau1=0.3&tau2=0.2&limits=1")[0] == 400
 
@@ -194,6 +277,20 @@ MALFORMED = [
     "/api/simulate?tau1=0.3&tau2=0.2&frames=601",
     "/api/simulate?tau1=0.3&tau2=0.2&frames=abc&frames=2",
     "/api/simulate?tau1=0.001&tau2=0.2&duration=60",  # the step shrinks to 0.001: 60000 steps
+    "/api/simulate?tau1=0.3&tau2=0.2&limits=1&network=1",  # simulate takes one or the other
+    "/api/simulate?tau1=0.3&tau2=0.2&network=1&loss=1",
+    "/api/simulate?tau1=0.3&tau2=0.2&network=1&loss=-0.1",
+    "/api/simulate?tau1=0.3&tau2=0.2&network=1&jitter=abc",
+    "/api/simulate?tau1=0.3&tau2=0.2&network=1&jitter=6",
+    "/api/simulate?tau1=0.3&tau2=0.2&network=1&jitter=0.2",  # tau2 - jitter < dt: NetworkError
+    "/api/simulate?tau1=0.3&tau2=0.2&network=maybe",
+    "/api/region",
+    "/api/region?tau1=0.3",
+    "/api/region?tau1=abc&tau2=0.2",
+    "/api/region?tau1=0.3&tau2=0.2&P=0",
+    "/api/region?tau1=20&tau2=0.2",  # beyond max_delay_bandwidth
+    "/api/region?tau1=0.3&tau2=0.2&grid=81",
+    "/download/scenario.toml?tau1=0.3&tau2=0.2&limits=1&network=1",
     "/download/scenario.toml",
     "/download/scenario.toml?tau1=0.3&tau2=0.2&tau1_max=0",
     "/download/figures.zip?tau1=0.3&tau2=0.2&duration=1e9",

@@ -40,7 +40,7 @@ def _click_and_read(page, tau: tuple[float, float]) -> dict[str, object]:
         """() => {
           const d = document.body.dataset;
           const here = `${Number(document.getElementById("tau1").value)},${Number(document.getElementById("tau2").value)}`;
-          return d.point === here && d.simPoint === here;
+          return d.point === here && d.simPoint === here && d.region === here;
         }""",
         timeout=30_000,
     )
@@ -49,6 +49,9 @@ def _click_and_read(page, tau: tuple[float, float]) -> dict[str, object]:
         "tau2": float(page.input_value("#tau2")),
         "verdict": page.inner_text("#verdict"),
         "count": int(page.inner_text("#unstable-count")),
+        # the eigenvalue plane: its verdict, and the team's eigenvalues drawn green or red
+        "region_stable": page.evaluate("() => document.body.dataset.regionStable") == "true",
+        "red_eigenvalues": page.evaluate("() => document.getElementById('region').data[4].x.length"),
         "tolerance": 1.5 / px_per_second,  # a click lands within a pixel or so
     }
 
@@ -83,6 +86,10 @@ def test_click_a_then_c_in_chromium(tmp_path: Path) -> None:
                 t_first = _sim_time(page)
                 page.wait_for_timeout(800)
                 seen[label]["advanced"] = _sim_time(page) > t_first
+            # the network switch turns the limits switch off (simulate takes one or the other)
+            page.check("#toggle-limits")
+            page.check("#toggle-network")
+            switches = (page.is_checked("#toggle-limits"), page.is_visible("#loss"))
         finally:
             browser.close()
 
@@ -93,6 +100,10 @@ def test_click_a_then_c_in_chromium(tmp_path: Path) -> None:
         assert got["verdict"] == verdict, got
         assert got["count"] == count, got  # NU at c: two conjugate pairs (Fig. stability)
         assert got["advanced"], f"the animation did not advance at {label}"
+        assert got["region_stable"] is (verdict == "stable"), got
+    # at c the eigenvalues -0.5 and -0.64 of C lie outside the stable region (two roots each)
+    assert seen["a"]["red_eigenvalues"] == 0 and seen["c"]["red_eigenvalues"] == 2, seen
+    assert switches == (False, True)
     assert not problems, problems
     outside = [u for u in requests if not u.startswith(running.url)]
     assert not outside, f"the page loaded something from elsewhere: {outside[:3]}"

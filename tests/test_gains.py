@@ -251,7 +251,7 @@ def test_cli_errors_are_one_line_exit_2(tmp_path: Path, args: tuple[str, ...], n
 
 
 def test_report_sections_write_their_files(tmp_path: Path) -> None:
-    from delayform.report_gains import gain_comparison_section, gains_section
+    from delayform.report import gain_comparison_section, gains_section
     from delayform.scenario import paper_scenario
 
     sc = paper_scenario()

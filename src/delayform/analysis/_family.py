@@ -24,6 +24,7 @@ call, whose matrices depend on lam only through one block (cached per delays).
 
 from __future__ import annotations
 
+import cmath
 from collections.abc import Callable, Sequence
 from functools import lru_cache
 from typing import Any
@@ -35,7 +36,6 @@ from delayform.analysis._generator import _chebyshev, _igd_seeds, _lagrange_rows
 from delayform.analysis._quasi import _TINY_DELAY, MAX_DEGREE, RESIDUAL_TOL, _problem_of_factor
 from delayform.analysis._rightmost import (
     _BATCH_SEEDS,
-    _SEED_WINDOW,
     _batch_distinct,
     _certify,
     _pick_rightmost,
@@ -47,7 +47,12 @@ from delayform.characteristic import CharacteristicFactor
 #: Grid strides visited coarse to fine; the first level is seeded by discretization.
 _LEVELS = (27, 9, 3, 1)
 #: Known roots kept per row as seeds for its neighbours.
-_KEEP = 6
+_KEEP = 4
+#: Seeds polished per row: those within this distance of the row's rightmost seed. The line
+#: usually lies within 0.1 (certificate._LINE_OFFSET) of the rightmost root, so deeper roots
+#: mostly cost Newton steps; a root a dropped seed would have found fails the certificate and
+#: the row is redone (paper team: 0 of 300 random single pairs, 5 of 50,000 map rows redone).
+_SEED_WINDOW = 0.3
 #: Newton steps of the fast path (a seed still moving after them is left to the fallback).
 _FAST_NEWTON_STEPS = 16
 #: Initial samples of the certified walk along Re s = c (bisected where needed).
@@ -151,22 +156,41 @@ def _polish_rows(seeds: NDArray[np.complex128], rows: _Rows) -> tuple[NDArray[np
 # =====================================================================
 # the certificate, vectorized over rows (same bounds as certificate.py)
 # =====================================================================
+def _chord_ok(
+    qa: NDArray[np.complex128], qb: NDArray[np.complex128], wa: NDArray[np.float64], h: Any,
+    m2_slope: Any, m2_offset: Any, c2: Any,
+) -> NDArray[np.bool_]:
+    """Segments [c + i wa, c + i (wa + h)] on which q keeps off 0 by the chord test (see _count_rows)."""
+    wb = wa + h
+    rho = np.sqrt(c2 + np.maximum(wa * wa, wb * wb))
+    quad = (m2_slope * rho + m2_offset) * (0.125 * h * h)
+    d = qb - qa
+    dd = d.real * d.real + d.imag * d.imag
+    t = np.clip(-(d.real * qa.real + d.imag * qa.imag) / np.where(dd > 0.0, dd, 1.0), 0.0, 1.0)
+    near = qa + t * d  # the chord's point nearest 0
+    return near.real * near.real + near.imag * near.imag > quad * quad
+
+
 def _count_rows(
     rows: _Rows, c: NDArray[np.float64], *, max_segments: int = 4096
 ) -> NDArray[np.float64]:
     """Certified number of roots of q with Re s > c per row (NaN: not certified).
 
     The walk of :func:`delayform.analysis.certificate._count_right_batch` with
-    a second-order test: on the line Re s = c the delayed terms have constant
-    moduli E1 = |lam| P e^{-tau1 c}, E2 = |lam| D e^{-tau2 c}, so
+    a chord test: on the line Re s = c the delayed terms have constant moduli
+    E1 = |lam| P e^{-tau1 c}, E2 = |lam| D e^{-tau2 c}, so
 
         |q''(s)| <= M2 = 2 + tau1^2 E1 + 2 tau2 E2 + tau2^2 E2 rho   (|s| <= rho),
 
-    and a segment [s_a, s_b] of length h is accepted when, from both ends,
-    ``|q'(s_e)| h / 2 + M2 h^2 / 8 < |q(s_e)|``: then on each half q(s) / q(s_e)
-    stays in the disc |z - 1| < 1 (Taylor), so each half changes arg q by less
-    than pi / 2 and the segment's change is exactly Arg(q(s_b) / q(s_a)). The
-    line is closed at infinity by the Cauchy radius (root of
+    and on a segment [s_a, s_b] of length h q differs from its chord
+    (the linear interpolation of q(s_a), q(s_b)) by at most M2 h^2 / 8 (the
+    Green's function of the second derivative). A segment is accepted when the
+    chord keeps a distance greater than that from 0: then q does not vanish on
+    it and arg q stays within pi / 2 of the chord's argument, which is exact at
+    both ends, so the segment's change of arg q is exactly Arg(q(s_b) / q(s_a)).
+    Near a root at distance delta from the line this accepts steps of order
+    sqrt(delta) instead of the first-order test's delta, and needs no q'.
+    The line is closed at infinity by the Cauchy radius (root of
     ``r^2 = (D + E2) r + P + E1``, Rouche). Rows with real lam walk Im s >= 0
     only (q(conj s) = conj q(s)).
 
@@ -191,7 +215,11 @@ def _count_rows(
     lo = np.where(rows.real, 0.0, -omega)
     h = (omega - lo) / (m - 1)
 
+    w = lo + h * np.arange(m)[:, None]  # (m, n)
+
     def rotations(tau: NDArray[np.float64]) -> NDArray[np.complex128]:
+        if n <= 64:  # a few lines: one exp call beats m Python-level rotations
+            return np.exp(-1j * tau * w)
         z = np.empty((m, n), dtype=np.complex128)
         z[0] = np.exp(-1j * tau * lo)
         rot = np.exp(-1j * tau * h)
@@ -199,69 +227,49 @@ def _count_rows(
             np.multiply(z[j - 1], rot, out=z[j])
         return z
 
-    def value(
-        sv: NDArray[np.complex128], k1: NDArray[np.complex128], k2: NDArray[np.complex128], idx: Any
-    ) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
-        a = A1[idx] * k1
-        b = B1[idx] * k2
-        bs = b * sv
-        return (sv + D) * sv + P - a - bs, 2.0 * sv + D + t1[idx] * a - b + t2[idx] * bs
-
-    w = lo + h * np.arange(m)[:, None]  # (m, n)
     k1, k2 = rotations(t1), rotations(t2)
-    q, dq = value(c + 1j * w, k1, k2, slice(None))
-    # segments j = 0..m-2 of every line, flattened line-major
-    line = np.repeat(np.arange(n), m - 1)
-    seg = (slice(None, -1), slice(1, None))
-    wa = w[seg[0]].T.ravel()
-    qa, qb = q[seg[0]].T.ravel(), q[seg[1]].T.ravel()
-    da, db = np.abs(dq[seg[0]].T.ravel()), np.abs(dq[seg[1]].T.ravel())
-    ka, kb = k1[seg[0]].T.ravel(), k2[seg[0]].T.ravel()
-    total = np.zeros(n)
+    sv = c + 1j * w
+    q = (sv + D) * sv + P - A1 * k1 - (B1 * k2) * sv
     failed = ~np.all(np.isfinite(q) & (q != 0.0), axis=0)
     c2 = c * c
+    # the initial segments are tested in their (m - 1, n) layout; only rejected ones are
+    # gathered into flat arrays and bisected
+    good = _chord_ok(q[:-1], q[1:], w[:-1], h, m2_slope, m2_offset, c2)
+    total = np.where(good, np.angle(q[1:] * np.conj(q[:-1])), 0.0).sum(axis=0)
+    j, line = np.nonzero(~good)
+    wa, qa, qb, ka, kb = w[j, line], q[j, line], q[j + 1, line], k1[j, line], k2[j, line]
     step = h.copy()
     for _ in range(52):
-        hl = step[line]
-        wb = wa + hl
-        rho = np.sqrt(c2[line] + np.maximum(wa * wa, wb * wb))
-        quad = (m2_slope[line] * rho + m2_offset[line]) * (0.125 * hl * hl)
-        half = 0.5 * hl
-        bad = (da * half + quad >= np.abs(qa)) | (db * half + quad >= np.abs(qb))
-        good = ~bad
-        total += np.bincount(line[good], np.angle(qb[good] * np.conj(qa[good])), minlength=n)
-        if not bad.any():
+        if line.size == 0:
             break
-        line, wa, qa, qb, da, db, ka, kb = (
-            line[bad], wa[bad], qa[bad], qb[bad], da[bad], db[bad], ka[bad], kb[bad]
-        )
         too_many = np.bincount(line, minlength=n) > max_segments
         if too_many.any():
             failed |= too_many
             keep = ~too_many[line]
-            line, wa, qa, qb, da, db, ka, kb = (
-                line[keep], wa[keep], qa[keep], qb[keep], da[keep], db[keep], ka[keep], kb[keep]
-            )
+            line, wa, qa, qb, ka, kb = line[keep], wa[keep], qa[keep], qb[keep], ka[keep], kb[keep]
         step = 0.5 * step
         wm = wa + step[line]
         km = ka * np.exp(-1j * t1 * step)[line]
         kbm = kb * np.exp(-1j * t2 * step)[line]
-        qm, dqm = value(c[line] + 1j * wm, km, kbm, line)
+        sm = c[line] + 1j * wm
+        qm = (sm + D) * sm + P - A1[line] * km - (B1[line] * kbm) * sm
         failed[line[~np.isfinite(qm) | (qm == 0.0)]] = True
-        dm = np.abs(dqm)
         line = np.concatenate([line, line])
         wa = np.concatenate([wa, wm])
         qa, qb = np.concatenate([qa, qm]), np.concatenate([qm, qb])
-        da, db = np.concatenate([da, dm]), np.concatenate([dm, db])
         ka, kb = np.concatenate([ka, km]), np.concatenate([kb, kbm])
+        good = _chord_ok(qa, qb, wa, step[line], m2_slope[line], m2_offset[line], c2[line])
+        total += np.bincount(line[good], np.angle(qb[good] * np.conj(qa[good])), minlength=n)
+        bad = ~good
+        line, wa, qa, qb, ka, kb = line[bad], wa[bad], qa[bad], qb[bad], ka[bad], kb[bad]
     else:
         failed[line] = True
     # tails beyond +-Omega: arg q = arg g1 + Arg(q / g1), g1 = s^2 + D s + P (Rouche)
-    disc = np.sqrt(complex(D * D - 4.0 * P))
+    # (the walk's end samples are the points c +- i Omega; real rows use only the top one)
+    disc = cmath.sqrt(D * D - 4.0 * P)
     z = np.array([(-D + disc) / 2.0, (-D - disc) / 2.0])
-    ends = c[:, None] + 1j * np.stack([omega, -omega], axis=1)
-    qe, _, _, _ = _q(ends, lam[:, None], t1[:, None], t2[:, None], P, D)
-    ratio = np.angle(qe / ((ends + D) * ends + P))
+    ends = np.stack([sv[-1], sv[0]], axis=1)
+    ratio = np.angle(np.stack([q[-1], q[0]], axis=1) / ((ends + D) * ends + P))
     ang = np.angle(ends[..., None] - z)  # (n, 2, 2)
     top = (np.pi / 2 - ang[:, 0]).sum(axis=-1) - ratio[:, 0]
     bottom = (ang[:, 1] + np.pi / 2).sum(axis=-1) + ratio[:, 1]
@@ -294,10 +302,13 @@ def _certify_rows(
     roots = np.concatenate([distinct, np.where(pair, np.conj(distinct), np.nan)], axis=1)
     c, expected, top = _batch_lines(rows.deflate, roots)
     good = np.isfinite(top) & np.isfinite(c)
-    counts = np.full(rows.size, np.nan)
-    if good.any():
+    if good.all():
+        counts = _count_rows(rows, c)
+    else:
+        counts = np.full(rows.size, np.nan)
         idx = np.flatnonzero(good)
-        counts[idx] = _count_rows(rows.take(idx), c[idx])
+        if idx.size:
+            counts[idx] = _count_rows(rows.take(idx), c[idx])
     certified = good & (counts == expected)
     best = np.argmax(np.where(np.isnan(roots.real), -np.inf, roots.real), axis=1)
     right = roots[np.arange(rows.size), best]
@@ -359,9 +370,48 @@ def _family_seeds(lam: NDArray[np.complex128], P: float, D: float, t1: float, t2
         if not real.all():
             eig[~real] = np.linalg.eigvals(M0 + lam[~real][:, None, None] * M1)
     order = np.argsort(-eig.real, axis=1)[:, :k]
+    top = eig[np.arange(F)[:, None], order]
+    if top.shape[1] == k:
+        return top
     out = np.full((F, k), np.nan + 0j)
-    top = np.take_along_axis(eig, order, 1)
     out[:, : top.shape[1]] = top
+    return out
+
+
+def _row_seeds(
+    lam: NDArray[np.complex128], t1: NDArray[np.float64], t2: NDArray[np.float64], P: float, D: float, k: int
+) -> NDArray[np.complex128]:
+    """:func:`_family_seeds` of rows each at its own delay pair, shape (R, k).
+
+    Row r gets exactly the seeds of ``_family_seeds(lam[r:r+1], P, D, t1[r], t2[r], k)``;
+    rows whose discretizations have the same size share one stacked eigenvalue call
+    (the map's retries are scattered over many delay pairs, one factor each).
+    """
+    R = lam.size
+    out = np.full((R, k), np.nan + 0j)
+    hmax = np.maximum(t1, t2)
+    b, c0 = D * (1.0 - lam), P * (1.0 - lam)
+    disc = np.sqrt(b * b - 4.0 * c0 + 0j)
+    tiny = hmax < _TINY_DELAY
+    if tiny.any():  # delay-free: s^2 + D (1 - lam) s + P (1 - lam) = 0
+        free_roots = np.stack([(-b + disc) / 2.0, (-b - disc) / 2.0], axis=1)[tiny]
+        order = np.argsort(-free_roots.real, axis=1)[:, :k]
+        out[tiny, : order.shape[1]] = free_roots[np.arange(order.shape[0])[:, None], order]
+    free = np.maximum(np.abs(-b + disc), np.abs(-b - disc)) / 2.0
+    radius = np.maximum(np.maximum(1.0, free), _norm_a(P, D))
+    N = np.clip(np.ceil(0.6 * radius * hmax + 4), 6, MAX_DEGREE).astype(int)
+    for n in np.unique(N[~tiny]):
+        for real in (True, False):
+            idx = np.flatnonzero(~tiny & (N == n) & ((lam.imag == 0.0) == real))
+            if idx.size == 0:
+                continue
+            blocks = [_generator_blocks(int(n), float(t1[i]), float(t2[i]), float(P), float(D)) for i in idx]
+            M0 = np.stack([m0 for m0, _ in blocks])
+            M1 = np.stack([m1 for _, m1 in blocks])
+            lr = lam[idx].real if real else lam[idx]
+            eig = np.linalg.eigvals(M0 + lr[:, None, None] * M1)
+            order = np.argsort(-eig.real, axis=1)[:, :k]
+            out[idx, : order.shape[1]] = eig[np.arange(idx.size)[:, None], order]
     return out
 
 
@@ -397,8 +447,10 @@ def _pad(roots: NDArray[np.complex128], k: int) -> NDArray[np.complex128]:
     """The k rightmost entries per row (NaN-padded)."""
     key = np.where(np.isnan(roots.real), np.inf, -roots.real)
     order = np.argsort(key, axis=1)[:, :k]
+    top = roots[np.arange(roots.shape[0])[:, None], order]
+    if top.shape[1] == k:
+        return top
     out = np.full((roots.shape[0], k), np.nan + 0j)
-    top = np.take_along_axis(roots, order, 1)
     out[:, : top.shape[1]] = top
     return out
 
@@ -491,10 +543,7 @@ def family_grid(
         roots = _pad(roots, _KEEP)
         if not ok.all():  # a root the neighbours did not have: fresh discretization seeds
             bad = np.flatnonzero(~ok)
-            fresh = np.concatenate([
-                _family_seeds(rows.lam[b : b + 1], P, D, float(rows.t1[b]), float(rows.t2[b]), 2 * _BATCH_SEEDS)
-                for b in bad
-            ])
+            fresh = _row_seeds(rows.lam[bad], rows.t1[bad], rows.t2[bad], P, D, 2 * _BATCH_SEEDS)
             fresh = np.where(rows.deflate[bad][:, None] & (np.abs(fresh) < 1e-9), np.nan, fresh)
             r2, ok2, roots2 = _certify_rows(rows.take(bad), np.concatenate([fresh, seeds[bad]], axis=1))
             r[bad[ok2]], ok[bad[ok2]], roots[bad[ok2]] = r2[ok2], True, _pad(roots2[ok2], _KEEP)

@@ -118,7 +118,7 @@ def _batch_distinct(
     r = np.where(dup, np.nan, r)
     keep = np.isfinite(r).sum(axis=1).max(initial=0)
     order = np.argsort(~np.isfinite(r), axis=1, kind="stable")
-    return np.take_along_axis(r, order, 1)[:, : max(int(keep), 1)]
+    return r[np.arange(r.shape[0])[:, None], order[:, : max(int(keep), 1)]]
 
 
 

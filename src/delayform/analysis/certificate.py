@@ -258,28 +258,32 @@ def _batch_lines(
     """
     if isinstance(deflate_zero, _Problem):
         deflate_zero = deflate_zero.deflate_zero
-    reals = roots.real  # NaN for missing
-    top = np.nanmax(np.where(np.isnan(reals), -np.inf, reals), axis=1)
+    # plain fancy indexing and finite stand-ins for -inf: this runs on every certified
+    # point, often for a handful of rows, where NumPy's per-call overhead is the cost
+    key = roots.real
+    key = np.where(key == key, key, -np.inf)  # NaN (missing) -> -inf
+    top = key.max(axis=1)
     if np.any(deflate_zero):
-        zero = np.where(np.broadcast_to(deflate_zero, top.shape), 0.0, np.nan)
-        reals = np.concatenate([reals, zero[:, None]], axis=1)
-    srt = -np.sort(np.where(np.isnan(reals), np.inf, -reals), axis=1)  # descending, -inf for missing
-    n_known = np.sum(np.isfinite(srt), axis=1)
+        zero = np.where(np.broadcast_to(deflate_zero, top.shape), 0.0, -np.inf)
+        key = np.concatenate([key, zero[:, None]], axis=1)
+    srt = -np.sort(-key, axis=1)  # descending, -inf for missing
+    known = srt > -np.inf
+    n_known = known.sum(axis=1)
+    fin = np.where(known, srt, -1e300)
+    rix = np.arange(srt.shape[0])[:, None]
     c = np.full(srt.shape[0], np.nan)
     k0 = np.argmax(srt <= top[:, None], axis=1)
     width = srt.shape[1]
     if width >= 2:  # the first of the 8 gaps below the top that is wide enough
         k = k0[:, None] + np.arange(8)
         kk = np.minimum(k, width - 2)
-        hi = np.take_along_axis(srt, kk, 1)
-        lo = np.take_along_axis(srt, kk + 1, 1)
-        with np.errstate(invalid="ignore"):  # -inf - -inf where fewer roots are known
-            gap = hi - lo
+        hi, lo = fin[rix, kk], fin[rix, kk + 1]
+        gap = hi - lo
         take = (k + 1 < n_known[:, None]) & (gap > 1e-3 * (1.0 + np.abs(hi)))
         first = np.argmax(take, axis=1)[:, None]
-        hi1, gap1 = np.take_along_axis(hi, first, 1)[:, 0], np.take_along_axis(gap, first, 1)[:, 0]
+        hi1, gap1 = hi[rix, first][:, 0], gap[rix, first][:, 0]
         c = np.where(take.any(axis=1), hi1 - np.minimum(0.5 * gap1, _LINE_OFFSET), c)
-    last = np.take_along_axis(srt, np.clip(np.minimum(k0 + 8, n_known - 1), 0, None)[:, None], 1)[:, 0]
+    last = srt[rix, np.clip(np.minimum(k0 + 8, n_known - 1), 0, None)[:, None]][:, 0]
     c = np.where(np.isnan(c), last - _LINE_OFFSET, c)
     expected = np.sum(srt > c[:, None], axis=1).astype(float)
     return c, expected, top

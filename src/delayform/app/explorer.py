@@ -11,6 +11,9 @@ functions, so the page and the library can never disagree:
   (:func:`delayform.analysis.spectrum.roots_in`, certified by the argument principle);
 * the robots: :func:`delayform.simulation.simulate` with the scenario's model,
   formation and initial state, thinned to animation frames;
+* the eigenvalue plane of a clicked point: :func:`delayform.app.plane.region_report`
+  (the boundary curve of :func:`delayform.analysis.region.lambda_region`, NU(lam)
+  and the team's eigenvalues);
 * downloads: the scenario as TOML and the figures of :mod:`delayform.plots`,
   written into the explorer's output folder only.
 
@@ -41,11 +44,13 @@ from numpy.typing import ArrayLike, NDArray
 from delayform.analysis.ctcr import StabilityMap, stability_map
 from delayform.analysis.spectrum import DominantRoot, dominant_root, roots_in
 from delayform.app.params import ExplorerLimits, Param
+from delayform.app.plane import RegionReport, region_report
 from delayform.app.scenario_toml import scenario_toml
 from delayform.characteristic import factors
 from delayform.errors import InputError, NotConvergedError
 from delayform.scenario import Scenario
 from delayform.simulation import IROBOT_CREATE, RobotLimits, Trajectory, simulate
+from delayform.simulation.network import BernoulliLoss, Jitter, Network
 
 __all__ = ["Explorer", "PointReport", "RootsReport", "ChartData", "Animation", "crossing_frequency_bound"]
 
@@ -60,6 +65,13 @@ _ROOT_WINDOW_RE = 0.5
 _ROOT_WINDOW_IM = 3.0
 #: largest ``height x delay`` of the root window (rad): about six roots per chain
 _ROOT_WINDOW_PHASE = 20.0
+#: largest packet-loss probability of the network switch (beyond it the team hears almost nothing)
+_MAX_LOSS = 0.95
+#: largest jitter bound of the network switch (s); a delay minus its jitter must stay >= dt anyway
+_MAX_JITTER = 5.0
+#: the network switch's fields when the scenario has no ``[network]`` table
+_DEFAULT_LOSS = 0.2
+_DEFAULT_JITTER = 0.05
 #: decimals of delays and positions sent to the page (far below a pixel)
 _DECIMALS = 5
 
@@ -247,11 +259,14 @@ class Animation:
         Indices of the saved samples sent as frames (finite samples only).
     diverged_at
         Time of the first non-finite sample (an unstable run overflowing), or None.
+    network
+        The imperfect network of the run, or None (the paper's ideal links).
     """
 
     trajectory: Trajectory
     frames: NDArray[np.int64]
     diverged_at: float | None
+    network: Network | None = None
 
     def as_json(self) -> dict[str, Any]:
         """Times, positions, headings and formation error at the frames, and the run's metrics."""
@@ -272,6 +287,7 @@ class Animation:
             "status": tr.status,
             "warnings": list(tr.warnings),
             "limits": None if tr.limits is None else tr.limits.describe(),
+            "network": None if self.network is None else self.network.describe(),
             "labels": [str(x) for x in tr.labels] if tr.labels else [str(i) for i in range(tr.n)],
         }  # fmt: skip
 
@@ -317,11 +333,49 @@ class Explorer:
         ``limits``: actuator limits (the scenario's ``[robot]`` table, else
         :data:`~delayform.simulation.IROBOT_CREATE`), for unicycle teams; on by
         default when the scenario has the table.
+        ``network``: an imperfect network (see :meth:`network`), for every team;
+        on by default when the scenario has a ``[network]`` table and no ``[robot]`` table
+        (:func:`~delayform.simulation.simulate` takes one or the other, not both).
         """
         out: dict[str, bool] = {}
         if self.scenario.simulation.model == "unicycle":
             out["limits"] = self.scenario.robot is not None
+        out["network"] = self.scenario.network is not None and not out.get("limits", False)
         return out
+
+    def network(self, loss: float, jitter: float) -> Network:
+        """The network of the network switch: the scenario's, with the page's loss and jitter.
+
+        The scenario's other parts (per-link delays, variation, sampling, noise,
+        seed) are kept; its loss becomes independent (Bernoulli) loss with
+        probability ``loss`` (a bursty Gilbert-Elliott loss is replaced: the
+        page sets one number) and its jitter ``+-jitter`` s on both streams.
+
+        Parameters
+        ----------
+        loss
+            Packet-loss probability in [0, 0.95].
+        jitter
+            Jitter bound (s), both streams.
+        """
+        base = self.scenario.network or Network(seed=self.scenario.initial.seed)
+        return replace(base, loss=BernoulliLoss(loss) if loss > 0 else None,
+                       jitter=Jitter(jitter, jitter) if jitter > 0 else None)  # fmt: skip
+
+    def _network_defaults(self) -> tuple[float, float]:
+        net = self.scenario.network
+        if net is None:
+            return _DEFAULT_LOSS, _DEFAULT_JITTER
+        loss = 0.0 if net.loss is None else min(net.loss.loss_rate, _MAX_LOSS)
+        jitter = 0.0 if net.jitter is None else min(max(net.jitter.bound1, net.jitter.bound2), _MAX_JITTER)
+        return loss, jitter
+
+    def _switches(self, limits: bool, network: bool, loss: float, jitter: float) -> tuple[RobotLimits | None, Network | None]:
+        """The run's actuator limits and network; both on is refused (simulate takes one)."""
+        if limits and network:
+            raise InputError("limits and network: choose one (robots with actuator limits are not simulated "
+                             "over an imperfect network)")  # fmt: skip
+        return self._limits(limits), (self.network(loss, jitter) if network else None)
 
     def _limits(self, limits: bool) -> RobotLimits | None:
         if not limits:
@@ -366,7 +420,11 @@ class Explorer:
         ) + self._toggle_params()  # fmt: skip
 
     def _toggle_params(self) -> tuple[Param, ...]:
-        return tuple(Param(name, "bool", default=on) for name, on in self.toggles.items())
+        loss, jitter = self._network_defaults()
+        return tuple(Param(name, "bool", default=on) for name, on in self.toggles.items()) + (
+            Param("loss", "float", 0.0, _MAX_LOSS, default=loss),
+            Param("jitter", "float", 0.0, _MAX_JITTER, default=jitter),
+        )
 
     def download_params(self) -> tuple[Param, ...]:
         """Parameters of the downloads: the point, gains, duration, chart window and switches."""
@@ -489,6 +547,20 @@ class Explorer:
         names = tuple(f.describe() for f in fs)
         return RootsReport(P, D, tau1, tau2, dom, allroots, tuple(owners), names, region, certified)
 
+    def region(self, P: float, D: float, tau1: float, tau2: float) -> RegionReport:
+        """The eigenvalue plane at one point: boundary curve, NU(lam) and the team's eigenvalues.
+
+        Parameters
+        ----------
+        P, D
+            Gains of eq. protocol.
+        tau1, tau2
+            The delays (bounded like :meth:`point`: the boundary curve's samples
+            grow with delay x crossing frequency).
+        """
+        self._check_bandwidth(P, D, max(tau1, tau2), "tau1, tau2")
+        return region_report(self.scenario.topology, P, D, tau1, tau2)
+
     def _check_bandwidth(self, P: float, D: float, delay: float, what: str) -> None:
         """Refuse delays whose product with the crossing-frequency bound exceeds the limit."""
         omega = crossing_frequency_bound(P, D)
@@ -525,7 +597,8 @@ class Explorer:
         return dt
 
     def animation(self, P: float, D: float, tau1: float, tau2: float, duration: float, frames: int,
-                  limits: bool = False) -> Animation:  # fmt: skip
+                  limits: bool = False, network: bool = False, loss: float = 0.0, jitter: float = 0.0,
+                  ) -> Animation:  # fmt: skip
         """Simulate the team at one point and thin the run to ``frames`` animation frames.
 
         Parameters
@@ -540,20 +613,27 @@ class Explorer:
             Number of frames to send.
         limits
             Integrate the robots with actuator limits (see :attr:`toggles`).
+        network
+            Send positions and velocities over :meth:`network` (not with ``limits``).
+        loss, jitter
+            The network's packet-loss probability and jitter bound (s).
 
         Raises
         ------
         InputError
-            When the run would exceed ``limits.max_steps`` or ``limits.max_agent_steps``.
+            When the run would exceed ``limits.max_steps`` or ``limits.max_agent_steps``,
+            when both switches are on, or when the network does not fit the delays
+            (:class:`~delayform.errors.NetworkError`: a delay minus its jitter must stay >= dt).
         """
         s = self.scenario
         dt = self._run_step(tau1, tau2, duration)
-        robot = self._limits(limits)
+        robot, net = self._switches(limits, network, loss, jitter)
 
         def run() -> tuple[Trajectory, int]:
             with np.errstate(over="ignore", invalid="ignore"):  # an unstable run may overflow; cut below
                 tr = simulate(
                     s.topology, P, D, tau1, tau2, s.desired_positions(), model=s.simulation.model, limits=robot,
+                    network=net,
                     initial_positions=s.initial_positions(), initial_headings=s.initial_headings(),
                     initial_speed=s.initial.speed, seed=s.initial.seed, duration=duration, dt=dt,
                 )  # fmt: skip
@@ -561,18 +641,22 @@ class Explorer:
             return tr, (tr.times.size if finite.all() else int(np.argmin(finite)))
 
         # the page's run and the figures download share one simulation
-        tr, last = self._cached(self._runs, (P, D, tau1, tau2, duration, limits), _TRAJECTORY_CACHE, run)
+        key = (P, D, tau1, tau2, duration, limits, network, loss if network else 0.0, jitter if network else 0.0)
+        tr, last = self._cached(self._runs, key, _TRAJECTORY_CACHE, run)
         diverged = None if last == tr.times.size else float(tr.times[last])
         idx = np.unique(np.linspace(0, max(last - 1, 0), frames).round().astype(np.int64))
-        return Animation(tr, idx, diverged)
+        return Animation(tr, idx, diverged, net if net is None or not net.is_ideal else None)
 
     # ------------------------------------------------------------ downloads
     def _scenario_at(self, P: float, D: float, tau1: float, tau2: float, duration: float,
-                     tau1_max: float, tau2_max: float, limits: bool) -> Scenario:  # fmt: skip
+                     tau1_max: float, tau2_max: float, limits: bool, network: bool, loss: float,
+                     jitter: float) -> Scenario:  # fmt: skip
         s = self.scenario.with_changes(P=P, D=D, tau1=tau1, tau2=tau2)
+        robot, net = self._switches(limits, network, loss, jitter)
         return replace(
             s,
-            robot=self._limits(limits),
+            robot=robot,
+            network=net,
             chart=replace(s.chart, tau1_max=tau1_max, tau2_max=tau2_max),
             simulation=replace(s.simulation, duration=duration, dt=self._step(tau1, tau2)),
             source="<explorer>",
@@ -593,7 +677,8 @@ class Explorer:
         return f"{name}_P{P:g}_D{D:g}_tau{tau1:g}_{tau2:g}"
 
     def scenario_file(self, P: float, D: float, tau1: float, tau2: float, duration: float,
-                      tau1_max: float, tau2_max: float, limits: bool = False) -> Path:  # fmt: skip
+                      tau1_max: float, tau2_max: float, limits: bool = False, network: bool = False,
+                      loss: float = 0.0, jitter: float = 0.0) -> Path:  # fmt: skip
         """Write the scenario at the current settings as TOML into the output folder.
 
         Parameters
@@ -608,17 +693,22 @@ class Explorer:
             The chart window of the file's ``[chart]`` table.
         limits
             Write the actuator limits as the ``[robot]`` table (see :attr:`toggles`).
+        network
+            Write :meth:`network` as the ``[network]`` table (not with ``limits``).
+        loss, jitter
+            The network's packet-loss probability and jitter bound (s).
 
         Returns
         -------
         Path
             ``<out>/<name>_<tag>.toml``.
         """
-        s = self._scenario_at(P, D, tau1, tau2, duration, tau1_max, tau2_max, limits)
+        s = self._scenario_at(P, D, tau1, tau2, duration, tau1_max, tau2_max, limits, network, loss, jitter)
         return self._write(f"{self._stem(P, D, tau1, tau2)}.toml", scenario_toml(s).encode("utf-8"))
 
     def figures_file(self, P: float, D: float, tau1: float, tau2: float, duration: float,
-                     tau1_max: float, tau2_max: float, limits: bool = False) -> Path:  # fmt: skip
+                     tau1_max: float, tau2_max: float, limits: bool = False, network: bool = False,
+                     loss: float = 0.0, jitter: float = 0.0) -> Path:  # fmt: skip
         """Write a ZIP with the chart, the robots' figures, the point's numbers and the scenario.
 
         Parameters
@@ -633,6 +723,10 @@ class Explorer:
             The chart window.
         limits
             Run the robots with actuator limits (see :attr:`toggles`).
+        network
+            Run them over :meth:`network` instead (not with ``limits``).
+        loss, jitter
+            The network's packet-loss probability and jitter bound (s).
 
         Returns
         -------
@@ -646,10 +740,10 @@ class Explorer:
         from delayform.plots import plot_trajectory_traces, plot_trajectory_xy, stability_chart
 
         chart = self.chart(P, D, tau1_max, tau2_max, 10)
-        run = self.animation(P, D, tau1, tau2, duration, 2, limits)
+        run = self.animation(P, D, tau1, tau2, duration, 2, limits, network, loss, jitter)
         point = self.point(P, D, tau1, tau2)
         roots = self.roots(P, D, tau1, tau2)
-        s = self._scenario_at(P, D, tau1, tau2, duration, tau1_max, tau2_max, limits)
+        s = self._scenario_at(P, D, tau1, tau2, duration, tau1_max, tau2_max, limits, network, loss, jitter)
         tr = run.trajectory
         if run.diverged_at is not None:  # draw the finite part of an overflowing run
             keep = int(np.searchsorted(tr.times, run.diverged_at))

@@ -9,7 +9,10 @@ Endpoints (all ``GET``; every number is checked by :mod:`delayform.app.params`):
     /api/chart                 P, D, tau1_max, tau2_max, grid -> exact curves and NU shading
     /api/point                 tau1, tau2 [, P, D] -> stable, unstable_count, dominant_root [re, im]
     /api/roots                 tau1, tau2 [, P, D] -> the roots of every factor near the imaginary axis
-    /api/simulate              tau1, tau2 [, P, D, duration, frames] -> animation frames
+    /api/region                tau1, tau2 [, P, D] -> the eigenvalue plane: boundary curve L(j omega),
+                               NU(lam) on a grid, the team's eigenvalues of C with their NU
+    /api/simulate              tau1, tau2 [, P, D, duration, frames, limits | network, loss, jitter]
+                               -> animation frames
     /download/scenario.toml    the scenario at the current settings (also saved in the output folder)
     /download/figures.zip      chart and robot figures, point.json, scenario.toml (also saved)
 
@@ -233,6 +236,7 @@ def create_app(explorer: Explorer) -> Any:
         Route("/api/chart", json_endpoint(explorer.chart_params, explorer.chart)),
         Route("/api/point", json_endpoint(explorer.point_params, explorer.point)),
         Route("/api/roots", json_endpoint(explorer.point_params, explorer.roots)),
+        Route("/api/region", json_endpoint(explorer.point_params, explorer.region)),
         Route("/api/simulate", json_endpoint(explorer.animation_params, explorer.animation)),
         Route("/download/scenario.toml", file_endpoint(explorer.scenario_file, "application/toml")),
         Route("/download/figures.zip", file_endpoint(explorer.figures_file, "application/zip")),

@@ -49,7 +49,7 @@ def gains_command(scenario: Path | None, tau1_box: tuple[float, float] | None,
     the whole box with the exact CTCR map. Writes gain_plane.png/.svg/.npz and
     gains.json; the scenario's own gains are marked for comparison.
     """
-    from delayform.report_gains import gains_section
+    from delayform.report import gains_section
 
     if tau1_box is not None and overrides.get("tau1") is not None:
         raise click.UsageError("give --tau1 or --tau1-box, not both")

@@ -96,7 +96,7 @@ def montecarlo_command(scenario: Path | None, runs: int, seed: int | None, worke
     --seed seeds the runs (per-run seeds from numpy SeedSequence.spawn;
     default 0) and a random_digraph topology.
     """
-    from delayform.report_network import montecarlo_section, scenario_setup
+    from delayform.report import montecarlo_section, scenario_setup
     from delayform.simulation.montecarlo import guard
     from delayform.sweeps import executor_for
 

@@ -33,13 +33,13 @@ def _write_full_report(sc: Scenario, directory: Path, *, paper: bool, as_json: b
     with _progress(steps, title="paper" if paper else "report") as step:
         sections = build(sc, directory, progress=step)
         if paper:  # issue 12: what new gains do where the paper can only add delay
-            from delayform.report_gains import gain_comparison_section
+            from delayform.report import gain_comparison_section
 
             step("gain design vs delay scheduling")
             points = {k: (a, b) for k, a, b in sc.chart.points if k in "abc"}
             sections.append(gain_comparison_section(sc, directory, points))
         if network:
-            from delayform.report_network import montecarlo_section, promises_section
+            from delayform.report import montecarlo_section, promises_section
 
             step("imperfect network" if paper else "Monte Carlo over the network")
             sections.append(promises_section(sc, directory) if paper else montecarlo_section(sc, directory, runs=20))

@@ -53,7 +53,7 @@ def sweep_command(scenario: Path | None, tau1_values: tuple[float, ...], tau2_va
     this process, with --workers and with --scheduler; every pair uses the
     same seeds (common random numbers).
     """
-    from delayform.report_network import scenario_setup, sweep_section
+    from delayform.report import scenario_setup, sweep_section
     from delayform.sweeps import check_sweep
 
     if workers is not None and scheduler is not None:

@@ -33,6 +33,7 @@ function point() { return { tau1: num("tau1"), tau2: num("tau2") }; }
 function toggleParams() {
   const out = {};
   for (const name of state.toggles) out[name] = $(`toggle-${name}`).checked ? 1 : 0;
+  if (state.toggles.includes("network")) { out.loss = num("loss"); out.jitter = num("jitter"); }
   return out;
 }
 
@@ -127,11 +128,15 @@ async function selectPoint(p) {
   $("point-ms").textContent = `${ms.toFixed(0)} ms`;
   document.body.dataset.pointMs = ms.toFixed(1);
   document.body.dataset.point = `${p.tau1},${p.tau2}`;
-  // then the roots near the axis (a certified count per factor) and the robots' run
+  // then the roots near the axis (a certified count per factor), the eigenvalue plane and the robots' run
   try {
     const roots = await getJSON("/api/roots", { ...p, ...gains() });
     if (seq === state.pointSeq) drawRoots(roots);
   } catch (err) { if (seq === state.pointSeq) say(`roots: ${err.message}`); }
+  try {
+    const plane = await getJSON("/api/region", { ...p, ...gains() });
+    if (seq === state.pointSeq) drawRegion(plane);
+  } catch (err) { if (seq === state.pointSeq) say(`eigenvalue plane: ${err.message}`); }
   if (seq === state.pointSeq) simulateAt(p);
 }
 
@@ -160,6 +165,44 @@ function drawRoots(r) {
   Plotly.react("roots", data, layout, { displaylogo: false, responsive: true });
 }
 
+// The eigenvalue plane: NU(lam) shaded (green where 0), the boundary curve L(j omega) where roots
+// cross the imaginary axis, the unit circle, and the team's eigenvalues of C coloured by their NU.
+function drawRegion(r) {
+  const R = r.radius;
+  const top = Math.max(2, ...r.grid.unstable_count.map((row) => Math.max(...row)));
+  const cut = 0.5 / top;
+  const circle = Array.from({ length: 129 }, (_, k) => (2 * Math.PI * k) / 128);
+  const eig = { stable: { x: [], y: [], n: [] }, unstable: { x: [], y: [], n: [] } };
+  r.eigenvalues.re.forEach((re, i) => {
+    const g = eig[r.eigenvalue_stable[i] ? "stable" : "unstable"];
+    g.x.push(re); g.y.push(r.eigenvalues.im[i]); g.n.push(r.eigenvalue_unstable_count[i]);
+  });
+  const marker = (color) => ({ size: 10, color, line: { color: "black", width: 1 } });
+  const data = [
+    { type: "heatmap", x: r.grid.values, y: r.grid.values, z: r.grid.unstable_count, zmin: 0, zmax: top,
+      showscale: false, hovertemplate: "\u03bb = %{x:.3f} %{y:+.3f}j: NU = %{z}<extra></extra>",
+      colorscale: [[0, "#e3f2df"], [cut, "#e3f2df"], [cut, "#fde3e1"], [1, "#d7301f"]] },
+    { type: "scatter", mode: "lines", name: "L(j\u03c9)", x: r.boundary.re, y: r.boundary.im,
+      line: { color: "blue", width: 1.5 }, hoverinfo: "skip" },
+    { type: "scatter", mode: "lines", name: "|\u03bb| = 1", x: circle.map(Math.cos), y: circle.map(Math.sin),
+      line: { color: "#555", width: 1, dash: "dot" }, hoverinfo: "skip" },
+    { type: "scatter", mode: "markers", name: "stable eigenvalues", x: eig.stable.x, y: eig.stable.y,
+      customdata: eig.stable.n, marker: marker("#2e7d32"), hovertemplate: "%{x:.4f} %{y:+.4f}j: NU = %{customdata}<extra></extra>" },
+    { type: "scatter", mode: "markers", name: "unstable eigenvalues", x: eig.unstable.x, y: eig.unstable.y,
+      customdata: eig.unstable.n, marker: marker("#d32f2f"), hovertemplate: "%{x:.4f} %{y:+.4f}j: NU = %{customdata}<extra></extra>" },
+  ];
+  const verdict = r.stable ? "every eigenvalue in the stable region" : `team NU = ${r.unstable_count}`;
+  const layout = {
+    title: { text: `eigenvalue plane of C (green: stable region): ${verdict}`, font: { size: 12 } },
+    xaxis: { title: { text: "Re \u03bb" }, range: [-R, R], zeroline: false, constrain: "domain" },
+    yaxis: { title: { text: "Im \u03bb" }, range: [-R, R], scaleanchor: "x", zeroline: false },
+    margin: { l: 45, r: 5, t: 25, b: 35 }, showlegend: true, legend: { font: { size: 9 } },
+  };
+  Plotly.react("region", data, layout, { displaylogo: false, responsive: true });
+  document.body.dataset.region = `${r.tau1},${r.tau2}`;
+  document.body.dataset.regionStable = String(r.stable);
+}
+
 // ------------------------------------------------------------------ robots
 // One run in flight per page: a click during a run waits, and only the newest waiting point
 // runs next, so quick clicks never queue runs on the server that nobody will watch.
@@ -182,9 +225,10 @@ async function simulateAt(p) {
 function startAnimation(sim) {
   const settle = sim.settling_time === null ? "not settled" : `settles at ${fmt(sim.settling_time, 1)} s`;
   const diverged = sim.diverged_at === null ? "" : `; overflowed at ${fmt(sim.diverged_at, 1)} s`;
-  const limits = sim.limits === null ? "" : ", with actuator limits";
+  const limits = sim.limits !== null ? ", with actuator limits"
+    : sim.network !== null ? `, network: ${sim.network}` : "";
   $("sim-info").textContent = `${sim.n} ${sim.model} robots${limits}, ${settle}${diverged}`;
-  $("sim-info").title = [sim.limits || "", ...sim.warnings].join("\n");
+  $("sim-info").title = [sim.limits || sim.network || "", ...sim.warnings].join("\n");
   const err = sim.formation_error.map((e) => Math.max(e, 1e-12));
   Plotly.react("error", [{ type: "scatter", mode: "lines", x: sim.times, y: err, name: "formation error",
     line: { color: "#333" }, hovertemplate: "t = %{x:.1f} s: %{y:.3g}<extra></extra>" }], {
@@ -355,7 +399,18 @@ async function init() {
     $("toggles").appendChild(label);
     const box = label.querySelector("input");
     box.checked = Boolean(info.toggles[t]);
-    box.addEventListener("change", () => { simulateAt(point()); updateDownloads(); });
+    box.addEventListener("change", () => {
+      // the simulation takes actuator limits or a network, not both: one switch turns the other off
+      if (box.checked) for (const other of state.toggles) if (other !== t) $(`toggle-${other}`).checked = false;
+      $("network-fields").hidden = !(state.toggles.includes("network") && $("toggle-network").checked);
+      simulateAt(point()); updateDownloads();
+    });
+  }
+  if (state.toggles.includes("network")) {
+    $("loss").value = info.defaults.loss;
+    $("jitter").value = info.defaults.jitter;
+    $("network-fields").hidden = !$("toggle-network").checked;
+    for (const key of ["loss", "jitter"]) $(key).addEventListener("change", () => { simulateAt(point()); updateDownloads(); });
   }
   bindGain("P");
   bindGain("D");

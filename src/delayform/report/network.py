@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from delayform.errors import ScenarioError
-from delayform.report import Figure, Section, _fmt, _fmt_complex, _pyplot, _save, _write_csv
+from delayform.report._common import Figure, Section, _fmt, _fmt_complex, _pyplot, _save, _write_csv
 from delayform.scenario import Scenario
 
 __all__ = ["montecarlo_section", "sweep_section", "scenario_setup", "promises_section", "JITTER_FRACTIONS", "LOSS_PROBABILITIES"]

@@ -1,12 +1,4 @@
-"""Report sections of gain design: the designed gains, and gains versus delay scheduling.
-
-Split from :mod:`delayform.report` (same stage of the data flow, its
-helpers): :func:`gains_section` runs :func:`~delayform.design.gains.design_gains`
-for a scenario and draws the gain plane; :func:`gain_comparison_section`
-puts the scenario's gains, delay scheduling and gain design side by side at
-labelled delay pairs, each with its certified dominant root and a simulated
-settling time of double-integrator agents.
-"""
+"""Report sections of design: delay scheduling, gain design, and gains versus scheduling side by side."""
 
 from __future__ import annotations
 
@@ -19,10 +11,101 @@ from typing import Any
 import numpy as np
 
 from delayform.errors import NoStableDelaysError, NoStableGainsError
-from delayform.report import Figure, Section, _fmt, _fmt_complex, _pyplot, _save, jsonable
 from delayform.scenario import Scenario
+from delayform.report._common import (
+    Figure,
+    Section,
+    _fmt,
+    _fmt_complex,
+    _pyplot,
+    _save,
+    jsonable,
+)
 
-__all__ = ["DEFAULT_GAIN_BOUNDS", "gains_section", "gain_comparison_section"]
+
+def schedule_section(
+    scenario: Scenario,
+    out: Path,
+    *,
+    tau_min: tuple[float, float] | None = None,
+    tau_max: tuple[float, float] | None = None,
+    label: str = "",
+    report_failure: bool = False,
+) -> Section:
+    """Delay scheduling: the fastest stable delays reachable by increasing the hardware delays.
+
+    ``tau_min`` and ``tau_max`` default to the scenario's ``[schedule]``;
+    ``label`` names the hardware point (e.g. ``"c"``) in titles and file names.
+    With ``report_failure``, a box without stable delays becomes a section
+    saying so instead of :class:`~delayform.errors.NoStableDelaysError`.
+    """
+    from delayform.design.scheduling import schedule_delays
+
+    lo = scenario.schedule.tau_min if tau_min is None else tau_min
+    hi = scenario.schedule.tau_max if tau_max is None else tau_max
+    suffix = f"_{label}" if label else ""
+    where = f"point {label} " if label else ""
+    try:
+        result = schedule_delays(scenario.topology, scenario.P, scenario.D, tau_min=lo, tau_max=hi)
+    except NoStableDelaysError as exc:
+        if not report_failure:
+            raise
+        # a finding, not a failure of the report: say so in the page
+        return Section(
+            key=f"schedule{suffix}",
+            title=f"Delay scheduling from {where}({lo[0]:g}, {lo[1]:g}) s: no stable delays",
+            text=f"Delays can only be increased from the hardware's, and none of them is stable: {exc}.",
+            table=(("hardware delays (tau1, tau2)", f"({lo[0]:g}, {lo[1]:g}) s"), ("result", "no stable delays")),
+            summary={"tau_min": list(lo), "tau_max": list(hi), "stable_delays_found": False},
+        )
+    root, hardware = complex(result.root), complex(result.hardware_root)
+    summary = {
+        "tau_min": list(lo),
+        "tau_max": list(hi),
+        "stable_delays_found": True,
+        "tau1": float(result.tau1),
+        "tau2": float(result.tau2),
+        "root": root,
+        "time_constant": float(result.time_constant),
+        "settling_time": float(result.settling_time),
+        "hardware_root": hardware,
+    }
+    settling_rows = [("predicted settling time ln(50)/|Re|", f"{_fmt(float(result.settling_time))} s")]
+    if result.factor.is_centroid:
+        # the slowest mode is the centroid's speed: say so, and give the shape's own settling time
+        from delayform.analysis.spectrum import SETTLING_FACTOR, dominant_root
+
+        shape = complex(dominant_root(scenario.topology, scenario.P, scenario.D, result.tau1, result.tau2).formation_root)
+        summary |= {"dominant_is_centroid": True, "formation_root": shape,
+                    "formation_settling_time": SETTLING_FACTOR / abs(shape.real)}  # fmt: skip
+        settling_rows = [
+            ("predicted settling of the centroid's speed", f"{_fmt(float(result.settling_time))} s"),
+            ("predicted settling of the formation's shape", f"{_fmt(SETTLING_FACTOR / abs(shape.real))} s"),
+        ]
+    name = f"schedule{suffix}.json"
+    (out / name).write_text(json.dumps(jsonable(summary), indent=2))
+    verdict = "unstable" if hardware.real > 0 else "stable"
+    return Section(
+        key=f"schedule{suffix}",
+        title=f"Delay scheduling from {where}({lo[0]:g}, {lo[1]:g}) s: the best delays",
+        text=(
+            "Delays can only be increased from what the hardware gives. Within "
+            f"[{lo[0]:g}, {hi[0]:g}] x [{lo[1]:g}, {hi[1]:g}] s, the delays below give the most "
+            f"negative dominant root, hence the fastest convergence. At the hardware delays the team is {verdict}."
+        ),
+        table=(
+            ("hardware delays (tau1, tau2)", f"({lo[0]:g}, {lo[1]:g}) s"),
+            ("dominant root at the hardware delays", f"{_fmt_complex(hardware)} ({verdict})"),
+            ("best delays (tau1, tau2)", f"({result.tau1:.4g}, {result.tau2:.4g}) s"),
+            ("dominant root there", _fmt_complex(root)),
+            *settling_rows,
+        ),
+        summary=summary,
+        files=(name,),
+    )
+
+
+
 
 #: Bounds of P and D searched when none are given (those of issue 12 and the paper's scale).
 DEFAULT_GAIN_BOUNDS = (0.05, 3.0)

@@ -1,0 +1,193 @@
+"""Report sections of simulations: trajectories, the robots' commands, settling times."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from delayform.scenario import Scenario
+from delayform.report._common import (
+    Figure,
+    MapProgress,
+    Section,
+    _fmt,
+    _pyplot,
+    _save,
+)
+
+
+#: the CSV of a run is written by default only below this estimated size (bytes); NPZ always
+CSV_AUTO_LIMIT = 20 * 2**20
+
+
+def simulation_section(
+    scenario: Scenario,
+    out: Path,
+    *,
+    label: str = "operating",
+    tau1: float | None = None,
+    tau2: float | None = None,
+    traces: bool = True,
+    gif: bool = False,
+    csv: bool | None = None,
+    progress: MapProgress | None = None,
+) -> Section:
+    """Simulate the team at one delay pair: paths, x/y versus time, commands, NPZ (and CSV), optional GIF.
+
+    Files (``<stem> = sim_<label>``): ``<stem>_traces.png/.svg`` x(t) and
+    y(t); ``<stem>_xy.png/.svg`` the paths in the x-y plane (with ``traces``);
+    ``<stem>.npz`` the trajectory; for robots ``<stem>_commands.png/.svg``
+    and ``<stem>_commands.npz`` (v, omega, wheel speeds); the CSV versions
+    ``<stem>.csv`` and ``<stem>_commands.csv`` when ``csv`` says so.
+
+    Parameters
+    ----------
+    scenario
+        The validated scenario (topology, gains, delays, windows, robot limits).
+    out
+        Folder the section writes its files into.
+    label
+        Name of the delay pair, used in file names (``sim_<label>_*``) and titles.
+    tau1, tau2
+        Delays to simulate at; the scenario's operating delays by default.
+    traces
+        Also draw the paths figure (paper Fig. traces), ``<stem>_xy``.
+    gif
+        Also write an animated GIF (slower).
+    csv
+        Write the CSV files: True always, False never, None (default) when
+        the trajectory's CSV would be below :data:`CSV_AUTO_LIMIT`.
+    progress
+        Optional callback ``(steps done, steps)`` while the run is integrated.
+    """
+    from delayform.simulation import simulate
+
+    plt = _pyplot()
+    tau1 = scenario.tau1 if tau1 is None else tau1
+    tau2 = scenario.tau2 if tau2 is None else tau2
+    sim = scenario.simulation
+    limits = scenario.robot if sim.model == "unicycle" else None
+    traj = simulate(
+        scenario.topology, scenario.P, scenario.D, tau1, tau2, scenario.desired_positions(),
+        model=sim.model, limits=limits, initial_positions=scenario.initial_positions(),
+        initial_headings=scenario.initial_headings(), initial_speed=scenario.initial.speed,
+        seed=scenario.initial.seed, duration=sim.duration, dt=sim.dt, progress=progress,
+    )  # fmt: skip
+    stem = f"sim_{label}"
+    files: list[str] = []
+    figures = []
+    n = scenario.topology.n
+    fig, axes = plt.subplots(2, 1, figsize=(8.0 if n <= 20 else 7.0, 6.0), sharex=True)
+    traj.plot_xy(ax=axes)
+    files += _save(fig, out, f"{stem}_traces")
+    figures.append(Figure(f"{stem}_traces", f"x and y versus time at {label}",
+                          f"Positions (m) of the {n} agents, numbered from 1, in x (top) and y (bottom) "
+                          f"at (tau1, tau2) = ({tau1:g}, {tau2:g}) s."))  # fmt: skip
+    if traces:
+        fig, ax = plt.subplots(figsize=(8.0, 6.0))
+        traj.plot_traces(ax=ax)
+        files += _save(fig, out, f"{stem}_xy")
+        figures.append(Figure(f"{stem}_xy", f"Paths at {label}",
+                              "Paths of the agents in the plane (m) into the formation; dots mark positions at "
+                              "snapshot times with a short line along each heading; open circles the final positions."))  # fmt: skip
+    write_csv = traj.csv_bytes() <= CSV_AUTO_LIMIT if csv is None else csv
+    if write_csv:
+        traj.to_csv(out / f"{stem}.csv")
+        files.append(f"{stem}.csv")
+    traj.to_npz(out / f"{stem}.npz")
+    files.append(f"{stem}.npz")
+    commands = traj.commands
+    if commands is not None:
+        fig, axes = plt.subplots(3, 1, figsize=(8.0, 7.5), sharex=True)
+        commands.plot(ax=axes)
+        files += _save(fig, out, f"{stem}_commands")
+        reference = "the robots' limits" if commands.limited else "the iRobot Create's limits, for reference"
+        figures.append(Figure(f"{stem}_commands", f"Commands of the robots at {label}",
+                              f"Speed v, turn rate omega and wheel speeds each robot executes; dashed: {reference}."))  # fmt: skip
+        commands.to_npz(out / f"{stem}_commands.npz")
+        files.append(f"{stem}_commands.npz")
+        if write_csv:
+            commands.to_csv(out / f"{stem}_commands.csv")
+            files.append(f"{stem}_commands.csv")
+    if gif:
+        traj.save_gif(out / f"{stem}.gif")
+        files.append(f"{stem}.gif")
+        figures.append(Figure(f"{stem}", f"The robots moving into formation at {label}",
+                              "Animation of the simulated positions and headings.", animated=True))  # fmt: skip
+    settling = float(traj.settling_time)
+    limits_text = commands.summary() if commands is not None else None
+    summary = {
+        "label": label, "tau1": tau1, "tau2": tau2, "model": sim.model,
+        "duration": sim.duration, "dt": sim.dt,
+        "status": traj.status, "warnings": list(traj.warnings),
+        "settling_time": settling,
+        "initial_error": float(traj.formation_error[0]),
+        "final_error": float(traj.formation_error[-1]),
+        "min_distance": float(traj.min_distance),
+        "final_centroid": np.asarray(traj.final_centroid),
+        "robot_limits": None if limits is None else limits.describe(),
+        "limits_exceeded": limits_text,
+        "csv_written": bool(write_csv),
+    }  # fmt: skip
+    if traj.status == "settled":
+        settled_text = f"{_fmt(settling)} s"
+    elif traj.status == "not settled":
+        settled_text = f"not within {sim.duration:g} s"
+    else:
+        settled_text = f"no: {traj.status}"
+    table = [
+        ("delays (tau1, tau2)", f"({tau1:g}, {tau2:g}) s"),
+        ("model", sim.model + ("" if commands is None else (", with limits" if commands.limited else ", ideal robots"))),
+        ("settling time (2 %)", settled_text),
+        ("final formation error", f"{_fmt(summary['final_error'])} m"),
+        ("closest approach of two agents", f"{_fmt(summary['min_distance'])} m"),
+    ]
+    if commands is not None:
+        table.append(("beyond the limits" if commands.limited else "beyond an iRobot Create's limits", limits_text))
+    table += [("warning", w) for w in traj.warnings]
+    if not write_csv:
+        table.append(("CSV", "not written (large run): NPZ only; use --csv to force it"))
+    robots = "double-integrator agents"
+    if sim.model == "unicycle":
+        robots = ("differential-drive robots with actuator limits (saturated unicycle)" if limits is not None
+                  else "ideal differential-drive robots (unicycle, feedback linearization eq. transform2)")  # fmt: skip
+    return Section(
+        key=f"simulation_{label}",
+        title=f"Simulation at {label}: (tau1, tau2) = ({tau1:g}, {tau2:g}) s",
+        text=(
+            f"{n} {robots} "
+            f"start from {'random' if scenario.initial.positions is None else 'given'} positions "
+            f"(seed {scenario.initial.seed}) with speed {scenario.initial.speed:g} m/s and move into the "
+            f"{scenario.formation.describe()} formation over {sim.duration:g} s (step {sim.dt:g} s)."
+        ),
+        figures=tuple(figures),
+        table=tuple(table),
+        summary=summary,
+        files=tuple(files),
+    )
+
+
+def settling_section(sims: Sequence[Section]) -> Section:
+    """A table of the settling times of the simulations run for the report.
+
+    Parameters
+    ----------
+    sims
+        Sections returned by :func:`simulation_section`.
+    """
+    rows = tuple(
+        (f"{s.summary['label']} ({s.summary['tau1']:g}, {s.summary['tau2']:g})",
+         f"{_fmt(s.summary['settling_time'])} s" if np.isfinite(s.summary["settling_time"]) else "did not settle")
+        for s in sims
+    )  # fmt: skip
+    return Section(
+        key="settling",
+        title="Settling times",
+        text="First time after which the formation error stays below 2 % of its initial value.",
+        table=rows,
+        summary={s.summary["label"]: s.summary["settling_time"] for s in sims},
+    )
+
+
