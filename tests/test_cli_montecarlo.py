@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 import subprocess
 import sys
 from pathlib import Path
@@ -61,6 +62,25 @@ def test_json_equals_the_library(tmp_path: Path) -> None:
     assert {f.rsplit("/", 1)[-1] for f in printed["files"]} >= {"montecarlo_bands.png", "montecarlo_histograms.svg"}
 
 
+def test_robots_with_limits_from_the_robot_table_and_the_options(tmp_path: Path) -> None:
+    from delayform.simulation import IROBOT_CREATE, BernoulliLoss, Network, monte_carlo
+    from delayform.topology import ring
+
+    path = tmp_path / "robots.toml"
+    path.write_text(SMALL.replace('"double_integrator"', '"unicycle"') + "[robot]\nmax_acceleration = 0.3\n[network]\nloss = 0.3\n")
+    proc = run(str(path), "--runs", "3", "--seed", "2", "--max-turn-rate", "1.5", "--out", "mc", "--json", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    printed = json.loads(proc.stdout)
+    lim = replace(IROBOT_CREATE, max_acceleration=0.3, max_turn_rate=1.5)
+    lib = monte_carlo(ring(3), 1.0, 0.5, 0.3, 0.2, "polygon", model="unicycle", network=Network(loss=BernoulliLoss(0.3)),
+                      runs=3, seed=2, duration=4.0, dt=0.05, limits=lim).summary()  # fmt: skip
+    assert printed["setup"]["robots"] == lim.describe()
+    assert printed["peak_command_1"]["max"] == pytest.approx(lib["peak_command_1"]["max"], rel=1e-12)
+    assert printed["peak_command_1"]["max"] <= 0.3 * (1 + 1e-6) and printed["peak_command_2"]["max"] <= 1.5 * (1 + 1e-6)
+    ideal = run(str(path), "--runs", "3", "--seed", "2", "--no-limits", "--out", "mc2", "--json", cwd=tmp_path)
+    assert json.loads(ideal.stdout)["setup"]["robots"] == "ideal"
+
+
 @pytest.mark.parametrize(
     ("table", "args", "needle"),
     [
@@ -68,6 +88,8 @@ def test_json_equals_the_library(tmp_path: Path) -> None:
         ("", ("--jitter", "0.28,0.0"), "below the step"),
         ("", ("--loss", "0.1", "--burst", "0.1,0.3"), "--burst"),
         ("", ("--scheduler", "tcp://127.0.0.1:1"), "cannot reach the Dask scheduler"),
+        ("", ("--limits",), "use --model unicycle"),
+        ("", ("--no-limits", "--max-speed", "0.3"), "--no-limits cannot be combined with --max-speed"),
         ("", ("--runs", "100000", "--duration", "1000", "--dt", "0.01"), "would take about"),
     ],
     ids=lambda v: " ".join(v) if isinstance(v, tuple) else None,

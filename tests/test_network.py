@@ -133,14 +133,6 @@ def test_ideal_robots_over_equal_per_link_delays_are_the_ideal_robots() -> None:
     assert rebuilt.status == robot.status == "settled"
 
 
-def test_robots_with_limits_are_refused_over_an_imperfect_network() -> None:
-    from delayform.errors import SimulationInputError
-    from delayform.simulation import IROBOT_CREATE
-
-    with pytest.raises(SimulationInputError, match="limits"):
-        run(Network(loss=BernoulliLoss(0.1)), model="unicycle", limits=IROBOT_CREATE)
-
-
 def test_an_unstable_run_stops_before_it_overflows() -> None:
     """Point c is unstable (dominant root +0.084): the run stops and says so, with no overflow."""
     traj = simulate(TOPO, 1.0, 0.5, 1.0, 2.0, SHAPE, model="double_integrator", initial_positions=X0,

@@ -45,11 +45,17 @@ def limited_rhs(theta, v, u, lim):
 
 
 def limited_reference(topology, tau1, tau2, desired, x0, theta0, speed0, T, lim):
-    """solve_ivp on the saturated unicycle, piece by piece at the delays' breakpoints."""
+    """solve_ivp on the saturated unicycle, piece by piece at the delays' breakpoints.
+
+    ``tau1`` and ``tau2`` are scalars (every link) or ``(n, n)`` matrices of per-link delays.
+    """
     n, C = topology.n, topology.C
     F = formation_forcing(topology, P, desired)
     v0 = speed0[:, None] * np.column_stack([np.cos(theta0), np.sin(theta0)])
-    h = min(tau1, tau2)
+    links = np.argwhere(C != 0)
+    d1, d2 = (np.broadcast_to(np.asarray(tau, dtype=float), (n, n)) for tau in (tau1, tau2))
+    delays = sorted({float(d1[i, k]) for i, k in links} | {float(d2[i, k]) for i, k in links})
+    h = min(delays)
     marks = sorted({round(k * h, 12) for k in range(int(T / h) + 1)} | {T})
     pieces = []
 
@@ -67,7 +73,12 @@ def limited_reference(topology, tau1, tau2, desired, x0, theta0, speed0, T, lim)
 
     def rhs(t, y):
         X, V = cart(y)
-        u = P * (C @ past(t - tau1)[0] - X) + D * (C @ past(t - tau2)[1] - V) + F
+        heard = {d: past(t - d) for d in delays}
+        cx, cv = np.zeros((n, 2)), np.zeros((n, 2))
+        for i, k in links:
+            cx[i] += C[i, k] * heard[float(d1[i, k])][0][k]
+            cv[i] += C[i, k] * heard[float(d2[i, k])][1][k]
+        u = P * (cx - X) + D * (cv - V) + F
         th, v = y[2 * n : 3 * n], y[3 * n :]
         omega, acc = limited_rhs(th, v, u, lim)
         return np.concatenate([V.ravel(), omega, acc])
@@ -240,3 +251,86 @@ def test_unstable_run_stops_cleanly_and_says_so():
     assert traj.status == "stopped" and traj.times[-1] < 600.0 and "diverged" in traj.warnings[0]
     short = simulate(paper_six(), P, D, 1.0, 2.0, "hexagon", duration=100.0, dt=0.05, seed=1)
     assert short.status == "diverging" and "grew" in short.warnings[0]
+
+
+# ------------------------------------------- robots with limits over a network
+def test_limited_robots_over_the_ideal_or_a_uniform_per_link_network_are_todays_limited_run():
+    from delayform.simulation.network import LinkDelays, Network
+
+    topo = paper_six()
+    desired = named_formation("hexagon", 6, spacing=2.0)
+    x0, th0, v0 = moving_start(2)
+    kw = dict(initial_positions=x0, initial_headings=th0, initial_speed=v0, limits=IROBOT_CREATE,
+              duration=6.0, dt=0.02)  # fmt: skip
+    ref = simulate(topo, P, D, *POINT_A, desired, **kw)
+    uniform = Network(delays=LinkDelays(tau1=np.full((6, 6), POINT_A[0]), tau2=np.full((6, 6), POINT_A[1])))
+    assert not uniform.is_ideal  # the per-link integrator, not the ordinary one
+    for net in (Network(), uniform):
+        got = simulate(topo, P, D, *POINT_A, desired, network=net, **kw)
+        for name in ("positions", "headings", "speeds", "inputs"):
+            assert np.max(np.abs(getattr(got, name) - getattr(ref, name))) < 1e-12, name
+        assert np.max(np.abs(got.commands.wheel_left - ref.commands.wheel_left)) < 1e-12
+        assert got.status == ref.status and got.stated_order == 2
+
+
+def test_limited_robots_with_per_link_delays_match_solve_ivp_at_the_stated_order():
+    """Per-link constant delays, limits active: against solve_ivp by the method of steps (per-link reads)."""
+    from delayform.simulation.network import LinkDelays, Network
+
+    topo = paper_six()
+    desired = named_formation("hexagon", 6, spacing=2.0)
+    x0, th0, v0 = moving_start(5)
+    rng = np.random.default_rng(7)
+    d1 = rng.choice([0.2, 0.3, 0.45], size=(6, 6))
+    d2 = rng.choice([0.2, 0.25, 0.4], size=(6, 6))
+    lim = replace(IROBOT_CREATE, max_turn_rate=1.0)
+    T = 3.0
+    ref = limited_reference(topo, d1, d2, desired, x0, th0, v0, T, lim)
+    net = Network(delays=LinkDelays(tau1=d1, tau2=d2))
+    dts = np.array([0.04, 0.02, 0.01, 0.005, 0.0025])
+    errors = []
+    for dt in dts:
+        traj = simulate(topo, P, D, *POINT_A, desired, initial_positions=x0, initial_headings=th0,
+                        initial_speed=v0, limits=lim, duration=T, dt=dt, network=net)  # fmt: skip
+        errors.append(np.abs(traj.positions[-1] - ref).max())
+    assert traj.stated_order == 2
+    assert {"turn rate", "acceleration"} <= {e.limit_name for e in traj.commands.exceedances()}
+    order = np.polyfit(np.log(dts), np.log(errors), 1)[0]
+    assert abs(order - 2) < 0.25 and errors[2] < 1e-3 and errors[-1] < 1e-5, (order, errors)
+    # the per-link delays matter: the uniform run at point a is far from the reference
+    uniform = simulate(topo, P, D, *POINT_A, desired, initial_positions=x0, initial_headings=th0,
+                       initial_speed=v0, limits=lim, duration=T, dt=0.0025)  # fmt: skip
+    assert np.abs(uniform.positions[-1] - ref).max() > 100 * errors[-1]
+
+
+def test_no_executed_command_beyond_a_limit_under_30_percent_loss():
+    from delayform.simulation.network import BernoulliLoss, Jitter, Network
+
+    topo = paper_six()
+    desired = named_formation("hexagon", 6, spacing=2.0)
+    net = Network(loss=BernoulliLoss(0.3), jitter=Jitter(0.05, 0.05), seed=4)
+    traj = simulate(topo, P, D, *POINT_A, desired, seed=1, limits=IROBOT_CREATE, duration=40.0, dt=0.02, network=net)
+    cmd = traj.commands
+    assert cmd.limited and cmd.executed_within_limits()
+    assert np.abs(traj.speeds).max() <= IROBOT_CREATE.max_speed * (1 + 1e-6)
+    assert np.maximum(np.abs(cmd.wheel_left), np.abs(cmd.wheel_right)).max() <= IROBOT_CREATE.max_wheel_speed * (1 + 1e-6)
+    # the limits were needed (the ideal demands exceed them) and the lossy run still forms
+    assert cmd.exceedances() and traj.formation_error[-1] < 0.1 * traj.formation_error[0]
+
+
+def test_monte_carlo_with_limits_and_loss_is_reproducible_from_the_seed():
+    from delayform.simulation import monte_carlo
+    from delayform.simulation.network import BernoulliLoss, Network
+
+    topo = paper_six()
+    desired = named_formation("hexagon", 6, spacing=2.0)
+    kw = dict(network=Network(loss=BernoulliLoss(0.3)), runs=3, duration=10.0, dt=0.05, limits=IROBOT_CREATE,
+              model="unicycle")  # fmt: skip
+    a, b = (monte_carlo(topo, P, D, *POINT_A, desired, seed=11, **kw) for _ in range(2))
+    other = monte_carlo(topo, P, D, *POINT_A, desired, seed=12, **kw)
+    for name in ("errors", "settling_times", "final_errors", "peak_commands"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
+    assert not np.array_equal(a.errors, other.errors)
+    # peak commands (|dv/dt|, |omega|) are the executed ones, within the limits
+    bound = np.array([IROBOT_CREATE.max_acceleration, IROBOT_CREATE.max_turn_rate]) * (1 + 1e-6)
+    assert a.command_names[1] and np.all(a.peak_commands <= bound), a.peak_commands

@@ -388,6 +388,45 @@ def plot_metric_against(
         ax.legend(fontsize="small")
 
 
+def _cell_edges(centres: Any) -> Any:
+    """Edges of cells centred on sorted ``centres`` (a single centre gets a cell of +-5 %, at least 0.01)."""
+    import numpy as np
+
+    c = np.asarray(centres, dtype=float)
+    if c.size == 1:
+        half = max(0.05 * abs(c[0]), 0.01)
+        return np.array([c[0] - half, c[0] + half])
+    mid = 0.5 * (c[1:] + c[:-1])
+    return np.concatenate([[2 * c[0] - mid[0]], mid, [2 * c[-1] - mid[-1]]])
+
+
+def plot_metric_grid(
+    tau1: Any, tau2: Any, values: Any, ax: Axes | None = None, *, label: str = "", title: str = ""
+) -> Axes:
+    """A metric over a grid of delays, ``values[i, j]`` at ``(tau1[i], tau2[j])``; infinite cells grey.
+
+    Infinite values (runs that did not settle) are drawn grey and named in the legend.
+    """
+    import numpy as np
+
+    ax = _axes(ax)
+    z = np.asarray(values, dtype=float)
+    finite = np.isfinite(z)
+    x, y = (np.maximum(_cell_edges(t), 0.0) for t in (tau1, tau2))  # delays are not negative
+    if not finite.all():
+        ax.pcolormesh(x, y, np.where(finite, np.nan, 1.0).T, cmap="Greys", vmin=0.0, vmax=3.0)
+        ax.plot([], [], "s", color="0.67", label="median run did not settle")
+        ax.legend(fontsize="small", loc="upper right")
+    if finite.any():
+        mesh = ax.pcolormesh(x, y, np.where(finite, z, np.nan).T, cmap="viridis", shading="flat")
+        ax.figure.colorbar(mesh, ax=ax, label=label)
+    ax.set_xlabel("tau1 (s)")
+    ax.set_ylabel("tau2 (s)")
+    if title:
+        ax.set_title(title, fontsize="small")
+    return ax
+
+
 # === section: gain plane (issue 12) ===
 def plot_gain_plane(
     result: Any, ax: Axes | None = None, points: Mapping[str, tuple[float, float]] | None = None,

@@ -62,6 +62,7 @@ from delayform.topology import Topology
 
 __all__ = [
     "DaskExecutor",
+    "check_sweep",
     "executor_for",
     "make_setup",
     "SweepResult",
@@ -375,20 +376,10 @@ def sweep(
         A sweep beyond this machine's memory or time budget (:mod:`delayform.resources`).
     """
     runs, seed = mc._check_runs(runs, seed)
-    if not changes:
-        raise SimulationInputError("a sweep needs at least one point")
     labels = [str(i) for i in range(len(changes))] if labels is None else list(labels)
     if len(labels) != len(changes):
         raise SimulationInputError(f"{len(labels)} labels for {len(changes)} points")
-    points = []
-    for change in changes:
-        unknown = set(change) - set(Setup.__dataclass_fields__)
-        if unknown:
-            raise SimulationInputError(f"unknown sweep field(s) {', '.join(sorted(unknown))}")
-        points.append(mc.checked(setup.with_changes(**change)))
-    n_workers = 1 if workers is None else workers
-    costs = [estimate_cost(p, runs) for p in points]
-    _guard_total(max(c[0] for c in costs), sum(c[1] for c in costs), len(points) * runs, n_workers)
+    points = check_sweep(setup, changes, runs=runs, workers=workers)
     seeds = run_seeds(seed, runs)
     tasks = [(p, r, s) for p in points for r, s in enumerate(seeds)]
     with executor_for(workers=workers, scheduler=scheduler) as ex:
@@ -400,6 +391,45 @@ def sweep(
     results = tuple(collect(p, runs, seed, outcomes[i * runs : (i + 1) * runs]) for i, p in enumerate(points))
     return SweepResult(parameter=parameter, labels=tuple(labels),
                        values=tuple(changes if values is None else values), results=results)  # fmt: skip
+
+
+def check_sweep(
+    setup: Setup, changes: Sequence[Mapping[str, Any]], *, runs: int, workers: int | None = None,
+    scheduler: str | None = None,
+) -> list[Setup]:  # fmt: skip
+    """The points of a sweep, every input checked and the budget guarded before any run starts.
+
+    Parameters
+    ----------
+    setup
+        The base point.
+    changes
+        One mapping of field -> value per point.
+    runs
+        Runs per point.
+    workers
+        Runs in parallel (memory for that many at once, time shared among them).
+    scheduler
+        Address of an existing Dask cluster, checked to be reachable; None: not used.
+
+    Raises
+    ------
+    SimulationInputError, NetworkError, ClusterError, ResourceLimitError
+        As :func:`sweep`.
+    """
+    if not changes:
+        raise SimulationInputError("a sweep needs at least one point")
+    for change in changes:
+        unknown = set(change) - set(Setup.__dataclass_fields__)
+        if unknown:
+            raise SimulationInputError(f"unknown sweep field(s) {', '.join(sorted(unknown))}")
+    # the budget first: a huge grid is refused before its points are tried
+    costs = [estimate_cost(setup.with_changes(**change), runs) for change in changes]
+    _guard_total(max(c[0] for c in costs), sum(c[1] for c in costs), len(changes) * runs, 1 if workers is None else workers)
+    points = [mc.checked(setup.with_changes(**change)) for change in changes]
+    if scheduler is not None:
+        _reachable(scheduler, 10.0)
+    return points
 
 
 def _guard_total(nbytes: float, seconds: float, tasks: int, workers: int) -> None:

@@ -73,6 +73,35 @@ class FloatTuple(click.ParamType):
         return numbers
 
 
+class DelayValues(click.ParamType):
+    """``START:STOP:COUNT`` (evenly spaced, both ends included) or ``T1,T2,...``: delays in seconds."""
+
+    name = "START:STOP:COUNT"
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        import math
+
+        if isinstance(value, tuple):
+            return value
+        text = str(value)
+        try:
+            if ":" in text:
+                start, stop, count = text.split(":")
+                a, b, m = float(start), float(stop), int(count)
+                if m < 1 or m > 200:
+                    self.fail(f"COUNT must be between 1 and 200, got {m}", param, ctx)
+                values = tuple(a + (b - a) * i / (m - 1) for i in range(m)) if m > 1 else (a,)
+            else:
+                values = tuple(float(p) for p in text.split(","))
+        except ValueError:
+            self.fail(f"expected START:STOP:COUNT or comma-separated delays, got {value!r}", param, ctx)
+        if not all(math.isfinite(v) and v >= 0.0 for v in values):
+            self.fail(f"delays must be finite and >= 0, got {value!r}", param, ctx)
+        if len(set(values)) != len(values) or list(values) != sorted(values):
+            self.fail(f"delays must increase, got {value!r}", param, ctx)
+        return values
+
+
 class LabelledPoint(click.ParamType):
     """``LABEL=tau1,tau2``: a delay pair to mark on the chart."""
 
@@ -105,6 +134,51 @@ NON_NEGATIVE = click.FloatRange(min=0.0)
 
 
 # ------------------------------------------------------- shared options
+#: command-line option -> field of delayform.simulation.RobotLimits
+_LIMIT_OPTIONS = (
+    ("max_speed", "--max-speed", "Largest linear speed |v| (m/s)."),
+    ("max_turn_rate", "--max-turn-rate", "Largest turn rate |omega| (rad/s)."),
+    ("max_acceleration", "--max-acceleration", "Largest linear acceleration |dv/dt| (m/s^2)."),
+    ("max_wheel_speed", "--max-wheel-speed", "Largest wheel speed (rad/s)."),
+    ("wheel_radius", "--wheel-radius", "Wheel radius (m)."),
+    ("axle_length", "--axle-length", "Distance between the wheels (m)."),
+)
+
+
+def limit_options(func: F) -> F:
+    """``--limits/--no-limits`` and one option per actuator limit (the scenario's ``[robot]`` table)."""
+    for field, flag, text in reversed(_LIMIT_OPTIONS):
+        func = click.option(flag, field, type=POSITIVE,
+                            help=f"{text} Implies --limits [default: robot.{field} or the iRobot Create's].")(func)  # fmt: skip
+    return click.option("--limits/--no-limits", "use_limits", default=None,
+                        help="Robots with actuator limits (the scenario's [robot] table, else the iRobot Create's) "
+                             "or ideal robots [default: limits when the scenario has a [robot] table].")(func)  # fmt: skip
+
+
+def _limits_given(overrides: dict[str, Any]) -> dict[str, float]:
+    """Pop the limit options from a command's keyword arguments; those given."""
+    given = {field: overrides.pop(field) for field, _, _ in _LIMIT_OPTIONS}
+    return {k: v for k, v in given.items() if v is not None}
+
+
+def _robot(robot: Any, use_limits: bool | None, given: dict[str, float], model: str) -> Any:
+    """The robots' limits from the scenario's ``[robot]`` table, ``--limits/--no-limits`` and the limit options."""
+    from dataclasses import replace
+
+    from delayform.simulation import IROBOT_CREATE
+
+    if use_limits is False:
+        if given:
+            raise click.UsageError("--no-limits cannot be combined with " + ", ".join(
+                flag for field, flag, _ in _LIMIT_OPTIONS if field in given))  # fmt: skip
+        return None
+    if use_limits or given:
+        robot = replace(robot or IROBOT_CREATE, **given)
+    if robot is not None and model != "unicycle":
+        raise click.UsageError("actuator limits apply to robots: use --model unicycle or --no-limits")
+    return robot
+
+
 def _team_options() -> list[Callable[[F], F]]:
     return [
         click.argument("scenario", required=False, type=click.Path(path_type=Path)),
@@ -175,6 +249,18 @@ def _scenario(
     elif n is not None or p is not None:
         raise click.UsageError(f"--{'n' if n is not None else 'p'} is only used with --topology")
     return scenario.with_changes(topology=topology, P=P, D=D, tau1=tau1, tau2=tau2, formation=formation_name)
+
+
+def _simulation_spec(scenario: Scenario, *, model: str | None, duration: float | None, dt: float | None) -> Any:
+    """The scenario's ``[simulation]`` table with ``--model``, ``--duration`` and ``--dt`` applied."""
+    from delayform.scenario import SimulationSpec
+
+    sim = scenario.simulation
+    spec = SimulationSpec(model=model or sim.model, duration=sim.duration if duration is None else duration,
+                          dt=sim.dt if dt is None else dt)  # fmt: skip
+    if spec.dt >= spec.duration:
+        raise click.BadParameter(f"the step must be smaller than the duration {spec.duration:g}", param_hint="--dt")
+    return spec
 
 
 def _safe_name(name: str) -> str:

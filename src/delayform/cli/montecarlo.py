@@ -14,9 +14,13 @@ from delayform.cli._common import (
     FloatTuple,
     _emit,
     _inner_progress,
+    _limits_given,
     _out_dir,
+    _robot,
     _scenario,
+    _simulation_spec,
     cli,
+    limit_options,
     scenario_options,
 )
 
@@ -72,15 +76,19 @@ def _network(base: Any, *, loss: float | None, burst: tuple[float, float] | None
               help="Measurement noise: std of positions (m) and velocities (m/s) (network.noise).")
 @click.option("--delay-spread", "spread", type=NON_NEGATIVE,
               help="Per-link delays drawn in tau (1 +- SPREAD), SPREAD < 1 (network.delay_spread).")
+@limit_options
 def montecarlo_command(scenario: Path | None, runs: int, seed: int | None, workers: int | None, scheduler: str | None,
                        model: str | None, duration: float | None, dt: float | None, loss: float | None,
                        burst: tuple[float, float] | None, jitter: tuple[float, float] | None, rate: float | None,
-                       noise: tuple[float, float] | None, spread: float | None, out: Path | None, as_json: bool,
-                       **overrides: Any) -> None:  # fmt: skip
+                       noise: tuple[float, float] | None, spread: float | None, use_limits: bool | None,
+                       out: Path | None, as_json: bool, **overrides: Any) -> None:  # fmt: skip
     """Monte Carlo of the scenario over an imperfect network: N seeded runs.
 
     The network comes from the scenario's [network] table and the options
-    --loss, --burst, --jitter, --rate, --noise, --delay-spread. Writes the quantile bands of the formation error
+    --loss, --burst, --jitter, --rate, --noise, --delay-spread. Robots with
+    actuator limits (the scenario's [robot] table, --limits and the limit
+    options) are the saturated unicycle driven by what each robot hears.
+    Writes the quantile bands of the formation error
     (montecarlo_bands.png/.svg), histograms of settling time, final error
     and peak command (montecarlo_histograms.png/.svg), one CSV row per run
     and an NPZ; reports median and 5-95 % of each. The same seed gives the
@@ -88,30 +96,20 @@ def montecarlo_command(scenario: Path | None, runs: int, seed: int | None, worke
     --seed seeds the runs (per-run seeds from numpy SeedSequence.spawn;
     default 0) and a random_digraph topology.
     """
-    from delayform.report import montecarlo_section
-    from delayform.scenario import SimulationSpec
-    from delayform.simulation.montecarlo import guard, make_setup
+    from delayform.report import montecarlo_section, scenario_setup
+    from delayform.simulation.montecarlo import guard
     from delayform.sweeps import executor_for
 
     if workers is not None and scheduler is not None:
         raise click.UsageError("give either --workers (a local cluster) or --scheduler (an existing one), not both")
+    given = _limits_given(overrides)
     sc = _scenario(scenario, seed=seed, **overrides)
     seed = 0 if seed is None else seed
-    sim = SimulationSpec(
-        model=model or sc.simulation.model,
-        duration=sc.simulation.duration if duration is None else duration,
-        dt=sc.simulation.dt if dt is None else dt,
-    )
-    if sim.dt >= sim.duration:
-        raise click.BadParameter(f"the step must be smaller than the duration {sim.duration:g}", param_hint="--dt")
+    sim = _simulation_spec(sc, model=model, duration=duration, dt=dt)
     network = _network(sc.network, loss=loss, burst=burst, jitter=jitter, rate=rate, noise=noise, spread=spread)
-    sc = replace(sc, simulation=sim, network=network)
+    sc = replace(sc, simulation=sim, network=network, robot=_robot(sc.robot, use_limits, given, sim.model))
     # every input and the budget are checked before anything is started or written
-    setup = make_setup(
-        sc.topology, sc.P, sc.D, sc.tau1, sc.tau2, sc.desired_positions(), model=sim.model, network=network,
-        duration=sim.duration, dt=sim.dt, initial_positions=sc.initial_positions(),
-        initial_headings=sc.initial_headings(), initial_speed=sc.initial.speed, limits=sc.robot,
-    )  # fmt: skip
+    setup = scenario_setup(sc)
     guard(setup, runs, workers or 1)
     with executor_for(workers=workers, scheduler=scheduler) as ex:
         directory = _out_dir(out, sc)

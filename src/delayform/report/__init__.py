@@ -28,7 +28,14 @@ from delayform.report.analysis import (
     safe_delays_section,
 )
 from delayform.report.design import DEFAULT_GAIN_BOUNDS, gain_comparison_section, gains_section, schedule_section
-from delayform.report.network import JITTER_FRACTIONS, LOSS_PROBABILITIES, montecarlo_section, promises_section
+from delayform.report.network import (
+    JITTER_FRACTIONS,
+    LOSS_PROBABILITIES,
+    montecarlo_section,
+    promises_section,
+    scenario_setup,
+    sweep_section,
+)
 from delayform.report.page import highlights, paper_sections, scenario_sections, write_report
 from delayform.report.simulation import CSV_AUTO_LIMIT, settling_section, simulation_section
 
@@ -50,6 +57,8 @@ __all__ = [
     "region_section",
     "safe_delays_section",
     "montecarlo_section",
+    "sweep_section",
+    "scenario_setup",
     "promises_section",
     "JITTER_FRACTIONS",
     "LOSS_PROBABILITIES",

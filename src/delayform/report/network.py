@@ -23,7 +23,7 @@ from delayform.errors import ScenarioError
 from delayform.report._common import Figure, Section, _fmt, _fmt_complex, _pyplot, _save, _write_csv
 from delayform.scenario import Scenario
 
-__all__ = ["montecarlo_section", "promises_section", "JITTER_FRACTIONS", "LOSS_PROBABILITIES"]
+__all__ = ["montecarlo_section", "sweep_section", "scenario_setup", "promises_section", "JITTER_FRACTIONS", "LOSS_PROBABILITIES"]
 
 #: jitter bounds of :func:`promises_section`, as fractions of each delay
 JITTER_FRACTIONS = (0.0, 0.25, 0.5, 0.75)
@@ -89,8 +89,6 @@ def montecarlo_section(
     plt = _pyplot()
     net = scenario.network if network is None else network
     sim = scenario.simulation
-    if scenario.robot is not None and net is not None and not net.is_ideal:
-        raise ScenarioError(f"{scenario.source}: robot.limits: robots with limits over an imperfect network are not supported")
     mc = monte_carlo(
         scenario.topology, scenario.P, scenario.D, scenario.tau1, scenario.tau2, scenario.desired_positions(),
         model=sim.model, network=net, runs=runs, seed=seed, duration=sim.duration, dt=sim.dt,
@@ -129,6 +127,103 @@ def montecarlo_section(
         ),  # fmt: skip
         table=mc.table(),
         summary=mc.summary(),
+        files=tuple(files),
+    )
+
+
+def scenario_setup(scenario: Scenario) -> Any:
+    """What one Monte Carlo run of the scenario simulates (:func:`~delayform.simulation.montecarlo.make_setup`).
+
+    Parameters
+    ----------
+    scenario
+        Team, gains, delays, formation, ``[simulation]``, ``[network]``, ``[robot]`` and initial state.
+    """
+    from delayform.simulation.montecarlo import make_setup
+
+    sim = scenario.simulation
+    return make_setup(
+        scenario.topology, scenario.P, scenario.D, scenario.tau1, scenario.tau2, scenario.desired_positions(),
+        model=sim.model, network=scenario.network, duration=sim.duration, dt=sim.dt,
+        initial_positions=scenario.initial_positions(), initial_headings=scenario.initial_headings(),
+        initial_speed=scenario.initial.speed, limits=scenario.robot,
+    )  # fmt: skip
+
+
+def sweep_section(
+    scenario: Scenario,
+    out: Path,
+    *,
+    tau1_values: Sequence[float],
+    tau2_values: Sequence[float],
+    runs: int = 10,
+    seed: int = 0,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> Section:
+    """Monte Carlo of the scenario on a grid of delays: settling time over ``tau1_values x tau2_values``.
+
+    Parameters
+    ----------
+    scenario
+        The validated scenario: team, gains, formation, ``[simulation]``,
+        ``[network]`` (None: ideal) and ``[robot]`` (None: ideal robots).
+    out
+        Folder the section writes its files into.
+    tau1_values, tau2_values
+        Delays (s) to combine.
+    runs
+        Runs per grid point.
+    seed
+        Seed of every point (common random numbers, :mod:`delayform.sweeps`).
+    workers, scheduler
+        Where the runs go (:func:`delayform.sweeps.executor_for`).
+    progress
+        Optional callback ``(runs done, runs)``.
+    """
+    from delayform.plots import plot_metric_grid
+    from delayform.sweeps import delay_sweep
+
+    plt = _pyplot()
+    sim, net = scenario.simulation, scenario.network
+    setup = scenario_setup(scenario)
+    result = delay_sweep(setup, tau1_values, tau2_values, runs=runs, seed=seed, workers=workers,
+                         scheduler=scheduler, progress=progress or False)  # fmt: skip
+    shape = (len(tau1_values), len(tau2_values))
+    stats = {name: result.statistic("settling_time", q).reshape(shape) for name, q in
+             (("median", 0.5), ("q05", 0.05), ("q95", 0.95))}  # fmt: skip
+    settled = np.array([r.settled_fraction for r in result.results]).reshape(shape)
+    final = result.statistic("final_error", 0.5).reshape(shape)
+    fig, ax = plt.subplots(figsize=(6.4, 4.8))
+    robots = "ideal robots" if scenario.robot is None else "robots with limits"
+    plot_metric_grid(tau1_values, tau2_values, stats["median"], ax=ax, label="median settling time (s)",
+                     title=f"{runs} runs per point, {'ideal network' if net is None else net.describe()}, {robots}")  # fmt: skip
+    files = list(_save(fig, out, "sweep_settling"))
+    rows = [
+        (t1, t2, settled[i, j], stats["median"][i, j], stats["q05"][i, j], stats["q95"][i, j], final[i, j])
+        for i, t1 in enumerate(tau1_values) for j, t2 in enumerate(tau2_values)
+    ]  # fmt: skip
+    files.append(_write_csv(out / "sweep.csv", ("tau1", "tau2", "settled_fraction", "settling_median",
+                                                "settling_q05", "settling_q95", "final_error_median"), rows))  # fmt: skip
+    np.savez_compressed(out / "sweep.npz", tau1=np.asarray(tau1_values, dtype=float),
+                        tau2=np.asarray(tau2_values, dtype=float), settled_fraction=settled,
+                        final_error_median=final, **{f"settling_{k}": v for k, v in stats.items()})  # fmt: skip
+    files.append("sweep.npz")
+    return Section(
+        key="sweep",
+        title=f"Delay sweep: {shape[0]} x {shape[1]} delay pairs, {runs} runs each",
+        text=(
+            f"Monte Carlo of the {scenario.topology.n} agents ({sim.model}, {sim.duration:g} s, step {sim.dt:g} s, "
+            f"{robots}) at every (tau1, tau2) of the grid, over the "
+            f"{'ideal network' if net is None else 'network ' + net.describe()}; every point uses the seeds of "
+            f"SeedSequence({seed}).spawn({runs}), so the points differ by their delays, not by their draws."
+        ),
+        figures=(Figure("sweep_settling", "Settling time over the delay grid",
+                        "Median settling time of the runs at each delay pair; grey: the median run did not settle."),),
+        table=result.table(),
+        summary={"runs": runs, "seed": seed, "setup": setup.describe(), "tau1": list(map(float, tau1_values)),
+                 "tau2": list(map(float, tau2_values)), "points": result.summary()["points"]},  # fmt: skip
         files=tuple(files),
     )
 

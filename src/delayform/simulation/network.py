@@ -66,8 +66,11 @@ of Section "Feedback Linearization": under eq. transform2 its position obeys
 ``x'' = u`` exactly, so its motion is that of the double integrator and its
 heading, speed and commands ``(dv/dt, omega)`` are rebuilt from the velocity
 and acceleration (:func:`delayform.simulation.robots.ideal_commands`), as for
-ideal robots without a network. Robots with actuator limits are not
-simulated over an imperfect network.
+ideal robots without a network. Robots with actuator limits integrate the
+true unicycle (x, y, theta, v) with saturated inputs
+(:class:`delayform.simulation.robots.LimitedUnicycle`) computed from what
+each robot hears; they send their Cartesian position and velocity
+``v (cos theta, sin theta)``, and the stated order is 2 as without a network.
 """
 
 from __future__ import annotations

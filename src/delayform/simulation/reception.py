@@ -5,7 +5,8 @@ the send time of every value each agent hears at every RK4 stage time
 (the conventions are those of :mod:`delayform.simulation.network`: continuous
 streams read ``t - d(t)``, packet streams hold the newest packet received,
 the initial state before the first one). :func:`integrate_network` runs
-eq. protocol plus the forcing of eq. formation on those values, with the
+eq. protocol plus the forcing of eq. formation on those values for any
+agent model (double integrators, or robots with actuator limits), with the
 step of :mod:`delayform.simulation.integrator` (classical RK4, cubic Hermite
 reads of the computed solution), so that with every link at (tau1, tau2) it
 is the ordinary integrator up to rounding.
@@ -22,10 +23,11 @@ from numpy.typing import NDArray
 
 from delayform.errors import NetworkError
 from delayform.resources import require
+from delayform.simulation.integrator import Agent, Progress, Samples
 from delayform.simulation.network import BernoulliLoss, GilbertElliott, Network
 from delayform.topology import Topology
 
-__all__ = ["Reception", "NetworkSamples", "reception", "integrate_network", "network_memory"]
+__all__ = ["Reception", "reception", "integrate_network", "network_memory"]
 
 _Array = NDArray[np.float64]
 
@@ -37,27 +39,6 @@ _DENSE_AGENTS = 64
 
 #: a run stops when a position leaves this many times the initial scale
 _BLOWUP = 1e8
-
-
-@dataclass(frozen=True, eq=False)
-class NetworkSamples:
-    """Saved samples of a run over a network: the motion of the double integrator.
-
-    Attributes
-    ----------
-    times
-        ``(T,)`` saved times.
-    positions, velocities, accelerations
-        ``(T, n, 2)`` Cartesian position, velocity and input ``u`` of eq. protocol.
-    stopped
-        Time at which an unstable run was stopped before overflowing, or None.
-    """
-
-    times: _Array
-    positions: _Array
-    velocities: _Array
-    accelerations: _Array
-    stopped: float | None = None
 
 
 # ------------------------------------------------------------ reception
@@ -316,8 +297,7 @@ def _hermite_reads(send: _Array, dt: float, n: int, informers: NDArray[np.intp])
 
 
 def integrate_network(
-    x0: _Array,
-    v0: _Array,
+    agent: Agent,
     topology: Topology,
     F: _Array,
     P: float,
@@ -329,19 +309,24 @@ def integrate_network(
     dt: float,
     steps: int,
     save_every: int,
-) -> NetworkSamples:
-    """RK4 of eq. protocol + forcing with what each agent hears over ``network`` (module doc).
+    progress: Progress | None = None,
+) -> Samples:
+    """RK4 of eq. protocol + forcing for ``agent`` with what each agent hears over ``network`` (module doc).
 
-    The step is that of :mod:`delayform.simulation.integrator` (classical RK4,
-    cubic Hermite reads of the solution), with the delayed terms read per
-    link at the send times of :func:`reception` and summed with the weights
-    ``C_ik``: with every link at (tau1, tau2) it is the ordinary integrator
-    up to rounding.
+    The step is that of :func:`delayform.simulation.integrator.integrate`
+    (classical RK4 on the agent's state, cubic Hermite reads of the computed
+    Cartesian solution), with the delayed terms read per link at the send
+    times of :func:`reception` and summed with the weights ``C_ik``: with
+    every link at (tau1, tau2) it is the ordinary integrator up to rounding,
+    for double integrators and for robots with actuator limits alike.
 
     Parameters
     ----------
-    x0, v0
-        ``(n, 2)`` initial positions and Cartesian velocities (constant before t = 0).
+    agent
+        The agent model and its initial state (``DoubleIntegrator`` or
+        ``LimitedUnicycle`` of :mod:`delayform.simulation.robots`); its
+        Cartesian position, velocity and acceleration are what it sends
+        (constant before t = 0, zero acceleration).
     topology
         Who hears whom.
     F
@@ -356,15 +341,18 @@ def integrate_network(
         Step (s) and number of steps.
     save_every
         Keep every ``save_every``-th step (and the last).
+    progress
+        Optional callback ``progress(steps_done, steps)``, every 1000 steps.
 
     Returns
     -------
-    NetworkSamples
-        Positions, velocities and accelerations at the saved steps; a run
-        whose positions leave ``1e8`` times their initial scale stops there
-        (``stopped``), before it overflows.
+    Samples
+        Positions, velocities, accelerations, agent states and the model's
+        extras at the saved steps; a run whose state leaves ``1e8`` times its
+        initial scale stops there (``stopped``), before it overflows.
     """
-    n = x0.shape[0]
+    state0 = agent.state0
+    n = state0.shape[0]
     _check_memory(network, topology, dt, steps)
     rec = reception(network, topology, tau1, tau2, dt=dt, steps=steps)
     E = rec.receivers.size
@@ -388,8 +376,10 @@ def integrate_network(
 
     rows = steps + 2
     S = np.zeros((rows, n, 3, 2))  # records (x, xdot, a) at every grid point
-    S[0, :, 0], S[0, :, 1] = x0, v0
+    S[0, :, 0], S[0, :, 1] = state0[:, :2], agent.velocity(state0)
     flat = S.reshape(rows * n, 3, 2)
+    states = np.empty((rows,) + state0.shape)
+    extras = np.empty((len(agent.extras), rows, n))
 
     def delayed(k: int, j: int) -> _Array:
         """``(2n, 2)``: sum_k C_ik xhat_ik over links, then the same for velocities."""
@@ -399,41 +389,46 @@ def integrate_network(
             out = out + noise_sum[k, j]
         return out
 
-    def accel(heard: _Array, x: _Array, v: _Array) -> _Array:
+    def stage(heard: _Array, st: _Array) -> tuple[_Array, _Array, tuple[_Array, ...]]:
+        x, v = st[:, :2], agent.velocity(st)
         cxd, cvd = heard[:n], heard[n:]
         if now_on[0]:
             cxd = cxd + now[0] @ x
         if now_on[1]:
             cvd = cvd + now[1] @ v
-        return P * (cxd - x) + D * (cvd - v) + F  # eq. protocol + forcing of eq. formation
+        return agent.rhs(st, P * (cxd - x) + D * (cvd - v) + F)  # eq. protocol + forcing of eq. formation
 
     half = 0.5 * dt
-    limit = _BLOWUP * (1.0 + max(float(np.abs(x0).max(initial=0.0)), float(np.abs(v0).max(initial=0.0))))
+    limit = _BLOWUP * (1.0 + float(np.abs(state0).max(initial=0.0)))
     last, stopped = steps, None
+    state = state0
     for k in range(steps + 1):
-        x, v = S[k, :, 0], S[k, :, 1]
-        u1 = accel(delayed(k, 0), x, v)
-        S[k, :, 2] = u1
+        if progress is not None and k % 1000 == 0:
+            progress(k, steps)
+        k1, S[k, :, 2], extra = stage(delayed(k, 0), state)
+        states[k] = state
+        for e, value in enumerate(extra):
+            extras[e, k] = value
         if k == last:
             break
-        x2, v2 = x + half * v, v + half * u1
         middle = delayed(k, 1)  # stages 2 and 3 share their time, hence what is heard
-        u2 = accel(middle, x2, v2)
-        x3, v3 = x + half * v2, v + half * u2
-        u3 = accel(middle, x3, v3)
-        x4, v4 = x + dt * v3, v + dt * u3
-        u4 = accel(delayed(k, 2), x4, v4)
-        S[k + 1, :, 0] = x + (dt / 6.0) * (v + 2.0 * (v2 + v3) + v4)
-        S[k + 1, :, 1] = v + (dt / 6.0) * (u1 + 2.0 * (u2 + u3) + u4)
+        k2 = stage(middle, state + half * k1)[0]
+        k3 = stage(middle, state + half * k2)[0]
+        k4 = stage(delayed(k, 2), state + dt * k3)[0]
+        state = state + (dt / 6.0) * (k1 + 2.0 * (k2 + k3) + k4)
+        S[k + 1, :, 0], S[k + 1, :, 1] = state[:, :2], agent.velocity(state)
         # an unstable run grows exponentially: stop before it overflows (the run reports where)
-        if k % 32 == 31 and not np.abs(S[k + 1, :, :2]).max() < limit:
+        if k % 32 == 31 and not np.abs(state).max() < limit:
             last, stopped = k + 1, (k + 1) * dt
 
     saved = np.arange(0, last + 1, save_every)
     if saved[-1] != last:
         saved = np.append(saved, last)
-    return NetworkSamples(times=saved * dt, positions=S[saved, :, 0], velocities=S[saved, :, 1],
-                          accelerations=S[saved, :, 2], stopped=stopped)  # fmt: skip
+    return Samples(
+        times=saved * dt, positions=S[saved, :, 0], velocities=S[saved, :, 1], accelerations=S[saved, :, 2],
+        extras={name: extras[e, saved] for e, name in enumerate(agent.extras)}, states=states[saved],
+        stopped=stopped,
+    )  # fmt: skip
 
 
 def _gather_plan(rec: Reception, dt: float, n: int) -> tuple[NDArray[np.intp], _Array]:

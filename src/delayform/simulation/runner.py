@@ -22,6 +22,10 @@ Agent models (:mod:`delayform.simulation.robots`)
     (:class:`delayform.simulation.robots.LimitedUnicycle`), using the
     neighbours' delayed states from the history. The saturations are
     continuous but not smooth: **stated order 2**.
+Over an imperfect ``network``
+    The same agent models (the double integrator, from which ideal robots
+    are rebuilt, or the saturated unicycle) driven by what each agent hears
+    (:func:`delayform.simulation.reception.integrate_network`).
 
 History and integrator: :mod:`delayform.simulation.integrator` (RK4 with
 Hermite look-ups, stated order 4 for on-grid delays).
@@ -240,9 +244,10 @@ def simulate(
     network
         An imperfect network (:class:`~delayform.simulation.network.Network`:
         per-link and varying delays, jitter, loss, sampling, noise), integrated
-        by :func:`~delayform.simulation.reception.integrate_network`; the
-        robots are then ideal ones. None or the ideal network: the paths above,
-        unchanged.
+        by :func:`~delayform.simulation.reception.integrate_network`: the
+        double integrator (ideal robots are rebuilt from it), or with
+        ``limits`` the saturated unicycle driven by what each robot hears.
+        None or the ideal network: the paths above, unchanged.
 
     Returns
     -------
@@ -277,8 +282,6 @@ def simulate(
         raise SimulationInputError(f"network must be a Network, got {type(network).__name__}")
     if network is not None and network.is_ideal:
         network = None  # the paper's network: exactly the ordinary integrators
-    if network is not None and limits is not None:
-        raise SimulationInputError("robots with limits over an imperfect network are not supported: give limits or network")
     if limits is not None and not isinstance(limits, RobotLimits):
         raise SimulationInputError(f"limits must be a RobotLimits or None, got {type(limits).__name__}")
     if limits is not None and model != "unicycle":
@@ -318,10 +321,9 @@ def simulate(
     F = formation_forcing(topology, P, desired)
     run: Samples | None = None
     if network is not None:
-        heard = integrate_network(x0, v0, topology, F, P, D, tau1, tau2, network=network, dt=dt, steps=steps,
-                                  save_every=save_every)  # fmt: skip
-        run = Samples(times=heard.times, positions=heard.positions, velocities=heard.velocities,
-                      accelerations=heard.accelerations, extras={}, states=None, stopped=heard.stopped)  # fmt: skip
+        agent = DoubleIntegrator(x0, v0) if limits is None else LimitedUnicycle(x0, th0, speed0, limits)
+        run = integrate_network(agent, topology, F, P, D, tau1, tau2, network=network, dt=dt, steps=steps,
+                                save_every=save_every, progress=progress)  # fmt: skip
     elif limits is not None:
         agent = LimitedUnicycle(x0, th0, speed0, limits)
         run = integrate(agent, C, F, P, D, eff1, eff2, dt, steps, save_every, progress)
