@@ -294,6 +294,11 @@ class Topology:
         Equivalent: the condensation of the information-flow graph has
         exactly one strongly connected component without incoming edges.
         """
+        return self._spanning_tree
+
+    @cached_property
+    def _spanning_tree(self) -> bool:
+        # every certified root call checks it (Lemma 3); the team is frozen
         n_comp, comp = csgraph.connected_components(
             self.adjacency_sparse, directed=True, connection="strong"
         )

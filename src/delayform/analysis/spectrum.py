@@ -61,6 +61,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -565,6 +566,13 @@ def _checked_factors(topology: Topology, P: float, D: float) -> tuple[Characteri
         raise InputError(f"topology must be a Topology, got {type(topology).__name__}")
     topology.require_spanning_tree()
     P, D = check_gains(P, D)
+    return _factors_of(topology, P, D)
+
+
+@lru_cache(maxsize=8)
+def _factors_of(topology: Topology, P: float, D: float) -> tuple[CharacteristicFactor, ...]:
+    # the same tuple for repeated calls on a (frozen) team, so the family path's per-factor
+    # arrays (_family._lams, family_reach_scales) are built once, not on every call
     return factors(topology, P, D)
 
 
