@@ -147,3 +147,39 @@ def test_family_ctcr_of_a_ring_matches_root_count() -> None:
     got = m.unstable_count(t1, t2)
     assert uncertain.sum() <= 6
     assert np.array_equal(got[~uncertain], want[~uncertain])
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    st.floats(0.0, 8.0), st.floats(0.05, 8.0), st.integers(4, 12), st.floats(0.2, 5.0), st.floats(0.2, 5.0),
+    st.booleans(),
+)
+def test_reduced_generator_has_the_full_discretizations_eigenvalues(
+    t1: float, t2: float, N: int, P: float, D: float, swap: bool
+) -> None:
+    """The (N + 2) x (N + 2) generator of the family path against the generic 2 (N + 1) one.
+
+    Every eigenvalue of K0 + lam K1 is an eigenvalue of the generic discretization of the
+    same factor (built term by term from its quasi-polynomial), and the generic one's others
+    are those of the differentiation matrix alone (the eigenvectors with zero position).
+    """
+    from delayform.analysis._generator import _chebyshev, _igd_eigenvalues
+    from delayform.analysis._quasi import _problem_of_factor
+
+    if swap:
+        t1, t2 = t2, t1
+    for f in factors(paper_six(), P, D):
+        K0, K1 = _family._generator_blocks(N, t1, t2, P, D)
+        got = np.linalg.eigvals(K0 + complex(f.lam) * K1)
+        full = _igd_eigenvalues(_problem_of_factor(f), N, np.array([t1]), np.array([t2]))[0]
+        if f.group.is_complex_pair:  # the generic factor of a pair is of order 4 (lam and conj(lam))
+            full = full[np.abs(full[:, None] - got[None, :]).min(axis=1) < 1e-6 * (1.0 + np.abs(full))]
+        dist = np.abs(got[:, None] - full[None, :]).min(axis=1)
+        # a double eigenvalue (e.g. 0 on tau1 = 0) is resolved only to sqrt(eps)
+        assert np.all(dist <= 1e-6 * (1.0 + np.abs(got))), (f, dist.max())
+        if not f.group.is_complex_pair:  # the rest are the N spurious eigenvalues of the differentiation
+            _, Dm, _ = _chebyshev(N)
+            spurious = np.linalg.eigvals((2.0 / max(t1, t2)) * Dm[1:, 1:])
+            both = np.concatenate([got, spurious])
+            miss = np.abs(full[:, None] - both[None, :]).min(axis=1)
+            assert full.size == both.size and np.all(miss <= 1e-6 * (1.0 + np.abs(full))), (f, miss.max())

@@ -25,6 +25,7 @@ call, whose matrices depend on lam only through one block (cached per delays).
 from __future__ import annotations
 
 import cmath
+import math
 from collections.abc import Callable, Sequence
 from functools import lru_cache
 from typing import Any
@@ -55,11 +56,6 @@ _KEEP = 4
 _SEED_WINDOW = 0.3
 #: Newton steps of the fast path (a seed still moving after them is left to the fallback).
 _FAST_NEWTON_STEPS = 16
-#: Smallest discretization degree of the single-pair path (the map's first level uses 6): the
-#: degree is 2 lower everywhere, so its eigenvalue calls are about 2.5x cheaper; the seeds
-#: are coarser but Newton polishes them and the certificate guards them (paper team: the same
-#: roots to 1e-14 at 300 random pairs of [0, 8]^2, none sent to the generic path).
-_SINGLE_MIN_DEGREE = 4
 #: Initial samples of the certified walk along Re s = c (bisected where needed).
 _INITIAL_SAMPLES = 12
 
@@ -245,8 +241,11 @@ def _count_rows(
     # gathered into flat arrays and bisected
     good = _chord_ok(q[:-1], q[1:], w[:-1], h, m2_slope, m2_offset, c2)
     total = np.where(good, np.angle(q[1:] * np.conj(q[:-1])), 0.0).sum(axis=0)
-    j, line = np.nonzero(~good)
-    wa, qa, qb, ka, kb = w[j, line], q[j, line], q[j + 1, line], k1[j, line], k2[j, line]
+    if good.all():  # usually so for a single pair: no segment to bisect, nothing to gather
+        line = np.zeros(0, dtype=np.int64)
+    else:
+        j, line = np.nonzero(~good)
+        wa, qa, qb, ka, kb = w[j, line], q[j, line], q[j + 1, line], k1[j, line], k2[j, line]
     step = h.copy()
     for _ in range(52):
         if line.size == 0:
@@ -275,8 +274,7 @@ def _count_rows(
         failed[line] = True
     # tails beyond +-Omega: arg q = arg g1 + Arg(q / g1), g1 = s^2 + D s + P (Rouche)
     # (the walk's end samples are the points c +- i Omega; real rows use only the top one)
-    disc = cmath.sqrt(D * D - 4.0 * P)
-    z = np.array([(-D + disc) / 2.0, (-D - disc) / 2.0])
+    z = _free_roots(P, D)
     ends = np.stack([sv[-1], sv[0]], axis=1)
     ratio = np.angle(np.stack([q[-1], q[0]], axis=1) / ((ends + D) * ends + P))
     ang = np.angle(ends[..., None] - z)  # (n, 2, 2)
@@ -286,6 +284,15 @@ def _count_rows(
     count = 1.0 - delta / (2.0 * np.pi)
     good = ~failed & np.isfinite(count) & (np.abs(count - np.round(count)) < 0.1)
     return np.where(good, np.round(count), np.nan)
+
+
+@lru_cache(maxsize=64)
+def _free_roots(P: float, D: float) -> NDArray[np.complex128]:
+    """The roots of g1 = s^2 + D s + P (the tails' comparison polynomial), read-only."""
+    disc = cmath.sqrt(D * D - 4.0 * P)
+    z = np.array([(-D + disc) / 2.0, (-D - disc) / 2.0])
+    z.flags.writeable = False
+    return z
 
 
 def _certify_rows(
@@ -329,25 +336,36 @@ def _certify_rows(
 # =====================================================================
 @lru_cache(maxsize=32)
 def _generator_blocks(N: int, t1: float, t2: float, P: float, D: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """(M0, M1) with the discretized generator of the factor of lam equal to M0 + lam M1.
+    """(K0, K1) of size N + 2 whose K0 + lam K1 has the eigenvalues of the discretized generator.
 
-    The realization is eq. subsystems of the second-order factor:
-    A = [[0, 1], [-P, -D]], B1 = lam [[0, 0], [P, 0]], B2 = lam [[0, 0], [0, D]];
-    only the DDE row block depends on lam, through the interpolation of the
-    delayed states (depends on the delays alone, hence the cache).
+    The degree-N Chebyshev discretization of eq. subsystems of the second-order factor
+    (A = [[0, 1], [-P, -D]], B1 = lam [[0, 0], [P, 0]], B2 = lam [[0, 0], [0, D]]) has size
+    2 (N + 1): position y and velocity z at the N + 1 nodes of [-h_max, 0]. Its rows 1..N
+    (u' = du/dtheta) act alike on y and z, so an eigenvector with y != 0 has z = mu y; N of
+    its eigenvalues belong to y = 0 (z0 = 0, the spurious ones of the differentiation
+    matrix alone). With w = mu y_0 the others solve a standard eigenproblem in (y, w):
+
+        mu y_0 = w,   mu y_i = (Dm y)_i (i >= 1),
+        mu w = -P y_0 - D w + lam (P L1 . y + D L2 . (mu y)),
+
+    where mu y in the delayed velocity is (w, (Dm y)_1..N). Same eigenvalues as the full
+    matrix (to rounding), without the spurious ones, at a third of the cost per call.
+    Only the last row depends on lam (the delays enter through the interpolation rows
+    L1, L2, hence the cache per delays).
     """
-    x, Dm, _ = _chebyshev(N)
+    _, Dm, _ = _chebyshev(N)
     h = np.array([t1, t2])
     hmax = float(h.max())
     L = _lagrange_rows(N, 1.0 - 2.0 * h / hmax)  # (2, N+1)
-    size = 2 * (N + 1)
-    M0 = np.zeros((N + 1, 2, N + 1, 2))
-    M0[0, :, 0, :] = [[0.0, 1.0], [-P, -D]]
-    M0[1:] = (2.0 / hmax) * np.einsum("ij,pq->ipjq", Dm[1:], np.eye(2))
-    M1 = np.zeros((N + 1, 2, N + 1, 2))
-    M1[0, 1, :, 0] = P * L[0]
-    M1[0, 1, :, 1] = D * L[1]
-    return M0.reshape(size, size), M1.reshape(size, size)
+    Dh = (2.0 / hmax) * Dm
+    K0 = np.zeros((N + 2, N + 2))
+    K0[0, N + 1] = 1.0
+    K0[1 : N + 1, : N + 1] = Dh[1:]
+    K0[N + 1, 0], K0[N + 1, N + 1] = -P, -D
+    K1 = np.zeros((N + 2, N + 2))
+    K1[N + 1, : N + 1] = P * L[0] + D * (L[1, 1:] @ Dh[1:])
+    K1[N + 1, N + 1] = D * L[1, 0]
+    return K0, K1
 
 
 @lru_cache(maxsize=64)
@@ -355,9 +373,28 @@ def _norm_a(P: float, D: float) -> float:
     return float(np.linalg.norm(np.array([[0.0, 1.0], [-P, -D]]), 2))
 
 
-def _family_seeds(
-    lam: NDArray[np.complex128], P: float, D: float, t1: float, t2: float, k: int, min_degree: int = 6
-) -> NDArray[np.complex128]:
+@lru_cache(maxsize=32)
+def _seed_plan(
+    lam_bytes: bytes, P: float, D: float
+) -> tuple[float, NDArray[np.bool_], NDArray[np.float64] | None, NDArray[np.complex128] | None]:
+    """What the seeds of a family need beyond the delays: the root scale, the real-lam mask, lam stacked.
+
+    The scale is :func:`delayform.analysis._generator._root_scale` over all factors (the
+    delay-free roots and the norm of A); real lam are stacked as real (F_r, 1, 1), complex lam
+    as complex (F_c, 1, 1) (None when there are none). Cached per (lam, P, D).
+    """
+    lam = np.frombuffer(lam_bytes, dtype=np.complex128)
+    b, c0 = D * (1.0 - lam), P * (1.0 - lam)
+    disc = np.sqrt(b * b - 4.0 * c0 + 0j)
+    free = max(float(np.max(np.abs(-b + disc))), float(np.max(np.abs(-b - disc)))) / 2.0
+    radius = max(1.0, free, _norm_a(P, D))
+    real = lam.imag == 0.0
+    lam_real = lam.real[real][:, None, None].copy() if real.any() else None
+    lam_cplx = lam[~real][:, None, None].copy() if not real.all() else None
+    return radius, real, lam_real, lam_cplx
+
+
+def _family_seeds(lam: NDArray[np.complex128], P: float, D: float, t1: float, t2: float, k: int) -> NDArray[np.complex128]:
     """The k rightmost eigenvalues of every factor's discretized generator at one pair (F, k)."""
     hmax = max(t1, t2)
     F = lam.size
@@ -366,20 +403,17 @@ def _family_seeds(
         disc = np.sqrt(b * b - 4.0 * c0 + 0j)
         eig = np.stack([(-b + disc) / 2.0, (-b - disc) / 2.0], axis=1)
     else:
-        # as _generator._root_scale: delay-free roots and the norm of A
-        b, c0 = D * (1.0 - lam), P * (1.0 - lam)
-        disc = np.sqrt(b * b - 4.0 * c0 + 0j)
-        free = max(float(np.max(np.abs(-b + disc))), float(np.max(np.abs(-b - disc)))) / 2.0
-        radius = max(1.0, free, _norm_a(P, D))
-        N = int(np.clip(np.ceil(0.6 * radius * hmax + min_degree - 2), min_degree, MAX_DEGREE))
+        radius, real, lam_real, lam_cplx = _seed_plan(lam.tobytes(), float(P), float(D))
+        N = min(max(math.ceil(0.6 * radius * hmax + 4), 6), MAX_DEGREE)
         M0, M1 = _generator_blocks(N, float(t1), float(t2), float(P), float(D))
         # real lam in one real stacked call (LAPACK's real solver is several times cheaper)
-        real = lam.imag == 0.0
-        eig = np.empty((F, M0.shape[0]), dtype=np.complex128)
-        if real.any():
-            eig[real] = np.linalg.eigvals(M0 + lam.real[real][:, None, None] * M1)
-        if not real.all():
-            eig[~real] = np.linalg.eigvals(M0 + lam[~real][:, None, None] * M1)
+        if lam_cplx is None:
+            eig = np.linalg.eigvals(M0 + lam_real * M1)
+        else:
+            eig = np.empty((F, M0.shape[0]), dtype=np.complex128)
+            if lam_real is not None:
+                eig[real] = np.linalg.eigvals(M0 + lam_real * M1)
+            eig[~real] = np.linalg.eigvals(M0 + lam_cplx * M1)
     order = np.argsort(-eig.real, axis=1)[:, :k]
     top = eig[np.arange(F)[:, None], order]
     if top.shape[1] == k:
@@ -492,7 +526,7 @@ def family_rightmost(
     lam, real, centroid = _lams(tuple(fs))
     F = lam.size
     rows = _Rows(lam, np.full(F, float(tau1)), np.full(F, float(tau2)), real, centroid, P, D)
-    seeds = _family_seeds(lam, P, D, float(tau1), float(tau2), _BATCH_SEEDS, _SINGLE_MIN_DEGREE)
+    seeds = _family_seeds(lam, P, D, float(tau1), float(tau2), _BATCH_SEEDS)
     seeds = np.where(centroid[:, None] & (np.abs(seeds) < 1e-9), np.nan, seeds)
     right, ok, _ = _certify_rows(rows, seeds)
     for k in np.flatnonzero(~ok):
