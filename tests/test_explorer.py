@@ -187,8 +187,9 @@ def test_network_switch_runs_the_lossy_network(server) -> None:
     assert lossy["final_error"] == pytest.approx(float(direct.formation_error[-1]), rel=1e-9)
     ideal = get_json(server, query)
     assert ideal["network"] is None and ideal["final_error"] != lossy["final_error"]
-    both = get(server, query + "&network=1&limits=1")
-    assert both[0] == 400 and "choose one" in json.loads(both[2])["error"]
+    both = get_json(server, query + "&network=1&loss=0.3&jitter=0&limits=1")  # limited robots, lossy network
+    assert both["network"] == "loss 0.3" and both["limits"] is not None
+    assert both["final_error"] != lossy["final_error"]
     jittery = get_json(server, query + "&network=1&loss=0.1&jitter=0.05")
     assert jittery["network"] == "jitter +-(0.05, 0.05) s, loss 0.1"
 
@@ -277,7 +278,6 @@ MALFORMED = [
     "/api/simulate?tau1=0.3&tau2=0.2&frames=601",
     "/api/simulate?tau1=0.3&tau2=0.2&frames=abc&frames=2",
     "/api/simulate?tau1=0.001&tau2=0.2&duration=60",  # the step shrinks to 0.001: 60000 steps
-    "/api/simulate?tau1=0.3&tau2=0.2&limits=1&network=1",  # simulate takes one or the other
     "/api/simulate?tau1=0.3&tau2=0.2&network=1&loss=1",
     "/api/simulate?tau1=0.3&tau2=0.2&network=1&loss=-0.1",
     "/api/simulate?tau1=0.3&tau2=0.2&network=1&jitter=abc",
@@ -290,7 +290,6 @@ MALFORMED = [
     "/api/region?tau1=0.3&tau2=0.2&P=0",
     "/api/region?tau1=20&tau2=0.2",  # beyond max_delay_bandwidth
     "/api/region?tau1=0.3&tau2=0.2&grid=81",
-    "/download/scenario.toml?tau1=0.3&tau2=0.2&limits=1&network=1",
     "/download/scenario.toml",
     "/download/scenario.toml?tau1=0.3&tau2=0.2&tau1_max=0",
     "/download/figures.zip?tau1=0.3&tau2=0.2&duration=1e9",

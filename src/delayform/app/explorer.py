@@ -334,8 +334,8 @@ class Explorer:
         :data:`~delayform.simulation.IROBOT_CREATE`), for unicycle teams; on by
         default when the scenario has the table.
         ``network``: an imperfect network (see :meth:`network`), for every team;
-        on by default when the scenario has a ``[network]`` table and no ``[robot]`` table
-        (:func:`~delayform.simulation.simulate` takes one or the other, not both).
+        on by default when the scenario has a ``[network]`` table and no ``[robot]`` table.
+        Both on: robots with actuator limits over the imperfect network.
         """
         out: dict[str, bool] = {}
         if self.scenario.simulation.model == "unicycle":
@@ -371,10 +371,7 @@ class Explorer:
         return loss, jitter
 
     def _switches(self, limits: bool, network: bool, loss: float, jitter: float) -> tuple[RobotLimits | None, Network | None]:
-        """The run's actuator limits and network; both on is refused (simulate takes one)."""
-        if limits and network:
-            raise InputError("limits and network: choose one (robots with actuator limits are not simulated "
-                             "over an imperfect network)")  # fmt: skip
+        """The run's actuator limits and network (both at once: robots with limits over the network)."""
         return self._limits(limits), (self.network(loss, jitter) if network else None)
 
     def _limits(self, limits: bool) -> RobotLimits | None:

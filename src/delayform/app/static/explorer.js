@@ -400,8 +400,6 @@ async function init() {
     const box = label.querySelector("input");
     box.checked = Boolean(info.toggles[t]);
     box.addEventListener("change", () => {
-      // the simulation takes actuator limits or a network, not both: one switch turns the other off
-      if (box.checked) for (const other of state.toggles) if (other !== t) $(`toggle-${other}`).checked = false;
       $("network-fields").hidden = !(state.toggles.includes("network") && $("toggle-network").checked);
       simulateAt(point()); updateDownloads();
     });
