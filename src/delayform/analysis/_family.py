@@ -19,7 +19,7 @@ of the generator, every later point by the roots of its nearest solved point.
 Every row is certified; rows whose certificate fails are redone by the
 generic batched path and, rarely, the robust single-pair path, exactly as
 before. A single delay pair discretizes all factors in one stacked eigenvalue
-call, whose matrices depend on lam only through one block (cached per delays).
+call, whose matrices depend on lam only through their last row (cached per delays).
 """
 
 from __future__ import annotations
