@@ -56,6 +56,8 @@ _KEEP = 4
 _SEED_WINDOW = 0.3
 #: Newton steps of the fast path (a seed still moving after them is left to the fallback).
 _FAST_NEWTON_STEPS = 16
+#: Rows of the walk's samples at its two ends (top, bottom), for the tails.
+_ENDS = np.array([-1, 0])
 #: Initial samples of the certified walk along Re s = c (bisected where needed).
 _INITIAL_SAMPLES = 12
 
@@ -235,7 +237,7 @@ def _count_rows(
     k1, k2 = rotations(t1), rotations(t2)
     sv = c + 1j * w
     q = (sv + D) * sv + P - A1 * k1 - (B1 * k2) * sv
-    failed = ~np.all(np.isfinite(q) & (q != 0.0), axis=0)
+    failed = ~(np.isfinite(q) & (q != 0.0)).all(axis=0)
     c2 = c * c
     # the initial segments are tested in their (m - 1, n) layout; only rejected ones are
     # gathered into flat arrays and bisected
@@ -275,11 +277,11 @@ def _count_rows(
     # tails beyond +-Omega: arg q = arg g1 + Arg(q / g1), g1 = s^2 + D s + P (Rouche)
     # (the walk's end samples are the points c +- i Omega; real rows use only the top one)
     z = _free_roots(P, D)
-    ends = np.stack([sv[-1], sv[0]], axis=1)
-    ratio = np.angle(np.stack([q[-1], q[0]], axis=1) / ((ends + D) * ends + P))
-    ang = np.angle(ends[..., None] - z)  # (n, 2, 2)
-    top = (np.pi / 2 - ang[:, 0]).sum(axis=-1) - ratio[:, 0]
-    bottom = (ang[:, 1] + np.pi / 2).sum(axis=-1) + ratio[:, 1]
+    ends = sv[_ENDS]  # (2, n): the top end, then the bottom one
+    ratio = np.angle(q[_ENDS] / ((ends + D) * ends + P))
+    ang = np.angle(ends[..., None] - z)  # (2, n, 2)
+    top = (np.pi / 2 - ang[0]).sum(axis=-1) - ratio[0]
+    bottom = (ang[1] + np.pi / 2).sum(axis=-1) + ratio[1]
     delta = np.where(rows.real, 2.0 * (total + top), total + top + bottom)
     count = 1.0 - delta / (2.0 * np.pi)
     good = ~failed & np.isfinite(count) & (np.abs(count - np.round(count)) < 0.1)
@@ -308,7 +310,7 @@ def _certify_rows(
     real = rows.real[:, None]
     seeds = np.where(real & (seeds.imag < 0.0), np.conj(seeds), seeds)
     seeds = np.where(rows.deflate[:, None] & (np.abs(seeds) < 1e-6), -1e-2, seeds)
-    top_seed = np.max(np.where(np.isfinite(seeds), seeds.real, -np.inf), axis=1)
+    top_seed = np.where(np.isfinite(seeds), seeds.real, -np.inf).max(axis=1)
     seeds = np.where(seeds.real >= top_seed[:, None] - _SEED_WINDOW, seeds, np.nan)
     roots, ok = _polish_rows(seeds, rows)
     ok &= np.isfinite(seeds)
@@ -326,7 +328,7 @@ def _certify_rows(
         if idx.size:
             counts[idx] = _count_rows(rows.take(idx), c[idx])
     certified = good & (counts == expected)
-    best = np.argmax(np.where(np.isnan(roots.real), -np.inf, roots.real), axis=1)
+    best = np.where(np.isnan(roots.real), -np.inf, roots.real).argmax(axis=1)
     right = roots[np.arange(rows.size), best]
     return right.real + 1j * np.abs(right.imag), certified, distinct
 
@@ -512,7 +514,9 @@ def family_reach_scales(fs: tuple[CharacteristicFactor, ...]) -> NDArray[np.floa
     b, c0 = D * (1.0 - lam), P * (1.0 - lam)
     disc = np.sqrt(b * b - 4.0 * c0 + 0j)
     free = np.maximum(np.abs(-b + disc), np.abs(-b - disc)) / 2.0
-    return np.maximum(np.maximum(1.0, free), _norm_a(P, D))
+    scales = np.maximum(np.maximum(1.0, free), _norm_a(P, D))
+    scales.flags.writeable = False  # cached per factor tuple
+    return scales
 
 
 # =====================================================================

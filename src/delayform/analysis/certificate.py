@@ -263,7 +263,10 @@ def _batch_lines(
     key = roots.real
     key = np.where(key == key, key, -np.inf)  # NaN (missing) -> -inf
     top = key.max(axis=1)
-    if np.any(deflate_zero):
+    if isinstance(deflate_zero, np.ndarray) and deflate_zero.shape == top.shape:
+        if deflate_zero.any():
+            key = np.concatenate([key, np.where(deflate_zero, 0.0, -np.inf)[:, None]], axis=1)
+    elif np.any(deflate_zero):
         zero = np.where(np.broadcast_to(deflate_zero, top.shape), 0.0, -np.inf)
         key = np.concatenate([key, zero[:, None]], axis=1)
     srt = -np.sort(-key, axis=1)  # descending, -inf for missing
@@ -272,7 +275,7 @@ def _batch_lines(
     fin = np.where(known, srt, -1e300)
     rix = np.arange(srt.shape[0])[:, None]
     c = np.full(srt.shape[0], np.nan)
-    k0 = np.argmax(srt <= top[:, None], axis=1)
+    k0 = (srt <= top[:, None]).argmax(axis=1)
     width = srt.shape[1]
     if width >= 2:  # the first of the 8 gaps below the top that is wide enough
         k = k0[:, None] + np.arange(8)
@@ -280,12 +283,12 @@ def _batch_lines(
         hi, lo = fin[rix, kk], fin[rix, kk + 1]
         gap = hi - lo
         take = (k + 1 < n_known[:, None]) & (gap > 1e-3 * (1.0 + np.abs(hi)))
-        first = np.argmax(take, axis=1)[:, None]
+        first = take.argmax(axis=1)[:, None]
         hi1, gap1 = hi[rix, first][:, 0], gap[rix, first][:, 0]
         c = np.where(take.any(axis=1), hi1 - np.minimum(0.5 * gap1, _LINE_OFFSET), c)
-    last = srt[rix, np.clip(np.minimum(k0 + 8, n_known - 1), 0, None)[:, None]][:, 0]
+    last = srt[rix, np.maximum(np.minimum(k0 + 8, n_known - 1), 0)[:, None]][:, 0]
     c = np.where(np.isnan(c), last - _LINE_OFFSET, c)
-    expected = np.sum(srt > c[:, None], axis=1).astype(float)
+    expected = (srt > c[:, None]).sum(axis=1).astype(float)
     return c, expected, top
 
 
