@@ -8,12 +8,21 @@ certifying line in a gap left of the rightmost known root.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from delayform.analysis._quasi import Region, _abs_poly, _abs_poly_der, _evaluate, _horner, _Problem, _Terms
+from delayform.analysis._quasi import (
+    Region,
+    _abs_poly,
+    _abs_poly_der,
+    _evaluate,
+    _horner,
+    _Problem,
+    _Terms,
+)
 
 #: Largest distance of the certifying line Re s = c from the roots it separates.
 _LINE_OFFSET = 0.1
@@ -162,6 +171,78 @@ def _count_right_single(prob: _Problem, t1: float, t2: float, c: float) -> int |
     return int(round(count)) if abs(count - round(count)) < 0.1 else None
 
 
+def adaptive_winding(
+    c: NDArray[np.float64],
+    omega: NDArray[np.float64],
+    evaluate: Callable[[NDArray[np.int64], NDArray[np.complex128]], NDArray[np.complex128]],
+    lipschitz: Callable[[NDArray[np.int64], NDArray[np.float64]], NDArray[np.float64]],
+    *,
+    real: bool,
+    initial: int = 17,
+    max_segments: int = 4096,
+) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+    """Certified arg change of q along the segments Re s = c_k, |Im s| <= omega_k, all lines at once.
+
+    All lines' segments live in flat arrays; each round bisects, in one
+    evaluation, the segments that fail ``min(|q(a)|, |q(b)|) > L |b - a| / 2``
+    (``L`` a bound of |q'| on the segment), which keeps every arg increment
+    below pi, and sums the increments of the segments that pass. For a real
+    q only ``0 <= Im s <= omega`` is walked (the caller doubles it).
+
+    Parameters
+    ----------
+    c, omega
+        Abscissa and half-height of each line's segment.
+    evaluate
+        ``evaluate(line, s)``: q at the points ``s`` of the lines ``line`` (flat arrays).
+    lipschitz
+        ``lipschitz(line, rho)``: a bound of |q'| over ``|s| <= rho``, ``Re s >= c[line]``.
+    real
+        Walk only the upper half of each segment.
+    initial
+        Samples per line before any bisection.
+    max_segments
+        Segments per line after which the line is given up.
+
+    Returns
+    -------
+    total, failed
+        The summed arg increments per line, and the lines that could not be certified.
+    """
+    nline = c.size
+    u = np.linspace(0.0 if real else -1.0, 1.0, initial)
+    w = omega[:, None] * u  # (B, M)
+    every = np.repeat(np.arange(nline), initial)
+    q = evaluate(every, (c[:, None] + 1j * w).ravel()).reshape(nline, initial)
+    line = np.repeat(np.arange(nline), initial - 1)
+    wa, wb = w[:, :-1].ravel(), w[:, 1:].ravel()
+    qa, qb = q[:, :-1].ravel(), q[:, 1:].ravel()
+    total = np.zeros(nline)
+    failed = ~np.all(np.isfinite(q) & (q != 0.0), axis=1)
+    for _ in range(48):
+        rho = np.sqrt(c[line] ** 2 + np.maximum(wa * wa, wb * wb))
+        bound = lipschitz(line, rho) * (wb - wa)
+        bad = np.minimum(np.abs(qa), np.abs(qb)) <= 0.5 * bound
+        with np.errstate(all="ignore"):
+            total += np.bincount(line[~bad], np.angle(qb[~bad] / qa[~bad]), minlength=nline)
+        if not bad.any():
+            break
+        line, wa, wb, qa, qb = line[bad], wa[bad], wb[bad], qa[bad], qb[bad]
+        too_many = np.bincount(line, minlength=nline) > max_segments
+        failed |= too_many
+        keep = ~too_many[line]
+        line, wa, wb, qa, qb = line[keep], wa[keep], wb[keep], qa[keep], qb[keep]
+        wm = 0.5 * (wa + wb)
+        qm = evaluate(line, c[line] + 1j * wm)
+        failed[line[~np.isfinite(qm) | (qm == 0.0)]] = True
+        line = np.concatenate([line, line])
+        wa, wb = np.concatenate([wa, wm]), np.concatenate([wm, wb])
+        qa, qb = np.concatenate([qa, qm]), np.concatenate([qm, qb])
+    else:
+        failed[line] = True
+    return total, failed
+
+
 def _count_right_batch(
     prob: _Problem, t1: NDArray[np.float64], t2: NDArray[np.float64], c: NDArray[np.float64],
     *, initial: int = 17, max_segments: int = 4096,
@@ -174,38 +255,17 @@ def _count_right_batch(
     increments of the segments that pass are summed per line. For a real q
     only Im s >= 0 is walked (q(conj s) = conj q(s) doubles it).
     """
-    nline = c.size
     omega = _cauchy_radius(prob.terms, c, t1, t2)
     real = all(np.all(cf.imag == 0.0) for cf, _, _ in prob.terms)
-    u = np.linspace(0.0 if real else -1.0, 1.0, initial)
-    w = omega[:, None] * u  # (B, M)
-    q, _, _ = _evaluate(prob.terms, c[:, None] + 1j * w, t1[:, None], t2[:, None], magnitude=False)
-    line = np.repeat(np.arange(nline), initial - 1)
-    wa, wb = w[:, :-1].ravel(), w[:, 1:].ravel()
-    qa, qb = q[:, :-1].ravel(), q[:, 1:].ravel()
-    total = np.zeros(nline)
-    failed = ~np.all(np.isfinite(q) & (q != 0.0), axis=1)
-    for _ in range(48):
-        rho = np.sqrt(c[line] ** 2 + np.maximum(wa * wa, wb * wb))
-        L = _lipschitz(prob.terms, rho, c[line], t1[line], t2[line]) * (wb - wa)
-        bad = np.minimum(np.abs(qa), np.abs(qb)) <= 0.5 * L
-        with np.errstate(all="ignore"):
-            total += np.bincount(line[~bad], np.angle(qb[~bad] / qa[~bad]), minlength=nline)
-        if not bad.any():
-            break
-        line, wa, wb, qa, qb = line[bad], wa[bad], wb[bad], qa[bad], qb[bad]
-        too_many = np.bincount(line, minlength=nline) > max_segments
-        failed |= too_many
-        keep = ~too_many[line]
-        line, wa, wb, qa, qb = line[keep], wa[keep], wb[keep], qa[keep], qb[keep]
-        wm = 0.5 * (wa + wb)
-        qm, _, _ = _evaluate(prob.terms, c[line] + 1j * wm, t1[line], t2[line], magnitude=False)
-        failed[line[~np.isfinite(qm) | (qm == 0.0)]] = True
-        line = np.concatenate([line, line])
-        wa, wb = np.concatenate([wa, wm]), np.concatenate([wm, wb])
-        qa, qb = np.concatenate([qa, qm]), np.concatenate([qm, qb])
-    else:
-        failed[line] = True
+
+    def evaluate(line: NDArray[np.int64], s: NDArray[np.complex128]) -> NDArray[np.complex128]:
+        return _evaluate(prob.terms, s, t1[line], t2[line], magnitude=False)[0]
+
+    def lipschitz(line: NDArray[np.int64], rho: NDArray[np.float64]) -> NDArray[np.float64]:
+        return _lipschitz(prob.terms, rho, c[line], t1[line], t2[line])
+
+    total, failed = adaptive_winding(c, omega, evaluate, lipschitz, real=real, initial=initial,
+                                     max_segments=max_segments)  # fmt: skip
     roots = _g1_roots(prob.terms)
     top = _tail_winding(prob.terms, roots, c + 1j * omega, t1, t2, upper=True)
     if real:

@@ -38,6 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from delayform.analysis.certificate import adaptive_winding
 from delayform.analysis.spectrum import (
     _BATCH_SEEDS,
     _SEED_WINDOW,
@@ -233,44 +234,18 @@ def _count_right(
 ) -> _Arr:
     """Certified number of roots with Re s > c per line (NaN: not certified).
 
-    The vectorized certified sampling of the spectrum module's
-    ``_count_right_batch``: segments are bisected until
-    ``min(|q(a)|, |q(b)|) > L |b - a| / 2`` (L a Lipschitz bound of q' on the
-    segment), which keeps every arg increment below pi.
+    The certified walk of :func:`~delayform.analysis.certificate.adaptive_winding`
+    on the factor of ``lam`` with its own gains and delays per line, closed at
+    infinity by the Rouche tails.
     """
-    n = L.size
     omega = _cauchy_radius(lam, L, c)
     real = complex(lam).imag == 0.0
-    u = np.linspace(0.0 if real else -1.0, 1.0, initial)
-    w = omega[:, None] * u
-    q, _, _ = _q(lam, L, c[:, None] + 1j * w)
-    line = np.repeat(np.arange(n), initial - 1)
-    wa, wb = w[:, :-1].ravel(), w[:, 1:].ravel()
-    qa, qb = q[:, :-1].ravel(), q[:, 1:].ravel()
-    total = np.zeros(n)
-    failed = ~np.all(np.isfinite(q) & (q != 0.0), axis=1)
-    for _ in range(48):
-        sub = L.take(line)
-        rho = np.sqrt(c[line] ** 2 + np.maximum(wa * wa, wb * wb))
-        bound = _lipschitz(lam, sub, rho, c[line]) * (wb - wa)
-        bad = np.minimum(np.abs(qa), np.abs(qb)) <= 0.5 * bound
-        with np.errstate(all="ignore"):
-            total += np.bincount(line[~bad], np.angle(qb[~bad] / qa[~bad]), minlength=n)
-        if not bad.any():
-            break
-        line, wa, wb, qa, qb = line[bad], wa[bad], wb[bad], qa[bad], qb[bad]
-        too_many = np.bincount(line, minlength=n) > max_segments
-        failed |= too_many
-        keep = ~too_many[line]
-        line, wa, wb, qa, qb = line[keep], wa[keep], wb[keep], qa[keep], qb[keep]
-        wm = 0.5 * (wa + wb)
-        qm, _, _ = _q(lam, L.take(line), c[line] + 1j * wm)
-        failed[line[~np.isfinite(qm) | (qm == 0.0)]] = True
-        line = np.concatenate([line, line])
-        wa, wb = np.concatenate([wa, wm]), np.concatenate([wm, wb])
-        qa, qb = np.concatenate([qa, qm]), np.concatenate([qm, qb])
-    else:
-        failed[line] = True
+    total, failed = adaptive_winding(
+        c, omega,
+        lambda line, s: _q(lam, L.take(line), s)[0],
+        lambda line, rho: _lipschitz(lam, L.take(line), rho, c[line]),
+        real=real, initial=initial, max_segments=max_segments,
+    )  # fmt: skip
     top = _tail(lam, L, c + 1j * omega, upper=True)
     if real:
         delta = 2.0 * (total + top)
