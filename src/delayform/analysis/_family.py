@@ -37,12 +37,11 @@ from delayform.analysis._generator import _chebyshev, _igd_seeds, _lagrange_rows
 from delayform.analysis._quasi import _TINY_DELAY, MAX_DEGREE, RESIDUAL_TOL, _problem_of_factor
 from delayform.analysis._rightmost import (
     _BATCH_SEEDS,
-    _batch_distinct,
     _certify,
     _pick_rightmost,
     _solve_rightmost,
 )
-from delayform.analysis.certificate import _batch_lines
+from delayform.analysis.certificate import _LINE_OFFSET, _choose_line
 from delayform.characteristic import CharacteristicFactor
 
 #: Grid strides visited coarse to fine; the first level is seeded by discretization.
@@ -58,6 +57,10 @@ _SEED_WINDOW = 0.3
 _FAST_NEWTON_STEPS = 16
 #: Rows of the walk's samples at its two ends (top, bottom), for the tails.
 _ENDS = np.array([-1, 0])
+#: Seeds up to which Newton iterates all of them together (no gathering of the active ones).
+_FEW_SEEDS = 64
+#: Rows (factors at one delay pair) up to which the line choice runs in plain Python.
+_FEW_ROWS = 16
 #: Initial samples of the certified walk along Re s = c (bisected where needed).
 _INITIAL_SAMPLES = 12
 
@@ -118,31 +121,62 @@ def _polish_rows(seeds: NDArray[np.complex128], rows: _Rows) -> tuple[NDArray[np
     Returns the roots and whether each has relative residual <= RESIDUAL_TOL
     (as :func:`delayform.analysis._quasi._polish`; seeds that reach s ~ 0 in a
     deflated row are rejected, the generic path settles a double zero).
+
+    The residual of the last iterate s' = s - step is bounded without evaluating
+    q there: by Taylor's theorem on the segment [s, s'],
+
+        |q(s')| <= |q(s) - q'(s) step| + |step|^2 / 2 max |q''|,
+
+    the first term is 0 for Newton's step (rounding) and |step q(s) / s| for Maehly's, and
+    |q''| <= 2 + tau1^2 |a| + 2 tau2 |b| + tau2^2 |b| |s| with |a|, |b| grown by
+    e^{tau |step|} along the segment (a, b the delayed terms). So a converged seed costs
+    one evaluation of q fewer.
     """
     R, K = seeds.shape
     flat = seeds.ravel()
     live = np.flatnonzero(np.isfinite(flat))  # NaN seeds (padding) cost nothing
     rid = live // K
     s = flat[live].copy()
+    P, D = rows.P, rows.D
     lam, t1, t2, defl = rows.lam[rid], rows.t1[rid], rows.t2[rid], rows.deflate[rid]
-    act = np.arange(s.size)
-    for _ in range(_FAST_NEWTON_STEPS):
+    if s.size <= _FEW_SEEDS:
+        s, ok = _newton_few(s, lam, t1, t2, defl, P, D)
+        act = np.zeros(0, dtype=np.int64)
+    else:
+        ok = np.zeros(s.size, dtype=bool)
+        act = np.arange(s.size)
+    for _ in range(_FAST_NEWTON_STEPS if act.size else 0):
         if act.size == 0:
             break
         sa = s[act]
-        q, dq, _, _ = _q(sa, lam[act], t1[act], t2[act], rows.P, rows.D)
-        den = np.where(defl[act], dq - q / sa, dq)
+        la, t1a, t2a = lam[act], t1[act], t2[act]
+        q, dq, a, b = _q(sa, la, t1a, t2a, P, D)
+        deflated = defl[act]
+        den = np.where(deflated, dq - q / sa, dq)
         step = q / den
         bad = ~np.isfinite(step)
         step[bad] = 0.0
         s[act] = sa - step
+        abs_s, abs_h = np.abs(sa), np.abs(step)
         # quadratic convergence: after a step below 1e-8 |s| the error is ~1e-16 |s|
-        moving = ~bad & (np.abs(step) > 1e-8 * (1.0 + np.abs(sa)))
-        act = act[moving]
-    q, _, a, b = _q(s, lam, t1, t2, rows.P, rows.D)
+        done = bad | (abs_h <= 1e-8 * (1.0 + abs_s))
+        if done.any():
+            i = np.flatnonzero(done & ~bad)
+            h, z, ab = abs_h[i], abs_s[i], np.abs(b[i])
+            ea = np.abs(a[i]) * np.exp(t1a[i] * h)
+            eb = ab * np.exp(t2a[i] * h)
+            m2 = 2.0 + t1a[i] ** 2 * ea + t2a[i] * eb * (2.0 + t2a[i] * (z + h))
+            lin = np.abs(q[i] - dq[i] * step[i])
+            bound = lin + 0.5 * m2 * h * h
+            mag = (z + D) * z + P + np.abs(a[i]) + ab * z
+            ok[act[i]] = np.isfinite(mag) & (bound <= RESIDUAL_TOL * mag)
+            act = act[~done]
+    if act.size:  # still moving after the budget: judged by the residual where it stopped
+        q, _, a, b = _q(s[act], lam[act], t1[act], t2[act], P, D)
+        z = np.abs(s[act])
+        mag = (z + D) * z + P + np.abs(a) + np.abs(b) * z
+        ok[act] = np.isfinite(mag) & (np.abs(q) <= RESIDUAL_TOL * mag)
     abs_s = np.abs(s)
-    mag = (abs_s + rows.D) * abs_s + rows.P + np.abs(a) + np.abs(b) * abs_s
-    ok = np.isfinite(mag) & (np.abs(q) <= RESIDUAL_TOL * mag)
     # s ~ 0 in a centroid row is a root of q(s)/s when 0 is double (q'(0) = 0, as at
     # tau1 = 0); it is then exactly 0 (as _quasi._deflated_zero decides)
     near = defl & (abs_s < 1e-6)
@@ -150,7 +184,7 @@ def _polish_rows(seeds: NDArray[np.complex128], rows: _Rows) -> tuple[NDArray[np
         lz = lam[near]
         # q'(0) = tau1 lam P + D (1 - lam), exactly 0 for the centroid (lam = 1) at tau1 = 0; a
         # tiny tau1 puts a genuine root beside 0, which the generic path resolves (rejected here)
-        double = t1[near] * lz * rows.P + rows.D * (1.0 - lz) == 0.0
+        double = t1[near] * lz * P + D * (1.0 - lz) == 0.0
         s[near] = np.where(double, 0.0, s[near])
         ok[near] = double
     out = np.full(R * K, np.nan + 0j)
@@ -158,6 +192,41 @@ def _polish_rows(seeds: NDArray[np.complex128], rows: _Rows) -> tuple[NDArray[np
     good = np.zeros(R * K, dtype=bool)
     good[live] = ok
     return out.reshape(R, K), good.reshape(R, K)
+
+
+def _newton_few(
+    s: NDArray[np.complex128], lam: NDArray[np.complex128], t1: NDArray[np.float64], t2: NDArray[np.float64],
+    defl: NDArray[np.bool_], P: float, D: float,
+) -> tuple[NDArray[np.complex128], NDArray[np.bool_]]:
+    """Newton (Maehly's step in deflated rows) on a few seeds, all iterated together.
+
+    The acceptance of :func:`_polish_rows` (a step below 1e-8 |s|, and the Taylor bound of
+    the residual where that step lands <= RESIDUAL_TOL), tested from the second step on:
+    seeds are eigenvalues of a discretization, never converged to 1e-8. On a few seeds every
+    NumPy call costs more than its arithmetic, so the active ones are not gathered.
+    """
+    lp, ld = lam * P, lam * D
+    deflated = bool(defl.any())
+    ok = np.zeros(s.size, dtype=bool)
+    for k in range(_FAST_NEWTON_STEPS):
+        a = lp * np.exp(-t1 * s)
+        b = ld * np.exp(-t2 * s)
+        bs = b * s
+        q = (s + D) * s + P - a - bs
+        dq = 2.0 * s + D + t1 * a - b + t2 * bs
+        step = q / (np.where(defl, dq - q / s, dq) if deflated else dq)
+        finite = np.isfinite(step)
+        if k:
+            z, h, aa, ab = np.abs(s), np.abs(step), np.abs(a), np.abs(b)
+            # |q''| on the step's segment, with e^{tau |step|} <= 2 (checked) for the growth of a, b
+            m2 = 2.0 + 2.0 * (t1 * t1 * aa + t2 * ab * (2.0 + t2 * (z + h)))
+            bound = np.abs(q - dq * step) + 0.5 * m2 * h * h
+            mag = (z + D) * z + P + aa + ab * z
+            ok |= (h <= 1e-8 * (1.0 + z)) & ((t1 + t2) * h <= 0.69) & (bound <= RESIDUAL_TOL * mag)
+        s = s - np.where(finite, step, 0.0)
+        if k and (ok | ~finite).all():
+            break
+    return s, ok
 
 
 # =====================================================================
@@ -225,24 +294,33 @@ def _count_rows(
     w = lo + h * np.arange(m)[:, None]  # (m, n)
 
     def rotations(tau: NDArray[np.float64]) -> NDArray[np.complex128]:
-        if n <= 64:  # a few lines: one exp call beats m Python-level rotations
-            return np.exp(-1j * tau * w)
         z = np.empty((m, n), dtype=np.complex128)
-        z[0] = np.exp(-1j * tau * lo)
-        rot = np.exp(-1j * tau * h)
-        for j in range(1, m):
+        z[0] = np.exp(-1j * (tau * lo))
+        rot = np.exp(-1j * (tau * h))
+        if n <= 64:  # e^{-i tau (lo + j h)} by repeated rotation: one accumulate call for few lines
+            z[1:] = rot
+            return np.cumprod(z, axis=0, out=z)
+        for j in range(1, m):  # many lines: NumPy's accumulate along axis 0 is not vectorized
             np.multiply(z[j - 1], rot, out=z[j])
         return z
 
     k1, k2 = rotations(t1), rotations(t2)
     sv = c + 1j * w
-    q = (sv + D) * sv + P - A1 * k1 - (B1 * k2) * sv
-    failed = ~(np.isfinite(q) & (q != 0.0)).all(axis=0)
+    q = sv * (sv + D - B1 * k2) + (P - A1 * k1)
+    # an overflow poisons the line's sum; an exact zero of q on a sample fails the chord
+    # test of both its segments in every round, so the line ends as not certified
+    failed = ~np.isfinite(q.sum(axis=0))
     c2 = c * c
-    # the initial segments are tested in their (m - 1, n) layout; only rejected ones are
-    # gathered into flat arrays and bisected
-    good = _chord_ok(q[:-1], q[1:], w[:-1], h, m2_slope, m2_offset, c2)
-    total = np.where(good, np.angle(q[1:] * np.conj(q[:-1])), 0.0).sum(axis=0)
+    # the initial segments are tested in their (m - 1, n) layout (the chord test of _chord_ok with
+    # rho = the larger |s| of a segment's ends); only rejected ones are gathered and bisected
+    abs_s = np.abs(sv)
+    quad = (m2_slope * np.maximum(abs_s[:-1], abs_s[1:]) + m2_offset) * (0.125 * h * h)
+    qa, d = q[:-1], q[1:] - q[:-1]
+    dd = d.real * d.real + d.imag * d.imag
+    t = np.clip((d.real * qa.real + d.imag * qa.imag) / -np.maximum(dd, 1e-300), 0.0, 1.0)
+    near = qa + t * d  # the chord's point nearest 0
+    good = near.real * near.real + near.imag * near.imag > quad * quad
+    total = np.where(good, np.angle(q[1:] * np.conj(qa)), 0.0).sum(axis=0)
     if good.all():  # usually so for a single pair: no segment to bisect, nothing to gather
         line = np.zeros(0, dtype=np.int64)
     else:
@@ -259,8 +337,14 @@ def _count_rows(
             line, wa, qa, qb, ka, kb = line[keep], wa[keep], qa[keep], qb[keep], ka[keep], kb[keep]
         step = 0.5 * step
         wm = wa + step[line]
-        km = ka * np.exp(-1j * t1 * step)[line]
-        kbm = kb * np.exp(-1j * t2 * step)[line]
+        # the midpoints' unit factors: one rotation per line still walking (not per line of the batch)
+        walking = np.zeros(n, dtype=bool)
+        walking[line] = True
+        wl = np.flatnonzero(walking)
+        rot1, rot2 = np.empty(n, dtype=np.complex128), np.empty(n, dtype=np.complex128)
+        rot1[wl] = np.exp(-1j * (t1[wl] * step[wl]))
+        rot2[wl] = np.exp(-1j * (t2[wl] * step[wl]))
+        km, kbm = ka * rot1[line], kb * rot2[line]
         sm = c[line] + 1j * wm
         qm = (sm + D) * sm + P - A1[line] * km - (B1[line] * kbm) * sm
         failed[line[~np.isfinite(qm) | (qm == 0.0)]] = True
@@ -298,9 +382,12 @@ def _free_roots(P: float, D: float) -> NDArray[np.complex128]:
 
 
 def _certify_rows(
-    rows: _Rows, seeds: NDArray[np.complex128]
+    rows: _Rows, seeds: NDArray[np.complex128], window: float = _SEED_WINDOW
 ) -> tuple[NDArray[np.complex128], NDArray[np.bool_], NDArray[np.complex128]]:
     """Polish seeds (R, K) per row, certify the rightmost: (rightmost, certified, known roots).
+
+    Only seeds within ``window`` of a row's rightmost seed are polished; a redo
+    passes ``inf`` (a stale rightmost seed that converges nowhere would drop the good ones).
 
     The vectorized counterpart of :func:`delayform.analysis._rightmost._certify`
     (same seed window, distinct roots, mirror images and line choice). The
@@ -308,18 +395,24 @@ def _certify_rows(
     complex lam: the factor of conj(lam) mirrors it).
     """
     real = rows.real[:, None]
-    seeds = np.where(real & (seeds.imag < 0.0), np.conj(seeds), seeds)
-    seeds = np.where(rows.deflate[:, None] & (np.abs(seeds) < 1e-6), -1e-2, seeds)
-    top_seed = np.where(np.isfinite(seeds), seeds.real, -np.inf).max(axis=1)
-    seeds = np.where(seeds.real >= top_seed[:, None] - _SEED_WINDOW, seeds, np.nan)
+    seeds = seeds.copy()  # the caller's seeds stay as they are
+    np.abs(seeds.imag, out=seeds.imag, where=real)  # real rows: the member of a pair with Im >= 0
+    # a seed at the centroid's persistent 0 is moved off it (Maehly's step cannot leave 0) and
+    # kept, but it does not set the window: the window then would drop every genuine seed
+    moved = rows.deflate[:, None] & (np.abs(seeds) < 1e-6)
+    any_moved = bool(moved.any())
+    if any_moved:
+        seeds[moved] = np.nan
+    top_seed = np.fmax.reduce(seeds.real, axis=1)  # NaN (padding) ignored
+    seeds[seeds.real < top_seed[:, None] - window] = np.nan
+    if any_moved:
+        seeds[moved] = -1e-2
     roots, ok = _polish_rows(seeds, rows)
-    ok &= np.isfinite(seeds)
-    roots = np.where(real & (roots.imag < 0.0), np.conj(roots), roots)
-    distinct = _batch_distinct(roots, ok)
-    pair = real & (np.abs(distinct.imag) > 1e-9 * (1.0 + np.abs(distinct)))
-    roots = np.concatenate([distinct, np.where(pair, np.conj(distinct), np.nan)], axis=1)
-    c, expected, top = _batch_lines(rows.deflate, roots)
-    good = np.isfinite(top) & np.isfinite(c)
+    np.abs(roots.imag, out=roots.imag, where=real)
+    if rows.size <= _FEW_ROWS:
+        return _certify_few(rows, roots, ok)
+    right, c, expected, distinct = _lines_of_rows(roots, ok, rows.real, rows.deflate)
+    good = np.isfinite(c)
     if good.all():
         counts = _count_rows(rows, c)
     else:
@@ -327,10 +420,100 @@ def _certify_rows(
         idx = np.flatnonzero(good)
         if idx.size:
             counts[idx] = _count_rows(rows.take(idx), c[idx])
-    certified = good & (counts == expected)
-    best = np.where(np.isnan(roots.real), -np.inf, roots.real).argmax(axis=1)
-    right = roots[np.arange(rows.size), best]
-    return right.real + 1j * np.abs(right.imag), certified, distinct
+    return right, good & (counts == expected), distinct
+
+
+def _lines_of_rows(
+    roots: NDArray[np.complex128], ok: NDArray[np.bool_], real: NDArray[np.bool_], deflate: NDArray[np.bool_]
+) -> tuple[NDArray[np.complex128], NDArray[np.float64], NDArray[np.float64], NDArray[np.complex128]]:
+    """Per row: the rightmost root (Im >= 0), the certifying line, the expected count, the distinct roots.
+
+    The vectorized :func:`delayform.analysis.certificate._choose_line` on the distinct
+    accepted roots (sorted; a root within 1e-7 relative of its predecessor dropped), a
+    complex root of a real row counted twice (with its mirror image), and the centroid's
+    persistent zero added. NaN line: no root accepted.
+    """
+    R = roots.shape[0]
+    rix = np.arange(R)
+    r = np.sort(np.where(ok, roots, np.nan), axis=1)  # by real part; NaN last
+    if r.shape[1] > 1:
+        close = np.abs(r[:, 1:] - r[:, :-1]) <= 1e-7 * (1.0 + np.abs(r[:, :-1]))
+        r[:, 1:][close] = np.nan
+    x = r.real
+    known = x == x  # not NaN
+    mult = np.where(known, 1.0 + (real[:, None] & (np.abs(r.imag) > 1e-9 * (1.0 + np.abs(r)))), 0.0)
+    key = np.where(known, x, -np.inf)
+    best = key.argmax(axis=1)
+    top = key[rix, best]
+    right = r[rix, best]
+    right = right.real + 1j * np.abs(right.imag)
+    if deflate.any():
+        key = np.concatenate([key, np.where(deflate, 0.0, -np.inf)[:, None]], axis=1)
+        mult = np.concatenate([mult, deflate[:, None].astype(float)], axis=1)
+    order = np.argsort(-key, axis=1)
+    srt, m_srt = key[rix[:, None], order], mult[rix[:, None], order]
+    width = srt.shape[1]
+    n_known = (srt > -np.inf).sum(axis=1)
+    k0 = (srt <= top[:, None]).argmax(axis=1)
+    c = np.full(R, np.nan)
+    if width >= 2:  # the first of the 8 gaps below the top that is wide enough
+        gap = srt[:, :-1] - srt[:, 1:]
+        pos = np.arange(width - 1)
+        take = ((pos >= k0[:, None]) & (pos < np.minimum(k0 + 8, n_known - 1)[:, None])
+                & (gap > 1e-3 * (1.0 + np.abs(srt[:, :-1]))))  # fmt: skip
+        first = take.argmax(axis=1)
+        c = np.where(take[rix, first], srt[rix, first] - np.minimum(0.5 * gap[rix, first], _LINE_OFFSET), c)
+    last = srt[rix, np.maximum(np.minimum(k0 + 8, n_known - 1), 0)]
+    c = np.where(np.isnan(c) & (top > -np.inf), last - _LINE_OFFSET, c)
+    expected = np.where(srt > c[:, None], m_srt, 0.0).sum(axis=1)
+    return right, c, expected, r
+
+
+def _certify_few(
+    rows: _Rows, roots: NDArray[np.complex128], ok: NDArray[np.bool_]
+) -> tuple[NDArray[np.complex128], NDArray[np.bool_], NDArray[np.complex128]]:
+    """The second half of :func:`_certify_rows` for a few rows (one delay pair), in plain Python.
+
+    Same distinct roots (sorted, a root within 1e-7 relative of the previous one dropped),
+    mirror images, line (:func:`delayform.analysis.certificate._choose_line`) and expected
+    count as the vectorized path; on a handful of rows each NumPy call costs more than
+    the arithmetic, and a single ``dominant_root`` is made of such calls.
+    """
+    R = rows.size
+    c = np.full(R, np.nan)
+    expected = np.zeros(R)
+    right = np.full(R, np.nan + 0j)
+    r = np.sort(np.where(ok, roots, np.nan), axis=1)  # by real part; NaN last
+    if r.shape[1] > 1:
+        close = np.abs(r[:, 1:] - r[:, :-1]) <= 1e-7 * (1.0 + np.abs(r[:, :-1]))
+        r[:, 1:][close] = np.nan
+    for i, (row, real, deflate) in enumerate(zip(r.tolist(), rows.real.tolist(), rows.deflate.tolist())):
+        reals: list[float] = []
+        best = None
+        for z in row:
+            if z != z:  # NaN: not accepted, or a repeat
+                continue
+            x = z.real
+            reals.append(x)
+            if real and abs(z.imag) > 1e-9 * (1.0 + abs(z)):  # and its mirror image
+                reals.append(x)
+            if best is None or x > best.real:
+                best = z
+        if best is None:
+            continue
+        right[i] = complex(best.real, abs(best.imag))
+        if deflate:
+            reals.append(0.0)
+        reals.sort(reverse=True)
+        ci = _choose_line(reals, best.real)
+        c[i] = ci
+        expected[i] = sum(1 for x in reals if x > ci)
+    good = np.isfinite(c)
+    counts = np.full(R, np.nan)
+    idx = np.flatnonzero(good)
+    if idx.size:
+        counts[idx] = _count_rows(rows if idx.size == R else rows.take(idx), c[idx])
+    return right, good & (counts == expected), r
 
 
 # =====================================================================
@@ -472,7 +655,14 @@ def _generic_rightmost(
     prob = _problem_of_factor(f)
     out = np.full(t1.size, np.nan + 0j)
     known = np.full((t1.size, _KEEP), np.nan + 0j)
-    left = np.arange(t1.size)
+    # without delays the factor is s^2 + D (1 - lam) s + P (1 - lam): its roots in closed form
+    # (the centroid's is s^2, whose second zero, the drift, no seed can certify numerically)
+    free = (t1 == 0.0) & (t2 == 0.0)
+    if free.any():
+        roots = _delay_free_roots(complex(f.lam), float(f.P), float(f.D), f.is_centroid)
+        out[free] = roots[np.argmax(roots.real)]
+        known[free] = _pad(roots[None, :], _KEEP)[0]
+    left = np.flatnonzero(~free)
     for scale, k in ((1.0, _BATCH_SEEDS), (2.0, 2 * _BATCH_SEEDS)):
         if left.size == 0:
             break
@@ -488,6 +678,16 @@ def _generic_rightmost(
         out[i] = _pick_rightmost(prob, res.roots)
         known[i] = _pad(res.roots[None, :], _KEEP)[0]
     return out.real + 1j * np.abs(out.imag), known
+
+
+def _delay_free_roots(lam: complex, P: float, D: float, deflate: bool) -> NDArray[np.complex128]:
+    """Roots of s^2 + D (1 - lam) s + P (1 - lam) (one zero removed for the centroid's deflated root)."""
+    b, c0 = D * (1.0 - lam), P * (1.0 - lam)
+    disc = cmath.sqrt(b * b - 4.0 * c0)
+    roots = np.array([(-b + disc) / 2.0, (-b - disc) / 2.0])
+    if deflate:  # lam = 1: s^2, the persistent zero removed leaves the drift 0
+        roots = np.delete(roots, np.argmin(np.abs(roots)))
+    return roots
 
 
 def _pad(roots: NDArray[np.complex128], k: int) -> NDArray[np.complex128]:
@@ -555,6 +755,32 @@ def _nearest(target: NDArray[np.int64], solved: NDArray[np.int64], axis: NDArray
     return np.where(np.abs(axis[target] - axis[lo]) <= np.abs(axis[target] - axis[hi]), lo, hi)
 
 
+def _root_slopes(
+    roots: NDArray[np.complex128], lam: NDArray[np.complex128], t1: NDArray[np.float64],
+    t2: NDArray[np.float64], P: float, D: float,
+) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
+    """ds/dtau1 and ds/dtau2 of roots (F, n, K) at delays (n,), by the implicit function theorem.
+
+    q(s; tau) = 0 with dq/dtau1 = s a and dq/dtau2 = s^2 b (a = lam P e^{-tau1 s},
+    b = lam D e^{-tau2 s}) gives ds/dtau = -(dq/dtau) / (dq/ds). Undefined (a double
+    root, a missing one) and large slopes are set to 0: the prediction is only a seed.
+    """
+    _, dq, a, b = _q(roots, lam[:, None, None], t1[None, :, None], t2[None, :, None], P, D)
+    g1 = -roots * a / dq
+    g2 = -roots * roots * b / dq
+    for g in (g1, g2):
+        g[~np.isfinite(g) | (np.abs(g) > 10.0)] = 0.0
+    return g1, g2
+
+
+def _predict(
+    roots: NDArray[np.complex128], g1: NDArray[np.complex128], g2: NDArray[np.complex128],
+    d1: NDArray[np.float64], d2: NDArray[np.float64],
+) -> NDArray[np.complex128]:
+    """Roots (F, n, K) moved by the delay steps (n,) along their slopes (first-order prediction)."""
+    return roots + g1 * d1[None, :, None] + g2 * d2[None, :, None]
+
+
 @np.errstate(all="ignore")
 def family_grid(
     fs: Sequence[CharacteristicFactor], P: float, D: float,
@@ -568,6 +794,10 @@ def family_grid(
     right = np.full((F, npts), np.nan + 0j)
     known = np.full((F, npts, _KEEP), np.nan + 0j)
     solved = np.zeros(npts, dtype=bool)
+    # ds/dtau1, ds/dtau2 of the known roots (zero where undefined): first-order prediction
+    # of a neighbour's roots, so its Newton iteration starts an order of magnitude closer
+    slope1 = np.zeros((F, npts, _KEEP), dtype=np.complex128)
+    slope2 = np.zeros((F, npts, _KEEP), dtype=np.complex128)
     T1, T2 = np.meshgrid(ax1, ax2, indexing="ij")
     t1, t2 = T1.ravel(), T2.ravel()
     prev1 = prev2 = None
@@ -581,10 +811,11 @@ def family_grid(
                 [_family_seeds(lam, P, D, float(t1[p]), float(t2[p]), _BATCH_SEEDS) for p in pts], axis=1
             ).reshape(F * pts.size, _BATCH_SEEDS)
             seeds = np.where(np.repeat(centroid, pts.size)[:, None] & (np.abs(seeds) < 1e-9), np.nan, seeds)
-        else:  # later levels: the roots of the nearest solved point
+        else:  # later levels: the roots of the nearest solved point, moved along their tangents
             i, j = pts // n2, pts % n2
             src = _nearest(i, prev1, ax1) * n2 + _nearest(j, prev2, ax2)
-            seeds = known[:, src].reshape(F * pts.size, _KEEP)
+            seeds = _predict(known[:, src], slope1[:, src], slope2[:, src], t1[pts] - t1[src], t2[pts] - t2[src])
+            seeds = seeds.reshape(F * pts.size, _KEEP)
         rows = _Rows(
             np.repeat(lam, pts.size), np.tile(t1[pts], F), np.tile(t2[pts], F),
             np.repeat(real, pts.size), np.repeat(centroid, pts.size), P, D,
@@ -595,7 +826,7 @@ def family_grid(
             bad = np.flatnonzero(~ok)
             fresh = _row_seeds(rows.lam[bad], rows.t1[bad], rows.t2[bad], P, D, 2 * _BATCH_SEEDS)
             fresh = np.where(rows.deflate[bad][:, None] & (np.abs(fresh) < 1e-9), np.nan, fresh)
-            r2, ok2, roots2 = _certify_rows(rows.take(bad), np.concatenate([fresh, seeds[bad]], axis=1))
+            r2, ok2, roots2 = _certify_rows(rows.take(bad), np.concatenate([fresh, seeds[bad]], axis=1), np.inf)
             r[bad[ok2]], ok[bad[ok2]], roots[bad[ok2]] = r2[ok2], True, _pad(roots2[ok2], _KEEP)
         r, ok, roots = r.reshape(F, -1), ok.reshape(F, -1), roots.reshape(F, pts.size, _KEEP)
         right[:, pts], known[:, pts] = r, roots
@@ -603,6 +834,8 @@ def family_grid(
             bad = pts[~ok[k]]
             right[k, bad], known[k, bad] = _generic_rightmost(fs[k], t1[bad], t2[bad])
         solved[pts] = True
+        if not solved.all():  # a finer level follows
+            slope1[:, pts], slope2[:, pts] = _root_slopes(known[:, pts], lam, t1[pts], t2[pts], P, D)
         prev1, prev2 = lev1, lev2
         if advance is not None:
             advance(int(F * pts.size))

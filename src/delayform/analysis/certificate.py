@@ -8,7 +8,7 @@ certifying line in a gap left of the rightmost known root.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
@@ -278,7 +278,7 @@ def _count_right_batch(
     return np.where(good, np.round(count), np.nan)
 
 
-def _choose_line(reals: NDArray[np.float64], top: float) -> float:
+def _choose_line(reals: Sequence[float], top: float) -> float:
     """A line Re s = c in a gap left of ``top`` (reals: known root real parts, descending).
 
     Roots whose real parts are within 1e-3 of each other stay on the same
@@ -286,14 +286,16 @@ def _choose_line(reals: NDArray[np.float64], top: float) -> float:
     most :data:`_LINE_OFFSET` left of them, because e^{-h c} grows quickly as
     c moves left and with it the Cauchy radius and the Lipschitz bounds. ``top`` is
     the real part of the rightmost root wanted (the deflated zero of eq.
-    factor1 may lie right of it and is then simply counted).
+    factor1 may lie right of it and is then simply counted). Plain Python: it
+    runs on a handful of numbers per factor, where NumPy's per-call cost dominates.
     """
-    k0 = int(np.argmax(reals <= top))
-    for k in range(k0, min(reals.size - 1, k0 + 8)):
+    n = len(reals)
+    k0 = next((k for k in range(n) if reals[k] <= top), 0)
+    for k in range(k0, min(n - 1, k0 + 8)):
         gap = reals[k] - reals[k + 1]
         if gap > 1e-3 * (1.0 + abs(reals[k])):
             return float(reals[k] - min(0.5 * gap, _LINE_OFFSET))
-    return float(reals[min(reals.size - 1, k0 + 8)] - _LINE_OFFSET)
+    return float(reals[min(n - 1, k0 + 8)] - _LINE_OFFSET)
 
 
 def _known_reals(
