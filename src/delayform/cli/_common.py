@@ -297,14 +297,18 @@ def _out_dir(out: Path | None, scenario: Scenario) -> Path:
 
 @contextmanager
 def _bar() -> Iterator[Any]:
-    """A Rich progress bar on stderr, so ``--json`` output on stdout stays clean."""
+    """A Rich progress bar on stderr, so ``--json`` output on stdout stays clean.
+
+    Drawn only on a terminal: redirected to a file or a pipe, stderr stays
+    empty (not even the blank line a hidden bar would leave).
+    """
     from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     console = Console(stderr=True)
     with Progress(
         TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-        console=console, transient=not console.is_terminal,
+        console=console, disable=not console.is_terminal,
     ) as bar:  # fmt: skip
         yield bar
 
