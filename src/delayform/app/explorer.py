@@ -8,7 +8,8 @@ functions, so the page and the library can never disagree:
 * a clicked point: the number of unstable roots NU from the same exact map,
   :func:`delayform.analysis.spectrum.dominant_root`, and every root of every
   factor of eq. factorized in a rectangle around the imaginary axis
-  (:func:`delayform.analysis.spectrum.roots_in`, certified by the argument principle);
+  (:func:`delayform.analysis.factor_roots.factor_roots_in`, all factors at once, each count
+  certified by the argument principle);
 * the robots: :func:`delayform.simulation.simulate` with the scenario's model,
   formation and initial state, thinned to animation frames;
 * the eigenvalue plane of a clicked point: :func:`delayform.app.plane.region_report`
@@ -42,6 +43,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from delayform.analysis.ctcr import StabilityMap, stability_map
+from delayform.analysis.factor_roots import factor_roots_in
 from delayform.analysis.spectrum import DominantRoot, dominant_root, roots_in
 from delayform.app.params import ExplorerLimits, Param
 from delayform.app.plane import RegionReport, region_report
@@ -529,12 +531,17 @@ class Explorer:
         owners: list[int] = []
         certified = True
         fs = factors(topology, P, D)
-        for idx, f in enumerate(fs):
-            try:
-                roots = roots_in(f, tau1, tau2, region)
-            except NotConvergedError as exc:
-                certified = False
-                roots = np.asarray(exc.partial if exc.partial is not None else [], dtype=np.complex128)
+        try:  # all factors as one family; factor by factor only to keep what a failing one found
+            per_factor = [roots for _, roots in factor_roots_in(topology, P, D, tau1, tau2, region)]
+        except NotConvergedError:
+            per_factor = []
+            for f in fs:
+                try:
+                    per_factor.append(roots_in(f, tau1, tau2, region))
+                except NotConvergedError as exc:
+                    certified = False
+                    per_factor.append(np.asarray(exc.partial if exc.partial is not None else [], dtype=np.complex128))
+        for idx, (f, roots) in enumerate(zip(fs, per_factor, strict=True)):
             if f.is_centroid and roots.size:
                 # Lemma 2: the persistent root s = 0 is the centroid's motion, not a mode
                 roots = np.delete(roots, np.argmin(np.abs(roots)))
