@@ -106,7 +106,7 @@ def scaling_run(n: int, *, trace: bool) -> tuple[float, float]:
     if trace:
         tracemalloc.start()
     start = time.perf_counter()
-    traj = simulate(topo, P, D, TAU1, TAU2, "grid", duration=100.0, dt=0.05, seed=1, save_every=20)
+    traj = simulate(topo, P, D, TAU1, TAU2, "block", duration=100.0, dt=0.05, seed=1, save_every=20)
     seconds = time.perf_counter() - start
     peak = 0.0
     if trace:

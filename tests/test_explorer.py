@@ -385,14 +385,63 @@ def test_downloads_round_trip_and_stay_in_the_output_folder(
         assert zf.read("traces.png")[:8] == b"\x89PNG\r\n\x1a\n"
         assert json.loads(zf.read("point.json"))["tau1"] == 1.5
     saved = sorted(p.name for p in out_dir.iterdir())
-    assert saved == ["paper_P0.8_D0.9_tau1.5_0.7.toml", "paper_P0.8_D0.9_tau1.5_0.7_figures.zip"]  # one name per point
+    stem = "paper_P0.8_D0.9_tau1.5_0.7_T20_win10x6"  # one name per setting: the limits file kept apart
+    assert saved == [f"{stem}.toml", f"{stem}_figures.zip", f"{stem}_limits.toml"]
     assert os.listdir(tmp_path) == []  # nothing written in the working directory
+
+
+def test_download_names_carry_every_setting_that_changes_the_content(tmp_path: Path) -> None:
+    import re
+
+    base = "tau1=0.3&tau2=0.2&duration=20&tau1_max=8&tau2_max=8"
+    variants = {  # each changes what the file holds
+        "plain": base, "limits": base + "&limits=1", "network": base + "&network=1&loss=0.1&jitter=0.05",
+        "more loss": base + "&network=1&loss=0.2&jitter=0.05", "more jitter": base + "&network=1&loss=0.1&jitter=0.06",
+        "both": base + "&limits=1&network=1&loss=0.1&jitter=0.05", "longer": base.replace("duration=20", "duration=25"),
+        "window": base.replace("tau2_max=8", "tau2_max=9"), "gain": base + "&P=0.9",
+        "fine": base.replace("tau1=0.3", "tau1=0.3000001"),
+    }  # fmt: skip
+    out = tmp_path / "out"
+    names, bodies = {}, {}
+    with start(Explorer(paper_scenario(), out_dir=out)) as running:
+        for label, query in variants.items():
+            conn = http.client.HTTPConnection("127.0.0.1", running.port, timeout=60)
+            conn.request("GET", f"/download/scenario.toml?{query}")
+            resp = conn.getresponse()
+            bodies[label] = resp.read()
+            assert resp.status == 200, bodies[label]
+            names[label] = re.fullmatch(r'attachment; filename="(.+)"', resp.getheader("Content-Disposition"))[1]
+            conn.close()
+        # loss and jitter change nothing without the network: the same file, the same name
+        status, _, again = get(running, f"/download/scenario.toml?{base}&loss=0.3&jitter=0.01")
+        assert status == 200 and again == bodies["plain"]
+        for label in ("plain", "network"):
+            status, _, _ = get(running, f"/download/figures.zip?{variants[label]}")
+            assert status == 200
+    assert len(set(names.values())) == len(variants)  # no download overwrites another
+    assert len(set(bodies.values())) == len(variants)  # and each name stands for its own content
+    for name in names.values():
+        assert re.fullmatch(r"[A-Za-z0-9._-]+\.toml", name) and len(name) < 100, name
+    assert names["plain"] == "paper_P1_D0.5_tau0.3_0.2_T20_win8x8.toml"
+    assert names["both"] == "paper_P1_D0.5_tau0.3_0.2_T20_win8x8_limits_net-loss0.1-jitter0.05.toml"
+    # the name says what the file holds
+    for label, name in names.items():
+        s = load_scenario(out / name)
+        net = s.network
+        assert ("_limits" in name) is (s.robot is not None), label
+        assert ("_net-" in name) is (net is not None), label
+        if net is not None:
+            assert f"loss{net.loss.probability:g}-jitter{net.jitter.bound1:g}" in name, label
+        assert f"_T{s.simulation.duration:g}_win{s.chart.tau1_max:g}x{s.chart.tau2_max:g}" in name, label
+    saved = sorted(p.name for p in out.iterdir())
+    assert saved == sorted([*names.values(), names["plain"].replace(".toml", "_figures.zip"),
+                            names["network"].replace(".toml", "_figures.zip")])  # fmt: skip
 
 
 def test_a_scenario_name_never_leads_outside_the_output_folder(tmp_path: Path) -> None:
     sneaky = replace(paper_scenario(), name="../../x/..")
     path = Explorer(sneaky, out_dir=tmp_path / "out").scenario_file(1.0, 0.5, 0.3, 0.2, 10.0, 8.0, 8.0)
-    assert path.parent == (tmp_path / "out").resolve() and path.name == "_.._x__P1_D0.5_tau0.3_0.2.toml"
+    assert path.parent == (tmp_path / "out").resolve() and path.name == "_.._x__P1_D0.5_tau0.3_0.2_T10_win8x8.toml"
     assert sorted(p.name for p in tmp_path.rglob("*") if p.is_file()) == [path.name]
 
 

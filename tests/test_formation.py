@@ -16,7 +16,7 @@ from delayform.formation import (
     check_formation,
     final_centroid,
     formation_forcing,
-    grid,
+    block,
     hexagon,
     line,
     named_formation,
@@ -47,9 +47,9 @@ def test_named_shapes_have_n_distinct_points(n, name):
         assert d.min() > 0.5  # no two agents asked to share a place
 
 
-def test_line_grid_v_geometry():
+def test_line_block_v_geometry():
     assert np.allclose(np.diff(line(4, spacing=2.0)[:, 0]), 2.0)
-    g = grid(6)
+    g = block(6)
     assert sorted({round(y, 9) for y in g[:, 1]}) == [-0.5, 0.5]  # 3 columns, 2 rows
     v = v_shape(5)
     assert np.allclose(v[1:, 1][::2], -v[1:, 1][1::2])  # the arms mirror each other
@@ -197,3 +197,37 @@ def test_predicted_final_positions_keep_the_shape():
     offset = out - z
     assert np.allclose(offset, offset[0])  # desired shape plus a common offset
     assert np.allclose(centroid_weights(topo) @ out, centroid_weights(topo) @ x0)
+
+
+# ------------------------------------------------- shape names vs topologies
+def test_block_shape_and_grid_topology_are_distinct_names():
+    import delayform
+    from delayform import formation, topology
+    from delayform.cli._common import FORMATION_NAMES, OLD_FORMATION_NAMES
+
+    # the top-level `grid` is the communication graph; the shape has its own name
+    assert delayform.grid is topology.grid and "grid" not in formation.__all__
+    assert "block" in formation.__all__ and "block" not in topology.__all__ and "block" not in dir(delayform)
+    assert not set(SHAPES) & set(topology.__all__)  # no shape name is also a topology builder
+    assert FORMATION_NAMES == tuple(SHAPES) and OLD_FORMATION_NAMES == tuple(formation.SHAPE_ALIASES)
+    assert delayform.grid(2, 3).n == 6 and block(6).shape == (6, 2)
+
+
+def test_old_block_spellings_give_the_same_formation():
+    from delayform import formation
+    from delayform.scenario import paper_scenario, parse_scenario
+
+    # independent of block(): 7 agents, 3 to a row, 1 m apart, rows towards -y, mean at 0
+    cols, rows = np.arange(7) % 3, -(np.arange(7) // 3)
+    expected = np.column_stack([cols, rows]) - [6 / 7, -5 / 7]  # means of 0,1,2,0,1,2,0 and 0,0,0,-1,-1,-1,-2
+    assert np.allclose(block(7), expected)
+    assert formation.grid is block
+    for name in ("grid", "Grid", "block"):
+        assert np.array_equal(named_formation(name, 7, spacing=2.0), 2.0 * expected)
+    base = {"topology": {"name": "ring", "n": 7}, "gains": {"P": 1.0, "D": 0.5}, "delays": {"tau1": 0.1, "tau2": 0.2}}
+    for name in ("grid", "block"):
+        s = parse_scenario(base | {"formation": {"shape": name, "spacing": 2.0}})
+        assert s.formation.shape == "block"  # written back under the current name
+        assert np.array_equal(s.desired_positions(), 2.0 * expected)
+    over = paper_scenario().with_changes(formation="grid")  # what --formation grid does
+    assert over.formation.shape == "block" and np.array_equal(over.desired_positions(), block(6, spacing=2.0))

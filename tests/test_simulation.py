@@ -315,7 +315,7 @@ def test_min_distance_matches_brute_force_for_large_team():
 
 def test_sparse_team_and_saving_stride():
     topo = random_digraph(1500, 2.0 / 1500, seed=1)
-    traj = simulate(topo, P, D, 0.2, 0.2, "grid", duration=2.0, dt=0.1, save_every=5)
+    traj = simulate(topo, P, D, 0.2, 0.2, "block", duration=2.0, dt=0.1, save_every=5)
     assert traj.positions.shape == (5, 1500, 2)
     assert np.allclose(traj.times, [0, 0.5, 1.0, 1.5, 2.0])
     assert np.all(np.isfinite(traj.positions))

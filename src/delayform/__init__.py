@@ -40,6 +40,7 @@ _EXPORTS: dict[str, str] = {
     "PAPER_POINTS": "analysis.ctcr",
     # characteristic roots
     "roots_in": "analysis.spectrum",
+    "factor_roots_in": "analysis.factor_roots",
     "rightmost_root": "analysis.spectrum",
     "count_roots_right_of": "analysis.spectrum",
     "dominant_root": "analysis.spectrum",

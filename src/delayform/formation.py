@@ -14,6 +14,13 @@ Conventions (paper, Section "Formation Control"):
   the team reaches the desired shape shifted by a common offset that the
   centroid dynamics and the initial history decide; see
   :func:`predicted_final_positions` for the derivation.
+
+Shape names. Agents placed in rows and columns form a :func:`block`; the word
+"grid" is kept for the communication graph :func:`delayform.topology.grid`
+(``delayform.grid``), so that a shape and a topology never share a name. The
+block was called ``grid`` before; ``delayform.formation.grid`` and the shape
+name ``"grid"`` (scenario files, ``--formation``) still give the block, see
+:data:`SHAPE_ALIASES`.
 """
 
 from __future__ import annotations
@@ -29,11 +36,13 @@ from delayform.topology import DENSE_LIMIT, Topology
 
 __all__ = [
     "SHAPES",
+    "SHAPE_ALIASES",
     "polygon",
     "hexagon",
     "line",
-    "grid",
+    "block",
     "v_shape",
+    "canonical_shape",
     "named_formation",
     "check_formation",
     "formation_forcing",
@@ -100,8 +109,12 @@ def line(n: int, *, spacing: float = 1.0) -> NDArray[np.float64]:
     return np.column_stack([x, np.zeros(n)])
 
 
-def grid(n: int, *, spacing: float = 1.0) -> NDArray[np.float64]:
-    """Agents row by row on a square-ish grid (ceil(sqrt(n)) columns), centred at 0.
+def block(n: int, *, spacing: float = 1.0) -> NDArray[np.float64]:
+    """A block formation: agents row by row, ceil(sqrt(n)) to a row, centred at 0.
+
+    Formerly ``grid`` (still importable under that name, and ``"grid"`` is
+    still accepted as a shape name); renamed so that it is never mistaken
+    for the grid communication graph :func:`delayform.topology.grid`.
 
     Parameters
     ----------
@@ -109,8 +122,8 @@ def grid(n: int, *, spacing: float = 1.0) -> NDArray[np.float64]:
         Number of agents; a positive integer. The last row is partly filled
         when n is not a multiple of ``ceil(sqrt(n))``.
     spacing
-        Distance between neighbouring grid points, along a row and between
-        rows; positive, default 1.0.
+        Distance between neighbouring agents along a row, and between rows;
+        positive, default 1.0.
 
     Returns
     -------
@@ -124,6 +137,10 @@ def grid(n: int, *, spacing: float = 1.0) -> NDArray[np.float64]:
     idx = np.arange(n)
     pts = spacing * np.column_stack([idx % cols, -(idx // cols)]).astype(np.float64)
     return pts - pts.mean(axis=0)
+
+
+#: the old name of :func:`block`, kept for code written before the rename
+grid = block
 
 
 def v_shape(n: int, *, spacing: float = 1.0, angle: float = np.pi / 6) -> NDArray[np.float64]:
@@ -146,9 +163,30 @@ SHAPES = {
     "polygon": polygon,
     "hexagon": hexagon,
     "line": line,
-    "grid": grid,
+    "block": block,
     "v": v_shape,
 }
+
+#: old shape names still accepted (scenario files, ``--formation``), mapped to the current one
+SHAPE_ALIASES = {"grid": "block"}
+
+
+def canonical_shape(name: str) -> str:
+    """The current name of a shape: an old name of :data:`SHAPE_ALIASES` mapped, any other returned as given.
+
+    Parameters
+    ----------
+    name
+        A shape name, current (a key of :data:`SHAPES`) or old (a key of
+        :data:`SHAPE_ALIASES`); case-insensitive for the old names. Unknown
+        names come back unchanged, for the caller to reject.
+
+    Examples
+    --------
+    >>> canonical_shape("grid"), canonical_shape("line")
+    ('block', 'line')
+    """
+    return SHAPE_ALIASES.get(name.lower(), name)
 
 
 def named_formation(name: str, n: int, *, spacing: float = 1.0) -> NDArray[np.float64]:
@@ -158,7 +196,8 @@ def named_formation(name: str, n: int, *, spacing: float = 1.0) -> NDArray[np.fl
     ----------
     name
         Shape name, a key of :data:`SHAPES` (``"polygon"``, ``"hexagon"``,
-        ``"line"``, ``"grid"`` or ``"v"``); case-insensitive.
+        ``"line"``, ``"block"`` or ``"v"``) or the old name ``"grid"`` of
+        ``"block"``; case-insensitive.
     n
         Number of agents; a positive integer (6 for ``"hexagon"``).
     spacing
@@ -176,7 +215,7 @@ def named_formation(name: str, n: int, *, spacing: float = 1.0) -> NDArray[np.fl
         For an unknown name, or a hexagon for a team that is not six.
     """
     try:
-        builder = SHAPES[str(name).lower()]
+        builder = SHAPES[canonical_shape(str(name).lower())]
     except KeyError:
         raise FormationError(
             f"unknown formation shape {name!r}; known shapes: {', '.join(sorted(SHAPES))}"

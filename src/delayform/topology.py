@@ -513,7 +513,10 @@ def random_digraph(n: int, p: float, seed: int | np.random.Generator | None = No
 
 
 def grid(rows: int, cols: int) -> Topology:
-    """Undirected 2-D grid: agent ``r * cols + c`` linked both ways with its 4 lattice neighbours.
+    """Undirected 2-D grid graph: agent ``r * cols + c`` linked both ways with its 4 lattice neighbours.
+
+    A communication topology; the formation *shape* with agents in rows and
+    columns is :func:`delayform.formation.block`.
 
     C of an undirected graph is similar to a symmetric matrix, so its
     spectrum is real in [-1, 1]; a grid is bipartite, so -1 is an eigenvalue.

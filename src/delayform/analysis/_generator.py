@@ -15,6 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from delayform.analysis._quasi import _TINY_DELAY, MAX_DEGREE, _Problem
+from delayform.errors import ResourceLimitError
 
 #: Delay pairs per batched eigenvalue call (bounds memory).
 _CHUNK = 2048
@@ -97,6 +98,33 @@ def _initial_degree(hmax: float, radius: float) -> int:
     enough to seed Newton.
     """
     return int(min(MAX_DEGREE, max(12, math.ceil(1.2 * radius * hmax + 10))))
+
+
+def _require_resolvable(region: tuple[float, float, float, float], hmax: float) -> None:
+    """Refuse, in one line, a rectangle reaching too far from the origin to list its roots at delay hmax.
+
+    Chebyshev needs a degree above |s| hmax / 2 to resolve e^{s theta} on
+    [-hmax, 0], and the degree stops at :data:`MAX_DEGREE`; the message names
+    the largest |s| allowed and a rectangle within it.
+    """
+    x0, x1, y0, y1 = region
+    radius = max(abs(complex(x, y)) for x in (x0, x1) for y in (y0, y1))
+    if 0.5 * radius * hmax <= MAX_DEGREE:
+        return
+    limit = 2 * MAX_DEGREE / hmax
+    # the same rectangle cut to fit: Re kept within the limit, then Im cut where the corners reach it
+    r0, r1 = max(x0, -0.99 * limit), min(x1, 0.99 * limit)
+    i0 = i1 = 0.0
+    if r0 < r1:
+        reach = 0.99 * math.sqrt(limit**2 - max(r0 * r0, r1 * r1))  # a margin for the printed digits
+        i0, i1 = max(y0, -reach), min(y1, reach)
+    hint = (f", e.g. {r0:.4g},{r1:.4g},{i0:.4g},{i1:.4g}"
+            if r0 < r1 and i0 < i1 else "")  # fmt: skip
+    raise ResourceLimitError(
+        f"the rectangle {tuple(region)} reaches |s| = {radius:.4g}, too far from the origin to list every "
+        f"root at delays up to {hmax:.4g} s; choose a smaller rectangle, every corner within "
+        f"|s| <= {limit:.4g}{hint}"
+    )
 
 
 def _root_scale(prob: _Problem) -> float:

@@ -80,6 +80,7 @@ from delayform.analysis._generator import (  # noqa: F401
     _igd_seeds,
     _initial_degree,
     _max_delay,
+    _require_resolvable,
     _root_scale,
 )
 from delayform.analysis._quasi import (  # noqa: F401
@@ -109,7 +110,7 @@ from delayform.analysis._rightmost import (  # noqa: F401
 )
 from delayform.analysis.certificate import _batch_lines, _count_right_single, _region_count  # noqa: F401
 from delayform.characteristic import CharacteristicFactor, TwoDelayQuasiPolynomial, factors
-from delayform.errors import DelayError, InputError, NoStableDelaysError, NotConvergedError, ResourceLimitError
+from delayform.errors import DelayError, InputError, NoStableDelaysError, NotConvergedError
 from delayform.resources import require
 from delayform.topology import Topology
 
@@ -269,12 +270,7 @@ def roots_in(
     x0, x1, y0, y1 = region
     hmax = _max_delay(base, t1, t2)
     radius = max(abs(complex(x, y)) for x in (x0, x1) for y in (y0, y1))
-    if 0.5 * radius * hmax > MAX_DEGREE:  # Chebyshev needs degree > |s| h / 2 to resolve e^{s theta}
-        raise ResourceLimitError(
-            f"the rectangle {asked} reaches |s| = {radius:.4g}, too far from the origin to list every "
-            f"root at delays up to {hmax:.4g} s (the limit is about |s| = {2 * MAX_DEGREE / hmax:.4g}); "
-            "choose a smaller rectangle"
-        )
+    _require_resolvable(region, hmax)
     # when mirroring, roots of the lam-factor in the mirrored region are needed too
     yy = max(abs(y0), abs(y1))
     count_regions = [region] if not base.mirror else [(x0, x1, -yy, yy)]

@@ -8,7 +8,8 @@ functions, so the page and the library can never disagree:
 * a clicked point: the number of unstable roots NU from the same exact map,
   :func:`delayform.analysis.spectrum.dominant_root`, and every root of every
   factor of eq. factorized in a rectangle around the imaginary axis
-  (:func:`delayform.analysis.spectrum.roots_in`, certified by the argument principle);
+  (:func:`delayform.analysis.factor_roots.factor_roots_in`, all factors at once, each count
+  certified by the argument principle);
 * the robots: :func:`delayform.simulation.simulate` with the scenario's model,
   formation and initial state, thinned to animation frames;
 * the eigenvalue plane of a clicked point: :func:`delayform.app.plane.region_report`
@@ -42,6 +43,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from delayform.analysis.ctcr import StabilityMap, stability_map
+from delayform.analysis.factor_roots import factor_roots_in
 from delayform.analysis.spectrum import DominantRoot, dominant_root, roots_in
 from delayform.app.params import ExplorerLimits, Param
 from delayform.app.plane import RegionReport, region_report
@@ -82,6 +84,12 @@ def _rounded(values: ArrayLike, decimals: int = _DECIMALS) -> list[Any]:
     if np.all(np.isfinite(arr)):
         return arr.tolist()
     return np.where(np.isfinite(arr), arr, None).tolist()
+
+
+def _num(x: float) -> str:
+    """The shortest exact decimal of x for a file name: 0.3, 150, 1e-05, 1e20 (no '+', no '.0')."""
+    text = repr(float(x)).replace("+", "")
+    return text[:-2] if text.endswith(".0") else text
 
 
 def _complex_pairs(roots: NDArray[np.complex128]) -> list[list[float]]:
@@ -529,12 +537,17 @@ class Explorer:
         owners: list[int] = []
         certified = True
         fs = factors(topology, P, D)
-        for idx, f in enumerate(fs):
-            try:
-                roots = roots_in(f, tau1, tau2, region)
-            except NotConvergedError as exc:
-                certified = False
-                roots = np.asarray(exc.partial if exc.partial is not None else [], dtype=np.complex128)
+        try:  # all factors as one family; factor by factor only to keep what a failing one found
+            per_factor = [roots for _, roots in factor_roots_in(topology, P, D, tau1, tau2, region)]
+        except NotConvergedError:
+            per_factor = []
+            for f in fs:
+                try:
+                    per_factor.append(roots_in(f, tau1, tau2, region))
+                except NotConvergedError as exc:
+                    certified = False
+                    per_factor.append(np.asarray(exc.partial if exc.partial is not None else [], dtype=np.complex128))
+        for idx, (f, roots) in enumerate(zip(fs, per_factor, strict=True)):
             if f.is_centroid and roots.size:
                 # Lemma 2: the persistent root s = 0 is the centroid's motion, not a mode
                 roots = np.delete(roots, np.argmin(np.abs(roots)))
@@ -668,10 +681,24 @@ class Explorer:
         path.write_bytes(data)
         return path
 
-    def _stem(self, P: float, D: float, tau1: float, tau2: float) -> str:
-        """``<scenario name>_P.._D.._tau.._..``: the name as letters, digits, ``._-`` only."""
+    def _stem(self, P: float, D: float, tau1: float, tau2: float, duration: float, tau1_max: float,
+              tau2_max: float, limits: bool, network: bool, loss: float, jitter: float) -> str:  # fmt: skip
+        """A file name carrying every setting that changes a download, letters, digits and ``._-`` only.
+
+        ``<scenario name>_P.._D.._tau<tau1>_<tau2>_T<duration>_win<tau1_max>x<tau2_max>``, then
+        ``_limits`` with actuator limits and ``_net-loss<p>-jitter<s>`` over the network (loss
+        and jitter only there: without the network they change nothing). Numbers in their
+        shortest exact form, so two settings never share a name (and a second download with
+        other switches never overwrites the first).
+        """
         name = re.sub(r"[^A-Za-z0-9_.-]", "_", self.scenario.name)[:40].strip(".") or "scenario"
-        return f"{name}_P{P:g}_D{D:g}_tau{tau1:g}_{tau2:g}"
+        stem = (f"{name}_P{_num(P)}_D{_num(D)}_tau{_num(tau1)}_{_num(tau2)}_T{_num(duration)}"
+                f"_win{_num(tau1_max)}x{_num(tau2_max)}")  # fmt: skip
+        if limits:
+            stem += "_limits"
+        if network:
+            stem += f"_net-loss{_num(loss)}-jitter{_num(jitter)}"
+        return stem
 
     def scenario_file(self, P: float, D: float, tau1: float, tau2: float, duration: float,
                       tau1_max: float, tau2_max: float, limits: bool = False, network: bool = False,
@@ -698,10 +725,11 @@ class Explorer:
         Returns
         -------
         Path
-            ``<out>/<name>_<tag>.toml``.
+            ``<out>/<stem>.toml``, the stem naming every setting (:meth:`_stem`).
         """
         s = self._scenario_at(P, D, tau1, tau2, duration, tau1_max, tau2_max, limits, network, loss, jitter)
-        return self._write(f"{self._stem(P, D, tau1, tau2)}.toml", scenario_toml(s).encode("utf-8"))
+        stem = self._stem(P, D, tau1, tau2, duration, tau1_max, tau2_max, limits, network, loss, jitter)
+        return self._write(f"{stem}.toml", scenario_toml(s).encode("utf-8"))
 
     def figures_file(self, P: float, D: float, tau1: float, tau2: float, duration: float,
                      tau1_max: float, tau2_max: float, limits: bool = False, network: bool = False,
@@ -728,7 +756,7 @@ class Explorer:
         Returns
         -------
         Path
-            ``<out>/<name>_<tag>_figures.zip`` holding ``stability_chart``,
+            ``<out>/<stem>_figures.zip`` (the stem of :meth:`scenario_file`) holding ``stability_chart``,
             ``traces`` and ``xy`` as PNG and SVG, ``point.json`` and ``scenario.toml``.
         """
         self._run_step(tau1, tau2, duration)  # refuse an oversized run before any drawing
@@ -766,4 +794,5 @@ class Explorer:
                     zf.writestr(f"{name}.{fmt}", data.getvalue())
             zf.writestr("point.json", json.dumps(point.as_json() | roots.as_json(), indent=2))
             zf.writestr("scenario.toml", scenario_toml(s))
-        return self._write(f"{self._stem(P, D, tau1, tau2)}_figures.zip", buffer.getvalue())
+        stem = self._stem(P, D, tau1, tau2, duration, tau1_max, tau2_max, limits, network, loss, jitter)
+        return self._write(f"{stem}_figures.zip", buffer.getvalue())

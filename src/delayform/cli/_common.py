@@ -16,7 +16,9 @@ if TYPE_CHECKING:  # the command line imports the library lazily, to start fast
     from delayform.topology import Topology
 
 TOPOLOGY_NAMES = ("paper_six", "ring", "complete", "star", "random_digraph")
-FORMATION_NAMES = ("polygon", "hexagon", "line", "grid", "v")
+#: the keys of delayform.formation.SHAPES, then the old names of SHAPE_ALIASES (kept literal: the CLI starts fast)
+FORMATION_NAMES = ("polygon", "hexagon", "line", "block", "v")
+OLD_FORMATION_NAMES = ("grid",)
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -207,8 +209,9 @@ def scenario_options(func: F) -> F:
     """The scenario argument and the overrides every analysis command shares."""
     options = [
         *_team_options(),
-        click.option("--formation", "formation_name", type=click.Choice(FORMATION_NAMES),
-                     help="Replace the scenario's formation shape (spacing kept)."),
+        click.option("--formation", "formation_name", type=click.Choice((*FORMATION_NAMES, *OLD_FORMATION_NAMES)),
+                     help="Replace the scenario's formation shape (spacing kept); block = agents in rows "
+                          "and columns ('grid' is its old name, still accepted)."),
         click.option("--tau1", type=NON_NEGATIVE, help="Position delay tau1 in seconds (overrides the scenario)."),
         click.option("--tau2", type=NON_NEGATIVE, help="Velocity delay tau2 in seconds (overrides the scenario)."),
         click.option("--out", type=OutDir(),
@@ -294,14 +297,18 @@ def _out_dir(out: Path | None, scenario: Scenario) -> Path:
 
 @contextmanager
 def _bar() -> Iterator[Any]:
-    """A Rich progress bar on stderr, so ``--json`` output on stdout stays clean."""
+    """A Rich progress bar on stderr, so ``--json`` output on stdout stays clean.
+
+    Drawn only on a terminal: redirected to a file or a pipe, stderr stays
+    empty (not even the blank line a hidden bar would leave).
+    """
     from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     console = Console(stderr=True)
     with Progress(
         TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-        console=console, transient=not console.is_terminal,
+        console=console, disable=not console.is_terminal,
     ) as bar:  # fmt: skip
         yield bar
 

@@ -142,7 +142,9 @@ def roots_command(scenario: Path | None, region: tuple[float, float, float, floa
         raise click.BadParameter("expected RE_MIN < RE_MAX and IM_MIN < IM_MAX", param_hint="--region")
     sc = _scenario(scenario, **overrides)
     directory = _out_dir(out, sc)
-    _emit(roots_section(sc, directory, region=region), directory, as_json=as_json)
+    with _inner_progress("roots of every factor") as callback:
+        section = roots_section(sc, directory, region=region, progress=callback)
+    _emit(section, directory, as_json=as_json)
 
 
 @cli.command("map")

@@ -178,7 +178,8 @@ def _curve_rows(smap: Any) -> tuple[list[tuple[Any, ...]], dict[str, np.ndarray]
 
 
 def roots_section(
-    scenario: Scenario, out: Path, *, region: tuple[float, float, float, float] | None = None
+    scenario: Scenario, out: Path, *, region: tuple[float, float, float, float] | None = None,
+    progress: MapProgress | None = None,
 ) -> Section:
     """Dominant root at the operating delays, at the chart points, and each factor's roots in a region.
 
@@ -191,19 +192,22 @@ def roots_section(
     region
         Rectangle (re_min, re_max, im_min, im_max) for the roots table; by default one
         reaching twice as far left as the dominant root.
+    progress
+        Optional callback ``progress(done, total)`` over the factors whose roots are
+        listed (:func:`~delayform.analysis.factor_roots.factor_roots_in`; for a progress bar).
     """
-    from delayform.characteristic import factors
-    from delayform.analysis.spectrum import dominant_root, roots_in
+    from delayform.analysis.factor_roots import factor_roots_in
+    from delayform.analysis.spectrum import dominant_root
 
     team, P, D = scenario.topology, scenario.P, scenario.D
     dom = dominant_root(team, P, D, scenario.tau1, scenario.tau2)
     s_dom = complex(dom.root)
     # Im from just below 0, so real roots lie inside and not on the boundary
     region = region or (min(-2.0, 2.0 * s_dom.real), 1.0, -0.01, 10.0)
-    rows = []
-    for i, f in enumerate(factors(team, P, D), start=1):
-        for s in np.atleast_1d(roots_in(f, scenario.tau1, scenario.tau2, region)):
-            rows.append((i, complex(f.lam).real, complex(f.lam).imag, float(s.real), float(s.imag)))
+    # one batched solve for all factors (a rectangle too far out is refused before it starts)
+    per_factor = factor_roots_in(team, P, D, scenario.tau1, scenario.tau2, region, progress=progress)
+    rows = [(i, complex(f.lam).real, complex(f.lam).imag, float(s.real), float(s.imag))
+            for i, (f, roots) in enumerate(per_factor, start=1) for s in roots]  # fmt: skip
     files = [_write_csv(out / "roots.csv", ("factor", "lam_re", "lam_im", "re", "im"), rows)]
     at_points = []
     for label, a, b in _chart_points(scenario):

@@ -23,7 +23,7 @@ table and key; anything else is an error)::
     tau2 = 0.2                          # seconds, on velocities
 
     [formation]                         # required; exactly one of shape / positions
-    shape = "polygon"                   # a named shape of delayform.formation
+    shape = "polygon"                   # polygon | hexagon | line | block | v ("grid": old name of block)
     spacing = 2.0                       # optional: distance between neighbours in the shape
     # positions = [[x, y], ...]         # one desired position per agent
 

@@ -45,6 +45,12 @@ class _Reader:
             raise self.error(key, f"one of {', '.join(choices)}", value)
         return value
 
+    def shape(self, key: str, value: object) -> str:
+        """A formation shape name, an old name (``"grid"``) replaced by the current one (``"block"``)."""
+        from delayform.formation import SHAPES, canonical_shape
+
+        return self.string(key, canonical_shape(value) if isinstance(value, str) else value, tuple(SHAPES))
+
     def integer(self, key: str, value: object, *, minimum: int | None = None) -> int:
         if isinstance(value, bool) or not isinstance(value, int):
             raise self.error(key, "an integer", value)

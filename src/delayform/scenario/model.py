@@ -271,9 +271,7 @@ class Scenario:
             hi = (max(new.schedule.tau_max[0], lo[0]), max(new.schedule.tau_max[1], lo[1]))
             new = replace(new, schedule=ScheduleSpec(tau_min=lo, tau_max=hi))
         if formation is not None:
-            from delayform.formation import SHAPES
-
-            shape = reader.string("formation.shape", formation, tuple(SHAPES))
+            shape = reader.shape("formation.shape", formation)
             new = replace(new, formation=FormationSpec(shape=shape, spacing=self.formation.spacing))
         # the step is checked against overridden delays by simulate() itself, after a
         # command line has also overridden the step

@@ -138,9 +138,9 @@ def _formation(reader: _Reader, data: Mapping[str, Any], n: int) -> FormationSpe
         if "spacing" in data:
             raise ScenarioError(f"{reader.source}: formation.spacing: only for a named shape")
         return FormationSpec(positions=reader.points("formation.positions", data["positions"], n))
-    from delayform.formation import SHAPES, named_formation
+    from delayform.formation import named_formation
 
-    shape = reader.string("formation.shape", data["shape"], tuple(SHAPES))
+    shape = reader.shape("formation.shape", data["shape"])
     spacing = reader.positive("formation.spacing", data.get("spacing", 1.0))
     if spacing > 1e6:  # metres: beyond this the positions lose their precision in a simulation
         raise reader.error("formation.spacing", "a spacing of at most 1e6 (metres)", spacing)
