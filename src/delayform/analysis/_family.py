@@ -44,6 +44,11 @@ from delayform.analysis._rightmost import (
 from delayform.analysis.certificate import _LINE_OFFSET, _choose_line
 from delayform.characteristic import CharacteristicFactor
 
+try:  # the gufunc behind np.linalg.eigvals (see _eigvals)
+    from numpy.linalg._umath_linalg import eigvals as _LAPACK_EIGVALS
+except ImportError:  # pragma: no cover - NumPy moved its private kernel
+    _LAPACK_EIGVALS = None
+
 #: Grid strides visited coarse to fine; the first level is seeded by discretization.
 _LEVELS = (27, 9, 3, 1)
 #: Known roots kept per row as seeds for its neighbours.
@@ -198,35 +203,47 @@ def _newton_few(
     s: NDArray[np.complex128], lam: NDArray[np.complex128], t1: NDArray[np.float64], t2: NDArray[np.float64],
     defl: NDArray[np.bool_], P: float, D: float,
 ) -> tuple[NDArray[np.complex128], NDArray[np.bool_]]:
-    """Newton (Maehly's step in deflated rows) on a few seeds, all iterated together.
+    """:func:`_polish_rows`'s Newton on a few seeds, one at a time in plain Python.
 
-    The acceptance of :func:`_polish_rows` (a step below 1e-8 |s|, and the Taylor bound of
-    the residual where that step lands <= RESIDUAL_TOL), tested from the second step on:
-    seeds are eigenvalues of a discretization, never converged to 1e-8. On a few seeds every
-    NumPy call costs more than its arithmetic, so the active ones are not gathered.
+    On a dozen seeds (one delay pair) a NumPy call costs more than its arithmetic;
+    Python's complex numbers do the same steps and tests at a fraction of the cost.
+    """
+    out = [_newton_one(*args, P, D) for args in zip(s.tolist(), lam.tolist(), t1.tolist(), t2.tolist(), defl.tolist())]
+    roots = np.array([r for r, _ in out], dtype=np.complex128)
+    return roots, np.array([g for _, g in out], dtype=bool)
+
+
+def _newton_one(s: complex, lam: complex, t1: float, t2: float, deflate: bool, P: float, D: float) -> tuple[complex, bool]:
+    """Newton (Maehly's step if ``deflate``) from s on q; (root, accepted) as in :func:`_polish_rows`.
+
+    The acceptance is tested from the second step on: seeds are eigenvalues of a
+    discretization, never converged to 1e-8.
     """
     lp, ld = lam * P, lam * D
-    deflated = bool(defl.any())
-    ok = np.zeros(s.size, dtype=bool)
-    for k in range(_FAST_NEWTON_STEPS):
-        a = lp * np.exp(-t1 * s)
-        b = ld * np.exp(-t2 * s)
-        bs = b * s
-        q = (s + D) * s + P - a - bs
-        dq = 2.0 * s + D + t1 * a - b + t2 * bs
-        step = q / (np.where(defl, dq - q / s, dq) if deflated else dq)
-        finite = np.isfinite(step)
-        if k:
-            z, h, aa, ab = np.abs(s), np.abs(step), np.abs(a), np.abs(b)
-            # |q''| on the step's segment, with e^{tau |step|} <= 2 (checked) for the growth of a, b
-            m2 = 2.0 + 2.0 * (t1 * t1 * aa + t2 * ab * (2.0 + t2 * (z + h)))
-            bound = np.abs(q - dq * step) + 0.5 * m2 * h * h
-            mag = (z + D) * z + P + aa + ab * z
-            ok |= (h <= 1e-8 * (1.0 + z)) & ((t1 + t2) * h <= 0.69) & (bound <= RESIDUAL_TOL * mag)
-        s = s - np.where(finite, step, 0.0)
-        if k and (ok | ~finite).all():
-            break
-    return s, ok
+    try:
+        for k in range(_FAST_NEWTON_STEPS):
+            a = lp * cmath.exp(-t1 * s)
+            b = ld * cmath.exp(-t2 * s)
+            bs = b * s
+            q = (s + D) * s + P - a - bs
+            dq = 2.0 * s + D + t1 * a - b + t2 * bs
+            step = q / (dq - q / s if deflate else dq)
+            h = abs(step)
+            if not math.isfinite(h):
+                return s, False
+            if k:
+                z = abs(s)
+                if h <= 1e-8 * (1.0 + z) and (t1 + t2) * h <= 0.69:
+                    aa, ab = abs(a), abs(b)
+                    # |q''| on the step's segment, e^{tau |step|} <= 2 for the growth of a, b
+                    m2 = 2.0 + 2.0 * (t1 * t1 * aa + t2 * ab * (2.0 + t2 * (z + h)))
+                    bound = abs(q - dq * step) + 0.5 * m2 * h * h
+                    if bound <= RESIDUAL_TOL * ((z + D) * z + P + aa + ab * z):
+                        return s - step, True
+            s = s - step
+    except (OverflowError, ZeroDivisionError):
+        pass
+    return s, False
 
 
 # =====================================================================
@@ -372,6 +389,75 @@ def _count_rows(
     return np.where(good, np.round(count), np.nan)
 
 
+def _count_few(rows: _Rows, c: NDArray[np.float64]) -> NDArray[np.float64]:
+    """:func:`_count_rows` for a few rows: per-row constants and the tails in plain Python.
+
+    The same walk (4 x the initial samples, chord test, Cauchy radius, tails) with only
+    the samples along the lines in NumPy; rows whose walk needs a bisection are handed
+    to :func:`_count_rows`.
+    """
+    P, D = rows.P, rows.D
+    m = 4 * _INITIAL_SAMPLES
+    n = c.size
+    consts, cplx = [], []
+    try:
+        for lam, t1, t2, real, ci in zip(rows.lam.tolist(), rows.t1.tolist(), rows.t2.tolist(),
+                                         rows.real.tolist(), c.tolist()):  # fmt: skip
+            x1, x2 = math.exp(-t1 * ci), math.exp(-t2 * ci)
+            al = abs(lam)
+            E1, E2 = al * P * x1, al * D * x2
+            b1 = D + E2
+            omega = (b1 + math.sqrt(b1 * b1 + 4.0 * (P + E1))) / 2.0 * (1.0 + 1e-9) + 1e-12
+            lo = 0.0 if real else -omega
+            h = (omega - lo) / (m - 1)
+            consts.append((ci, lo, h, t2 * t2 * E2, 2.0 + t1 * t1 * E1 + 2.0 * t2 * E2, 0.125 * h * h, omega))
+            cplx.append((lam * (P * x1), lam * (D * x2), -1j * t1, -1j * t2))
+    except OverflowError:  # a line far left of long delays: the general walk refuses it
+        return _count_rows(rows, c)
+    cc, lo, h, m2_slope, m2_offset, h2, omega = np.array(consts).T
+    A1, B1, i1, i2 = np.array(cplx).T
+    w = lo + h * _sample_index(m)
+    sv = cc + 1j * w
+    q = sv * (sv + D - B1 * np.exp(i2 * w)) + (P - A1 * np.exp(i1 * w))
+    abs_s = np.abs(sv)
+    quad = (m2_slope * np.maximum(abs_s[:-1], abs_s[1:]) + m2_offset) * h2
+    qa, d = q[:-1], q[1:] - q[:-1]
+    dd = d.real * d.real + d.imag * d.imag
+    t = np.minimum(np.maximum((d.real * qa.real + d.imag * qa.imag) / -np.maximum(dd, 1e-300), 0.0), 1.0)
+    near = qa + t * d  # the chord's point nearest 0
+    good = near.real * near.real + near.imag * near.imag > quad * quad
+    if not good.all():
+        return _count_rows(rows, c)
+    turn = q[1:] * np.conj(qa)
+    total = np.arctan2(turn.imag, turn.real).sum(axis=0)
+    z1, z2 = _free_roots(P, D).tolist()
+    counts = np.full(n, np.nan)
+    for i, (tot, q_top, q_bot, real, (ci, _, _, _, _, _, om)) in enumerate(
+        zip(total.tolist(), q[-1].tolist(), q[0].tolist(), rows.real.tolist(), consts)
+    ):
+        # tails beyond +-Omega: arg q = arg g1 + Arg(q / g1), g1 = s^2 + D s + P (Rouche)
+        e = complex(ci, om)
+        top = math.pi - cmath.phase(e - z1) - cmath.phase(e - z2) - cmath.phase(q_top / ((e + D) * e + P))
+        if real:
+            delta = 2.0 * (tot + top)
+        else:
+            e = complex(ci, -om)
+            bottom = math.pi + cmath.phase(e - z1) + cmath.phase(e - z2) + cmath.phase(q_bot / ((e + D) * e + P))
+            delta = tot + top + bottom
+        count = 1.0 - delta / (2.0 * math.pi)
+        if math.isfinite(count) and abs(count - round(count)) < 0.1:
+            counts[i] = round(count)
+    return counts
+
+
+@lru_cache(maxsize=8)
+def _sample_index(m: int) -> NDArray[np.float64]:
+    """0, 1, ..., m - 1 as a column (read-only): the sample positions of a walk."""
+    j = np.arange(m, dtype=np.float64)[:, None]
+    j.flags.writeable = False
+    return j
+
+
 @lru_cache(maxsize=64)
 def _free_roots(P: float, D: float) -> NDArray[np.complex128]:
     """The roots of g1 = s^2 + D s + P (the tails' comparison polynomial), read-only."""
@@ -512,7 +598,7 @@ def _certify_few(
     counts = np.full(R, np.nan)
     idx = np.flatnonzero(good)
     if idx.size:
-        counts[idx] = _count_rows(rows if idx.size == R else rows.take(idx), c[idx])
+        counts[idx] = _count_few(rows if idx.size == R else rows.take(idx), c[idx])
     return right, good & (counts == expected), r
 
 
@@ -579,6 +665,19 @@ def _seed_plan(
     return radius, real, lam_real, lam_cplx
 
 
+def _eigvals(a: NDArray[Any]) -> NDArray[np.complex128]:
+    """Eigenvalues of a stack of small matrices, complex, NaN where LAPACK does not converge.
+
+    The LAPACK kernel behind np.linalg.eigvals, called directly: its wrapper's checks
+    (stacked, square, finite, then a scan for real results) cost as much as the solve
+    itself on the 8 x 8 matrices of one delay pair. Callers build finite matrices and run
+    under ``np.errstate(all="ignore")``; they treat a NaN seed as missing.
+    """
+    if _LAPACK_EIGVALS is None:  # a NumPy without the private kernel: the public route
+        return np.linalg.eigvals(a).astype(np.complex128)
+    return _LAPACK_EIGVALS(a, signature="d->D" if a.dtype == np.float64 else "D->D")  # type: ignore[no-any-return]
+
+
 def _family_seeds(lam: NDArray[np.complex128], P: float, D: float, t1: float, t2: float, k: int) -> NDArray[np.complex128]:
     """The k rightmost eigenvalues of every factor's discretized generator at one pair (F, k)."""
     hmax = max(t1, t2)
@@ -593,13 +692,24 @@ def _family_seeds(lam: NDArray[np.complex128], P: float, D: float, t1: float, t2
         M0, M1 = _generator_blocks(N, float(t1), float(t2), float(P), float(D))
         # real lam in one real stacked call (LAPACK's real solver is several times cheaper)
         if lam_cplx is None:
-            eig = np.linalg.eigvals(M0 + lam_real * M1)
+            eig = _eigvals(M0 + lam_real * M1)
         else:
             eig = np.empty((F, M0.shape[0]), dtype=np.complex128)
             if lam_real is not None:
-                eig[real] = np.linalg.eigvals(M0 + lam_real * M1)
-            eig[~real] = np.linalg.eigvals(M0 + lam_cplx * M1)
-    order = np.argsort(-eig.real, axis=1)[:, :k]
+                eig[real] = _eigvals(M0 + lam_real * M1)
+            eig[~real] = _eigvals(M0 + lam_cplx * M1)
+        # a real lam's matrix is real: its complex eigenvalues come in exact conjugate pairs,
+        # and the certificate folds a real row's seeds to Im >= 0 -- keep one of each pair
+        eig[real[:, None] & (eig.imag < 0.0)] = np.nan
+    return _rightmost_k(eig, k)
+
+
+def _rightmost_k(eig: NDArray[np.complex128], k: int) -> NDArray[np.complex128]:
+    """The k entries of largest real part per row (NaN last, NaN-padded to k columns)."""
+    F, width = eig.shape
+    if width == k:  # the certificate's seed window selects anyway
+        return eig
+    order = np.argsort(np.where(np.isnan(eig.real), np.inf, -eig.real), axis=1)[:, :k]
     top = eig[np.arange(F)[:, None], order]
     if top.shape[1] == k:
         return top
@@ -639,9 +749,11 @@ def _row_seeds(
             M0 = np.stack([m0 for m0, _ in blocks])
             M1 = np.stack([m1 for _, m1 in blocks])
             lr = lam[idx].real if real else lam[idx]
-            eig = np.linalg.eigvals(M0 + lr[:, None, None] * M1)
-            order = np.argsort(-eig.real, axis=1)[:, :k]
-            out[idx, : order.shape[1]] = eig[np.arange(idx.size)[:, None], order]
+            eig = _eigvals(M0 + lr[:, None, None] * M1)
+            if real:  # one of each conjugate pair (see _family_seeds)
+                eig[eig.imag < 0.0] = np.nan
+            top = _rightmost_k(eig, min(k, eig.shape[1]))
+            out[idx, : top.shape[1]] = top
     return out
 
 
