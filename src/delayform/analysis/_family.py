@@ -156,14 +156,12 @@ def _polish_rows(seeds: NDArray[np.complex128], rows: _Rows) -> tuple[NDArray[np
         sa = s[act]
         la, t1a, t2a = lam[act], t1[act], t2[act]
         q, dq, a, b = _q(sa, la, t1a, t2a, P, D)
-        deflated = defl[act]
-        den = np.where(deflated, dq - q / sa, dq)
-        step = q / den
+        step = _halley_step(sa, q, dq, a, b, t1a, t2a, defl[act])
         bad = ~np.isfinite(step)
         step[bad] = 0.0
         s[act] = sa - step
         abs_s, abs_h = np.abs(sa), np.abs(step)
-        # quadratic convergence: after a step below 1e-8 |s| the error is ~1e-16 |s|
+        # (at least) quadratic convergence: after a step below 1e-8 |s| the error is ~1e-16 |s|
         done = bad | (abs_h <= 1e-8 * (1.0 + abs_s))
         if done.any():
             i = np.flatnonzero(done & ~bad)
@@ -197,6 +195,27 @@ def _polish_rows(seeds: NDArray[np.complex128], rows: _Rows) -> tuple[NDArray[np
     good = np.zeros(R * K, dtype=bool)
     good[live] = ok
     return out.reshape(R, K), good.reshape(R, K)
+
+
+def _halley_step(
+    s: NDArray[np.complex128], q: NDArray[np.complex128], dq: NDArray[np.complex128], a: NDArray[np.complex128],
+    b: NDArray[np.complex128], t1: NDArray[np.float64], t2: NDArray[np.float64], deflate: NDArray[np.bool_],
+) -> NDArray[np.complex128]:
+    """Halley's step on g = q (g = q / s in deflated rows); Newton's where Halley's correction is large.
+
+    q'' = 2 - tau1^2 a + tau2 b (2 - tau2 s) costs a few products of values already at hand;
+    the step g g' / (g'^2 - g g'' / 2) converges cubically, so a seed predicted to 1e-4
+    is exact after one step and confirmed by the next: one evaluation of q fewer than Newton.
+    """
+    d2 = 2.0 - t1 * t1 * a + t2 * b * (2.0 - t2 * s)
+    if deflate.any():  # g = q / s: g' = (q' - g) / s, g'' = (q'' - 2 g') / s
+        g = np.where(deflate, q / s, q)
+        dq = np.where(deflate, (dq - g) / s, dq)
+        d2 = np.where(deflate, (d2 - 2.0 * dq) / s, d2)
+        q = g
+    newton = q / dq
+    ratio = newton * d2 / dq  # g g'' / g'^2
+    return np.where(np.abs(ratio) < 1.0, newton / (1.0 - 0.5 * ratio), newton)
 
 
 def _newton_few(
@@ -250,18 +269,33 @@ def _newton_one(s: complex, lam: complex, t1: float, t2: float, deflate: bool, P
 # the certificate, vectorized over rows (same bounds as certificate.py)
 # =====================================================================
 def _chord_ok(
-    qa: NDArray[np.complex128], qb: NDArray[np.complex128], wa: NDArray[np.float64], h: Any,
-    m2_slope: Any, m2_offset: Any, c2: Any,
-) -> NDArray[np.bool_]:
-    """Segments [c + i wa, c + i (wa + h)] on which q keeps off 0 by the chord test (see _count_rows)."""
-    wb = wa + h
-    rho = np.sqrt(c2 + np.maximum(wa * wa, wb * wb))
+    qa: NDArray[np.complex128], qb: NDArray[np.complex128], quad2: NDArray[np.float64],
+    qa2: NDArray[np.float64] | None = None, qb2: NDArray[np.float64] | None = None,
+) -> tuple[NDArray[np.bool_], NDArray[np.complex128]]:
+    """The chord test of :func:`_count_rows`: segments whose chord [q_a, q_b] keeps off 0 by more than sqrt(quad2).
+
+    From t = q_b conj(q_a): the chord's point nearest 0 lies inside it when Re t < |q_a|^2
+    and Re t < |q_b|^2, at distance |Im t| / |q_b - q_a|; otherwise the nearer end is the
+    nearest point. Returns the accepted segments and t, whose argument is the segment's
+    change of arg q where accepted. |q_a|^2, |q_b|^2 may be passed when already known.
+    """
+    if qa2 is None:
+        qa2 = qa.real * qa.real + qa.imag * qa.imag
+    if qb2 is None:
+        qb2 = qb.real * qb.real + qb.imag * qb.imag
+    turn = qb * np.conj(qa)
+    dd = qa2 + qb2 - 2.0 * turn.real  # |q_b - q_a|^2
+    inside = (turn.real < qa2) & (turn.real < qb2)
+    good = np.where(inside, turn.imag * turn.imag > quad2 * dd, np.minimum(qa2, qb2) > quad2)
+    return good, turn
+
+
+def _quad2(
+    rho: NDArray[np.float64], h: Any, m2_slope: Any, m2_offset: Any
+) -> NDArray[np.float64]:
+    """(M2 h^2 / 8)^2: the squared bound of |q - chord| on a segment of length h within |s| <= rho."""
     quad = (m2_slope * rho + m2_offset) * (0.125 * h * h)
-    d = qb - qa
-    dd = d.real * d.real + d.imag * d.imag
-    t = np.clip(-(d.real * qa.real + d.imag * qa.imag) / np.where(dd > 0.0, dd, 1.0), 0.0, 1.0)
-    near = qa + t * d  # the chord's point nearest 0
-    return near.real * near.real + near.imag * near.imag > quad * quad
+    return quad * quad  # type: ignore[no-any-return]
 
 
 def _count_rows(
@@ -310,18 +344,18 @@ def _count_rows(
 
     w = lo + h * np.arange(m)[:, None]  # (m, n)
 
-    def rotations(tau: NDArray[np.float64]) -> NDArray[np.complex128]:
-        z = np.empty((m, n), dtype=np.complex128)
-        z[0] = np.exp(-1j * (tau * lo))
-        rot = np.exp(-1j * (tau * h))
-        if n <= 64:  # e^{-i tau (lo + j h)} by repeated rotation: one accumulate call for few lines
-            z[1:] = rot
-            return np.cumprod(z, axis=0, out=z)
-        for j in range(1, m):  # many lines: NumPy's accumulate along axis 0 is not vectorized
+    # e^{-i tau (lo + j h)} for both delays by repeated rotation (no exponential per sample)
+    z = np.empty((m, 2, n), dtype=np.complex128)
+    tau = np.stack([t1, t2])
+    z[0] = np.exp(-1j * (tau * lo))
+    rot = np.exp(-1j * (tau * h))
+    if n <= 64:  # few lines: one accumulate call
+        z[1:] = rot
+        np.cumprod(z, axis=0, out=z)
+    else:  # many lines: NumPy's accumulate along axis 0 is not vectorized
+        for j in range(1, m):
             np.multiply(z[j - 1], rot, out=z[j])
-        return z
-
-    k1, k2 = rotations(t1), rotations(t2)
+    k1, k2 = z[:, 0], z[:, 1]
     sv = c + 1j * w
     q = sv * (sv + D - B1 * k2) + (P - A1 * k1)
     # an overflow poisons the line's sum; an exact zero of q on a sample fails the chord
@@ -331,13 +365,10 @@ def _count_rows(
     # the initial segments are tested in their (m - 1, n) layout (the chord test of _chord_ok with
     # rho = the larger |s| of a segment's ends); only rejected ones are gathered and bisected
     abs_s = np.abs(sv)
-    quad = (m2_slope * np.maximum(abs_s[:-1], abs_s[1:]) + m2_offset) * (0.125 * h * h)
-    qa, d = q[:-1], q[1:] - q[:-1]
-    dd = d.real * d.real + d.imag * d.imag
-    t = np.clip((d.real * qa.real + d.imag * qa.imag) / -np.maximum(dd, 1e-300), 0.0, 1.0)
-    near = qa + t * d  # the chord's point nearest 0
-    good = near.real * near.real + near.imag * near.imag > quad * quad
-    total = np.where(good, np.angle(q[1:] * np.conj(qa)), 0.0).sum(axis=0)
+    qq = q.real * q.real + q.imag * q.imag
+    good, turn = _chord_ok(q[:-1], q[1:], _quad2(np.maximum(abs_s[:-1], abs_s[1:]), h, m2_slope, m2_offset),
+                           qq[:-1], qq[1:])  # fmt: skip
+    total = np.where(good, np.arctan2(turn.imag, turn.real), 0.0).sum(axis=0)
     if good.all():  # usually so for a single pair: no segment to bisect, nothing to gather
         line = np.zeros(0, dtype=np.int64)
     else:
@@ -369,8 +400,11 @@ def _count_rows(
         wa = np.concatenate([wa, wm])
         qa, qb = np.concatenate([qa, qm]), np.concatenate([qm, qb])
         ka, kb = np.concatenate([ka, km]), np.concatenate([kb, kbm])
-        good = _chord_ok(qa, qb, wa, step[line], m2_slope[line], m2_offset[line], c2[line])
-        total += np.bincount(line[good], np.angle(qb[good] * np.conj(qa[good])), minlength=n)
+        hl = step[line]
+        rho = np.sqrt(c2[line] + np.maximum(wa * wa, (wa + hl) ** 2))
+        good, turn = _chord_ok(qa, qb, _quad2(rho, hl, m2_slope[line], m2_offset[line]))
+        turn = turn[good]
+        total += np.bincount(line[good], np.arctan2(turn.imag, turn.real), minlength=n)
         bad = ~good
         line, wa, qa, qb, ka, kb = line[bad], wa[bad], qa[bad], qb[bad], ka[bad], kb[bad]
     else:
@@ -421,14 +455,9 @@ def _count_few(rows: _Rows, c: NDArray[np.float64]) -> NDArray[np.float64]:
     q = sv * (sv + D - B1 * np.exp(i2 * w)) + (P - A1 * np.exp(i1 * w))
     abs_s = np.abs(sv)
     quad = (m2_slope * np.maximum(abs_s[:-1], abs_s[1:]) + m2_offset) * h2
-    qa, d = q[:-1], q[1:] - q[:-1]
-    dd = d.real * d.real + d.imag * d.imag
-    t = np.minimum(np.maximum((d.real * qa.real + d.imag * qa.imag) / -np.maximum(dd, 1e-300), 0.0), 1.0)
-    near = qa + t * d  # the chord's point nearest 0
-    good = near.real * near.real + near.imag * near.imag > quad * quad
+    good, turn = _chord_ok(q[:-1], q[1:], quad * quad)
     if not good.all():
         return _count_rows(rows, c)
-    turn = q[1:] * np.conj(qa)
     total = np.arctan2(turn.imag, turn.real).sum(axis=0)
     z1, z2 = _free_roots(P, D).tolist()
     counts = np.full(n, np.nan)
@@ -536,8 +565,7 @@ def _lines_of_rows(
     if deflate.any():
         key = np.concatenate([key, np.where(deflate, 0.0, -np.inf)[:, None]], axis=1)
         mult = np.concatenate([mult, deflate[:, None].astype(float)], axis=1)
-    order = np.argsort(-key, axis=1)
-    srt, m_srt = key[rix[:, None], order], mult[rix[:, None], order]
+    srt = -np.sort(-key, axis=1)  # descending; -inf (none) last
     width = srt.shape[1]
     n_known = (srt > -np.inf).sum(axis=1)
     k0 = (srt <= top[:, None]).argmax(axis=1)
@@ -551,7 +579,7 @@ def _lines_of_rows(
         c = np.where(take[rix, first], srt[rix, first] - np.minimum(0.5 * gap[rix, first], _LINE_OFFSET), c)
     last = srt[rix, np.maximum(np.minimum(k0 + 8, n_known - 1), 0)]
     c = np.where(np.isnan(c) & (top > -np.inf), last - _LINE_OFFSET, c)
-    expected = np.where(srt > c[:, None], m_srt, 0.0).sum(axis=1)
+    expected = np.where(key > c[:, None], mult, 0.0).sum(axis=1)
     return right, c, expected, r
 
 
