@@ -509,6 +509,8 @@ def _certify_rows(
     rightmost root is reported with Im >= 0 (real lam: of a conjugate pair;
     complex lam: the factor of conj(lam) mirrors it).
     """
+    if rows.size <= _FEW_ROWS:
+        return _certify_few(rows, seeds, window)
     real = rows.real[:, None]
     seeds = seeds.copy()  # the caller's seeds stay as they are
     np.abs(seeds.imag, out=seeds.imag, where=real)  # real rows: the member of a pair with Im >= 0
@@ -524,8 +526,6 @@ def _certify_rows(
         seeds[moved] = -1e-2
     roots, ok = _polish_rows(seeds, rows)
     np.abs(roots.imag, out=roots.imag, where=real)
-    if rows.size <= _FEW_ROWS:
-        return _certify_few(rows, roots, ok)
     right, c, expected, distinct = _lines_of_rows(roots, ok, rows.real, rows.deflate)
     good = np.isfinite(c)
     if good.all():
@@ -584,38 +584,48 @@ def _lines_of_rows(
 
 
 def _certify_few(
-    rows: _Rows, roots: NDArray[np.complex128], ok: NDArray[np.bool_]
+    rows: _Rows, seeds: NDArray[np.complex128], window: float
 ) -> tuple[NDArray[np.complex128], NDArray[np.bool_], NDArray[np.complex128]]:
-    """The second half of :func:`_certify_rows` for a few rows (one delay pair), in plain Python.
+    """:func:`_certify_rows` for a few rows (one delay pair): everything but the walk in plain Python.
 
-    Same distinct roots (sorted, a root within 1e-7 relative of the previous one dropped),
-    mirror images, line (:func:`delayform.analysis.certificate._choose_line`) and expected
-    count as the vectorized path; on a handful of rows each NumPy call costs more than
-    the arithmetic, and a single ``dominant_root`` is made of such calls.
+    Row by row, the same steps as the vectorized path: seeds folded to Im >= 0 in real
+    rows, the persistent zero moved off, the seed window, Newton (:func:`_newton_one`),
+    the distinct roots (sorted, a root within 1e-7 relative of the previous one dropped),
+    mirror images, the line (:func:`delayform.analysis.certificate._choose_line`) and the
+    expected count; then one :func:`_count_few` for all rows. On a handful of rows each
+    NumPy call costs more than its arithmetic, and a single ``dominant_root`` is made of them.
     """
     R = rows.size
+    P, D = rows.P, rows.D
     c = np.full(R, np.nan)
     expected = np.zeros(R)
     right = np.full(R, np.nan + 0j)
-    r = np.sort(np.where(ok, roots, np.nan), axis=1)  # by real part; NaN last
-    if r.shape[1] > 1:
-        close = np.abs(r[:, 1:] - r[:, :-1]) <= 1e-7 * (1.0 + np.abs(r[:, :-1]))
-        r[:, 1:][close] = np.nan
-    for i, (row, real, deflate) in enumerate(zip(r.tolist(), rows.real.tolist(), rows.deflate.tolist())):
-        reals: list[float] = []
-        best = None
-        for z in row:
-            if z != z:  # NaN: not accepted, or a repeat
-                continue
-            x = z.real
-            reals.append(x)
-            if real and abs(z.imag) > 1e-9 * (1.0 + abs(z)):  # and its mirror image
-                reals.append(x)
-            if best is None or x > best.real:
-                best = z
-        if best is None:
+    kept: list[list[complex]] = []
+    for i, (row, lam, t1, t2, real, deflate) in enumerate(zip(
+        seeds.tolist(), rows.lam.tolist(), rows.t1.tolist(), rows.t2.tolist(), rows.real.tolist(), rows.deflate.tolist()
+    )):  # fmt: skip
+        live = [complex(z.real, abs(z.imag)) if real else z for z in row if z == z]  # NaN: padding
+        moved = [z for z in live if deflate and abs(z) < 1e-6]
+        live = [z for z in live if not (deflate and abs(z) < 1e-6)]
+        top = max((z.real for z in live), default=-math.inf)
+        start = [z for z in live if z.real >= top - window] + [complex(-1e-2)] * bool(moved)
+        found = []
+        for z in start:
+            r, ok = _newton_one(z, lam, t1, t2, deflate, P, D)
+            if ok and deflate and abs(r) < 1e-6:  # a root beside the persistent zero: as _polish_rows
+                ok, r = t1 * lam * P + D * (1.0 - lam) == 0.0, 0j
+            if ok:
+                found.append(complex(r.real, abs(r.imag)) if real else r)
+        found.sort(key=lambda z: (z.real, z.imag))
+        distinct = [z for k, z in enumerate(found) if k == 0 or abs(z - found[k - 1]) > 1e-7 * (1.0 + abs(found[k - 1]))]
+        kept.append(distinct)
+        if not distinct:
             continue
+        best = max(distinct, key=lambda z: z.real)
         right[i] = complex(best.real, abs(best.imag))
+        reals = [z.real for z in distinct]
+        if real:  # the conjugates of the complex roots found (Im >= 0 only was polished)
+            reals += [z.real for z in distinct if abs(z.imag) > 1e-9 * (1.0 + abs(z))]
         if deflate:
             reals.append(0.0)
         reals.sort(reverse=True)
@@ -627,7 +637,10 @@ def _certify_few(
     idx = np.flatnonzero(good)
     if idx.size:
         counts[idx] = _count_few(rows if idx.size == R else rows.take(idx), c[idx])
-    return right, good & (counts == expected), r
+    distinct_rows = np.full((R, max(1, max(len(k) for k in kept))), np.nan + 0j)
+    for i, k in enumerate(kept):
+        distinct_rows[i, : len(k)] = k
+    return right, good & (counts == expected), distinct_rows
 
 
 # =====================================================================
