@@ -302,6 +302,66 @@ def _quad2(
     return quad * quad  # type: ignore[no-any-return]
 
 
+class _Walk:
+    """The lines Re s = c of a walk: what bisecting a rejected segment needs (see :func:`_count_rows`)."""
+
+    def __init__(
+        self, c: NDArray[np.float64], t1: NDArray[np.float64], t2: NDArray[np.float64], A1: NDArray[np.complex128],
+        B1: NDArray[np.complex128], m2_slope: NDArray[np.float64], m2_offset: NDArray[np.float64], P: float, D: float,
+    ) -> None:
+        self.c, self.t1, self.t2, self.A1, self.B1 = c, t1, t2, A1, B1
+        self.m2_slope, self.m2_offset, self.P, self.D = m2_slope, m2_offset, P, D
+
+    def bisect(
+        self, total: NDArray[np.float64], failed: NDArray[np.bool_], line: NDArray[np.int64], wa: NDArray[np.float64],
+        qa: NDArray[np.complex128], qb: NDArray[np.complex128], ka: NDArray[np.complex128], kb: NDArray[np.complex128],
+        h: NDArray[np.float64], max_segments: int,
+    ) -> None:
+        """Bisect the rejected segments [c + i wa, c + i (wa + h)] of each line until the chord test accepts them.
+
+        Adds their changes of arg q to ``total`` and marks in ``failed`` the lines that
+        need more than ``max_segments`` segments, 52 halvings, or meet a zero or an
+        overflow of q. ``ka``, ``kb``: e^{-i tau1 wa}, e^{-i tau2 wa} (rotated, not recomputed).
+        """
+        c, t1, t2, A1, B1, P, D = self.c, self.t1, self.t2, self.A1, self.B1, self.P, self.D
+        n = c.size
+        c2 = c * c
+        step = h.copy()
+        for _ in range(52):
+            if line.size == 0:
+                return
+            too_many = np.bincount(line, minlength=n) > max_segments
+            if too_many.any():
+                failed |= too_many
+                keep = ~too_many[line]
+                line, wa, qa, qb, ka, kb = line[keep], wa[keep], qa[keep], qb[keep], ka[keep], kb[keep]
+            step = 0.5 * step
+            wm = wa + step[line]
+            # the midpoints' unit factors: one rotation per line still walking (not per line of the batch)
+            walking = np.zeros(n, dtype=bool)
+            walking[line] = True
+            wl = np.flatnonzero(walking)
+            rot1, rot2 = np.empty(n, dtype=np.complex128), np.empty(n, dtype=np.complex128)
+            rot1[wl] = np.exp(-1j * (t1[wl] * step[wl]))
+            rot2[wl] = np.exp(-1j * (t2[wl] * step[wl]))
+            km, kbm = ka * rot1[line], kb * rot2[line]
+            sm = c[line] + 1j * wm
+            qm = (sm + D) * sm + P - A1[line] * km - (B1[line] * kbm) * sm
+            failed[line[~np.isfinite(qm) | (qm == 0.0)]] = True
+            line = np.concatenate([line, line])
+            wa = np.concatenate([wa, wm])
+            qa, qb = np.concatenate([qa, qm]), np.concatenate([qm, qb])
+            ka, kb = np.concatenate([ka, km]), np.concatenate([kb, kbm])
+            hl = step[line]
+            rho = np.sqrt(c2[line] + np.maximum(wa * wa, (wa + hl) ** 2))
+            good, turn = _chord_ok(qa, qb, _quad2(rho, hl, self.m2_slope[line], self.m2_offset[line]))
+            turn = turn[good]
+            total += np.bincount(line[good], np.arctan2(turn.imag, turn.real), minlength=n)
+            bad = ~good
+            line, wa, qa, qb, ka, kb = line[bad], wa[bad], qa[bad], qb[bad], ka[bad], kb[bad]
+        failed[line] = True
+
+
 def _count_rows(
     rows: _Rows, c: NDArray[np.float64], *, max_segments: int = 4096
 ) -> NDArray[np.float64]:
@@ -374,46 +434,11 @@ def _count_rows(
     good, turn = _chord_ok(q[:-1], q[1:], _quad2(np.maximum(abs_s[:-1], abs_s[1:]), h, m2_slope, m2_offset),
                            qq[:-1], qq[1:])  # fmt: skip
     total = np.where(good, np.arctan2(turn.imag, turn.real), 0.0).sum(axis=0)
-    if good.all():  # usually so for a single pair: no segment to bisect, nothing to gather
-        line = np.zeros(0, dtype=np.int64)
-    else:
+    if not good.all():
         j, line = np.nonzero(~good)
-        wa, qa, qb, ka, kb = w[j, line], q[j, line], q[j + 1, line], k1[j, line], k2[j, line]
-    step = h.copy()
-    for _ in range(52):
-        if line.size == 0:
-            break
-        too_many = np.bincount(line, minlength=n) > max_segments
-        if too_many.any():
-            failed |= too_many
-            keep = ~too_many[line]
-            line, wa, qa, qb, ka, kb = line[keep], wa[keep], qa[keep], qb[keep], ka[keep], kb[keep]
-        step = 0.5 * step
-        wm = wa + step[line]
-        # the midpoints' unit factors: one rotation per line still walking (not per line of the batch)
-        walking = np.zeros(n, dtype=bool)
-        walking[line] = True
-        wl = np.flatnonzero(walking)
-        rot1, rot2 = np.empty(n, dtype=np.complex128), np.empty(n, dtype=np.complex128)
-        rot1[wl] = np.exp(-1j * (t1[wl] * step[wl]))
-        rot2[wl] = np.exp(-1j * (t2[wl] * step[wl]))
-        km, kbm = ka * rot1[line], kb * rot2[line]
-        sm = c[line] + 1j * wm
-        qm = (sm + D) * sm + P - A1[line] * km - (B1[line] * kbm) * sm
-        failed[line[~np.isfinite(qm) | (qm == 0.0)]] = True
-        line = np.concatenate([line, line])
-        wa = np.concatenate([wa, wm])
-        qa, qb = np.concatenate([qa, qm]), np.concatenate([qm, qb])
-        ka, kb = np.concatenate([ka, km]), np.concatenate([kb, kbm])
-        hl = step[line]
-        rho = np.sqrt(c2[line] + np.maximum(wa * wa, (wa + hl) ** 2))
-        good, turn = _chord_ok(qa, qb, _quad2(rho, hl, m2_slope[line], m2_offset[line]))
-        turn = turn[good]
-        total += np.bincount(line[good], np.arctan2(turn.imag, turn.real), minlength=n)
-        bad = ~good
-        line, wa, qa, qb, ka, kb = line[bad], wa[bad], qa[bad], qb[bad], ka[bad], kb[bad]
-    else:
-        failed[line] = True
+        _Walk(c, t1, t2, A1, B1, m2_slope, m2_offset, P, D).bisect(
+            total, failed, line, w[j, line], q[j, line], q[j + 1, line], k1[j, line], k2[j, line], h, max_segments
+        )
     # tails beyond +-Omega: arg q = arg g1 + Arg(q / g1), g1 = s^2 + D s + P (Rouche)
     # (the walk's end samples are the points c +- i Omega; real rows use only the top one)
     z = _free_roots(P, D)
@@ -457,13 +482,21 @@ def _count_few(rows: _Rows, c: NDArray[np.float64]) -> NDArray[np.float64]:
     A1, B1, i1, i2 = np.array(cplx).T
     w = lo + h * _sample_index(m)
     sv = cc + 1j * w
-    q = sv * (sv + D - B1 * np.exp(i2 * w)) + (P - A1 * np.exp(i1 * w))
+    k1, k2 = np.exp(i1 * w), np.exp(i2 * w)
+    q = sv * (sv + D - B1 * k2) + (P - A1 * k1)
     abs_s = np.abs(sv)
     quad = (m2_slope * np.maximum(abs_s[:-1], abs_s[1:]) + m2_offset) * h2
     good, turn = _chord_ok(q[:-1], q[1:], quad * quad)
-    if not good.all():
-        return _count_rows(rows, c)
-    total = np.arctan2(turn.imag, turn.real).sum(axis=0)
+    if good.all():
+        total = np.arctan2(turn.imag, turn.real).sum(axis=0)
+        failed = None
+    else:
+        total = np.where(good, np.arctan2(turn.imag, turn.real), 0.0).sum(axis=0)
+        failed = ~np.isfinite(q.sum(axis=0))
+        j, line = np.nonzero(~good)
+        _Walk(cc, rows.t1, rows.t2, A1, B1, m2_slope, m2_offset, P, D).bisect(
+            total, failed, line, w[j, line], q[j, line], q[j + 1, line], k1[j, line], k2[j, line], h, 4096
+        )
     z1, z2 = _free_roots(P, D).tolist()
     counts = np.full(n, np.nan)
     for i, (tot, q_top, q_bot, real, (ci, _, _, _, _, _, om)) in enumerate(
@@ -479,7 +512,7 @@ def _count_few(rows: _Rows, c: NDArray[np.float64]) -> NDArray[np.float64]:
             bottom = math.pi + cmath.phase(e - z1) + cmath.phase(e - z2) + cmath.phase(q_bot / ((e + D) * e + P))
             delta = tot + top + bottom
         count = 1.0 - delta / (2.0 * math.pi)
-        if math.isfinite(count) and abs(count - round(count)) < 0.1:
+        if math.isfinite(count) and abs(count - round(count)) < 0.1 and (failed is None or not failed[i]):
             counts[i] = round(count)
     return counts
 
