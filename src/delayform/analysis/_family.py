@@ -426,7 +426,6 @@ def _count_rows(
     # an overflow poisons the line's sum; an exact zero of q on a sample fails the chord
     # test of both its segments in every round, so the line ends as not certified
     failed = ~np.isfinite(q.sum(axis=0))
-    c2 = c * c
     # the initial segments are tested in their (m - 1, n) layout (the chord test of _chord_ok with
     # rho = the larger |s| of a segment's ends); only rejected ones are gathered and bisected
     abs_s = np.abs(sv)
