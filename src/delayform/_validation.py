@@ -7,6 +7,7 @@ Each check either returns the value in the form the caller computes with
 
 from __future__ import annotations
 
+import math
 import numbers
 
 import numpy as np
@@ -16,10 +17,12 @@ from delayform.errors import DelayError, GainError, InputError
 
 
 def _real_scalar(name: str, value: object, error: type[InputError]) -> float:
-    if isinstance(value, bool) or not isinstance(value, (numbers.Real, np.floating, np.integer)):
-        raise error(f"{name} must be a real number, got {value!r}")
-    out = float(value)
-    if not np.isfinite(out):
+    # a plain float or int first: the ABC check below costs more than the rest of a fast call
+    if type(value) is not float and type(value) is not int:
+        if isinstance(value, bool) or not isinstance(value, (numbers.Real, np.floating, np.integer)):
+            raise error(f"{name} must be a real number, got {value!r}")
+    out = float(value)  # type: ignore[arg-type]
+    if not math.isfinite(out):
         raise error(f"{name} must be finite, got {out}")
     return out
 

@@ -634,50 +634,74 @@ def _certify_few(
     """
     R = rows.size
     P, D = rows.P, rows.D
-    c = np.full(R, np.nan)
-    expected = np.zeros(R)
-    right = np.full(R, np.nan + 0j)
+    c = [math.nan] * R
+    expected = [0.0] * R
+    right = [complex(math.nan)] * R
     kept: list[list[complex]] = []
     for i, (row, lam, t1, t2, real, deflate) in enumerate(zip(
         seeds.tolist(), rows.lam.tolist(), rows.t1.tolist(), rows.t2.tolist(), rows.real.tolist(), rows.deflate.tolist()
     )):  # fmt: skip
-        live = [complex(z.real, abs(z.imag)) if real else z for z in row if z == z]  # NaN: padding
-        moved = [z for z in live if deflate and abs(z) < 1e-6]
-        live = [z for z in live if not (deflate and abs(z) < 1e-6)]
-        top = max((z.real for z in live), default=-math.inf)
-        start = [z for z in live if z.real >= top - window] + [complex(-1e-2)] * bool(moved)
+        live, moved, top = [], False, -math.inf
+        for z in row:
+            if z != z:  # NaN: padding
+                continue
+            if real and z.imag < 0.0:
+                z = z.conjugate()
+            if deflate and abs(z) < 1e-6:
+                moved = True
+                continue
+            live.append(z)
+            if z.real > top:
+                top = z.real
+        if moved:
+            live.append(complex(-1e-2))
         found = []
-        for z in start:
+        for z in live:
+            if z.real < top - window:
+                continue
             r, ok = _newton_one(z, lam, t1, t2, deflate, P, D)
             if ok and deflate and abs(r) < 1e-6:  # a root beside the persistent zero: as _polish_rows
                 ok, r = t1 * lam * P + D * (1.0 - lam) == 0.0, 0j
             if ok:
-                found.append(complex(r.real, abs(r.imag)) if real else r)
-        found.sort(key=lambda z: (z.real, z.imag))
-        distinct = [z for k, z in enumerate(found) if k == 0 or abs(z - found[k - 1]) > 1e-7 * (1.0 + abs(found[k - 1]))]
-        kept.append(distinct)
-        if not distinct:
+                found.append(r.conjugate() if real and r.imag < 0.0 else r)
+        if not found:
+            kept.append(found)
             continue
-        best = max(distinct, key=lambda z: z.real)
+        found.sort(key=_real_imag)
+        distinct, reals, best = [found[0]], [], found[0]
+        for a, b in zip(found, found[1:]):
+            if abs(b - a) > 1e-7 * (1.0 + abs(a)):
+                distinct.append(b)
+        kept.append(distinct)
+        for z in distinct:
+            reals.append(z.real)
+            if real and abs(z.imag) > 1e-9 * (1.0 + abs(z)):  # and its mirror image
+                reals.append(z.real)
+            if z.real > best.real:
+                best = z
         right[i] = complex(best.real, abs(best.imag))
-        reals = [z.real for z in distinct]
-        if real:  # the conjugates of the complex roots found (Im >= 0 only was polished)
-            reals += [z.real for z in distinct if abs(z.imag) > 1e-9 * (1.0 + abs(z))]
         if deflate:
             reals.append(0.0)
         reals.sort(reverse=True)
         ci = _choose_line(reals, best.real)
         c[i] = ci
-        expected[i] = sum(1 for x in reals if x > ci)
-    good = np.isfinite(c)
+        expected[i] = float(sum(1 for x in reals if x > ci))
+    line = np.array(c)
+    good = line == line  # not NaN
     counts = np.full(R, np.nan)
-    idx = np.flatnonzero(good)
-    if idx.size:
-        counts[idx] = _count_few(rows if idx.size == R else rows.take(idx), c[idx])
+    if good.all():
+        counts = _count_few(rows, line)
+    elif good.any():
+        idx = np.flatnonzero(good)
+        counts[idx] = _count_few(rows.take(idx), line[idx])
     distinct_rows = np.full((R, max(1, max(len(k) for k in kept))), np.nan + 0j)
     for i, k in enumerate(kept):
         distinct_rows[i, : len(k)] = k
-    return right, good & (counts == expected), distinct_rows
+    return np.array(right), good & (counts == np.array(expected)), distinct_rows
+
+
+def _real_imag(z: complex) -> tuple[float, float]:
+    return z.real, z.imag
 
 
 # =====================================================================

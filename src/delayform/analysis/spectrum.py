@@ -177,9 +177,14 @@ def relative_residual(
 _MAX_REACH = 40.0
 
 
+@lru_cache(maxsize=16)
+def _largest_reach_scale(fs: tuple[CharacteristicFactor, ...]) -> float:
+    return float(family_reach_scales(fs).max())
+
+
 def _family_reach(fs: tuple[CharacteristicFactor, ...], t1: float, t2: float) -> None:
     """:func:`_check_reach` of every factor at once (the checks of the per-factor path, in its order)."""
-    if max(t1, t2) * float(family_reach_scales(fs).max()) > _MAX_REACH:
+    if max(t1, t2) * _largest_reach_scale(fs) > _MAX_REACH:
         for f in sorted(fs, key=lambda f: f.is_centroid):
             _check_reach(_problem_of_factor(f), t1, t2)
 
