@@ -534,12 +534,13 @@ def _free_roots(P: float, D: float) -> NDArray[np.complex128]:
 
 
 def _certify_rows(
-    rows: _Rows, seeds: NDArray[np.complex128], window: float = _SEED_WINDOW
+    rows: _Rows, seeds: NDArray[np.complex128], fresh: int = 0, window: float = _SEED_WINDOW
 ) -> tuple[NDArray[np.complex128], NDArray[np.bool_], NDArray[np.complex128]]:
     """Polish seeds (R, K) per row, certify the rightmost: (rightmost, certified, known roots).
 
-    Only seeds within ``window`` of a row's rightmost seed are polished; a redo
-    passes ``inf`` (a stale rightmost seed that converges nowhere would drop the good ones).
+    Only seeds within ``window`` of a row's rightmost seed are polished; with ``fresh`` > 0
+    the window is set by the rightmost of the first ``fresh`` columns (a redo's new
+    discretization seeds: a stale seed that converges nowhere would drop the good ones).
 
     The vectorized counterpart of :func:`delayform.analysis._rightmost._certify`
     (same seed window, distinct roots, mirror images and line choice). The
@@ -547,7 +548,7 @@ def _certify_rows(
     complex lam: the factor of conj(lam) mirrors it).
     """
     if rows.size <= _FEW_ROWS:
-        return _certify_few(rows, seeds, window)
+        return _certify_few(rows, seeds, fresh, window)
     real = rows.real[:, None]
     seeds = seeds.copy()  # the caller's seeds stay as they are
     np.abs(seeds.imag, out=seeds.imag, where=real)  # real rows: the member of a pair with Im >= 0
@@ -557,7 +558,7 @@ def _certify_rows(
     any_moved = bool(moved.any())
     if any_moved:
         seeds[moved] = np.nan
-    top_seed = np.fmax.reduce(seeds.real, axis=1)  # NaN (padding) ignored
+    top_seed = np.fmax.reduce(seeds.real[:, : fresh or None], axis=1)  # NaN (padding) ignored
     seeds[seeds.real < top_seed[:, None] - window] = np.nan
     if any_moved:
         seeds[moved] = -1e-2
@@ -621,7 +622,7 @@ def _lines_of_rows(
 
 
 def _certify_few(
-    rows: _Rows, seeds: NDArray[np.complex128], window: float
+    rows: _Rows, seeds: NDArray[np.complex128], fresh: int, window: float
 ) -> tuple[NDArray[np.complex128], NDArray[np.bool_], NDArray[np.complex128]]:
     """:func:`_certify_rows` for a few rows (one delay pair): everything but the walk in plain Python.
 
@@ -642,7 +643,7 @@ def _certify_few(
         seeds.tolist(), rows.lam.tolist(), rows.t1.tolist(), rows.t2.tolist(), rows.real.tolist(), rows.deflate.tolist()
     )):  # fmt: skip
         live, moved, top = [], False, -math.inf
-        for z in row:
+        for j, z in enumerate(row):
             if z != z:  # NaN: padding
                 continue
             if real and z.imag < 0.0:
@@ -651,7 +652,7 @@ def _certify_few(
                 moved = True
                 continue
             live.append(z)
-            if z.real > top:
+            if z.real > top and (not fresh or j < fresh):
                 top = z.real
         if moved:
             live.append(complex(-1e-2))
@@ -1044,8 +1045,15 @@ def family_grid(
             bad = np.flatnonzero(~ok)
             fresh = _row_seeds(rows.lam[bad], rows.t1[bad], rows.t2[bad], P, D, 2 * _BATCH_SEEDS)
             fresh = np.where(rows.deflate[bad][:, None] & (np.abs(fresh) < 1e-9), np.nan, fresh)
-            r2, ok2, roots2 = _certify_rows(rows.take(bad), np.concatenate([fresh, seeds[bad]], axis=1), np.inf)
-            r[bad[ok2]], ok[bad[ok2]], roots[bad[ok2]] = r2[ok2], True, _pad(roots2[ok2], _KEEP)
+            both = np.concatenate([fresh, seeds[bad]], axis=1)
+            # the window set by the new seeds; where their rightmost is a spurious eigenvalue
+            # of the discretization (it converges elsewhere), every seed polished
+            for cols, window in ((fresh.shape[1], _SEED_WINDOW), (0, np.inf)):
+                r2, ok2, roots2 = _certify_rows(rows.take(bad), both, cols, window)
+                r[bad[ok2]], ok[bad[ok2]], roots[bad[ok2]] = r2[ok2], True, _pad(roots2[ok2], _KEEP)
+                bad, both = bad[~ok2], both[~ok2]
+                if bad.size == 0:
+                    break
         r, ok, roots = r.reshape(F, -1), ok.reshape(F, -1), roots.reshape(F, pts.size, _KEEP)
         right[:, pts], known[:, pts] = r, roots
         for k in np.flatnonzero((~ok).any(axis=1)):
