@@ -209,17 +209,20 @@ def _halley_step(
     is exact after one step and confirmed by the next: one evaluation of q fewer than Newton.
     """
     d2 = 2.0 - t1 * t1 * a + t2 * b * (2.0 - t2 * s)
-    newton = q / dq
-    ratio = newton * d2 / dq  # g g'' / g'^2
+    # one complex division: g g' / (g'^2 - g g'' / 2); Halley's where |g g''| < |g'|^2
+    gg1, gg2, dq2 = q * dq, q * d2, dq * dq
     i = np.flatnonzero(deflate)
     if i.size:  # g = q / s: g' = (q' - g) / s, g'' = (q'' - 2 g') / s
         si = s[i]
         g = q[i] / si
         g1 = (dq[i] - g) / si
-        newton[i] = g / g1
-        ratio[i] = newton[i] * ((d2[i] - 2.0 * g1) / si) / g1
-    cubic = np.abs(ratio) < 1.0
-    return np.where(cubic, newton / (1.0 - 0.5 * ratio), newton), cubic
+        gg1[i], gg2[i], dq2[i] = g * g1, g * ((d2[i] - 2.0 * g1) / si), g1 * g1
+    cubic = np.abs(gg2) < np.abs(dq2)
+    step = gg1 / (dq2 - 0.5 * gg2)
+    newton = np.flatnonzero(~cubic)
+    if newton.size:  # g / g' = g g' / g'^2
+        step[newton] = gg1[newton] / dq2[newton]
+    return step, cubic
 
 
 def _newton_few(
