@@ -404,55 +404,90 @@ def _count_rows(
     b1, b0 = D + E2, P + E1
     omega = (b1 + np.sqrt(b1 * b1 + 4.0 * b0)) / 2.0 * (1.0 + 1e-9) + 1e-12
     m2_slope, m2_offset = t2 * t2 * E2, 2.0 + t1 * t1 * E1 + 2.0 * t2 * E2
-    # few lines: the Python cost of a bisection round outweighs extra samples
-    m = _INITIAL_SAMPLES if n > 64 else 4 * _INITIAL_SAMPLES
     lo = np.where(rows.real, 0.0, -omega)
-    h = (omega - lo) / (m - 1)
-
-    w = lo + h * np.arange(m)[:, None]  # (m, n)
-
-    # e^{-i tau (lo + j h)} for both delays by repeated rotation (no exponential per sample)
-    z = np.empty((m, 2, n), dtype=np.complex128)
-    tau = np.stack([t1, t2])
-    z[0] = np.exp(-1j * (tau * lo))
-    rot = np.exp(-1j * (tau * h))
-    if n <= 64:  # few lines: one accumulate call
-        z[1:] = rot
-        np.cumprod(z, axis=0, out=z)
-    else:  # many lines: NumPy's accumulate along axis 0 is not vectorized
-        for j in range(1, m):
-            np.multiply(z[j - 1], rot, out=z[j])
-    k1, k2 = z[:, 0], z[:, 1]
-    sv = np.empty((m, n), dtype=np.complex128)
-    sv.real, sv.imag = c, w
-    q = sv * (sv + D - B1 * k2) + (P - A1 * k1)
-    # an overflow poisons the line's sum; an exact zero of q on a sample fails the chord
-    # test of both its segments in every round, so the line ends as not certified
-    failed = ~np.isfinite(q.sum(axis=0))
-    # the initial segments are tested in their (m - 1, n) layout (the chord test of _chord_ok with
-    # rho = the larger |s| of a segment's ends); only rejected ones are gathered and bisected
-    abs_s = np.abs(sv)
-    qq = q.real * q.real + q.imag * q.imag
-    good, turn = _chord_ok(q[:-1], q[1:], _quad2(np.maximum(abs_s[:-1], abs_s[1:]), h, m2_slope, m2_offset),
-                           qq[:-1], qq[1:])  # fmt: skip
-    total = np.where(good, np.arctan2(turn.imag, turn.real), 0.0).sum(axis=0)
-    if not good.all():
-        j, line = np.nonzero(~good)
-        _Walk(c, t1, t2, A1, B1, m2_slope, m2_offset, P, D).bisect(
-            total, failed, line, w[j, line], q[j, line], q[j + 1, line], k1[j, line], k2[j, line], h, max_segments
+    if n <= 64:  # few lines: the Python cost of a bisection round outweighs extra samples
+        sizes = np.full(n, 4 * _INITIAL_SAMPLES)
+    else:  # samples in proportion to how far e^{-i tau w} turns along the walk (about 1.2 rad apart)
+        turn = np.maximum(t1, t2) * (omega - lo)
+        sizes = _WALK_SIZES[np.minimum(np.searchsorted(_WALK_SIZES, turn / 1.2 + 2.0), _WALK_SIZES.size - 1)]
+    h = (omega - lo) / (sizes - 1)
+    total = np.zeros(n)
+    failed = np.zeros(n, dtype=bool)
+    ends = np.empty((2, n), dtype=np.complex128)  # q at the top and the bottom end of each walk
+    rejected = []
+    buckets = np.unique(sizes)
+    for m in buckets:
+        idx = np.flatnonzero(sizes == m) if buckets.size > 1 else np.arange(n)
+        tot, fail, q_ends, rej = _walk_uniform(
+            int(m), c[idx], t1[idx], t2[idx], lo[idx], h[idx], A1[idx], B1[idx], m2_slope[idx], m2_offset[idx], P, D
         )
+        total[idx], failed[idx], ends[:, idx] = tot, fail, q_ends
+        if rej is not None:
+            rejected.append((idx[rej[0]],) + rej[1:])
+    if rejected:
+        line, wa, qa, qb, ka, kb = (np.concatenate(parts) for parts in zip(*rejected))
+        _Walk(c, t1, t2, A1, B1, m2_slope, m2_offset, P, D).bisect(total, failed, line, wa, qa, qb, ka, kb, h, max_segments)
     # tails beyond +-Omega: arg q = arg g1 + Arg(q / g1), g1 = s^2 + D s + P (Rouche)
-    # (the walk's end samples are the points c +- i Omega; real rows use only the top one)
+    # (the walk's end points are c + i Omega and c + i lo; real rows use only the top one)
     z = _free_roots(P, D)
-    ends = sv[_ENDS]  # (2, n): the top end, then the bottom one
-    ratio = np.angle(q[_ENDS] / ((ends + D) * ends + P))
-    ang = np.angle(ends[..., None] - z)  # (2, n, 2)
+    s_ends = c + 1j * np.stack([omega, lo])  # (2, n): the top end, then the bottom one
+    ratio = np.angle(ends / ((s_ends + D) * s_ends + P))
+    ang = np.angle(s_ends[..., None] - z)  # (2, n, 2)
     top = (np.pi / 2 - ang[0]).sum(axis=-1) - ratio[0]
     bottom = (ang[1] + np.pi / 2).sum(axis=-1) + ratio[1]
     delta = np.where(rows.real, 2.0 * (total + top), total + top + bottom)
     count = 1.0 - delta / (2.0 * np.pi)
     good = ~failed & np.isfinite(count) & (np.abs(count - np.round(count)) < 0.1)
     return np.where(good, np.round(count), np.nan)
+
+
+#: Sample counts of a walk's uniform first pass (chosen per line by how far e^{-i tau w} turns).
+_WALK_SIZES = np.array([6, 8, 12, 16, 24, 32, 48])
+
+
+def _walk_uniform(
+    m: int, c: NDArray[np.float64], t1: NDArray[np.float64], t2: NDArray[np.float64], lo: NDArray[np.float64],
+    h: NDArray[np.float64], A1: NDArray[np.complex128], B1: NDArray[np.complex128],
+    m2_slope: NDArray[np.float64], m2_offset: NDArray[np.float64], P: float, D: float,
+) -> tuple[NDArray[np.float64], NDArray[np.bool_], NDArray[np.complex128], tuple[NDArray[Any], ...] | None]:
+    """The first pass of :func:`_count_rows` over lines sampled at m uniform points each.
+
+    Returns the change of arg q over the accepted segments, the lines that failed (an
+    overflow), q at the two ends of each walk, and the rejected segments (line index,
+    start w, q at both ends, the unit factors at the start), or None when all passed.
+    """
+    n = c.size
+    w = lo + h * np.arange(m)[:, None]  # (m, n)
+    # e^{-i tau (lo + j h)} for both delays by repeated rotation (no exponential per sample)
+    zr = np.empty((m, 2, n), dtype=np.complex128)
+    tau = np.stack([t1, t2])
+    zr[0] = np.exp(-1j * (tau * lo))
+    rot = np.exp(-1j * (tau * h))
+    if n <= 64:  # few lines: one accumulate call
+        zr[1:] = rot
+        np.cumprod(zr, axis=0, out=zr)
+    else:  # many lines: NumPy's accumulate along axis 0 is not vectorized
+        for j in range(1, m):
+            np.multiply(zr[j - 1], rot, out=zr[j])
+    k1, k2 = zr[:, 0], zr[:, 1]
+    sv = np.empty((m, n), dtype=np.complex128)
+    sv.real, sv.imag = c, w
+    q = sv * (sv + D - B1 * k2) + (P - A1 * k1)
+    # an overflow poisons the line's sum; an exact zero of q on a sample fails the chord
+    # test of both its segments in every round, so the line ends as not certified
+    failed = ~np.isfinite(q.sum(axis=0))
+    # the segments are tested in their (m - 1, n) layout (the chord test of _chord_ok with
+    # rho = the larger |s| of a segment's ends); only rejected ones are gathered and bisected
+    abs_s = np.abs(sv)
+    qq = q.real * q.real + q.imag * q.imag
+    good, turn = _chord_ok(q[:-1], q[1:], _quad2(np.maximum(abs_s[:-1], abs_s[1:]), h, m2_slope, m2_offset),
+                           qq[:-1], qq[1:])  # fmt: skip
+    total = np.where(good, np.arctan2(turn.imag, turn.real), 0.0).sum(axis=0)
+    rejected = None
+    if not good.all():
+        j, line = np.nonzero(~good)
+        rejected = (line, w[j, line], q[j, line], q[j + 1, line], k1[j, line], k2[j, line])
+    return total, failed, q[_ENDS], rejected
 
 
 def _count_few(rows: _Rows, c: NDArray[np.float64]) -> NDArray[np.float64]:
