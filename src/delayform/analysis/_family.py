@@ -407,9 +407,9 @@ def _count_rows(
     lo = np.where(rows.real, 0.0, -omega)
     if n <= 64:  # few lines: the Python cost of a bisection round outweighs extra samples
         sizes = np.full(n, 4 * _INITIAL_SAMPLES)
-    else:  # samples in proportion to how far e^{-i tau w} turns along the walk (about 1.2 rad apart)
+    else:  # samples in proportion to how far e^{-i tau w} turns along the walk (about 1.8 rad apart)
         turn = np.maximum(t1, t2) * (omega - lo)
-        sizes = _WALK_SIZES[np.minimum(np.searchsorted(_WALK_SIZES, turn / 1.2 + 2.0), _WALK_SIZES.size - 1)]
+        sizes = _WALK_SIZES[np.minimum(np.searchsorted(_WALK_SIZES, turn / 1.8 + 2.0), _WALK_SIZES.size - 1)]
     h = (omega - lo) / (sizes - 1)
     total = np.zeros(n)
     failed = np.zeros(n, dtype=bool)
