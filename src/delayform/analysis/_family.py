@@ -765,18 +765,27 @@ def _generator_blocks(N: int, t1: float, t2: float, P: float, D: float) -> tuple
     Only the last row depends on lam (the delays enter through the interpolation rows
     L1, L2, hence the cache per delays).
     """
+    K0, K1 = _generator_stack(N, np.array([t1]), np.array([t2]), P, D)
+    return K0[0], K1[0]
+
+
+def _generator_stack(
+    N: int, t1: NDArray[np.float64], t2: NDArray[np.float64], P: float, D: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`_generator_blocks` at many delay pairs at once, shape (B, N + 2, N + 2) each."""
     _, Dm, _ = _chebyshev(N)
-    h = np.array([t1, t2])
-    hmax = float(h.max())
-    L = _lagrange_rows(N, 1.0 - 2.0 * h / hmax)  # (2, N+1)
-    Dh = (2.0 / hmax) * Dm
-    K0 = np.zeros((N + 2, N + 2))
-    K0[0, N + 1] = 1.0
-    K0[1 : N + 1, : N + 1] = Dh[1:]
-    K0[N + 1, 0], K0[N + 1, N + 1] = -P, -D
-    K1 = np.zeros((N + 2, N + 2))
-    K1[N + 1, : N + 1] = P * L[0] + D * (L[1, 1:] @ Dh[1:])
-    K1[N + 1, N + 1] = D * L[1, 0]
+    h = np.stack([t1, t2], axis=-1)  # (B, 2)
+    hmax = h.max(axis=-1)
+    L = _lagrange_rows(N, 1.0 - 2.0 * h / hmax[:, None])  # (B, 2, N+1)
+    Dh = (2.0 / hmax)[:, None, None] * Dm[1:]  # (B, N, N+1)
+    B = t1.size
+    K0 = np.zeros((B, N + 2, N + 2))
+    K0[:, 0, N + 1] = 1.0
+    K0[:, 1 : N + 1, : N + 1] = Dh
+    K0[:, N + 1, 0], K0[:, N + 1, N + 1] = -P, -D
+    K1 = np.zeros((B, N + 2, N + 2))
+    K1[:, N + 1, : N + 1] = P * L[:, 0] + D * np.einsum("bj,bjk->bk", L[:, 1, 1:], Dh)
+    K1[:, N + 1, N + 1] = D * L[:, 1, 0]
     return K0, K1
 
 
@@ -886,9 +895,7 @@ def _row_seeds(
             idx = np.flatnonzero(~tiny & (N == n) & ((lam.imag == 0.0) == real))
             if idx.size == 0:
                 continue
-            blocks = [_generator_blocks(int(n), float(t1[i]), float(t2[i]), float(P), float(D)) for i in idx]
-            M0 = np.stack([m0 for m0, _ in blocks])
-            M1 = np.stack([m1 for _, m1 in blocks])
+            M0, M1 = _generator_stack(int(n), t1[idx], t2[idx], P, D)
             lr = lam[idx].real if real else lam[idx]
             eig = _eigvals(M0 + lr[:, None, None] * M1)
             if real:  # one of each conjugate pair (see _family_seeds)
