@@ -638,9 +638,25 @@ def _lines_of_rows(
     top = key[rix, best]
     right = r[rix, best]
     right = right.real + 1j * np.abs(right.imag)
-    if deflate.any():
-        key = np.concatenate([key, np.where(deflate, 0.0, -np.inf)[:, None]], axis=1)
-        mult = np.concatenate([mult, deflate[:, None].astype(float)], axis=1)
+    # usually the rightmost root stands clear of the next (and of the centroid's zero, which
+    # then lies right of it): the line goes in that first gap; the other rows take the full rule
+    srt = -np.sort(-key, axis=1)  # descending; -inf (none) last
+    gap = srt[:, 0] - srt[:, 1] if srt.shape[1] > 1 else np.full(R, np.inf)
+    c = top - np.minimum(0.5 * gap, _LINE_OFFSET)
+    hard = (gap <= 1e-3 * (1.0 + np.abs(top))) | (deflate & (top >= 0.0))
+    if hard.any():
+        h = np.flatnonzero(hard)
+        c[h] = _choose_lines(np.where(deflate[h, None], np.concatenate([srt[h], np.zeros((h.size, 1))], axis=1),
+                                      np.concatenate([srt[h], np.full((h.size, 1), -np.inf)], axis=1)), top[h])
+    c[~(top > -np.inf)] = np.nan
+    expected = np.where(key > c[:, None], mult, 0.0).sum(axis=1) + (deflate & (0.0 > c))
+    return right, c, expected, r
+
+
+def _choose_lines(key: NDArray[np.float64], top: NDArray[np.float64]) -> NDArray[np.float64]:
+    """:func:`delayform.analysis.certificate._choose_line` per row of known real parts (-inf: none)."""
+    R = key.shape[0]
+    rix = np.arange(R)
     srt = -np.sort(-key, axis=1)  # descending; -inf (none) last
     width = srt.shape[1]
     n_known = (srt > -np.inf).sum(axis=1)
@@ -654,9 +670,7 @@ def _lines_of_rows(
         first = take.argmax(axis=1)
         c = np.where(take[rix, first], srt[rix, first] - np.minimum(0.5 * gap[rix, first], _LINE_OFFSET), c)
     last = srt[rix, np.maximum(np.minimum(k0 + 8, n_known - 1), 0)]
-    c = np.where(np.isnan(c) & (top > -np.inf), last - _LINE_OFFSET, c)
-    expected = np.where(key > c[:, None], mult, 0.0).sum(axis=1)
-    return right, c, expected, r
+    return np.where(np.isnan(c), last - _LINE_OFFSET, c)
 
 
 def _certify_few(
