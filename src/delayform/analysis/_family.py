@@ -322,7 +322,9 @@ class _Walk:
     ) -> None:
         """Bisect the rejected segments [c + i wa, c + i (wa + h)] of each line until the chord test accepts them.
 
-        Adds their changes of arg q to ``total`` and marks in ``failed`` the lines that
+        Adds 2 pi times their crossings of the branch cut of Arg (:func:`_cut_crossings`) to
+        ``total`` -- the rest of their change of arg q telescopes to the Arg of the rejected
+        segments' ends, which the caller has counted -- and marks in ``failed`` the lines that
         need more than ``max_segments`` segments, 52 halvings, or meet a zero or an
         overflow of q. ``ka``, ``kb``: e^{-i tau1 wa}, e^{-i tau2 wa} (rotated, not recomputed).
         """
@@ -358,8 +360,8 @@ class _Walk:
             hl = step[line]
             rho = np.sqrt(c2[line] + np.maximum(wa * wa, (wa + hl) ** 2))
             good, turn = _chord_ok(qa, qb, _quad2(rho, hl, self.m2_slope[line], self.m2_offset[line]))
-            turn = turn[good]
-            total += np.bincount(line[good], np.arctan2(turn.imag, turn.real), minlength=n)
+            cut = _cut_crossings(np.signbit(qa.imag), np.signbit(qb.imag), turn.imag)
+            total += (2.0 * np.pi) * np.bincount(line[good], cut[good], minlength=n)
             bad = ~good
             line, wa, qa, qb, ka, kb = line[bad], wa[bad], qa[bad], qb[bad], ka[bad], kb[bad]
         failed[line] = True
@@ -482,12 +484,31 @@ def _walk_uniform(
     qq = q.real * q.real + q.imag * q.imag
     good, turn = _chord_ok(q[:-1], q[1:], _quad2(np.maximum(abs_s[:-1], abs_s[1:]), h, m2_slope, m2_offset),
                            qq[:-1], qq[1:])  # fmt: skip
-    total = np.where(good, np.arctan2(turn.imag, turn.real), 0.0).sum(axis=0)
+    # the change of arg q over the whole walk, whatever its final segments: Arg at the ends plus
+    # 2 pi per crossing of Arg's branch cut (accepted segments here, bisected ones in _Walk.bisect)
+    lower = np.signbit(q.imag)
+    cut = np.where(good, _cut_crossings(lower[:-1], lower[1:], turn.imag), 0).sum(axis=0)
+    ends = q[_ENDS]
+    total = np.angle(ends[0]) - np.angle(ends[1]) + (2.0 * np.pi) * cut
     rejected = None
     if not good.all():
         j, line = np.nonzero(~good)
         rejected = (line, w[j, line], q[j, line], q[j + 1, line], k1[j, line], k2[j, line])
-    return total, failed, q[_ENDS], rejected
+    return total, failed, ends, rejected
+
+
+def _cut_crossings(
+    lower_a: NDArray[np.bool_], lower_b: NDArray[np.bool_], turn_imag: NDArray[np.float64]
+) -> NDArray[np.int64]:
+    """+1 / -1 where a segment of q's path crosses Arg's branch cut (the negative reals) counterclockwise / clockwise.
+
+    For a segment whose change of arg q lies in (-pi, pi) (every segment the chord test
+    accepts) the change is Arg(q_b) - Arg(q_a) + 2 pi times this; counterclockwise
+    (Im(q_b conj(q_a)) > 0) from Im q >= 0 to Im q < 0 passes the negative reals, and the
+    reverse. ``lower``: the sign bit of Im q, the branch NumPy's Arg follows for -0.0.
+    """
+    ccw = turn_imag > 0.0
+    return (~lower_a & lower_b & ccw).astype(np.int64) - (lower_a & ~lower_b & (turn_imag < 0.0))
 
 
 def _count_few(rows: _Rows, c: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -527,8 +548,9 @@ def _count_few(rows: _Rows, c: NDArray[np.float64]) -> NDArray[np.float64]:
     if good.all():
         total = np.arctan2(turn.imag, turn.real).sum(axis=0)
         failed = None
-    else:
-        total = np.where(good, np.arctan2(turn.imag, turn.real), 0.0).sum(axis=0)
+    else:  # the rejected segments' change: Arg at their ends here, their crossings in bisect
+        arg = np.angle(q)
+        total = np.where(good, np.arctan2(turn.imag, turn.real), arg[1:] - arg[:-1]).sum(axis=0)
         failed = ~np.isfinite(q.sum(axis=0))
         j, line = np.nonzero(~good)
         _Walk(cc, rows.t1, rows.t2, A1, B1, m2_slope, m2_offset, P, D).bisect(
