@@ -27,7 +27,7 @@ from __future__ import annotations
 import cmath
 import math
 from collections.abc import Callable, Sequence
-from functools import lru_cache
+from functools import lru_cache, partial
 from typing import Any
 
 import numpy as np
@@ -153,10 +153,9 @@ def _polish_rows(seeds: NDArray[np.complex128], rows: _Rows) -> tuple[NDArray[np
     for _ in range(_FAST_NEWTON_STEPS if act.size else 0):
         if act.size == 0:
             break
-        sa = s[act]
-        la, t1a, t2a = lam[act], t1[act], t2[act]
+        sa, la, t1a, t2a, da = (np.take(x, act) for x in (s, lam, t1, t2, defl))
         q, dq, a, b = _q(sa, la, t1a, t2a, P, D)
-        step, cubic = _halley_step(sa, q, dq, a, b, t1a, t2a, defl[act])
+        step, cubic = _halley_step(sa, q, dq, a, b, t1a, t2a, da)
         bad = ~np.isfinite(step)
         step[bad] = 0.0
         s[act] = sa - step
@@ -341,7 +340,8 @@ class _Walk:
                 keep = ~too_many[line]
                 line, wa, qa, qb, ka, kb = line[keep], wa[keep], qa[keep], qb[keep], ka[keep], kb[keep]
             step = 0.5 * step
-            wm = wa + step[line]
+            take = partial(np.take, indices=line)  # 1-D gathers: np.take beats fancy indexing
+            wm = wa + take(step)
             # the midpoints' unit factors: one rotation per line still walking (not per line of the batch)
             walking = np.zeros(n, dtype=bool)
             walking[line] = True
@@ -349,21 +349,23 @@ class _Walk:
             rot1, rot2 = np.empty(n, dtype=np.complex128), np.empty(n, dtype=np.complex128)
             rot1[wl] = np.exp(-1j * (t1[wl] * step[wl]))
             rot2[wl] = np.exp(-1j * (t2[wl] * step[wl]))
-            km, kbm = ka * rot1[line], kb * rot2[line]
-            sm = c[line] + 1j * wm
-            qm = (sm + D) * sm + P - A1[line] * km - (B1[line] * kbm) * sm
+            km, kbm = ka * take(rot1), kb * take(rot2)
+            sm = take(c) + 1j * wm
+            qm = (sm + D) * sm + P - take(A1) * km - (take(B1) * kbm) * sm
             failed[line[~np.isfinite(qm) | (qm == 0.0)]] = True
             line = np.concatenate([line, line])
+            take = partial(np.take, indices=line)
             wa = np.concatenate([wa, wm])
             qa, qb = np.concatenate([qa, qm]), np.concatenate([qm, qb])
             ka, kb = np.concatenate([ka, km]), np.concatenate([kb, kbm])
-            hl = step[line]
-            rho = np.sqrt(c2[line] + np.maximum(wa * wa, (wa + hl) ** 2))
-            good, turn = _chord_ok(qa, qb, _quad2(rho, hl, self.m2_slope[line], self.m2_offset[line]))
+            hl = take(step)
+            rho = np.sqrt(take(c2) + np.maximum(wa * wa, (wa + hl) ** 2))
+            good, turn = _chord_ok(qa, qb, _quad2(rho, hl, take(self.m2_slope), take(self.m2_offset)))
             cut = _cut_crossings(np.signbit(qa.imag), np.signbit(qb.imag), turn.imag)
-            total += (2.0 * np.pi) * np.bincount(line[good], cut[good], minlength=n)
-            bad = ~good
-            line, wa, qa, qb, ka, kb = line[bad], wa[bad], qa[bad], qb[bad], ka[bad], kb[bad]
+            g = np.flatnonzero(good)
+            total += (2.0 * np.pi) * np.bincount(np.take(line, g), np.take(cut, g), minlength=n)
+            bad = np.flatnonzero(~good)
+            line, wa, qa, qb, ka, kb = (np.take(x, bad) for x in (line, wa, qa, qb, ka, kb))
         failed[line] = True
 
 
@@ -432,12 +434,14 @@ def _count_rows(
     # tails beyond +-Omega: arg q = arg g1 + Arg(q / g1), g1 = s^2 + D s + P (Rouche)
     # (the walk's end points are c + i Omega and c + i lo; real rows use only the top one)
     z = _free_roots(P, D)
-    s_ends = c + 1j * np.stack([omega, lo])  # (2, n): the top end, then the bottom one
-    ratio = np.angle(ends / ((s_ends + D) * s_ends + P))
-    ang = np.angle(s_ends[..., None] - z)  # (2, n, 2)
-    top = (np.pi / 2 - ang[0]).sum(axis=-1) - ratio[0]
-    bottom = (ang[1] + np.pi / 2).sum(axis=-1) + ratio[1]
-    delta = np.where(rows.real, 2.0 * (total + top), total + top + bottom)
+    e = c + 1j * omega  # the top end
+    top = (np.pi / 2 - np.angle(e[:, None] - z)).sum(axis=-1) - np.angle(ends[0] / ((e + D) * e + P))
+    delta = 2.0 * (total + top)
+    cx = np.flatnonzero(~rows.real)
+    if cx.size:  # complex lam: the whole line, and the bottom tail
+        e = c[cx] - 1j * omega[cx]
+        bottom = (np.angle(e[:, None] - z) + np.pi / 2).sum(axis=-1) + np.angle(ends[1, cx] / ((e + D) * e + P))
+        delta[cx] = total[cx] + top[cx] + bottom
     count = 1.0 - delta / (2.0 * np.pi)
     good = ~failed & np.isfinite(count) & (np.abs(count - np.round(count)) < 0.1)
     return np.where(good, np.round(count), np.nan)
