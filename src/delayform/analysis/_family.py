@@ -141,9 +141,9 @@ def _polish_rows(seeds: NDArray[np.complex128], rows: _Rows) -> tuple[NDArray[np
     flat = seeds.ravel()
     live = np.flatnonzero(np.isfinite(flat))  # NaN seeds (padding) cost nothing
     rid = live // K
-    s = flat[live].copy()
+    s = np.take(flat, live)
     P, D = rows.P, rows.D
-    lam, t1, t2, defl = rows.lam[rid], rows.t1[rid], rows.t2[rid], rows.deflate[rid]
+    lam, t1, t2, defl = (np.take(x, rid) for x in (rows.lam, rows.t1, rows.t2, rows.deflate))
     if s.size <= _FEW_SEEDS:
         s, ok = _newton_few(s, lam, t1, t2, defl, P, D)
         act = np.zeros(0, dtype=np.int64)
@@ -1118,7 +1118,8 @@ def family_grid(
         else:  # later levels: the roots of the nearest solved point, moved along their tangents
             i, j = pts // n2, pts % n2
             src = _nearest(i, prev1, ax1) * n2 + _nearest(j, prev2, ax2)
-            seeds = _predict(known[:, src], slope1[:, src], slope2[:, src], t1[pts] - t1[src], t2[pts] - t2[src])
+            seeds = _predict(*(np.take(x, src, axis=1) for x in (known, slope1, slope2)),
+                             t1[pts] - t1[src], t2[pts] - t2[src])  # fmt: skip
             seeds = seeds.reshape(F * pts.size, _KEEP)
         rows = _Rows(
             np.repeat(lam, pts.size), np.tile(t1[pts], F), np.tile(t2[pts], F),
