@@ -99,6 +99,54 @@ def test_family_count_equals_first_order_count(lam_re: float, lam_im: float, tau
         assert got == want
 
 
+def _generic_count(lam: complex, tau1: float, tau2: float, c: float) -> float:
+    """Roots of q_lam with Re s > c by the generic first-order certificate (NaN: a root on the line)."""
+    qp = TwoDelayQuasiPolynomial([P, D, 1.0], [-lam * P], [0.0, -lam * D])
+    try:
+        return float(count_roots_right_of(qp, tau1, tau2, c))
+    except Exception:
+        return float("nan")
+
+
+def _rows(lam, tau1, tau2):
+    lam = np.asarray(lam, dtype=complex)
+    return _family._Rows(lam, np.asarray(tau1, float), np.asarray(tau2, float), lam.imag == 0.0,
+                         np.zeros(lam.size, dtype=bool), P, D)
+
+
+def test_many_line_walk_equals_first_order_count() -> None:
+    # more than 64 lines: samples per line by how far e^{-i tau w} turns, bisection of the
+    # rejected segments, the winding from Arg at the ends plus branch-cut crossings
+    rng = np.random.default_rng(2026)
+    n = 90
+    lam = rng.uniform(-1.0, 1.0, n) + 1j * rng.uniform(-1.0, 1.0, n) * (rng.random(n) < 0.4)
+    tau1, tau2, c = rng.uniform(0.0, 8.0, n), rng.uniform(0.0, 8.0, n), rng.uniform(-0.6, 0.4, n)
+    with np.errstate(all="ignore"):
+        got = _family._count_rows(_rows(lam, tau1, tau2), c)
+        few = np.concatenate([_family._count_few(_rows(lam[k:k + 9], tau1[k:k + 9], tau2[k:k + 9]), c[k:k + 9])
+                              for k in range(0, n, 9)])
+    checked = 0
+    for k in range(n):
+        want = _generic_count(complex(lam[k]), tau1[k], tau2[k], c[k])
+        if np.isfinite(want) and np.isfinite(got[k]):
+            assert got[k] == want, k
+            checked += 1
+        if np.isfinite(want) and np.isfinite(few[k]):
+            assert few[k] == want, k
+    assert checked >= 0.9 * n
+
+
+def test_long_walk_counts_hundreds_of_roots() -> None:
+    # a line far left of long delays: e^{-i tau w} turns through hundreds of radians along the
+    # walk and the line has hundreds of roots to its right; the count is the first-order one
+    lam, tau1, tau2, c = -0.5 + 0j, 3.0, 7.5, -0.75
+    with np.errstate(all="ignore"):
+        got = _family._count_rows(_rows([lam] * 65, [tau1] * 65, [tau2] * 65), np.full(65, c))
+    want = _generic_count(lam, tau1, tau2, c)
+    assert want > 100
+    assert np.all(got == want)
+
+
 # ----------------------------------------------------------------------------- CTCR family path
 @pytest.mark.parametrize("n", [3, 8, 25, 64])
 def test_circulant_eigenvalues_match_dense_eigvals(n: int) -> None:
