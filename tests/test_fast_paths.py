@@ -147,6 +147,16 @@ def test_long_walk_counts_hundreds_of_roots() -> None:
     assert np.all(got == want)
 
 
+@pytest.mark.parametrize(("tau1", "tau2"), [(0.0, 0.0), (0.0, 1.3), (0.3, 0.2), (2.0, 1.0), (4.7, 6.1)])
+def test_rightmost_root_of_a_factor_equals_the_generic_path(tau1: float, tau2: float) -> None:
+    # a factor goes through the family path; the generic one (its own seeds, first-order walk) agrees
+    from delayform.analysis.spectrum import _problem, _rightmost, rightmost_root
+
+    for team in (paper_six(), ring(5)):
+        for f in factors(team, P, D):
+            assert abs(rightmost_root(f, tau1, tau2) - _rightmost(_problem(f), tau1, tau2)) < 1e-9
+
+
 # ----------------------------------------------------------------------------- CTCR family path
 @pytest.mark.parametrize("n", [3, 8, 25, 64])
 def test_circulant_eigenvalues_match_dense_eigvals(n: int) -> None:

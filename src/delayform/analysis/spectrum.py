@@ -431,6 +431,9 @@ def rightmost_root(
     (-0.605021, 1.788188)
     """
     t1, t2 = check_delay("tau1", tau1), check_delay("tau2", tau2)
+    if isinstance(qp, CharacteristicFactor):  # a factor of eq. factorized: the vectorized family path
+        _family_reach((qp,), t1, t2)
+        return complex(family_rightmost((qp,), float(qp.P), float(qp.D), t1, t2)[0])
     return _rightmost(_problem(qp), t1, t2)
 
 
