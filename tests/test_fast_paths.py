@@ -19,7 +19,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import ref_spectrum as ref
-from delayform.analysis import _family, _family_curves, _phase
+from delayform.analysis import _family_curves, _phase, _rows, _seeds, _walk
 from delayform.analysis.ctcr import stability_map
 from delayform.analysis.spectrum import count_roots_right_of, dominant_root, dominant_root_map
 from delayform.characteristic import TwoDelayQuasiPolynomial, factors
@@ -86,9 +86,9 @@ def test_family_count_equals_first_order_count(lam_re: float, lam_im: float, tau
                                                offset: float) -> None:
     lam = complex(lam_re, lam_im)
     real = lam_im == 0.0
-    rows = _family._Rows(np.array([lam]), np.array([tau1]), np.array([tau2]), np.array([real]),
+    rows = _rows._Rows(np.array([lam]), np.array([tau1]), np.array([tau2]), np.array([real]),
                          np.array([False]), P, D)
-    got = _family._count_rows(rows, np.array([offset]))[0]
+    got = _walk._count_rows(rows, np.array([offset]))[0]
     qp = TwoDelayQuasiPolynomial([P, D, 1.0], [-lam * P], [0.0, -lam * D])
     try:
         want = count_roots_right_of(qp, tau1, tau2, offset)
@@ -108,9 +108,9 @@ def _generic_count(lam: complex, tau1: float, tau2: float, c: float) -> float:
         return float("nan")
 
 
-def _rows(lam, tau1, tau2):
+def _rows_of(lam, tau1, tau2):
     lam = np.asarray(lam, dtype=complex)
-    return _family._Rows(lam, np.asarray(tau1, float), np.asarray(tau2, float), lam.imag == 0.0,
+    return _rows._Rows(lam, np.asarray(tau1, float), np.asarray(tau2, float), lam.imag == 0.0,
                          np.zeros(lam.size, dtype=bool), P, D)
 
 
@@ -122,8 +122,8 @@ def test_many_line_walk_equals_first_order_count() -> None:
     lam = rng.uniform(-1.0, 1.0, n) + 1j * rng.uniform(-1.0, 1.0, n) * (rng.random(n) < 0.4)
     tau1, tau2, c = rng.uniform(0.0, 8.0, n), rng.uniform(0.0, 8.0, n), rng.uniform(-0.6, 0.4, n)
     with np.errstate(all="ignore"):
-        got = _family._count_rows(_rows(lam, tau1, tau2), c)
-        few = np.concatenate([_family._count_few(_rows(lam[k:k + 9], tau1[k:k + 9], tau2[k:k + 9]), c[k:k + 9])
+        got = _walk._count_rows(_rows_of(lam, tau1, tau2), c)
+        few = np.concatenate([_walk._count_few(_rows_of(lam[k:k + 9], tau1[k:k + 9], tau2[k:k + 9]), c[k:k + 9])
                               for k in range(0, n, 9)])
     checked = 0
     for k in range(n):
@@ -141,7 +141,7 @@ def test_long_walk_counts_hundreds_of_roots() -> None:
     # walk and the line has hundreds of roots to its right; the count is the first-order one
     lam, tau1, tau2, c = -0.5 + 0j, 3.0, 7.5, -0.75
     with np.errstate(all="ignore"):
-        got = _family._count_rows(_rows([lam] * 65, [tau1] * 65, [tau2] * 65), np.full(65, c))
+        got = _walk._count_rows(_rows_of([lam] * 65, [tau1] * 65, [tau2] * 65), np.full(65, c))
     want = _generic_count(lam, tau1, tau2, c)
     assert want > 100
     assert np.all(got == want)
@@ -227,7 +227,7 @@ def test_reduced_generator_has_the_full_discretizations_eigenvalues(
     if swap:
         t1, t2 = t2, t1
     for f in factors(paper_six(), P, D):
-        K0, K1 = _family._generator_blocks(N, t1, t2, P, D)
+        K0, K1 = _seeds._generator_blocks(N, t1, t2, P, D)
         got = np.linalg.eigvals(K0 + complex(f.lam) * K1)
         full = _igd_eigenvalues(_problem_of_factor(f), N, np.array([t1]), np.array([t2]))[0]
         if f.group.is_complex_pair:  # the generic factor of a pair is of order 4 (lam and conj(lam))

@@ -9,7 +9,7 @@ eq. factorized are solved as one family (the structure of
 ``s^2 + D s + P - lam (P e^{-tau1 s} + D s e^{-tau2 s})`` with its own lam):
 
 1. the seeds of all factors come from stacked eigenvalue calls on the
-   reduced Chebyshev generator of size N + 2 (``_family._generator_blocks``;
+   reduced Chebyshev generator of size N + 2 (``_seeds._generator_blocks``;
    the full one has size 2 (N + 1)), real lam in real arithmetic, at the
    degree :func:`roots_in` would start with;
 2. Newton polishes every seed of every factor in one vectorized loop;
@@ -33,7 +33,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from delayform._validation import check_delay
-from delayform.analysis._family import _generator_blocks, _lams, _polish_rows, _q, _Rows, family_reach_scales
+from delayform.analysis._family import family_reach_scales
+from delayform.analysis._polish import _polish_rows, _q
+from delayform.analysis._rows import _lams, _Rows
+from delayform.analysis._seeds import _generator_blocks
 from delayform.analysis._generator import _initial_degree, _require_resolvable
 from delayform.analysis._quasi import _TINY_DELAY, Region, _cluster, _multiplicity, _problem_of_factor
 from delayform.analysis.spectrum import _check_region, _checked_factors, _in_region, roots_in
