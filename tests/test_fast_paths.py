@@ -19,7 +19,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import ref_spectrum as ref
-from delayform.analysis import _family_curves, _phase, _rows, _seeds, _walk
+from delayform.analysis import _family, _family_curves, _phase, _rows, _seeds, _walk
 from delayform.analysis.ctcr import stability_map
 from delayform.analysis.spectrum import count_roots_right_of, dominant_root, dominant_root_map
 from delayform.characteristic import TwoDelayQuasiPolynomial, factors
@@ -145,6 +145,41 @@ def test_long_walk_counts_hundreds_of_roots() -> None:
     want = _generic_count(lam, tau1, tau2, c)
     assert want > 100
     assert np.all(got == want)
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    reals=st.lists(st.floats(-2.0, 0.5), min_size=1, max_size=5),
+    imags=st.lists(st.floats(-3.0, 3.0), min_size=5, max_size=5),
+    near=st.booleans(), real=st.booleans(), deflate=st.booleans(),
+    accepted=st.lists(st.booleans(), min_size=5, max_size=5),
+)
+def test_vectorized_line_choice_equals_the_scalar_rule(reals, imags, near, real, deflate, accepted) -> None:
+    # _lines_of_rows (the map's rows) against certificate._choose_line (the per-factor rule)
+    from delayform.analysis.certificate import _choose_line
+
+    k = len(reals)
+    roots = np.array(reals) + 1j * np.array(imags[:k])
+    if near and k > 1:  # a gap narrower than the rule's 1e-3
+        roots[1] = roots[0].real + 1e-5 + 1j * roots[1].imag
+    if real:
+        roots = roots.real + 1j * np.abs(roots.imag)
+    ok = np.array(accepted[:k])
+    with np.errstate(all="ignore"):  # as in the family's entry points (-inf - -inf for missing roots)
+        right, c, expected, _ = _family._lines_of_rows(roots[None, :], ok[None, :], np.array([real]),
+                                                       np.array([deflate]))
+    acc = sorted((z for z, g in zip(roots.tolist(), ok.tolist()) if g), key=lambda z: (z.real, z.imag))
+    distinct = [z for i, z in enumerate(acc) if i == 0 or abs(z - acc[i - 1]) > 1e-7 * (1.0 + abs(acc[i - 1]))]
+    if not distinct:
+        assert np.isnan(c[0])
+        return
+    best = max(distinct, key=lambda z: z.real)
+    known = [z.real for z in distinct] + [z.real for z in distinct if real and abs(z.imag) > 1e-9 * (1 + abs(z))]
+    known = sorted(known + [0.0] * deflate, reverse=True)
+    want = _choose_line(known, best.real)
+    assert c[0] == pytest.approx(want, abs=1e-12)
+    assert expected[0] == sum(1 for x in known if x > want)
+    assert right[0].real == best.real
 
 
 @pytest.mark.parametrize(("tau1", "tau2"), [(0.0, 0.0), (0.0, 1.3), (0.3, 0.2), (2.0, 1.0), (4.7, 6.1)])
