@@ -1,0 +1,405 @@
+"""Characteristic roots of one quasi-polynomial or factor: in a rectangle, right of a line, the rightmost.
+
+These are the roots for any retarded quasi-polynomial of eq. genfactor and for
+the factors of eq. factorized; :mod:`delayform.analysis.spectrum` builds the
+formation's dominant root and the dominant-root maps on them.
+
+Method
+------
+1. **Global approximation.** The infinitesimal generator of the DDE
+   ``dx/dt = A x + sum_k B_k x(t - h_k)`` is discretized by Chebyshev
+   collocation on ``[-h_max, 0]`` (Breda, Maset and Vermiglio, "Pseudospectral
+   differencing methods for characteristic roots of delay differential
+   equations", SIAM J. Sci. Comput. 27, 2005). Its eigenvalues approximate
+   the characteristic roots. A factor of eq. factorized is realized by its own
+   subsystem eq. subsystems (eq. matrices2; a conjugate pair, eq. matrices4,
+   splits into the complex second-order factor of ``lam`` and its mirror image,
+   which halves the work); a general retarded quasi-polynomial of degree N is
+   realized in companion form with the delays tau1, tau2, 2 tau1, 2 tau2 and
+   tau1 + tau2 of eq. genfactor.
+2. **Newton polishing** on the quasi-polynomial itself. A root is accepted
+   when its *relative residual*
+   ``|q(s)| / sum_k sum_i |g_k,i| |s|^i |e^{-h_k s}|`` (the modulus of q over
+   the sum of the moduli of its monomial terms, i.e. a backward error) is at
+   most :data:`RESIDUAL_TOL` = 1e-10.
+3. **Certificate by the argument principle.** No root may be missed. The
+   number of roots inside a contour is computed from the winding of q along
+   it, with a *certified* sampling: between two samples ``s_j, s_j+1`` the
+   change of q is bounded by a Lipschitz bound ``L_j |s_j+1 - s_j|`` built
+   from the moduli of the coefficients, and the sampling is refined until
+   ``min(|q(s_j)|, |q(s_j+1)|) > L_j |s_j+1 - s_j| / 2``, which keeps each
+   arg increment below pi, so the unwrapped phase, hence the count, is exact
+   (up to floating-point rounding in evaluating q). For a right half-plane
+   ``Re s > c`` the contour is the line ``Re s = c`` closed at infinity: a
+   Cauchy-type bound ``Omega`` gives ``|g1(s)| > sum_k |g_k(s) e^{-h_k s}|``
+   for ``|Im s| >= Omega`` on the line (Rouche), so the tails contribute the
+   arg change of g1 in closed form. When the count differs from the number of
+   polished roots found, the discretization degree is raised and the step
+   repeated; after :data:`MAX_DEGREE`, :class:`~delayform.errors.NotConvergedError`
+   carries the roots found so far.
+
+Guarantee
+---------
+:func:`roots_in` returns every root in the rectangle (the count inside the
+rectangle is certified). :func:`rightmost_root` and everything built on it
+(:func:`dominant_root`, :func:`dominant_root_map`, :func:`schedule_delays`)
+return a root such that the certified number of roots in ``Re s > c`` equals
+the number of polished roots found there, for a line ``c`` placed in a gap
+left of the returned root: no root to its right is missed.
+
+Conventions: coefficients in increasing powers of s; delays in seconds,
+``tau1`` on positions and ``tau2`` on velocities (eq. protocol); the
+centroid factor's persistent root s = 0 (eq. factor1) is deflated with
+Maehly's correction and excluded from dominant roots (its other roots count).
+"""
+
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from delayform._validation import check_delay
+from delayform.analysis._family import family_reach_scales, family_rightmost
+from delayform.analysis._generator import (
+    _delay_free_eigenvalues,
+    _igd_eigenvalues,
+    _igd_seeds,
+    _initial_degree,
+    _max_delay,
+    _require_resolvable,
+    _root_scale,
+)
+from delayform.analysis._quasi import (
+    MAX_DEGREE,
+    RESIDUAL_TOL,
+    Region,
+    _cluster,
+    _evaluate,
+    _mirror_problem,
+    _multiplicity,
+    _polish,
+    _Problem,
+    _problem,
+    _problem_of_factor,
+)
+from delayform.analysis._rightmost import _BATCH_SEEDS, _certify, _pick_rightmost, _solve_rightmost
+from delayform.analysis.certificate import _count_right_single, _region_count
+from delayform.characteristic import CharacteristicFactor, TwoDelayQuasiPolynomial
+from delayform.errors import DelayError, InputError, NotConvergedError
+
+__all__ = ["RESIDUAL_TOL", "roots_in", "rightmost_root", "count_roots_right_of", "relative_residual"]
+
+
+def relative_residual(
+    qp: TwoDelayQuasiPolynomial, s: ArrayLike, tau1: ArrayLike, tau2: ArrayLike
+) -> NDArray[np.float64]:
+    """|q(s)| over the sum of the moduli of its monomial terms (a backward error).
+
+    This is the "relative" of the acceptance test ``<= RESIDUAL_TOL`` for
+    every root this module returns.
+
+    Parameters
+    ----------
+    qp
+        A quasi-polynomial of eq. genfactor.
+    s
+        Complex point(s) at which q is evaluated.
+    tau1, tau2
+        Delays (s) on positions and on velocities; broadcast with ``s``.
+        Not validated.
+
+    Returns
+    -------
+    ndarray of float
+        ``|q(s)| / sum_k sum_i |g_k,i| |s|^i |e^{-h_k s}|`` in the broadcast
+        shape of s, tau1 and tau2.
+
+    >>> q = TwoDelayQuasiPolynomial([-1.0, 1.0])
+    >>> float(relative_residual(q, 1.0, 0.0, 0.0))
+    0.0
+    """
+    s_arr = np.asarray(s, dtype=np.complex128)
+    q, _, mag = _evaluate(
+        qp.terms(), s_arr, np.asarray(tau1, dtype=float), np.asarray(tau2, dtype=float)
+    )
+    return np.abs(q) / mag
+
+
+# =====================================================================
+#: largest (delay x root scale) the rightmost-root path certifies reliably (measured on the
+#: paper's factors: 30 s works, 60 s does not; the scale there is about 1.2)
+_MAX_REACH = 40.0
+
+
+@lru_cache(maxsize=16)
+def _largest_reach_scale(fs: tuple[CharacteristicFactor, ...]) -> float:
+    return float(family_reach_scales(fs).max())
+
+
+def _family_reach(fs: tuple[CharacteristicFactor, ...], t1: float, t2: float) -> None:
+    """:func:`_check_reach` of every factor at once (the checks of the per-factor path, in its order)."""
+    if max(t1, t2) * _largest_reach_scale(fs) > _MAX_REACH:
+        for f in sorted(fs, key=lambda f: f.is_centroid):
+            _check_reach(_problem_of_factor(f), t1, t2)
+
+
+def _check_reach(prob: _Problem, t1: float, t2: float) -> None:
+    """Refuse, in one line, delays too long for the certified root finder (not for CTCR charts)."""
+    h = max([a * t1 + b * t2 for _, a, b in prob.delayed] + [0.0])
+    scale = _root_scale(prob)
+    if h * scale > _MAX_REACH:
+        raise DelayError(
+            f"a delay of {h:.4g} s is too long for the dominant-root finder with these gains (it handles "
+            f"delays up to about {_MAX_REACH / scale:.3g} s); choose shorter delays (the stability chart has no such limit)"
+        )
+
+
+
+# =====================================================================
+# public: roots of one quasi-polynomial
+# =====================================================================
+def _check_region(region: object) -> Region:
+    try:
+        vals = tuple(float(v) for v in region)  # type: ignore[union-attr]
+    except (TypeError, ValueError) as exc:
+        raise InputError("region must be (re_min, re_max, im_min, im_max)") from exc
+    if len(vals) != 4 or not all(math.isfinite(v) for v in vals):
+        raise InputError("region must be four finite numbers (re_min, re_max, im_min, im_max)")
+    if not (vals[0] < vals[1] and vals[2] < vals[3]):
+        raise InputError(f"region must have re_min < re_max and im_min < im_max, got {vals}")
+    return vals  # type: ignore[return-value]
+
+
+def _with_mirror(prob: _Problem, roots: NDArray[np.complex128]) -> NDArray[np.complex128]:
+    """Roots of q_lam and their conjugates, the roots of q_conj(lam) (a pair factor)."""
+    if not prob.mirror:
+        return roots
+    return np.concatenate([roots, np.conj(roots)])
+
+
+def roots_in(
+    qp: TwoDelayQuasiPolynomial | CharacteristicFactor, tau1: float, tau2: float, region: Region
+) -> NDArray[np.complex128]:
+    """All characteristic roots in a rectangle of the complex plane.
+
+    Parameters
+    ----------
+    qp
+        A retarded quasi-polynomial of eq. genfactor, or a factor of
+        eq. factorized (for the centroid factor eq. factor1 the persistent
+        root 0 is *included*: this is the plain root set of q).
+    tau1, tau2
+        Non-negative delays.
+    region
+        (re_min, re_max, im_min, im_max).
+
+    Returns
+    -------
+    ndarray of complex
+        The roots in the rectangle, a multiple root repeated by its
+        multiplicity (as numpy.roots does), sorted by decreasing real part,
+        each with relative residual <= RESIDUAL_TOL (:func:`relative_residual`).
+        The count, with multiplicity, is certified by the argument principle
+        on the rectangle's boundary.
+
+    Raises
+    ------
+    NeutralQuasiPolynomialError
+        For a quasi-polynomial of neutral type.
+    ResourceLimitError
+        When the rectangle reaches so far from the origin that the roots
+        there cannot be resolved (|s| above about 2 MAX_DEGREE / largest delay).
+    NotConvergedError
+        When the count is not reached up to :data:`MAX_DEGREE`, or roots lie
+        on the boundary of the rectangle and of slightly larger ones (a root
+        on the boundary is otherwise reported, the rectangle taken closed);
+        ``.partial`` holds the roots found.
+
+    Examples
+    --------
+    >>> from delayform.characteristic import TwoDelayQuasiPolynomial
+    >>> q = TwoDelayQuasiPolynomial([2.0, 3.0, 1.0])  # (s + 1)(s + 2)
+    >>> roots_in(q, 0.0, 0.0, (-3, 0, -1, 1)).real.round(12)
+    array([-1., -2.])
+    """
+    region = asked = _check_region(region)
+    t1, t2 = check_delay("tau1", tau1), check_delay("tau2", tau2)
+    prob = _problem(qp)
+    base = prob if not prob.deflate_zero else _Problem(prob.terms, prob.A, prob.delayed, prob.mirror)
+    x0, x1, y0, y1 = region
+    hmax = _max_delay(base, t1, t2)
+    radius = max(abs(complex(x, y)) for x in (x0, x1) for y in (y0, y1))
+    _require_resolvable(region, hmax)
+    # when mirroring, roots of the lam-factor in the mirrored region are needed too
+    yy = max(abs(y0), abs(y1))
+    count_regions = [region] if not base.mirror else [(x0, x1, -yy, yy)]
+    expected = _region_count(base, t1, t2, count_regions[0])
+    # a root on the boundary (e.g. a real root on Im s = 0): count on a slightly larger
+    # rectangle and report the roots of the closed one, boundary roots included
+    size = max(abs(v) for v in region) + 1.0
+    for nudge in (1e-9, 1e-7, 1e-5):
+        if expected is not None:
+            break
+        d = nudge * size
+        rx0, rx1, ry0, ry1 = count_regions[0]
+        count_regions = [(rx0 - d, rx1 + d, ry0 - d, ry1 + d)]
+        region = (x0 - d, x1 + d, y0 - d, y1 + d)
+        expected = _region_count(base, t1, t2, count_regions[0])
+    if expected is None:
+        raise NotConvergedError(
+            f"roots lie on (or within rounding of) the boundary of the rectangle {asked} "
+            "and of every slightly larger rectangle tried; move the rectangle's edges",
+            partial=np.zeros(0, dtype=np.complex128),
+        )
+    N = _initial_degree(hmax, max(radius, _root_scale(base)))
+    a1, a2 = np.asarray(t1), np.asarray(t2)
+    found = np.zeros(0, dtype=np.complex128)
+    while True:
+        if hmax == 0.0:
+            eig = _delay_free_eigenvalues(base)
+        else:
+            eig = _igd_eigenvalues(base, N, a1.reshape(1), a2.reshape(1))[0]
+        if prob.deflate_zero:
+            roots, mult = _roots_beside_zero(prob, base, eig, t1, t2)
+        else:
+            polished, ok = _polish(base, eig, a1, a2)
+            roots = _cluster(polished[ok])
+            mult = _multiplicity(base, roots, t1, t2)
+        rx0, rx1, ry0, ry1 = count_regions[0]
+        inside = (roots.real > rx0) & (roots.real < rx1) & (roots.imag > ry0) & (roots.imag < ry1)
+        found = np.repeat(roots[inside], np.maximum(mult[inside], 1))
+        if found.size == expected:
+            break
+        if hmax == 0.0 or N >= MAX_DEGREE:
+            raise NotConvergedError(
+                f"found {found.size} of the {expected} characteristic roots in the rectangle {asked} "
+                f"at (tau1, tau2) = ({t1:g}, {t2:g}); choose a smaller rectangle",
+                partial=_in_region(_with_mirror(base, found), region),
+            )
+        N = min(MAX_DEGREE, 2 * N)
+    return _in_region(_with_mirror(base, found), region)
+
+
+def _roots_beside_zero(
+    prob: _Problem, base: _Problem, eig: NDArray[np.complex128], t1: float, t2: float
+) -> tuple[NDArray[np.complex128], NDArray[np.int64]]:
+    """Roots and multiplicities of the centroid factor (eq. factor1), its root 0 included.
+
+    Polished with the persistent zero deflated, so a tiny delay's genuine
+    root next to 0 (about -P tau1 / (1 + D tau2)) is resolved
+    (:func:`_deflated_zero`) instead of being mistaken for a double root at 0;
+    0 itself is simple, or double when the deflated polish also ends there
+    (tau1 = 0, the centroid's drift).
+    """
+    a1, a2 = np.asarray(t1), np.asarray(t2)
+    polished, ok = _polish(prob, eig, a1, a2)
+    roots = _cluster(polished[ok])
+    zero_is_double = bool(np.any(roots == 0.0))
+    mult = _multiplicity(base, roots, t1, t2)
+    near = np.abs(roots) < 1e-5  # q(s)/s is about linear there: its roots are simple
+    mult = np.where(near, 1, mult)
+    roots, mult = roots[roots != 0.0], mult[roots != 0.0]
+    return np.append(roots, 0.0), np.append(mult, 2 if zero_is_double else 1)
+
+
+def _in_region(roots: NDArray[np.complex128], region: Region) -> NDArray[np.complex128]:
+    x0, x1, y0, y1 = region
+    keep = (roots.real > x0) & (roots.real < x1) & (roots.imag > y0) & (roots.imag < y1)
+    out = roots[keep]
+    return out[np.lexsort((-out.imag, -out.real))]
+
+
+def count_roots_right_of(
+    qp: TwoDelayQuasiPolynomial | CharacteristicFactor, tau1: float, tau2: float, c: float
+) -> int:
+    """Certified number of roots with Re s > c (multiplicity counted, persistent zero included).
+
+    The argument principle along Re s = c closed at infinity (module
+    docstring). Raises NotConvergedError when a root lies on the line.
+
+    Parameters
+    ----------
+    qp
+        A retarded quasi-polynomial of eq. genfactor or a factor of
+        eq. factorized (a conjugate-pair factor counts the roots of lam and
+        of conj(lam)). The centroid factor's persistent root s = 0
+        (eq. factor1) is not deflated here: it counts when ``c < 0``.
+    tau1, tau2
+        Non-negative delays (s) on positions and on velocities.
+    c
+        Abscissa of the vertical line Re s = c; any real number.
+
+    Returns
+    -------
+    int
+        The number of roots strictly right of the line.
+
+    Raises
+    ------
+    DelayError
+        For a negative or non-finite delay.
+    InputError
+        When qp is neither a quasi-polynomial nor a factor.
+    NotConvergedError
+        When a root lies on (or within rounding of) the line.
+    """
+    t1, t2 = check_delay("tau1", tau1), check_delay("tau2", tau2)
+    prob = _problem(qp)
+    base = _Problem(prob.terms, prob.A, prob.delayed, prob.mirror)
+    n = _count_right_single(base, t1, t2, float(c))
+    if n is None:
+        raise NotConvergedError(f"a root lies on (or within rounding of) the line Re s = {c:g}")
+    if base.mirror:
+        n += _count_right_single(_mirror_problem(base), t1, t2, float(c)) or 0
+    return n
+
+
+def rightmost_root(
+    qp: TwoDelayQuasiPolynomial | CharacteristicFactor, tau1: float, tau2: float
+) -> complex:
+    """The rightmost characteristic root (for a factor, the centroid's zero excluded).
+
+    Parameters
+    ----------
+    qp
+        A retarded quasi-polynomial of eq. genfactor or a factor of
+        eq. factorized. For the centroid factor (eq. factor1) the persistent
+        root s = 0 is deflated; its other roots count (a second root at 0,
+        as at tau1 = 0, is returned).
+    tau1, tau2
+        Non-negative delays.
+
+    Returns
+    -------
+    complex
+        The root with the largest real part (of a conjugate pair, the one
+        with Im >= 0), relative residual <= RESIDUAL_TOL, certified as in the
+        module docstring.
+
+    Examples
+    --------
+    >>> from delayform.characteristic import TwoDelayQuasiPolynomial
+    >>> q = TwoDelayQuasiPolynomial([1.0, 1.0], [1.0])  # s + 1 + e^{-s}
+    >>> s = rightmost_root(q, 1.0, 0.0)
+    >>> round(s.real, 6), round(s.imag, 6)
+    (-0.605021, 1.788188)
+    """
+    t1, t2 = check_delay("tau1", tau1), check_delay("tau2", tau2)
+    if isinstance(qp, CharacteristicFactor):  # a factor of eq. factorized: the vectorized family path
+        _family_reach((qp,), t1, t2)
+        return complex(family_rightmost((qp,), float(qp.P), float(qp.D), t1, t2)[0])
+    return _rightmost(_problem(qp), t1, t2)
+
+
+def _rightmost(prob: _Problem, t1: float, t2: float) -> complex:
+    _check_reach(prob, t1, t2)
+    a1, a2 = np.array([t1]), np.array([t2])
+    # fast path: the map's low-degree seeds; the certificate decides, else the robust path
+    root, certified, _ = _certify(prob, a1, a2, _igd_seeds(prob, a1, a2, scale=1.0, k=_BATCH_SEEDS))
+    if certified[0]:
+        return _pick_rightmost(prob, root)
+    res = _solve_rightmost(prob, t1, t2)
+    return _pick_rightmost(prob, res.roots)
