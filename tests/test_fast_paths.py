@@ -185,7 +185,7 @@ def test_vectorized_line_choice_equals_the_scalar_rule(reals, imags, near, real,
 @pytest.mark.parametrize(("tau1", "tau2"), [(0.0, 0.0), (0.0, 1.3), (0.3, 0.2), (2.0, 1.0), (4.7, 6.1)])
 def test_rightmost_root_of_a_factor_equals_the_generic_path(tau1: float, tau2: float) -> None:
     # a factor goes through the family path; the generic one (its own seeds, first-order walk) agrees
-    from delayform.analysis.spectrum import _problem, _rightmost, rightmost_root
+    from delayform.analysis.roots import _problem, _rightmost, rightmost_root
 
     for team in (paper_six(), ring(5)):
         for f in factors(team, P, D):

@@ -477,7 +477,7 @@ def test_chart_with_many_curves_still_shows_the_stable_region() -> None:
 @pytest.mark.parametrize("n", [1, 2, 6, 23, 101])
 def test_nearest_coarse_point_without_a_distance_table(n: int) -> None:
     """A 100000 x 2 map once built a 100000 x 20000 distance table (16 GB, killed); same answer in O(n)."""
-    from delayform.analysis.spectrum import _coarse_axis, _nearest_coarse
+    from delayform.analysis._rightmost import _coarse_axis, _nearest_coarse
 
     coarse = _coarse_axis(n, 5)
     brute = np.abs(np.arange(n)[:, None] - coarse[None, :]).argmin(axis=1)

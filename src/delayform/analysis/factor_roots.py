@@ -39,7 +39,8 @@ from delayform.analysis._rows import _lams, _Rows
 from delayform.analysis._seeds import _generator_blocks
 from delayform.analysis._generator import _initial_degree, _require_resolvable
 from delayform.analysis._quasi import _TINY_DELAY, Region, _cluster, _multiplicity, _problem_of_factor
-from delayform.analysis.spectrum import _check_region, _checked_factors, _in_region, roots_in
+from delayform.analysis.roots import _check_region, _in_region, roots_in
+from delayform.analysis.spectrum import _checked_factors
 from delayform.characteristic import CharacteristicFactor
 from delayform.topology import Topology
 

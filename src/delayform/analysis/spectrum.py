@@ -38,52 +38,11 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from delayform._validation import check_delay, check_gains
-# the internals live in one module per concept; the private names other modules
-# (design/scheduling.py) import from here stay importable from here
 from delayform.analysis._family import family_grid, family_rightmost
-from delayform.analysis._generator import (  # noqa: F401
-    _chebyshev,
-    _lagrange_rows,
-    _map_degree,
-    _delay_free_eigenvalues,
-    _igd_eigenvalues,
-    _igd_seeds,
-    _initial_degree,
-    _max_delay,
-    _require_resolvable,
-    _root_scale,
-)
-from delayform.analysis._quasi import (  # noqa: F401
-    MAX_DEGREE,
-    RESIDUAL_TOL,
-    Region,
-    _cluster,
-    _evaluate,
-    _mirror_problem,
-    _multiplicity,
-    _polish,
-    _Problem,
-    _problem,
-    _problem_of_factor,
-    _problem_of_qp,
-)
-from delayform.analysis._rightmost import (  # noqa: F401
-    _BATCH_SEEDS,
-    _SEED_WINDOW,
-    _batch_distinct,
-    _certify,
-    _coarse_axis,
-    _nearest_coarse,
-    _pick_rightmost,
-    _rightmost_grid,
-    _solve_rightmost,
-)
-from delayform.analysis.certificate import _batch_lines, _count_right_single, _region_count  # noqa: F401
+from delayform.analysis._quasi import MAX_DEGREE, RESIDUAL_TOL, _Problem, _problem_of_factor, _problem_of_qp
 from delayform.analysis.roots import (  # noqa: F401 - the roots of one quasi-polynomial, re-exported
     _check_reach,
-    _check_region,
     _family_reach,
-    _in_region,
     _rightmost,
     count_roots_right_of,
     relative_residual,

@@ -39,20 +39,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from delayform.analysis.certificate import adaptive_winding
-from delayform.analysis.spectrum import (
-    _BATCH_SEEDS,
-    _SEED_WINDOW,
-    MAX_DEGREE,
-    RESIDUAL_TOL,
-    _batch_distinct,
-    _batch_lines,
-    _centroid_rightmost,
-    _chebyshev,
-    _lagrange_rows,
-    _map_degree,
-    _problem_of_factor,
-    rightmost_root,
-)
+from delayform.analysis._generator import _chebyshev, _lagrange_rows, _map_degree
+from delayform.analysis._quasi import MAX_DEGREE, RESIDUAL_TOL, _problem_of_factor
+from delayform.analysis._rightmost import _BATCH_SEEDS, _SEED_WINDOW, _batch_distinct
+from delayform.analysis.certificate import _batch_lines
+from delayform.analysis.roots import rightmost_root
+from delayform.analysis.spectrum import _centroid_rightmost
 from delayform.characteristic import CharacteristicFactor
 from delayform.topology import EigenvalueGroup
 

@@ -56,13 +56,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from delayform._validation import check_delay
-from delayform.analysis.spectrum import (
-    SETTLING_FACTOR,
-    _check_reach,
-    _problem_of_factor,
-    dominant_root,
-    dominant_root_map,
-)
+from delayform.analysis._quasi import _problem_of_factor
+from delayform.analysis.roots import _check_reach
+from delayform.analysis.spectrum import SETTLING_FACTOR, dominant_root, dominant_root_map
 from delayform.characteristic import CharacteristicFactor
 from delayform.design._gain_roots import _lines, rightmost_roots, root_gradients
 from delayform.errors import DelayError, GainError, InputError, NoStableGainsError

@@ -20,19 +20,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from delayform._validation import check_delay
-from delayform.analysis.spectrum import (
-    _BATCH_SEEDS,
-    SETTLING_FACTOR,
-    _checked_factors,
-    _cluster,
-    _igd_seeds,
-    _polish,
-    _Problem,
-    _problem_of_factor,
-    _solve_rightmost,
-    dominant_root,
-    dominant_root_map,
-)
+from delayform.analysis._generator import _igd_seeds
+from delayform.analysis._quasi import _cluster, _polish, _Problem, _problem_of_factor
+from delayform.analysis._rightmost import _BATCH_SEEDS, _solve_rightmost
+from delayform.analysis.spectrum import SETTLING_FACTOR, _checked_factors, dominant_root, dominant_root_map
 from delayform.characteristic import CharacteristicFactor
 from delayform.errors import DelayError, InputError, NoStableDelaysError
 from delayform.topology import Topology
