@@ -182,6 +182,32 @@ def test_vectorized_line_choice_equals_the_scalar_rule(reals, imags, near, real,
     assert right[0].real == best.real
 
 
+@settings(max_examples=25, deadline=None)
+@given(
+    n=st.integers(3, 7), p=st.floats(0.2, 0.8), seed=st.integers(0, 50),
+    gains=st.tuples(st.floats(0.3, 3.0), st.floats(0.3, 3.0)),
+    tau1=st.floats(0.01, 5.0), tau2=st.floats(0.0, 5.0),
+)
+def test_dominant_root_equals_the_generic_path_per_factor(n, p, seed, gains, tau1, tau2) -> None:
+    # the one-pair path (plain-Python polishing and lines, direct LAPACK seeds, few-line walk)
+    # against the generic per-factor path (its own seeds, Newton and first-order certificate)
+    from delayform.analysis.roots import _problem, _rightmost
+    from delayform.errors import DelayError, NoSpanningTreeError
+
+    P_, D_ = gains
+    team = random_digraph(n, p, seed=seed)
+    try:
+        got = dominant_root(team, P_, D_, tau1, tau2)
+    except (NoSpanningTreeError, DelayError):
+        return
+    fs = factors(team, P_, D_)
+    roots = {f: _rightmost(_problem(f), tau1, tau2) for f in fs}
+    formation = max((r for f, r in roots.items() if not f.is_centroid), key=lambda r: r.real)
+    centroid = next(r for f, r in roots.items() if f.is_centroid)
+    assert abs(got.formation_root - formation) < 1e-8 * (1.0 + abs(formation))
+    assert abs(got.centroid_root - centroid) < 1e-8 * (1.0 + abs(centroid))
+
+
 @pytest.mark.parametrize(("tau1", "tau2"), [(0.0, 0.0), (0.0, 1.3), (0.3, 0.2), (2.0, 1.0), (4.7, 6.1)])
 def test_rightmost_root_of_a_factor_equals_the_generic_path(tau1: float, tau2: float) -> None:
     # a factor goes through the family path; the generic one (its own seeds, first-order walk) agrees
