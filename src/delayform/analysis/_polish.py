@@ -44,18 +44,19 @@ def _q(
 
 
 def _polish_rows(seeds: NDArray[np.complex128], rows: _Rows) -> tuple[NDArray[np.complex128], NDArray[np.bool_]]:
-    """Newton on q from seeds (R, K); Maehly's step q / (q' - q/s) for the centroid rows.
+    """Halley's method on q from seeds (R, K) (on q / s, Maehly's deflation, in the centroid rows).
 
     Returns the roots and whether each has relative residual <= RESIDUAL_TOL
     (as :func:`delayform.analysis._quasi._polish`; seeds that reach s ~ 0 in a
-    deflated row are rejected, the generic path settles a double zero).
+    deflated row are rejected, the generic path settles a double zero). A few seeds
+    (one delay pair) go through :func:`_newton_few` instead.
 
     The residual of the last iterate s' = s - step is bounded without evaluating
     q there: by Taylor's theorem on the segment [s, s'],
 
         |q(s')| <= |q(s) - q'(s) step| + |step|^2 / 2 max |q''|,
 
-    the first term is 0 for Newton's step (rounding) and |step q(s) / s| for Maehly's, and
+    the first term is computed from the values at hand (about |q''| |step|^2 / 2 for Halley's step), and
     |q''| <= 2 + tau1^2 |a| + 2 tau2 |b| + tau2^2 |b| |s| with |a|, |b| grown by
     e^{tau |step|} along the segment (a, b the delayed terms). So a converged seed costs
     one evaluation of q fewer.
