@@ -204,13 +204,15 @@ def _certify_few(
     NumPy call costs more than its arithmetic, and a single ``dominant_root`` is made of them.
     """
     R = rows.size
-    P, D = rows.P, rows.D
+    Ps = rows.P.tolist() if isinstance(rows.P, np.ndarray) else [rows.P] * R
+    Ds = rows.D.tolist() if isinstance(rows.D, np.ndarray) else [rows.D] * R
     c = [math.nan] * R
     expected = [0.0] * R
     right = [complex(math.nan)] * R
     kept: list[list[complex]] = []
-    for i, (row, lam, t1, t2, real, deflate) in enumerate(zip(
-        seeds.tolist(), rows.lam.tolist(), rows.t1.tolist(), rows.t2.tolist(), rows.real.tolist(), rows.deflate.tolist()
+    for i, (row, lam, t1, t2, real, deflate, P, D) in enumerate(zip(
+        seeds.tolist(), rows.lam.tolist(), rows.t1.tolist(), rows.t2.tolist(), rows.real.tolist(), rows.deflate.tolist(),
+        Ps, Ds,
     )):  # fmt: skip
         live, moved, top = [], False, -math.inf
         for j, z in enumerate(row):

@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from delayform.analysis._quasi import RESIDUAL_TOL
-from delayform.analysis._rows import _Rows
+from delayform.analysis._rows import Gain, _at, _Rows
 
 
 #: Newton steps of the fast path (a seed still moving after them is left to the fallback).
@@ -32,7 +32,7 @@ _FEW_SEEDS = 64
 # silence floating-point warnings once instead of in every vectorized step.
 def _q(
     s: NDArray[np.complex128], lam: NDArray[np.complex128], t1: NDArray[np.float64],
-    t2: NDArray[np.float64], P: float, D: float,
+    t2: NDArray[np.float64], P: Gain, D: Gain,
 ) -> tuple[NDArray[np.complex128], NDArray[np.complex128], NDArray[np.complex128], NDArray[np.complex128]]:
     """q(s), dq/ds and the two delayed terms lam P e^{-tau1 s}, lam D e^{-tau2 s} (broadcasting)."""
     a = lam * P * np.exp(-t1 * s)
@@ -66,7 +66,7 @@ def _polish_rows(seeds: NDArray[np.complex128], rows: _Rows) -> tuple[NDArray[np
     live = np.flatnonzero(np.isfinite(flat))  # NaN seeds (padding) cost nothing
     rid = live // K
     s = np.take(flat, live)
-    P, D = rows.P, rows.D
+    P, D = _at(rows.P, rid), _at(rows.D, rid)  # per seed when the rows have their own gains
     lam, t1, t2, defl = (np.take(x, rid) for x in (rows.lam, rows.t1, rows.t2, rows.deflate))
     if s.size <= _FEW_SEEDS:
         s, ok = _newton_few(s, lam, t1, t2, defl, P, D)
@@ -78,7 +78,8 @@ def _polish_rows(seeds: NDArray[np.complex128], rows: _Rows) -> tuple[NDArray[np
         if act.size == 0:
             break
         sa, la, t1a, t2a, da = (np.take(x, act) for x in (s, lam, t1, t2, defl))
-        q, dq, a, b = _q(sa, la, t1a, t2a, P, D)
+        Pa, Da = _at(P, act), _at(D, act)
+        q, dq, a, b = _q(sa, la, t1a, t2a, Pa, Da)
         step, cubic = _halley_step(sa, q, dq, a, b, t1a, t2a, da)
         bad = ~np.isfinite(step)
         step[bad] = 0.0
@@ -95,13 +96,14 @@ def _polish_rows(seeds: NDArray[np.complex128], rows: _Rows) -> tuple[NDArray[np
             m2 = 2.0 + t1a[i] ** 2 * ea + t2a[i] * eb * (2.0 + t2a[i] * (z + h))
             lin = np.abs(q[i] - dq[i] * step[i])
             bound = lin + 0.5 * m2 * h * h
-            mag = (z + D) * z + P + np.abs(a[i]) + ab * z
+            mag = (z + _at(Da, i)) * z + _at(Pa, i) + np.abs(a[i]) + ab * z
             ok[act[i]] = np.isfinite(mag) & (bound <= RESIDUAL_TOL * mag)
             act = act[~done]
     if act.size:  # still moving after the budget: judged by the residual where it stopped
-        q, _, a, b = _q(s[act], lam[act], t1[act], t2[act], P, D)
+        Pa, Da = _at(P, act), _at(D, act)
+        q, _, a, b = _q(s[act], lam[act], t1[act], t2[act], Pa, Da)
         z = np.abs(s[act])
-        mag = (z + D) * z + P + np.abs(a) + np.abs(b) * z
+        mag = (z + Da) * z + Pa + np.abs(a) + np.abs(b) * z
         ok[act] = np.isfinite(mag) & (np.abs(q) <= RESIDUAL_TOL * mag)
     abs_s = np.abs(s)
     # s ~ 0 in a centroid row is a root of q(s)/s when 0 is double (q'(0) = 0, as at
@@ -111,7 +113,7 @@ def _polish_rows(seeds: NDArray[np.complex128], rows: _Rows) -> tuple[NDArray[np
         lz = lam[near]
         # q'(0) = tau1 lam P + D (1 - lam), exactly 0 for the centroid (lam = 1) at tau1 = 0; a
         # tiny tau1 puts a genuine root beside 0, which the generic path resolves (rejected here)
-        double = t1[near] * lz * P + D * (1.0 - lz) == 0.0
+        double = t1[near] * lz * _at(P, np.flatnonzero(near)) + _at(D, np.flatnonzero(near)) * (1.0 - lz) == 0.0
         s[near] = np.where(double, 0.0, s[near])
         ok[near] = double
     out = np.full(R * K, np.nan + 0j)
@@ -150,14 +152,17 @@ def _halley_step(
 
 def _newton_few(
     s: NDArray[np.complex128], lam: NDArray[np.complex128], t1: NDArray[np.float64], t2: NDArray[np.float64],
-    defl: NDArray[np.bool_], P: float, D: float,
+    defl: NDArray[np.bool_], P: Gain, D: Gain,
 ) -> tuple[NDArray[np.complex128], NDArray[np.bool_]]:
     """:func:`_polish_rows`'s Newton on a few seeds, one at a time in plain Python.
 
     On a dozen seeds (one delay pair) a NumPy call costs more than its arithmetic;
     Python's complex numbers do the same steps and tests at a fraction of the cost.
     """
-    out = [_newton_one(*args, P, D) for args in zip(s.tolist(), lam.tolist(), t1.tolist(), t2.tolist(), defl.tolist())]
+    n = s.size
+    Ps = P.tolist() if isinstance(P, np.ndarray) else [P] * n
+    Ds = D.tolist() if isinstance(D, np.ndarray) else [D] * n
+    out = [_newton_one(*args) for args in zip(s.tolist(), lam.tolist(), t1.tolist(), t2.tolist(), defl.tolist(), Ps, Ds)]
     roots = np.array([r for r, _ in out], dtype=np.complex128)
     return roots, np.array([g for _, g in out], dtype=bool)
 

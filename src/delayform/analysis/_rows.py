@@ -12,6 +12,7 @@ vectorized root finding (:mod:`delayform.analysis._family`) runs on arrays of ro
 from __future__ import annotations
 
 from functools import lru_cache
+from typing import Any, Union
 
 import numpy as np
 from numpy.typing import NDArray
@@ -19,20 +20,30 @@ from numpy.typing import NDArray
 from delayform.characteristic import CharacteristicFactor
 
 
+#: The gains of a batch of rows: one value for all, or one per row (gain design).
+Gain = Union[float, NDArray[np.float64]]
+
+
+def _at(x: Any, idx: NDArray[np.int64]) -> Any:
+    """x[idx] for a per-row array, x itself for a value shared by all rows."""
+    return np.take(x, idx) if isinstance(x, np.ndarray) else x
+
+
 class _Rows:
-    """Flat arrays describing rows (factor, delay pair): lam, tau1, tau2 and two flags."""
+    """Flat arrays describing rows (factor, delay pair): lam, tau1, tau2, two flags and the gains."""
 
     __slots__ = ("lam", "t1", "t2", "real", "deflate", "P", "D")
 
     def __init__(
         self, lam: NDArray[np.complex128], t1: NDArray[np.float64], t2: NDArray[np.float64],
-        real: NDArray[np.bool_], deflate: NDArray[np.bool_], P: float, D: float,
+        real: NDArray[np.bool_], deflate: NDArray[np.bool_], P: Gain, D: Gain,
     ) -> None:
         self.lam, self.t1, self.t2, self.real, self.deflate = lam, t1, t2, real, deflate
         self.P, self.D = P, D
 
     def take(self, idx: NDArray[np.int64]) -> _Rows:
-        return _Rows(self.lam[idx], self.t1[idx], self.t2[idx], self.real[idx], self.deflate[idx], self.P, self.D)
+        return _Rows(self.lam[idx], self.t1[idx], self.t2[idx], self.real[idx], self.deflate[idx],
+                     _at(self.P, idx), _at(self.D, idx))  # fmt: skip
 
     @property
     def size(self) -> int:

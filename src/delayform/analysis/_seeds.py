@@ -16,6 +16,7 @@ from numpy.typing import NDArray
 
 from delayform.analysis._generator import _chebyshev, _lagrange_rows
 from delayform.analysis._quasi import _TINY_DELAY, MAX_DEGREE
+from delayform.analysis._rows import Gain, _at
 
 
 try:  # the gufunc behind np.linalg.eigvals (see _eigvals)
@@ -51,9 +52,9 @@ def _generator_blocks(N: int, t1: float, t2: float, P: float, D: float) -> tuple
 
 
 def _generator_stack(
-    N: int, t1: NDArray[np.float64], t2: NDArray[np.float64], P: float, D: float
+    N: int, t1: NDArray[np.float64], t2: NDArray[np.float64], P: Gain, D: Gain
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """:func:`_generator_blocks` at many delay pairs at once, shape (B, N + 2, N + 2) each."""
+    """:func:`_generator_blocks` at many delay pairs (and gains, one or one per pair) at once, shape (B, N + 2, N + 2)."""
     _, Dm, _ = _chebyshev(N)
     h = np.stack([t1, t2], axis=-1)  # (B, 2)
     hmax = h.max(axis=-1)
@@ -65,9 +66,16 @@ def _generator_stack(
     K0[:, 1 : N + 1, : N + 1] = Dh
     K0[:, N + 1, 0], K0[:, N + 1, N + 1] = -P, -D
     K1 = np.zeros((B, N + 2, N + 2))
-    K1[:, N + 1, : N + 1] = P * L[:, 0] + D * np.einsum("bj,bjk->bk", L[:, 1, 1:], Dh)
+    Pc, Dc = np.reshape(P, (-1, 1)), np.reshape(D, (-1, 1))  # (1, 1) or (B, 1)
+    K1[:, N + 1, : N + 1] = Pc * L[:, 0] + Dc * np.einsum("bj,bjk->bk", L[:, 1, 1:], Dh)
     K1[:, N + 1, N + 1] = D * L[:, 1, 0]
     return K0, K1
+
+
+def _norm_a_rows(P: NDArray[np.float64], D: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The spectral norm of A = [[0, 1], [-P, -D]] per row (largest singular value, closed form)."""
+    t = 1.0 + P * P + D * D  # trace of A^T A; its determinant is P^2
+    return np.sqrt((t + np.sqrt(np.maximum(t * t - 4.0 * P * P, 0.0))) / 2.0)
 
 
 @lru_cache(maxsize=64)
@@ -150,7 +158,7 @@ def _rightmost_k(eig: NDArray[np.complex128], k: int) -> NDArray[np.complex128]:
 
 
 def _row_seeds(
-    lam: NDArray[np.complex128], t1: NDArray[np.float64], t2: NDArray[np.float64], P: float, D: float, k: int
+    lam: NDArray[np.complex128], t1: NDArray[np.float64], t2: NDArray[np.float64], P: Gain, D: Gain, k: int
 ) -> NDArray[np.complex128]:
     """:func:`_family_seeds` of rows each at its own delay pair, shape (R, k).
 
@@ -169,14 +177,15 @@ def _row_seeds(
         order = np.argsort(-free_roots.real, axis=1)[:, :k]
         out[tiny, : order.shape[1]] = free_roots[np.arange(order.shape[0])[:, None], order]
     free = np.maximum(np.abs(-b + disc), np.abs(-b - disc)) / 2.0
-    radius = np.maximum(np.maximum(1.0, free), _norm_a(P, D))
+    norm_a = _norm_a(P, D) if not isinstance(P, np.ndarray) else _norm_a_rows(P, D)
+    radius = np.maximum(np.maximum(1.0, free), norm_a)
     N = np.clip(np.ceil(0.6 * radius * hmax + 4), 6, MAX_DEGREE).astype(int)
     for n in np.unique(N[~tiny]):
         for real in (True, False):
             idx = np.flatnonzero(~tiny & (N == n) & ((lam.imag == 0.0) == real))
             if idx.size == 0:
                 continue
-            M0, M1 = _generator_stack(int(n), t1[idx], t2[idx], P, D)
+            M0, M1 = _generator_stack(int(n), t1[idx], t2[idx], _at(P, idx), _at(D, idx))
             lr = lam[idx].real if real else lam[idx]
             eig = _eigvals(M0 + lr[:, None, None] * M1)
             if real:  # one of each conjugate pair (see _family_seeds)

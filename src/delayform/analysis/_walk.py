@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from delayform.analysis._rows import _Rows
+from delayform.analysis._rows import Gain, _at, _Rows
 
 
 #: Rows of the walk's samples at its two ends (top, bottom), for the tails.
@@ -63,7 +63,7 @@ class _Walk:
 
     def __init__(
         self, c: NDArray[np.float64], t1: NDArray[np.float64], t2: NDArray[np.float64], A1: NDArray[np.complex128],
-        B1: NDArray[np.complex128], m2_slope: NDArray[np.float64], m2_offset: NDArray[np.float64], P: float, D: float,
+        B1: NDArray[np.complex128], m2_slope: NDArray[np.float64], m2_offset: NDArray[np.float64], P: Gain, D: Gain,
     ) -> None:
         self.c, self.t1, self.t2, self.A1, self.B1 = c, t1, t2, A1, B1
         self.m2_slope, self.m2_offset, self.P, self.D = m2_slope, m2_offset, P, D
@@ -105,7 +105,8 @@ class _Walk:
             rot2[wl] = np.exp(-1j * (t2[wl] * step[wl]))
             km, kbm = ka * take(rot1), kb * take(rot2)
             sm = take(c) + 1j * wm
-            qm = (sm + D) * sm + P - take(A1) * km - (take(B1) * kbm) * sm
+            Dl, Pl = _at(D, line), _at(P, line)
+            qm = (sm + Dl) * sm + Pl - take(A1) * km - (take(B1) * kbm) * sm
             failed[line[~np.isfinite(qm) | (qm == 0.0)]] = True
             line = np.concatenate([line, line])
             take = partial(np.take, indices=line)
@@ -177,7 +178,8 @@ def _count_rows(
     for m in buckets:
         idx = np.flatnonzero(sizes == m) if buckets.size > 1 else np.arange(n)
         tot, fail, q_ends, rej = _walk_uniform(
-            int(m), c[idx], t1[idx], t2[idx], lo[idx], h[idx], A1[idx], B1[idx], m2_slope[idx], m2_offset[idx], P, D
+            int(m), c[idx], t1[idx], t2[idx], lo[idx], h[idx], A1[idx], B1[idx], m2_slope[idx], m2_offset[idx],
+            _at(P, idx), _at(D, idx),
         )
         total[idx], failed[idx], ends[:, idx] = tot, fail, q_ends
         if rej is not None:
@@ -187,14 +189,15 @@ def _count_rows(
         _Walk(c, t1, t2, A1, B1, m2_slope, m2_offset, P, D).bisect(total, failed, line, wa, qa, qb, ka, kb, h, max_segments)
     # tails beyond +-Omega: arg q = arg g1 + Arg(q / g1), g1 = s^2 + D s + P (Rouche)
     # (the walk's end points are c + i Omega and c + i lo; real rows use only the top one)
-    z = _free_roots(P, D)
+    z = _free_roots(P, D) if not isinstance(P, np.ndarray) else _free_roots_rows(P, D)  # (2,) or (n, 2)
     e = c + 1j * omega  # the top end
     top = (np.pi / 2 - np.angle(e[:, None] - z)).sum(axis=-1) - np.angle(ends[0] / ((e + D) * e + P))
     delta = 2.0 * (total + top)
     cx = np.flatnonzero(~rows.real)
     if cx.size:  # complex lam: the whole line, and the bottom tail
         e = c[cx] - 1j * omega[cx]
-        bottom = (np.angle(e[:, None] - z) + np.pi / 2).sum(axis=-1) + np.angle(ends[1, cx] / ((e + D) * e + P))
+        zc, Pc, Dc = (z[cx] if z.ndim == 2 else z), _at(P, cx), _at(D, cx)
+        bottom = (np.angle(e[:, None] - zc) + np.pi / 2).sum(axis=-1) + np.angle(ends[1, cx] / ((e + Dc) * e + Pc))
         delta[cx] = total[cx] + top[cx] + bottom
     count = 1.0 - delta / (2.0 * np.pi)
     good = ~failed & np.isfinite(count) & (np.abs(count - np.round(count)) < 0.1)
@@ -208,7 +211,7 @@ _WALK_SIZES = np.array([6, 8, 12, 16, 24, 32, 48])
 def _walk_uniform(
     m: int, c: NDArray[np.float64], t1: NDArray[np.float64], t2: NDArray[np.float64], lo: NDArray[np.float64],
     h: NDArray[np.float64], A1: NDArray[np.complex128], B1: NDArray[np.complex128],
-    m2_slope: NDArray[np.float64], m2_offset: NDArray[np.float64], P: float, D: float,
+    m2_slope: NDArray[np.float64], m2_offset: NDArray[np.float64], P: Gain, D: Gain,
 ) -> tuple[NDArray[np.float64], NDArray[np.bool_], NDArray[np.complex128], tuple[NDArray[Any], ...] | None]:
     """The first pass of :func:`_count_rows` over lines sampled at m uniform points each.
 
@@ -279,10 +282,12 @@ def _count_few(rows: _Rows, c: NDArray[np.float64]) -> NDArray[np.float64]:
     P, D = rows.P, rows.D
     m = 4 * _INITIAL_SAMPLES
     n = c.size
+    Ps = P.tolist() if isinstance(P, np.ndarray) else [P] * n
+    Ds = D.tolist() if isinstance(D, np.ndarray) else [D] * n
     consts, cplx = [], []
     try:
-        for lam, t1, t2, real, ci in zip(rows.lam.tolist(), rows.t1.tolist(), rows.t2.tolist(),
-                                         rows.real.tolist(), c.tolist()):  # fmt: skip
+        for lam, t1, t2, real, ci, P, D in zip(rows.lam.tolist(), rows.t1.tolist(), rows.t2.tolist(),
+                                               rows.real.tolist(), c.tolist(), Ps, Ds):  # fmt: skip
             x1, x2 = math.exp(-t1 * ci), math.exp(-t2 * ci)
             al = abs(lam)
             E1, E2 = al * P * x1, al * D * x2
@@ -296,6 +301,7 @@ def _count_few(rows: _Rows, c: NDArray[np.float64]) -> NDArray[np.float64]:
         return _count_rows(rows, c)
     cc, lo, h, m2_slope, m2_offset, h2, omega = np.array(consts).T
     A1, B1, i1, i2 = np.array(cplx).T
+    P, D = rows.P, rows.D
     w = lo + h * _sample_index(m)
     sv = cc + 1j * w
     k1, k2 = np.exp(i1 * w), np.exp(i2 * w)
@@ -314,12 +320,12 @@ def _count_few(rows: _Rows, c: NDArray[np.float64]) -> NDArray[np.float64]:
         _Walk(cc, rows.t1, rows.t2, A1, B1, m2_slope, m2_offset, P, D).bisect(
             total, failed, line, w[j, line], q[j, line], q[j + 1, line], k1[j, line], k2[j, line], h, 4096
         )
-    z1, z2 = _free_roots(P, D).tolist()
     counts = np.full(n, np.nan)
-    for i, (tot, q_top, q_bot, real, (ci, _, _, _, _, _, om)) in enumerate(
-        zip(total.tolist(), q[-1].tolist(), q[0].tolist(), rows.real.tolist(), consts)
+    for i, (tot, q_top, q_bot, real, (ci, _, _, _, _, _, om), P, D) in enumerate(
+        zip(total.tolist(), q[-1].tolist(), q[0].tolist(), rows.real.tolist(), consts, Ps, Ds)
     ):
         # tails beyond +-Omega: arg q = arg g1 + Arg(q / g1), g1 = s^2 + D s + P (Rouche)
+        z1, z2 = _free_roots(P, D).tolist()
         e = complex(ci, om)
         top = math.pi - cmath.phase(e - z1) - cmath.phase(e - z2) - cmath.phase(q_top / ((e + D) * e + P))
         if real:
@@ -340,6 +346,12 @@ def _sample_index(m: int) -> NDArray[np.float64]:
     j = np.arange(m, dtype=np.float64)[:, None]
     j.flags.writeable = False
     return j
+
+
+def _free_roots_rows(P: NDArray[np.float64], D: NDArray[np.float64]) -> NDArray[np.complex128]:
+    """The roots of g1 = s^2 + D s + P per row, shape (n, 2)."""
+    disc = np.sqrt(D * D - 4.0 * P + 0j)
+    return np.stack([(-D + disc) / 2.0, (-D - disc) / 2.0], axis=1)
 
 
 @lru_cache(maxsize=64)
