@@ -53,7 +53,7 @@ from delayform.analysis._polish import _newton_one, _polish_rows, _q
 from delayform.analysis._rows import _lams, _Rows
 from delayform.analysis._seeds import _family_seeds, _norm_a, _row_seeds
 from delayform.analysis._walk import _count_few, _count_rows
-from delayform.analysis.certificate import _LINE_OFFSET, _choose_line
+from delayform.analysis.certificate import _LINE_OFFSET, _choose_line, _choose_lines
 from delayform.characteristic import CharacteristicFactor
 
 
@@ -169,26 +169,6 @@ def _lines_of_rows(
     c[~(top > -np.inf)] = np.nan
     expected = np.where(key > c[:, None], mult, 0.0).sum(axis=1) + (deflate & (0.0 > c))
     return right, c, expected, r
-
-
-def _choose_lines(key: NDArray[np.float64], top: NDArray[np.float64]) -> NDArray[np.float64]:
-    """:func:`delayform.analysis.certificate._choose_line` per row of known real parts (-inf: none)."""
-    R = key.shape[0]
-    rix = np.arange(R)
-    srt = -np.sort(-key, axis=1)  # descending; -inf (none) last
-    width = srt.shape[1]
-    n_known = (srt > -np.inf).sum(axis=1)
-    k0 = (srt <= top[:, None]).argmax(axis=1)
-    c = np.full(R, np.nan)
-    if width >= 2:  # the first of the 8 gaps below the top that is wide enough
-        gap = srt[:, :-1] - srt[:, 1:]
-        pos = np.arange(width - 1)
-        take = ((pos >= k0[:, None]) & (pos < np.minimum(k0 + 8, n_known - 1)[:, None])
-                & (gap > 1e-3 * (1.0 + np.abs(srt[:, :-1]))))  # fmt: skip
-        first = take.argmax(axis=1)
-        c = np.where(take[rix, first], srt[rix, first] - np.minimum(0.5 * gap[rix, first], _LINE_OFFSET), c)
-    last = srt[rix, np.maximum(np.minimum(k0 + 8, n_known - 1), 0)]
-    return np.where(np.isnan(c), last - _LINE_OFFSET, c)
 
 
 def _certify_few(

@@ -77,6 +77,13 @@ def _igd_eigenvalues(
     return np.linalg.eigvals(M.reshape(t1.size, size, size)).astype(np.complex128)
 
 
+def _eigenvalues_at(prob: _Problem, N: int, hmax: float, t1: float, t2: float) -> NDArray[np.complex128]:
+    """Eigenvalues of the degree-N discretized generator at one delay pair (A + sum B_k when hmax = 0)."""
+    if hmax == 0.0:
+        return _delay_free_eigenvalues(prob)
+    return _igd_eigenvalues(prob, N, np.array([t1], dtype=float), np.array([t2], dtype=float))[0]
+
+
 def _delay_free_eigenvalues(prob: _Problem) -> NDArray[np.complex128]:
     """Roots at tau1 = tau2 = 0: eigenvalues of A + sum B_k."""
     total = prob.A + sum(b for b, _, _ in prob.delayed)

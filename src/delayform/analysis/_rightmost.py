@@ -9,9 +9,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from delayform.analysis._generator import (
+    _eigenvalues_at,
     _CHUNK,
-    _delay_free_eigenvalues,
-    _igd_eigenvalues,
     _igd_seeds,
     _initial_degree,
     _max_delay,
@@ -60,10 +59,7 @@ def _solve_rightmost(prob: _Problem, t1: float, t2: float) -> _SolveResult:
     N = _initial_degree(hmax, _root_scale(prob))
     partial: NDArray[np.complex128] = np.zeros(0, dtype=np.complex128)
     while True:
-        if hmax == 0.0:
-            eig = _delay_free_eigenvalues(prob)
-        else:
-            eig = _igd_eigenvalues(prob, N, a1.reshape(1), a2.reshape(1))[0]
+        eig = _eigenvalues_at(prob, N, hmax, float(t1), float(t2))
         if prob.deflate_zero:
             eig = np.delete(eig, np.argmin(np.abs(eig)))
         roots, ok = _polish(prob, eig, a1, a2)

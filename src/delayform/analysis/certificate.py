@@ -331,26 +331,27 @@ def _batch_lines(
     elif np.any(deflate_zero):
         zero = np.where(np.broadcast_to(deflate_zero, top.shape), 0.0, -np.inf)
         key = np.concatenate([key, zero[:, None]], axis=1)
-    srt = -np.sort(-key, axis=1)  # descending, -inf for missing
-    known = srt > -np.inf
-    n_known = known.sum(axis=1)
-    fin = np.where(known, srt, -1e300)
-    rix = np.arange(srt.shape[0])[:, None]
-    c = np.full(srt.shape[0], np.nan)
-    k0 = (srt <= top[:, None]).argmax(axis=1)
-    width = srt.shape[1]
-    if width >= 2:  # the first of the 8 gaps below the top that is wide enough
-        k = k0[:, None] + np.arange(8)
-        kk = np.minimum(k, width - 2)
-        hi, lo = fin[rix, kk], fin[rix, kk + 1]
-        gap = hi - lo
-        take = (k + 1 < n_known[:, None]) & (gap > 1e-3 * (1.0 + np.abs(hi)))
-        first = take.argmax(axis=1)[:, None]
-        hi1, gap1 = hi[rix, first][:, 0], gap[rix, first][:, 0]
-        c = np.where(take.any(axis=1), hi1 - np.minimum(0.5 * gap1, _LINE_OFFSET), c)
-    last = srt[rix, np.maximum(np.minimum(k0 + 8, n_known - 1), 0)[:, None]][:, 0]
-    c = np.where(np.isnan(c), last - _LINE_OFFSET, c)
-    expected = (srt > c[:, None]).sum(axis=1).astype(float)
+    c = _choose_lines(key, top)
+    expected = (key > c[:, None]).sum(axis=1).astype(float)
     return c, expected, top
 
 
+def _choose_lines(key: NDArray[np.float64], top: NDArray[np.float64]) -> NDArray[np.float64]:
+    """:func:`delayform.analysis.certificate._choose_line` per row of known real parts (-inf: none)."""
+    R = key.shape[0]
+    rix = np.arange(R)
+    srt = -np.sort(-key, axis=1)  # descending; -inf (none) last
+    width = srt.shape[1]
+    n_known = (srt > -np.inf).sum(axis=1)
+    k0 = (srt <= top[:, None]).argmax(axis=1)
+    c = np.full(R, np.nan)
+    if width >= 2:  # the first of the 8 gaps below the top that is wide enough
+        fin = np.where(srt > -np.inf, srt, -1e300)  # finite stand-ins: -inf - -inf would warn
+        gap = fin[:, :-1] - fin[:, 1:]
+        pos = np.arange(width - 1)
+        take = ((pos >= k0[:, None]) & (pos < np.minimum(k0 + 8, n_known - 1)[:, None])
+                & (gap > 1e-3 * (1.0 + np.abs(srt[:, :-1]))))  # fmt: skip
+        first = take.argmax(axis=1)
+        c = np.where(take[rix, first], srt[rix, first] - np.minimum(0.5 * gap[rix, first], _LINE_OFFSET), c)
+    last = srt[rix, np.maximum(np.minimum(k0 + 8, n_known - 1), 0)]
+    return np.where(np.isnan(c), last - _LINE_OFFSET, c)

@@ -64,8 +64,7 @@ from numpy.typing import ArrayLike, NDArray
 from delayform._validation import check_delay
 from delayform.analysis._family import family_reach_scales, family_rightmost
 from delayform.analysis._generator import (
-    _delay_free_eigenvalues,
-    _igd_eigenvalues,
+    _eigenvalues_at,
     _igd_seeds,
     _initial_degree,
     _max_delay,
@@ -258,10 +257,7 @@ def roots_in(
     a1, a2 = np.asarray(t1), np.asarray(t2)
     found = np.zeros(0, dtype=np.complex128)
     while True:
-        if hmax == 0.0:
-            eig = _delay_free_eigenvalues(base)
-        else:
-            eig = _igd_eigenvalues(base, N, a1.reshape(1), a2.reshape(1))[0]
+        eig = _eigenvalues_at(base, N, hmax, float(t1), float(t2))
         if prob.deflate_zero:
             roots, mult = _roots_beside_zero(prob, base, eig, t1, t2)
         else:
