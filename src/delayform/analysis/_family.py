@@ -33,7 +33,6 @@ its handful of rows is polished and its lines chosen in plain Python
 
 from __future__ import annotations
 
-import cmath
 import math
 from collections.abc import Callable, Sequence
 from functools import lru_cache
@@ -50,8 +49,8 @@ from delayform.analysis._rightmost import (
     _solve_rightmost,
 )
 from delayform.analysis._polish import _newton_one, _polish_rows, _q
-from delayform.analysis._rows import _lams, _Rows
-from delayform.analysis._seeds import _family_seeds, _norm_a, _row_seeds
+from delayform.analysis._rows import _delay_free, _lams, _root_scales, _Rows
+from delayform.analysis._seeds import _family_seeds, _row_seeds
 from delayform.analysis._walk import _count_few, _count_rows
 from delayform.analysis.certificate import _LINE_OFFSET, _choose_line, _choose_lines
 from delayform.characteristic import CharacteristicFactor
@@ -294,9 +293,7 @@ def _generic_rightmost(
 
 def _delay_free_roots(lam: complex, P: float, D: float, deflate: bool) -> NDArray[np.complex128]:
     """Roots of s^2 + D (1 - lam) s + P (1 - lam) (one zero removed for the centroid's deflated root)."""
-    b, c0 = D * (1.0 - lam), P * (1.0 - lam)
-    disc = cmath.sqrt(b * b - 4.0 * c0)
-    roots = np.array([(-b + disc) / 2.0, (-b - disc) / 2.0])
+    roots = _delay_free(lam, P, D)
     if deflate:  # lam = 1: s^2, the persistent zero removed leaves the drift 0
         roots = np.delete(roots, np.argmin(np.abs(roots)))
     return roots
@@ -326,11 +323,7 @@ def family_reach_scales(fs: tuple[CharacteristicFactor, ...]) -> NDArray[np.floa
     its eigenvalues are the delay-free roots of s^2 + D (1 - lam) s + P (1 - lam).
     """
     lam, _, _ = _lams(tuple(fs))
-    P, D = float(fs[0].P), float(fs[0].D)
-    b, c0 = D * (1.0 - lam), P * (1.0 - lam)
-    disc = np.sqrt(b * b - 4.0 * c0 + 0j)
-    free = np.maximum(np.abs(-b + disc), np.abs(-b - disc)) / 2.0
-    scales = np.maximum(np.maximum(1.0, free), _norm_a(P, D))
+    scales = _root_scales(lam, float(fs[0].P), float(fs[0].D))
     scales.flags.writeable = False  # cached per factor tuple
     return scales
 

@@ -29,6 +29,27 @@ def _at(x: Any, idx: NDArray[np.int64]) -> Any:
     return np.take(x, idx) if isinstance(x, np.ndarray) else x
 
 
+def _delay_free(lam: Any, P: Gain, D: Gain) -> NDArray[np.complex128]:
+    """Roots of s^2 + D (1 - lam) s + P (1 - lam), the factor of lam without delays, on a last axis of 2.
+
+    With lam = 0 these are the roots of s^2 + D s + P (the walk's tails); broadcasting.
+    """
+    b, c0 = np.multiply(D, 1.0 - lam), np.multiply(P, 1.0 - lam)
+    disc = np.sqrt(b * b - 4.0 * c0 + 0j)
+    return np.stack([(-b + disc) / 2.0, (-b - disc) / 2.0], axis=-1)
+
+
+def _root_scales(lam: Any, P: Gain, D: Gain) -> NDArray[np.float64]:
+    """The root scale of the factor of lam (:func:`delayform.analysis._generator._root_scale`) in closed form.
+
+    max(1, the delay-free roots, ||A||) with A = [[0, 1], [-P, -D]]: A + B1 + B2 of the factor of lam
+    is [[0, 1], [-P (1 - lam), -D (1 - lam)]], whose eigenvalues are the delay-free roots.
+    """
+    t = 1.0 + np.multiply(P, P) + np.multiply(D, D)  # ||A||_2^2: the larger eigenvalue of A^T A (det P^2)
+    norm_a = np.sqrt((t + np.sqrt(np.maximum(t * t - 4.0 * np.multiply(P, P), 0.0))) / 2.0)
+    return np.maximum(np.maximum(1.0, np.abs(_delay_free(lam, P, D)).max(axis=-1)), norm_a)  # type: ignore[no-any-return]
+
+
 class _Rows:
     """Flat arrays describing rows (factor, delay pair): lam, tau1, tau2, two flags and the gains."""
 

@@ -16,7 +16,7 @@ from numpy.typing import NDArray
 
 from delayform.analysis._generator import _chebyshev, _lagrange_rows
 from delayform.analysis._quasi import _TINY_DELAY, MAX_DEGREE
-from delayform.analysis._rows import Gain, _at
+from delayform.analysis._rows import Gain, _at, _delay_free, _root_scales
 
 
 try:  # the gufunc behind np.linalg.eigvals (see _eigvals)
@@ -72,17 +72,6 @@ def _generator_stack(
     return K0, K1
 
 
-def _norm_a_rows(P: NDArray[np.float64], D: NDArray[np.float64]) -> NDArray[np.float64]:
-    """The spectral norm of A = [[0, 1], [-P, -D]] per row (largest singular value, closed form)."""
-    t = 1.0 + P * P + D * D  # trace of A^T A; its determinant is P^2
-    return np.sqrt((t + np.sqrt(np.maximum(t * t - 4.0 * P * P, 0.0))) / 2.0)
-
-
-@lru_cache(maxsize=64)
-def _norm_a(P: float, D: float) -> float:
-    return float(np.linalg.norm(np.array([[0.0, 1.0], [-P, -D]]), 2))
-
-
 @lru_cache(maxsize=32)
 def _seed_plan(
     lam_bytes: bytes, P: float, D: float
@@ -94,10 +83,7 @@ def _seed_plan(
     as complex (F_c, 1, 1) (None when there are none). Cached per (lam, P, D).
     """
     lam = np.frombuffer(lam_bytes, dtype=np.complex128)
-    b, c0 = D * (1.0 - lam), P * (1.0 - lam)
-    disc = np.sqrt(b * b - 4.0 * c0 + 0j)
-    free = max(float(np.max(np.abs(-b + disc))), float(np.max(np.abs(-b - disc)))) / 2.0
-    radius = max(1.0, free, _norm_a(P, D))
+    radius = float(_root_scales(lam, P, D).max())
     real = lam.imag == 0.0
     lam_real = lam.real[real][:, None, None].copy() if real.any() else None
     lam_cplx = lam[~real][:, None, None].copy() if not real.all() else None
@@ -122,9 +108,7 @@ def _family_seeds(lam: NDArray[np.complex128], P: float, D: float, t1: float, t2
     hmax = max(t1, t2)
     F = lam.size
     if hmax < _TINY_DELAY:  # delay-free: s^2 + D (1 - lam) s + P (1 - lam) = 0
-        b, c0 = D * (1.0 - lam), P * (1.0 - lam)
-        disc = np.sqrt(b * b - 4.0 * c0 + 0j)
-        eig = np.stack([(-b + disc) / 2.0, (-b - disc) / 2.0], axis=1)
+        eig = _delay_free(lam, P, D)
     else:
         radius, real, lam_real, lam_cplx = _seed_plan(lam.tobytes(), float(P), float(D))
         N = min(max(math.ceil(0.6 * radius * hmax + 4), 6), MAX_DEGREE)
@@ -169,16 +153,12 @@ def _row_seeds(
     R = lam.size
     out = np.full((R, k), np.nan + 0j)
     hmax = np.maximum(t1, t2)
-    b, c0 = D * (1.0 - lam), P * (1.0 - lam)
-    disc = np.sqrt(b * b - 4.0 * c0 + 0j)
     tiny = hmax < _TINY_DELAY
     if tiny.any():  # delay-free: s^2 + D (1 - lam) s + P (1 - lam) = 0
-        free_roots = np.stack([(-b + disc) / 2.0, (-b - disc) / 2.0], axis=1)[tiny]
+        free_roots = _delay_free(lam, P, D)[tiny]
         order = np.argsort(-free_roots.real, axis=1)[:, :k]
         out[tiny, : order.shape[1]] = free_roots[np.arange(order.shape[0])[:, None], order]
-    free = np.maximum(np.abs(-b + disc), np.abs(-b - disc)) / 2.0
-    norm_a = _norm_a(P, D) if not isinstance(P, np.ndarray) else _norm_a_rows(P, D)
-    radius = np.maximum(np.maximum(1.0, free), norm_a)
+    radius = _root_scales(lam, P, D)
     N = np.clip(np.ceil(0.6 * radius * hmax + 4), 6, MAX_DEGREE).astype(int)
     for n in np.unique(N[~tiny]):
         for real in (True, False):

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from delayform.analysis._rows import Gain, _at, _Rows
+from delayform.analysis._rows import Gain, _at, _delay_free, _Rows
 
 
 #: Rows of the walk's samples at its two ends (top, bottom), for the tails.
@@ -189,7 +189,7 @@ def _count_rows(
         _Walk(c, t1, t2, A1, B1, m2_slope, m2_offset, P, D).bisect(total, failed, line, wa, qa, qb, ka, kb, h, max_segments)
     # tails beyond +-Omega: arg q = arg g1 + Arg(q / g1), g1 = s^2 + D s + P (Rouche)
     # (the walk's end points are c + i Omega and c + i lo; real rows use only the top one)
-    z = _free_roots(P, D) if not isinstance(P, np.ndarray) else _free_roots_rows(P, D)  # (2,) or (n, 2)
+    z = _free_roots(P, D) if not isinstance(P, np.ndarray) else _delay_free(0.0, P, D)  # (2,) or (n, 2)
     e = c + 1j * omega  # the top end
     top = (np.pi / 2 - np.angle(e[:, None] - z)).sum(axis=-1) - np.angle(ends[0] / ((e + D) * e + P))
     delta = 2.0 * (total + top)
@@ -348,16 +348,9 @@ def _sample_index(m: int) -> NDArray[np.float64]:
     return j
 
 
-def _free_roots_rows(P: NDArray[np.float64], D: NDArray[np.float64]) -> NDArray[np.complex128]:
-    """The roots of g1 = s^2 + D s + P per row, shape (n, 2)."""
-    disc = np.sqrt(D * D - 4.0 * P + 0j)
-    return np.stack([(-D + disc) / 2.0, (-D - disc) / 2.0], axis=1)
-
-
 @lru_cache(maxsize=64)
 def _free_roots(P: float, D: float) -> NDArray[np.complex128]:
     """The roots of g1 = s^2 + D s + P (the tails' comparison polynomial), read-only."""
-    disc = cmath.sqrt(D * D - 4.0 * P)
-    z = np.array([(-D + disc) / 2.0, (-D - disc) / 2.0])
+    z = _delay_free(0.0, P, D)
     z.flags.writeable = False
     return z
