@@ -477,8 +477,9 @@ def test_chart_with_many_curves_still_shows_the_stable_region() -> None:
 @pytest.mark.parametrize("n", [1, 2, 6, 23, 101])
 def test_nearest_coarse_point_without_a_distance_table(n: int) -> None:
     """A 100000 x 2 map once built a 100000 x 20000 distance table (16 GB, killed); same answer in O(n)."""
-    from delayform.analysis._rightmost import _coarse_axis, _nearest_coarse
+    from delayform.analysis._family import _nearest
 
-    coarse = _coarse_axis(n, 5)
-    brute = np.abs(np.arange(n)[:, None] - coarse[None, :]).argmin(axis=1)
-    np.testing.assert_array_equal(_nearest_coarse(n, coarse), brute)
+    axis = np.linspace(0.0, 8.0, n)
+    coarse = np.unique(np.append(np.arange(0, n, 5), n - 1))
+    brute = coarse[np.abs(axis[:, None] - axis[coarse][None, :]).argmin(axis=1)]
+    np.testing.assert_array_equal(_nearest(np.arange(n), coarse, axis), brute)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -10,8 +9,6 @@ from numpy.typing import NDArray
 
 from delayform.analysis._generator import (
     _eigenvalues_at,
-    _CHUNK,
-    _igd_seeds,
     _initial_degree,
     _max_delay,
     _root_scale,
@@ -152,74 +149,5 @@ def _certify(
     certified = good & (counts == expected)
     best = np.argmax(np.where(np.isnan(roots.real), -np.inf, roots.real), axis=1)
     return roots[np.arange(t1.size), best], certified, roots
-
-
-def _nearest_coarse(n: int, coarse: NDArray[np.int64]) -> NDArray[np.int64]:
-    """Index into ``coarse`` (sorted) of the nearest coarse point to each of 0..n-1, ties to the left.
-
-    O(n log n) and light on memory (a distance table would be n x n / stride: 16 GB for 100000 points).
-    """
-    idx = np.arange(n)
-    if coarse.size == 1:
-        return np.zeros(n, dtype=np.int64)
-    k = np.clip(np.searchsorted(coarse, idx), 1, coarse.size - 1)
-    return np.where(idx - coarse[k - 1] <= coarse[k] - idx, k - 1, k).astype(np.int64)
-
-
-def _coarse_axis(n: int, stride: int) -> NDArray[np.int64]:
-    idx = np.arange(0, n, stride)
-    return idx if idx[-1] == n - 1 else np.append(idx, n - 1)
-
-
-def _rightmost_grid(
-    prob: _Problem, ax1: NDArray[np.float64], ax2: NDArray[np.float64],
-    advance: Callable[[int], None] | None = None, *, stride: int = _STRIDE,
-) -> NDArray[np.complex128]:
-    """Certified rightmost root of one factor at every point of a delay grid (shape (n1, n2)).
-
-    1. A coarse sub-grid (every ``stride``-th point) is solved by the stacked
-       discretization (:func:`_igd_seeds`) and Newton.
-    2. Every other grid point starts Newton from the roots of its nearest
-       coarse point (roots move continuously with the delays), all at once.
-    3. Every point is certified by the argument principle
-       (:func:`_count_right_batch`); points that fail get their own stacked
-       discretization at a higher degree, and the few left the robust
-       single-pair path (:func:`_solve_rightmost`).
-    """
-    n1, n2 = ax1.size, ax2.size
-    T1, T2 = np.meshgrid(ax1, ax2, indexing="ij")
-    t1, t2 = T1.ravel(), T2.ravel()
-    out = np.full(t1.size, np.nan + 0j, dtype=np.complex128)
-    done = np.zeros(t1.size, dtype=bool)
-    c1, c2 = _coarse_axis(n1, stride), _coarse_axis(n2, stride)
-    coarse = (c1[:, None] * n2 + c2[None, :]).ravel()
-    seeds = _igd_seeds(prob, t1[coarse], t2[coarse], scale=1.0, k=_BATCH_SEEDS)
-    root, cert, roots = _certify(prob, t1[coarse], t2[coarse], seeds)
-    out[coarse[cert]], done[coarse[cert]] = root[cert], True
-    if advance is not None:
-        advance(int(coarse.size))
-    # nearest coarse point of every grid point; coarse rows of roots as seeds
-    near1, near2 = _nearest_coarse(n1, c1), _nearest_coarse(n2, c2)
-    nearest = (near1[:, None] * c2.size + near2[None, :]).ravel()
-    rest = np.flatnonzero(~done)
-    rest = rest[~np.isin(rest, coarse[~cert])]  # failed coarse points go to the fallback
-    for start in range(0, rest.size, 4 * _CHUNK):
-        idx = rest[start : start + 4 * _CHUNK]
-        seed = roots[nearest[idx]]
-        r, ok, _ = _certify(prob, t1[idx], t2[idx], seed)
-        out[idx[ok]], done[idx[ok]] = r[ok], True
-        if advance is not None:
-            advance(int(idx.size))
-    left = np.flatnonzero(~done)
-    if left.size:
-        seeds = _igd_seeds(prob, t1[left], t2[left], scale=2.0, k=2 * _BATCH_SEEDS)
-        r, ok, _ = _certify(prob, t1[left], t2[left], seeds)
-        out[left[ok]], done[left[ok]] = r[ok], True
-    for i in np.flatnonzero(~done):
-        res = _solve_rightmost(prob, float(t1[i]), float(t2[i]))
-        out[i] = _pick_rightmost(prob, res.roots)
-    if prob.mirror or prob.is_real:
-        out = out.real + 1j * np.abs(out.imag)
-    return out.reshape(n1, n2)
 
 
