@@ -256,6 +256,43 @@ def _real_imag(z: complex) -> tuple[float, float]:
     return z.real, z.imag
 
 
+def _without_persistent_zero(seeds: NDArray[np.complex128], deflate: NDArray[np.bool_]) -> NDArray[np.complex128]:
+    """Seeds (R, K) with the centroid rows' discretized persistent zero (eq. factor1) dropped."""
+    return np.where(deflate[:, None] & (np.abs(seeds) < 1e-9), np.nan, seeds)
+
+
+def _fresh_seeds(rows: _Rows, k: int) -> NDArray[np.complex128]:
+    """The k rightmost eigenvalues of every row's discretized generator (persistent zero dropped)."""
+    return _without_persistent_zero(_row_seeds(rows.lam, rows.t1, rows.t2, rows.P, rows.D, k), rows.deflate)
+
+
+def _certify_afresh(
+    rows: _Rows, seeds: NDArray[np.complex128], bad: NDArray[np.int64]
+) -> tuple[NDArray[np.complex128], NDArray[np.bool_], NDArray[np.complex128]]:
+    """Rows ``bad`` that their seeds did not certify, again from twice as many fresh discretization seeds.
+
+    The seed window is first set by the fresh seeds; where their rightmost is a spurious
+    eigenvalue of the discretization (it converges elsewhere) every seed is polished.
+    Returns (rightmost, certified, distinct roots) aligned with ``bad``.
+    """
+    both = np.concatenate([_fresh_seeds(rows.take(bad), 2 * _BATCH_SEEDS), seeds[bad]], axis=1)
+    right = np.full(bad.size, np.nan + 0j)
+    ok = np.zeros(bad.size, dtype=bool)
+    found: list[tuple[NDArray[np.int64], NDArray[np.complex128]]] = []
+    left = np.arange(bad.size)
+    for cols, window in ((2 * _BATCH_SEEDS, _SEED_WINDOW), (0, np.inf)):
+        r, good, roots = _certify_rows(rows.take(bad[left]), both[left], cols, window)
+        right[left[good]], ok[left[good]] = r[good], True
+        found.append((left[good], roots[good]))
+        left = left[~good]
+        if left.size == 0:
+            break
+    known = np.full((bad.size, max(1, max(r.shape[1] for _, r in found))), np.nan + 0j)
+    for i, r in found:
+        known[i, : r.shape[1]] = r
+    return right, ok, known
+
+
 def _generic_rightmost(
     f: CharacteristicFactor, t1: NDArray[np.float64], t2: NDArray[np.float64]
 ) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
@@ -339,8 +376,7 @@ def family_rightmost(
     lam, real, centroid = _lams(tuple(fs))
     F = lam.size
     rows = _Rows(lam, np.full(F, float(tau1)), np.full(F, float(tau2)), real, centroid, P, D)
-    seeds = _family_seeds(lam, P, D, float(tau1), float(tau2), _BATCH_SEEDS)
-    seeds = np.where(centroid[:, None] & (np.abs(seeds) < 1e-9), np.nan, seeds)
+    seeds = _without_persistent_zero(_family_seeds(lam, P, D, float(tau1), float(tau2), _BATCH_SEEDS), centroid)
     right, ok, _ = _certify_rows(rows, seeds)
     for k in np.flatnonzero(~ok):
         right[k] = _generic_rightmost(fs[k], rows.t1[k : k + 1], rows.t2[k : k + 1])[0][0]
@@ -415,35 +451,23 @@ def family_grid(
         pts = pts[~solved[pts]]
         if pts.size == 0:
             continue
-        if prev1 is None:  # first level: seeds from the discretized generator
-            seeds = np.concatenate(
-                [_family_seeds(lam, P, D, float(t1[p]), float(t2[p]), _BATCH_SEEDS) for p in pts], axis=1
-            ).reshape(F * pts.size, _BATCH_SEEDS)
-            seeds = np.where(np.repeat(centroid, pts.size)[:, None] & (np.abs(seeds) < 1e-9), np.nan, seeds)
+        rows = _Rows(
+            np.repeat(lam, pts.size), np.tile(t1[pts], F), np.tile(t2[pts], F),
+            np.repeat(real, pts.size), np.repeat(centroid, pts.size), P, D,
+        )
+        if prev1 is None:  # first level: seeds from the discretized generator (stacked by size)
+            seeds = _fresh_seeds(rows, _BATCH_SEEDS)
         else:  # later levels: the roots of the nearest solved point, moved along their tangents
             i, j = pts // n2, pts % n2
             src = _nearest(i, prev1, ax1) * n2 + _nearest(j, prev2, ax2)
             seeds = _predict(*(np.take(x, src, axis=1) for x in (known, slope1, slope2)),
                              t1[pts] - t1[src], t2[pts] - t2[src])  # fmt: skip
             seeds = seeds.reshape(F * pts.size, _KEEP)
-        rows = _Rows(
-            np.repeat(lam, pts.size), np.tile(t1[pts], F), np.tile(t2[pts], F),
-            np.repeat(real, pts.size), np.repeat(centroid, pts.size), P, D,
-        )
         r, ok, roots = _certify_in_chunks(rows, seeds)
         if not ok.all():  # a root the neighbours did not have: fresh discretization seeds
             bad = np.flatnonzero(~ok)
-            fresh = _row_seeds(rows.lam[bad], rows.t1[bad], rows.t2[bad], P, D, 2 * _BATCH_SEEDS)
-            fresh = np.where(rows.deflate[bad][:, None] & (np.abs(fresh) < 1e-9), np.nan, fresh)
-            both = np.concatenate([fresh, seeds[bad]], axis=1)
-            # the window set by the new seeds; where their rightmost is a spurious eigenvalue
-            # of the discretization (it converges elsewhere), every seed polished
-            for cols, window in ((fresh.shape[1], _SEED_WINDOW), (0, np.inf)):
-                r2, ok2, roots2 = _certify_rows(rows.take(bad), both, cols, window)
-                r[bad[ok2]], ok[bad[ok2]], roots[bad[ok2]] = r2[ok2], True, _pad(roots2[ok2], _KEEP)
-                bad, both = bad[~ok2], both[~ok2]
-                if bad.size == 0:
-                    break
+            r2, ok2, roots2 = _certify_afresh(rows, seeds, bad)
+            r[bad[ok2]], ok[bad[ok2]], roots[bad[ok2]] = r2[ok2], True, _pad(roots2[ok2], _KEEP)
         r, ok, roots = r.reshape(F, -1), ok.reshape(F, -1), roots.reshape(F, pts.size, _KEEP)
         right[:, pts], known[:, pts] = r, roots
         for k in np.flatnonzero((~ok).any(axis=1)):

@@ -33,11 +33,10 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from delayform.analysis._family import _certify_rows, _SEED_WINDOW
+from delayform.analysis._family import _certify_afresh, _certify_rows, _fresh_seeds
 from delayform.analysis._polish import _q
 from delayform.analysis._rightmost import _BATCH_SEEDS
 from delayform.analysis._rows import _Rows
-from delayform.analysis._seeds import _row_seeds
 from delayform.analysis.roots import rightmost_root
 from delayform.analysis.spectrum import _centroid_rightmost
 from delayform.characteristic import CharacteristicFactor
@@ -94,26 +93,16 @@ def rightmost_roots(
                 cert[i] = True
                 found = _merge_rows(found, np.array([i]), np.array([[out[i]]]))
         left = np.flatnonzero(~cert)
-        if left.size:  # fresh seeds, their window first, then every seed polished
-            both = np.concatenate([_fresh_seeds(rows.take(left), 2 * _BATCH_SEEDS), seeds[left]], axis=1)
-            for cols, window in ((2 * _BATCH_SEEDS, _SEED_WINDOW), (0, np.inf)):
-                r, ok, more = _certify_rows(rows.take(left), both, cols, window)
-                out[left[ok]] = r[ok]
-                found = _merge_rows(found, left[ok], more[ok])
-                left, both = left[~ok], both[~ok]
-                if left.size == 0:
-                    break
+        if left.size:
+            r, ok, more = _certify_afresh(rows, seeds, left)
+            out[left[ok]] = r[ok]
+            found = _merge_rows(found, left[ok], more[ok])
+            left = left[~ok]
     for i in left:  # the robust single-pair path, certified or raising
         f = CharacteristicFactor(group, float(L.P[i]), float(L.D[i]))
         out[i] = rightmost_root(f, float(L.t1[i]), float(L.t2[i]))
         found = _merge_rows(found, np.array([i]), np.array([[out[i]]]))
     return out.real + 1j * np.abs(out.imag), found
-
-
-def _fresh_seeds(rows: _Rows, k: int) -> _CArr:
-    """The discretized generator's k rightmost eigenvalues per line, the centroid's persistent zero dropped."""
-    seeds = _row_seeds(rows.lam, rows.t1, rows.t2, rows.P, rows.D, k)
-    return np.where(rows.deflate[:, None] & (np.abs(seeds) < 1e-9), np.nan, seeds)
 
 
 def _merge_rows(found: _CArr, rows: NDArray[np.int64], new: _CArr) -> _CArr:
