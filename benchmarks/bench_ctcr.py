@@ -34,7 +34,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from delayform.analysis.ctcr import stability_map
+from delayform.analysis.ctcr.stability_map import stability_map
 from delayform.topology import Topology, paper_six, random_digraph
 
 
@@ -65,7 +65,7 @@ def _row(name: str, make: Callable[[], Topology], tmax: float, goal: float, repe
 
 _CHILD = """
 import json, resource, time
-from delayform.analysis.ctcr import stability_map
+from delayform.analysis.ctcr.stability_map import stability_map
 from delayform.topology import random_digraph, ring
 base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # after the imports
 t0 = time.perf_counter()

@@ -37,7 +37,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from delayform.analysis.ctcr import PAPER_POINTS
+from delayform.analysis.ctcr.stability_map import PAPER_POINTS
 from delayform.app import Explorer, start
 from delayform.scenario import paper_scenario
 

@@ -25,8 +25,8 @@ import time
 
 import numpy as np
 
-from delayform.analysis.ctcr import PAPER_POINTS
-from delayform.analysis.spectrum import dominant_root
+from delayform.analysis.ctcr.stability_map import PAPER_POINTS
+from delayform.analysis.roots.dominant import dominant_root
 from delayform.design.gains import design_gains
 from delayform.topology import paper_six
 

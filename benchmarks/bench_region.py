@@ -24,10 +24,10 @@ import time
 
 import numpy as np
 
-from delayform.analysis.bounds import spectrum_bound
-from delayform.analysis.certificates import safe_delays
-from delayform.analysis.ctcr import stability_map
-from delayform.analysis.region import lambda_region
+from delayform.analysis.plane.spectrum_bounds import spectrum_bound
+from delayform.analysis.plane.spectrum_sets import safe_delays
+from delayform.analysis.ctcr.stability_map import stability_map
+from delayform.analysis.plane.region import lambda_region
 from delayform.topology import grid
 
 

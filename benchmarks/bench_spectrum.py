@@ -34,7 +34,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from delayform.analysis.spectrum import dominant_root, dominant_root_map
+from delayform.analysis.roots.dominant import dominant_root, dominant_root_map
 from delayform.characteristic import CharacteristicFactor, factors
 from delayform.topology import paper_six
 

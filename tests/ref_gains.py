@@ -1,6 +1,6 @@
 """An independent spectral abscissa over the gains, for tests/test_gains.py.
 
-Nothing here uses :mod:`delayform.analysis.spectrum` or :mod:`delayform.design`.
+Nothing here uses :mod:`delayform.analysis.roots.dominant` or :mod:`delayform.design`.
 Each factor of eq. factorized is written out from the paper,
 
     q_lam(s) = s^2 + D s + P - lam (D s e^{-tau2 s} + P e^{-tau1 s}),

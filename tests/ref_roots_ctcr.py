@@ -1,7 +1,7 @@
 """An independent count of unstable characteristic roots, for checking the CTCR map.
 
 Nothing here uses the curves, the quasi-polynomial coefficients or the root
-tendencies of :mod:`delayform.analysis.ctcr`. A subsystem of eq. subsystems,
+tendencies of :mod:`delayform.analysis.ctcr.stability_map`. A subsystem of eq. subsystems,
 ``dx/dt = A x + B1 x(t - tau1) + B2 x(t - tau2)``, has the characteristic
 function ``f(s) = det(s I - A - B1 e^{-tau1 s} - B2 e^{-tau2 s})``. A root with
 Re s >= 0 is an eigenvalue of ``A + B1 e^{-tau1 s} + B2 e^{-tau2 s}`` with

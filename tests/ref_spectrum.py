@@ -1,6 +1,6 @@
 """Independent reference computations for tests/test_spectrum.py.
 
-Nothing here uses :mod:`delayform.analysis.spectrum`. The characteristic function is
+Nothing here uses :mod:`delayform.analysis.roots.dominant`. The characteristic function is
 either the full 2n x 2n determinant of eq. protocolss
 (:func:`delayform.characteristic.full_characteristic`, which does not use the
 eigenvalues of C or the factorization of Lemma 1) or a quasi-polynomial's own

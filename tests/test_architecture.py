@@ -81,7 +81,7 @@ def _graph() -> nx.DiGraph:
     for module, path in files.items():
         g.add_node(module)
         for target in _imports(path, module):
-            # "analysis.spectrum.dominant_root" -> the module "analysis.spectrum"
+            # "analysis.roots.dominant.dominant_root" -> the module "analysis.roots.dominant"
             while target and target not in files:
                 target = target.rpartition(".")[0]
             if target and target != module:

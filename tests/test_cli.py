@@ -145,7 +145,7 @@ def _complex(value: dict) -> complex:
 
 
 def test_chart_json_matches_library(tmp_path: Path) -> None:
-    from delayform.analysis.ctcr import stability_map
+    from delayform.analysis.ctcr.stability_map import stability_map
     from delayform.topology import paper_six
 
     out = _json(run("chart", "--json", "--out", str(tmp_path), "--tau1-max", "6", "--tau2-max", "7", cwd=tmp_path))
@@ -164,7 +164,7 @@ def test_chart_json_matches_library(tmp_path: Path) -> None:
 
 
 def test_roots_json_matches_library(tmp_path: Path) -> None:
-    from delayform.analysis.spectrum import dominant_root, roots_in
+    from delayform.analysis.roots.dominant import dominant_root, roots_in
     from delayform.characteristic import factors
     from delayform.topology import ring
 
@@ -198,7 +198,7 @@ def test_schedule_json_matches_library(tmp_path: Path) -> None:
 
 
 def test_map_json_matches_library(tmp_path: Path) -> None:
-    from delayform.analysis.spectrum import dominant_root_map
+    from delayform.analysis.roots.dominant import dominant_root_map
     from delayform.topology import paper_six
 
     out = _json(run("map", "--json", "--tau1-range", "0,4", "--tau2-range", "0,3", "--size", "9,7",

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 from test_cli import ROOT, assert_one_line_error
 
-from delayform.analysis.certificates import safe_delays
-from delayform.analysis.region import lambda_region
+from delayform.analysis.plane.spectrum_sets import safe_delays
+from delayform.analysis.plane.region import lambda_region
 from delayform.topology import paper_six
 
 

@@ -1,4 +1,4 @@
-"""Tests of delayform.analysis.ctcr: exact crossing curves and the CTCR count of unstable roots.
+"""Tests of delayform.analysis.ctcr.stability_map: exact crossing curves and the CTCR count of unstable roots.
 
 The counts are checked against an independent argument-principle root counter
 (tests/ref_roots_ctcr.py) that uses only the subsystem matrices of eq.
@@ -13,7 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from delayform.characteristic import TwoDelayQuasiPolynomial, factors
-from delayform.analysis.ctcr import (
+from delayform.analysis.ctcr.stability_map import (
     PAPER_POINTS,
     CrossingCurve,
     StabilityMap,

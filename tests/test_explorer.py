@@ -22,9 +22,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from delayform.analysis.ctcr import PAPER_POINTS, stability_map
-from delayform.analysis.region import lambda_region
-from delayform.analysis.spectrum import count_roots_right_of, dominant_root, rightmost_root
+from delayform.analysis.ctcr.stability_map import PAPER_POINTS, stability_map
+from delayform.analysis.plane.region import lambda_region
+from delayform.analysis.roots.dominant import count_roots_right_of, dominant_root, rightmost_root
 from delayform.app import LOOPBACK, Explorer, ExplorerLimits, check_host, scenario_toml, start
 from delayform.app.server import bind
 from delayform.characteristic import factors

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from delayform.analysis.ctcr import PAPER_POINTS
+from delayform.analysis.ctcr.stability_map import PAPER_POINTS
 from delayform.app import Explorer, start
 from delayform.scenario import paper_scenario
 

@@ -1,4 +1,4 @@
-"""Tests of delayform.analysis.factor_roots: every root of every factor in a rectangle, batched.
+"""Tests of delayform.analysis.roots.team_roots: every root of every factor in a rectangle, batched.
 
 The batched family path (reduced Chebyshev generator, vectorized Newton, the rectangle's
 winding walked for all factors at once) is checked against the per-factor
@@ -19,9 +19,9 @@ import numpy as np
 import pytest
 
 import delayform
-from delayform.analysis import factor_roots as fr
-from delayform.analysis.factor_roots import factor_roots_in
-from delayform.analysis.spectrum import RESIDUAL_TOL, relative_residual, roots_in
+from delayform.analysis.roots import team_roots as fr
+from delayform.analysis.roots.team_roots import factor_roots_in
+from delayform.analysis.roots.dominant import RESIDUAL_TOL, relative_residual, roots_in
 from delayform.characteristic import factors
 from delayform.errors import ResourceLimitError
 from delayform.topology import paper_six, random_digraph, ring, star
@@ -95,7 +95,7 @@ def test_far_rectangle_is_refused_up_front_with_one_that_fits():
     message = str(info.value)
     assert "\n" not in message
     hint = tuple(float(v) for v in message.rsplit("e.g. ", 1)[1].split(","))
-    from delayform.analysis._generator import _require_resolvable
+    from delayform.analysis.roots.generator import _require_resolvable
 
     _require_resolvable(hint, 0.3)  # the suggested rectangle is accepted
     assert hint[0] == -1000.0 and hint[3] < 10000.0

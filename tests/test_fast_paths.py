@@ -19,9 +19,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import ref_spectrum as ref
-from delayform.analysis import _family, _family_curves, _phase, _rows, _seeds, _walk
-from delayform.analysis.ctcr import stability_map
-from delayform.analysis.spectrum import count_roots_right_of, dominant_root, dominant_root_map
+from delayform.analysis.ctcr import family_curves as _family_curves, phase as _phase
+from delayform.analysis.roots.family import rows as _rows, seeds as _seeds, solve as _family, walk as _walk
+from delayform.analysis.ctcr.stability_map import stability_map
+from delayform.analysis.roots.dominant import count_roots_right_of, dominant_root, dominant_root_map
 from delayform.characteristic import TwoDelayQuasiPolynomial, factors
 from delayform.topology import _circulant_eigenvalues, paper_six, random_digraph, ring, star
 from ref_roots_ctcr import system_unstable
@@ -156,7 +157,7 @@ def test_long_walk_counts_hundreds_of_roots() -> None:
 )
 def test_vectorized_line_choice_equals_the_scalar_rule(reals, imags, near, real, deflate, accepted) -> None:
     # _lines_of_rows (the map's rows) against certificate._choose_line (the per-factor rule)
-    from delayform.analysis.certificate import _choose_line
+    from delayform.analysis.roots.argument_principle import _choose_line
 
     k = len(reals)
     roots = np.array(reals) + 1j * np.array(imags[:k])
@@ -191,7 +192,7 @@ def test_vectorized_line_choice_equals_the_scalar_rule(reals, imags, near, real,
 def test_dominant_root_equals_the_generic_path_per_factor(n, p, seed, gains, tau1, tau2) -> None:
     # the one-pair path (plain-Python polishing and lines, direct LAPACK seeds, few-line walk)
     # against the generic per-factor path (its own seeds, Newton and first-order certificate)
-    from delayform.analysis.roots import _problem, _rightmost
+    from delayform.analysis.roots.single import _problem, _rightmost
     from delayform.errors import DelayError, NoSpanningTreeError
 
     P_, D_ = gains
@@ -211,7 +212,7 @@ def test_dominant_root_equals_the_generic_path_per_factor(n, p, seed, gains, tau
 @pytest.mark.parametrize(("tau1", "tau2"), [(0.0, 0.0), (0.0, 1.3), (0.3, 0.2), (2.0, 1.0), (4.7, 6.1)])
 def test_rightmost_root_of_a_factor_equals_the_generic_path(tau1: float, tau2: float) -> None:
     # a factor goes through the family path; the generic one (its own seeds, first-order walk) agrees
-    from delayform.analysis.roots import _problem, _rightmost, rightmost_root
+    from delayform.analysis.roots.single import _problem, _rightmost, rightmost_root
 
     for team in (paper_six(), ring(5)):
         for f in factors(team, P, D):
@@ -282,8 +283,8 @@ def test_reduced_generator_has_the_full_discretizations_eigenvalues(
     same factor (built term by term from its quasi-polynomial), and the generic one's others
     are those of the differentiation matrix alone (the eigenvectors with zero position).
     """
-    from delayform.analysis._generator import _chebyshev, _igd_eigenvalues
-    from delayform.analysis._quasi import _problem_of_factor
+    from delayform.analysis.roots.generator import _chebyshev, _igd_eigenvalues
+    from delayform.analysis.roots.problem import _problem_of_factor
 
     if swap:
         t1, t2 = t2, t1

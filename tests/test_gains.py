@@ -29,8 +29,8 @@ from hypothesis import strategies as st
 import ref_gains
 from ref_spectrum import reference_dominant_root
 
-from delayform.analysis.ctcr import PAPER_POINTS, stability_map
-from delayform.analysis.spectrum import SETTLING_FACTOR
+from delayform.analysis.ctcr.stability_map import PAPER_POINTS, stability_map
+from delayform.analysis.roots.dominant import SETTLING_FACTOR
 from delayform.design._gain_roots import _lines, rightmost_roots, root_gradients
 from delayform.design.gains import GainDesign, box_is_stable, design_gains
 from delayform.errors import DelayError, GainError, InputError, NoStableGainsError

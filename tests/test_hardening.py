@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from delayform.analysis.ctcr import stability_map
-from delayform.analysis.spectrum import dominant_root, dominant_root_map, roots_in
+from delayform.analysis.ctcr.stability_map import stability_map
+from delayform.analysis.roots.dominant import dominant_root, dominant_root_map, roots_in
 from delayform.characteristic import factors, format_number
 from delayform.errors import (
     DelayError,
@@ -477,7 +477,7 @@ def test_chart_with_many_curves_still_shows_the_stable_region() -> None:
 @pytest.mark.parametrize("n", [1, 2, 6, 23, 101])
 def test_nearest_coarse_point_without_a_distance_table(n: int) -> None:
     """A 100000 x 2 map once built a 100000 x 20000 distance table (16 GB, killed); same answer in O(n)."""
-    from delayform.analysis._family import _nearest
+    from delayform.analysis.roots.family.solve import _nearest
 
     axis = np.linspace(0.0, 8.0, n)
     coarse = np.unique(np.append(np.arange(0, n, 5), n - 1))

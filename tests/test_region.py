@@ -2,7 +2,7 @@
 
 Every claim is checked against an independent construction: the argument
 principle in s (tests/ref_region.py), the exact CTCR maps of single factors
-(:func:`delayform.analysis.ctcr.crossing_map`), dominant roots and dense eigenvalues.
+(:func:`delayform.analysis.ctcr.stability_map.crossing_map`), dominant roots and dense eigenvalues.
 """
 
 from __future__ import annotations
@@ -13,11 +13,11 @@ from hypothesis import given
 from hypothesis import strategies as st
 from ref_region import rhp_count
 
-from delayform.analysis.bounds import spectrum_bound
-from delayform.analysis.certificates import SpectrumSet, parse_spectrum, safe_delays
-from delayform.analysis.ctcr import PAPER_POINTS, _lam_factor, crossing_map, stability_map
-from delayform.analysis.region import lambda_region
-from delayform.analysis.spectrum import dominant_root, rightmost_root
+from delayform.analysis.plane.spectrum_bounds import spectrum_bound
+from delayform.analysis.plane.spectrum_sets import SpectrumSet, parse_spectrum, safe_delays
+from delayform.analysis.ctcr.stability_map import PAPER_POINTS, _lam_factor, crossing_map, stability_map
+from delayform.analysis.plane.region import lambda_region
+from delayform.analysis.roots.dominant import dominant_root, rightmost_root
 from delayform.characteristic import factors
 from delayform.errors import DelayError, GainError, InputError, ResourceLimitError
 from delayform.topology import Topology, grid, paper_six, ring
@@ -303,7 +303,7 @@ def test_grid_builder() -> None:
 
 
 def test_bound_falls_back_to_the_theorem_when_a_factorization_would_not_fit(monkeypatch: pytest.MonkeyPatch) -> None:
-    import delayform.analysis.bounds as bounds
+    import delayform.analysis.plane.spectrum_bounds as bounds
 
     monkeypatch.setattr(bounds, "FACTOR_MEMORY_BUDGET", 1)
     b = bounds.spectrum_bound(grid(45, 46))

@@ -1,4 +1,4 @@
-"""Tests of delayform.analysis.spectrum: roots, dominant roots, maps and delay scheduling.
+"""Tests of delayform.analysis.roots.dominant: roots, dominant roots, maps and delay scheduling.
 
 Every numerical claim is checked against an independent computation from
 tests/ref_spectrum.py (full 2n x 2n determinant, mesh + Muller, dense
@@ -15,7 +15,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import ref_spectrum as ref
-from delayform.analysis import spectrum
+from delayform.analysis.roots import dominant as spectrum
 from delayform.characteristic import TwoDelayQuasiPolynomial, factors, full_characteristic
 from delayform.errors import (
     DelayError,
@@ -24,7 +24,7 @@ from delayform.errors import (
     NoSpanningTreeError,
     NotConvergedError,
 )
-from delayform.analysis.spectrum import (
+from delayform.analysis.roots.dominant import (
     NoStableDelaysError,
     dominant_root,
     dominant_root_map,
@@ -295,7 +295,7 @@ def test_ring_dominant_root_matches_reference() -> None:
 
 # ------------------------------------------------------------------ CTCR agreement
 def test_sign_of_dominant_root_agrees_with_ctcr_map() -> None:
-    ctcr = pytest.importorskip("delayform.analysis.ctcr")
+    ctcr = pytest.importorskip("delayform.analysis.ctcr.stability_map")
     team = paper_six()
     chart = ctcr.stability_map(team, P, D, 10.0, 10.0)
     tau1 = np.linspace(0.05, 9.95, 23)
@@ -312,7 +312,7 @@ def test_sign_of_dominant_root_agrees_with_ctcr_map() -> None:
 
 
 def test_certified_unstable_root_count_agrees_with_ctcr_nu() -> None:
-    ctcr = pytest.importorskip("delayform.analysis.ctcr")
+    ctcr = pytest.importorskip("delayform.analysis.ctcr.stability_map")
     team = paper_six()
     chart = ctcr.stability_map(team, P, D, 10.0, 10.0)
     fs = factors(team, P, D)

@@ -7,7 +7,7 @@ import random
 import numpy as np
 import pytest
 
-from delayform.analysis.spectrum import dominant_root
+from delayform.analysis.roots.dominant import dominant_root
 from delayform.errors import ClusterError, ResourceLimitError, SimulationInputError
 from delayform.simulation.montecarlo import (
     collect,

@@ -19,7 +19,7 @@ splits over the eigenvalues lam of C (eq. factorized) into
 each raised to the algebraic multiplicity of lam. Every factor has the
 general two-delay form of eq. genfactor, represented here by
 :class:`TwoDelayQuasiPolynomial`, which the CTCR engine
-(:mod:`delayform.analysis.ctcr`) and the root finders (:mod:`delayform.analysis.spectrum`)
+(:mod:`delayform.analysis.ctcr.stability_map`) and the root finders (:mod:`delayform.analysis.roots.dominant`)
 take as input.
 """
 

@@ -41,12 +41,12 @@ def stability_chart(
     kernel_color: str = "red",
     offspring_color: str = "blue",
 ) -> Axes:
-    """The CTCR stability chart of a :class:`~delayform.analysis.ctcr.StabilityMap` (Fig. stability).
+    """The CTCR stability chart of a :class:`~delayform.analysis.ctcr.stability_map.StabilityMap` (Fig. stability).
 
     Kernel curves red, offspring curves blue (Definitions "Kernel curves" and
     "Offspring curves"), the stable region (NU = 0) shaded, and optional
     labelled delay pairs such as the paper's points a-e
-    (:data:`delayform.analysis.ctcr.PAPER_POINTS`).
+    (:data:`delayform.analysis.ctcr.stability_map.PAPER_POINTS`).
 
     Parameters
     ----------
@@ -126,7 +126,7 @@ def save_figure(
 def plot_dominant_surface(result: Any, ax: Axes | None = None) -> Axes:
     """Surface of Re(dominant root) over the delay plane with the plane Re s = 0 (paper Fig. dominant).
 
-    ``result`` is a :class:`delayform.analysis.spectrum.DominantRootMap`; ``ax``, when
+    ``result`` is a :class:`delayform.analysis.roots.dominant.DominantRootMap`; ``ax``, when
     given, must be a 3-D axes. The stability boundary of the CTCR chart is
     where the surface cuts the black plane.
     """
@@ -493,7 +493,7 @@ def lambda_region_plot(
 ) -> Axes:
     """The stable region of the eigenvalue plane (shaded), its boundary ``L(j omega)``, the unit disc.
 
-    ``region`` is a :class:`delayform.analysis.region.LambdaRegion`; the
+    ``region`` is a :class:`delayform.analysis.plane.region.LambdaRegion`; the
     optional ``eigenvalues`` of a team's C are marked green where stable and
     red where not (the centroid eigenvalue 1 as a black square).
 
@@ -547,7 +547,7 @@ def safe_delay_chart(
 ) -> Axes:
     """The delays safe for a whole class of teams, drawn like the CTCR chart.
 
-    ``smap`` is a :class:`delayform.analysis.certificates.SafeDelayMap`: the
+    ``smap`` is a :class:`delayform.analysis.plane.spectrum_sets.SafeDelayMap`: the
     certified safe set shaded, the exact CTCR curves of the factors at the
     ends of the spectrum set (kernel red, offspring blue) and the envelope
     of the interior eigenvalues where present.

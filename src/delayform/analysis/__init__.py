@@ -1,1 +1,17 @@
-"""Analysis of the characteristic equation: CTCR stability maps and characteristic roots."""
+"""Analysis of the characteristic equation, grouped by method.
+
+``ctcr/``
+    The exact stability map in the (tau1, tau2) plane by the Cluster Treatment of
+    Characteristic Roots: crossing sets in phase space, their kernel and offspring
+    curves in the delay plane, and the count of unstable roots between them.
+``roots/``
+    Characteristic roots and their certificates: roots in a rectangle, the rightmost
+    root, argument-principle counts, and the formation's dominant roots and maps.
+``plane/``
+    The eigenvalue plane and certificates for whole classes of teams: which
+    eigenvalues of C are stable at given delays, the delays safe for every spectrum
+    in a set, and spectrum bounds for teams too large for dense eigenvalues.
+
+Each subpackage's ``__init__`` lists its public names; the modules inside are the
+method's own business.
+"""

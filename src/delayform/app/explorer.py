@@ -3,17 +3,17 @@
 :class:`Explorer` answers the page's four questions with the library's own
 functions, so the page and the library can never disagree:
 
-* the chart: :func:`delayform.analysis.ctcr.stability_map` (exact CTCR curves)
+* the chart: :func:`delayform.analysis.ctcr.stability_map.stability_map` (exact CTCR curves)
   and its ``unstable_count`` on a grid of cell centres for the shading;
 * a clicked point: the number of unstable roots NU from the same exact map,
-  :func:`delayform.analysis.spectrum.dominant_root`, and every root of every
+  :func:`delayform.analysis.roots.dominant.dominant_root`, and every root of every
   factor of eq. factorized in a rectangle around the imaginary axis
-  (:func:`delayform.analysis.factor_roots.factor_roots_in`, all factors at once, each count
+  (:func:`delayform.analysis.roots.team_roots.factor_roots_in`, all factors at once, each count
   certified by the argument principle);
 * the robots: :func:`delayform.simulation.simulate` with the scenario's model,
   formation and initial state, thinned to animation frames;
 * the eigenvalue plane of a clicked point: :func:`delayform.app.plane.region_report`
-  (the boundary curve of :func:`delayform.analysis.region.lambda_region`, NU(lam)
+  (the boundary curve of :func:`delayform.analysis.plane.region.lambda_region`, NU(lam)
   and the team's eigenvalues);
 * downloads: the scenario as TOML and the figures of :mod:`delayform.plots`,
   written into the explorer's output folder only.
@@ -42,9 +42,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from delayform.analysis.ctcr import StabilityMap, stability_map
-from delayform.analysis.factor_roots import factor_roots_in
-from delayform.analysis.spectrum import DominantRoot, dominant_root, roots_in
+from delayform.analysis.ctcr.stability_map import StabilityMap, stability_map
+from delayform.analysis.roots.team_roots import factor_roots_in
+from delayform.analysis.roots.dominant import DominantRoot, dominant_root, roots_in
 from delayform.app.params import ExplorerLimits, Param
 from delayform.app.plane import RegionReport, region_report
 from delayform.app.scenario_toml import scenario_toml
@@ -145,7 +145,7 @@ class PointReport(_AtPoint):
         NU: roots of the characteristic equation with Re s > 0 (centroid's
         persistent zero excepted), from the exact CTCR map.
     dominant
-        :func:`~delayform.analysis.spectrum.dominant_root` at the point.
+        :func:`~delayform.analysis.roots.dominant.dominant_root` at the point.
     """
 
     unstable_count: int

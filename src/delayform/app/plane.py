@@ -3,7 +3,7 @@
 At fixed gains and delays every factor of eq. factorized is
 ``q(s, lam) = s^2 + D s + P - lam (D s e^{-tau2 s} + P e^{-tau1 s})`` with an
 eigenvalue lam of C as parameter, and
-:func:`delayform.analysis.region.lambda_region` gives, for every lam, the
+:func:`delayform.analysis.plane.region.lambda_region` gives, for every lam, the
 number NU(lam) of roots with Re s > 0. The panel shows the boundary curve
 ``L(j omega)`` (where roots cross the imaginary axis), NU(lam) on a grid of the
 square ``|Re lam|, |Im lam| <= radius`` (the stable set is where it is 0), the
@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from delayform.analysis.region import LambdaRegion, lambda_region
+from delayform.analysis.plane.region import LambdaRegion, lambda_region
 from delayform.topology import Topology
 
 __all__ = ["RegionReport", "region_report"]
@@ -48,7 +48,7 @@ class RegionReport:
     Attributes
     ----------
     region
-        The :class:`~delayform.analysis.region.LambdaRegion` (gains and delays inside).
+        The :class:`~delayform.analysis.plane.region.LambdaRegion` (gains and delays inside).
     boundary
         ``L(j omega)`` for omega from -max to max, NaN where ``|L| > radius``.
     grid

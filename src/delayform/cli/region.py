@@ -49,7 +49,7 @@ def safe_delays_command(scenario: Path | None, spectrum: str, tau1_max: float | 
     the scenario's gains and chart window. Writes safe_delays.png/.svg and
     safe_delays.npz and reports the safe fraction of the window.
     """
-    from delayform.analysis.certificates import parse_spectrum
+    from delayform.analysis.plane.spectrum_sets import parse_spectrum
     from delayform.report import safe_delays_section
 
     sc = _scenario(scenario, **overrides)
@@ -64,7 +64,7 @@ def safe_delays_command(scenario: Path | None, spectrum: str, tau1_max: float | 
                 param_hint="--point",
             )
     if spectrum.strip().lower() == "bound":
-        from delayform.analysis.bounds import spectrum_bound
+        from delayform.analysis.plane.spectrum_bounds import spectrum_bound
 
         spec: object = spectrum_bound(sc.topology)
     else:

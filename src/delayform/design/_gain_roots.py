@@ -1,26 +1,26 @@
 """Certified rightmost roots of the formation's factors for many (P, D, tau1, tau2) at once.
 
-:mod:`delayform.analysis.spectrum` batches over delays for fixed gains (one
+:mod:`delayform.analysis.roots.dominant` batches over delays for fixed gains (one
 quasi-polynomial, many delay pairs). Gain design needs the other direction:
 many gains (and, for the robust design, many delays) per factor. Every factor
 of eq. factorized is, through its eigenvalue lam of C (a conjugate pair
-through lam alone, as in :mod:`delayform.analysis.spectrum`),
+through lam alone, as in :mod:`delayform.analysis.roots.dominant`),
 
     q(s) = s^2 + D s + P - lam (D s e^{-tau2 s} + P e^{-tau1 s}),
 
 so each *line* of a batch is one (P, D, tau1, tau2): a row of the factor family
-(:mod:`delayform.analysis._rows`) with its own gains, and the family's steps run on
+(:mod:`delayform.analysis.roots.family.rows`) with its own gains, and the family's steps run on
 all lines together -- seeds from the stacked discretized generator
-(:mod:`delayform.analysis._seeds`), Halley polishing on q (:mod:`delayform.analysis._polish`,
+(:mod:`delayform.analysis.roots.family.seeds`), Halley polishing on q (:mod:`delayform.analysis.roots.family.polish`,
 Maehly's deflation of the persistent zero of eq. factor1), the line choice and the
-argument-principle walk (:mod:`delayform.analysis._walk`); the count right of the line
+argument-principle walk (:mod:`delayform.analysis.roots.family.walk`); the count right of the line
 must equal the number of polished roots there.
 
 Lines the certificate rejects are redone with fresh discretization seeds at twice
 the number, and any still rejected by the robust single-pair path
-(:func:`~delayform.analysis.roots.rightmost_root`). Every root returned is
+(:func:`~delayform.analysis.roots.single.rightmost_root`). Every root returned is
 therefore certified: no root of its factor lies to its right. As in
-:func:`~delayform.analysis.spectrum.dominant_root`, the centroid factor's
+:func:`~delayform.analysis.roots.dominant.dominant_root`, the centroid factor's
 roots at s = 0 are not counted: the persistent one, and on tau1 = 0 the
 second one (the centroid's drift), for which the spectrum module's
 centroid path is used.
@@ -33,12 +33,12 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from delayform.analysis._family import _certify_afresh, _certify_rows, _fresh_seeds
-from delayform.analysis._polish import _q
-from delayform.analysis._rightmost import _BATCH_SEEDS
-from delayform.analysis._rows import _Rows
-from delayform.analysis.roots import rightmost_root
-from delayform.analysis.spectrum import _centroid_rightmost
+from delayform.analysis.roots.family.solve import _certify_afresh, _certify_rows, _fresh_seeds
+from delayform.analysis.roots.family.polish import _q
+from delayform.analysis.roots.rightmost import _BATCH_SEEDS
+from delayform.analysis.roots.family.rows import _Rows
+from delayform.analysis.roots.single import rightmost_root
+from delayform.analysis.roots.dominant import _centroid_rightmost
 from delayform.characteristic import CharacteristicFactor
 from delayform.topology import EigenvalueGroup
 

@@ -8,7 +8,7 @@ eq. protocol inside bounds that minimise the **spectral abscissa**
 
 the centroid factor's persistent root s = 0 (eq. factor1) excluded, its
 other roots included: exactly the real part of the root
-:func:`~delayform.analysis.spectrum.dominant_root` reports. The disagreement
+:func:`~delayform.analysis.roots.dominant.dominant_root` reports. The disagreement
 from the formation decays like e^{alpha t}, so -alpha is the decay rate and
 ln(50) / |alpha| the predicted 2 % settling time.
 
@@ -32,7 +32,7 @@ multiple, and with many local minima. So, as HANSO and TDS-STABIL do:
    once; the ball shrinks when no step descends. All starts run together.
 3. **The certificate**: the gains finally chosen (the best of the map and of
    the local searches) are recomputed with the certified
-   :func:`~delayform.analysis.spectrum.dominant_root`.
+   :func:`~delayform.analysis.roots.dominant.dominant_root`.
 
 **Robust design** over a box of delays minimises the worst case
 max_{tau in box} alpha(P, D, tau) the same way, with the max taken over a
@@ -40,7 +40,7 @@ set of delay pairs that grows (an exchange method): the box's corners, edge
 midpoints and centre, then the worst pair found at the current gains by a
 certified dominant-root map of the box zoomed three times around its worst
 point. The result is certified stable over the *whole* box by the exact CTCR
-map at the chosen gains (:func:`~delayform.analysis.ctcr.stability_map`): no
+map at the chosen gains (:func:`~delayform.analysis.ctcr.stability_map.stability_map`): no
 crossing curve meets the box and NU = 0 at its centre. The worst case
 reported is the worst found (a certified root, so a lower bound on the true
 worst abscissa).
@@ -56,9 +56,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from delayform._validation import check_delay
-from delayform.analysis._quasi import _problem_of_factor
-from delayform.analysis.roots import _check_reach
-from delayform.analysis.spectrum import SETTLING_FACTOR, dominant_root, dominant_root_map
+from delayform.analysis.roots.problem import _problem_of_factor
+from delayform.analysis.roots.single import _check_reach
+from delayform.analysis.roots.dominant import SETTLING_FACTOR, dominant_root, dominant_root_map
 from delayform.characteristic import CharacteristicFactor
 from delayform.design._gain_roots import _lines, rightmost_roots, root_gradients
 from delayform.errors import DelayError, GainError, InputError, NoStableGainsError
@@ -68,7 +68,7 @@ from delayform.topology import Topology
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from matplotlib.axes import Axes
 
-    from delayform.analysis.ctcr import StabilityMap
+    from delayform.analysis.ctcr.stability_map import StabilityMap
 
 __all__ = ["GainDesign", "GainPlaneMap", "design_gains", "box_is_stable", "gain_crossing_curves"]
 
@@ -426,7 +426,7 @@ def box_is_stable(smap: StabilityMap, tau1_box: tuple[float, float], tau2_box: t
     Parameters
     ----------
     smap
-        The map (from :func:`~delayform.analysis.ctcr.stability_map`); its
+        The map (from :func:`~delayform.analysis.ctcr.stability_map.stability_map`); its
         window must contain the box.
     tau1_box, tau2_box
         The intervals (lo, hi) of the box.
@@ -435,7 +435,7 @@ def box_is_stable(smap: StabilityMap, tau1_box: tuple[float, float], tau2_box: t
     -------
     bool
     """
-    from delayform.analysis.ctcr import _CHORD_TOL
+    from delayform.analysis.ctcr.stability_map import _CHORD_TOL
 
     (a0, a1), (b0, b1) = tau1_box, tau2_box
     if a1 > smap.tau1_max or b1 > smap.tau2_max:
@@ -608,7 +608,7 @@ def design_gains(
     """The gains (P, D) within bounds that make the formation converge fastest (smallest abscissa).
 
     At one delay pair, minimises the real part of the dominant root
-    (:func:`~delayform.analysis.spectrum.dominant_root`: every factor of
+    (:func:`~delayform.analysis.roots.dominant.dominant_root`: every factor of
     eq. factorized, the centroid's persistent zero of eq. factor1 excluded).
     Over a box of delays (``tau1`` and/or ``tau2`` given as an interval),
     minimises its worst case over the box and certifies the result stable on
@@ -719,7 +719,7 @@ def _robust(
     box1: tuple[float, float], box2: tuple[float, float], grid: int, seed: int,
 ) -> GainDesign:
     """The exchange method: add the box's worst delay pair at the current gains, search again."""
-    from delayform.analysis.ctcr import stability_map
+    from delayform.analysis.ctcr.stability_map import stability_map
 
     pb, db = (float(lo[0]), float(hi[0])), (float(lo[1]), float(hi[1]))
     worst = _worst_in_box(topology, float(x[0]), float(x[1]), box1, box2, _BOX_GRID)

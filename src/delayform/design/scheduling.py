@@ -8,7 +8,7 @@ whose dominant (rightmost) characteristic root lies furthest left, because
 that root sets how fast the team settles into formation.
 
 The search is steered by uncertified, warm-started roots; the pair it ends
-at is recomputed with the certified :func:`~delayform.analysis.spectrum.dominant_root`.
+at is recomputed with the certified :func:`~delayform.analysis.roots.dominant.dominant_root`.
 """
 
 from __future__ import annotations
@@ -20,10 +20,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from delayform._validation import check_delay
-from delayform.analysis._generator import _igd_seeds
-from delayform.analysis._quasi import _cluster, _polish, _Problem, _problem_of_factor
-from delayform.analysis._rightmost import _BATCH_SEEDS, _solve_rightmost
-from delayform.analysis.spectrum import SETTLING_FACTOR, _checked_factors, dominant_root, dominant_root_map
+from delayform.analysis.roots.generator import _igd_seeds
+from delayform.analysis.roots.problem import _cluster, _polish, _Problem, _problem_of_factor
+from delayform.analysis.roots.rightmost import _BATCH_SEEDS, _solve_rightmost
+from delayform.analysis.roots.dominant import SETTLING_FACTOR, _checked_factors, dominant_root, dominant_root_map
 from delayform.characteristic import CharacteristicFactor
 from delayform.errors import DelayError, InputError, NoStableDelaysError
 from delayform.topology import Topology

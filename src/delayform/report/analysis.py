@@ -98,7 +98,7 @@ def chart_section(scenario: Scenario, out: Path) -> Section:
     out
         Folder the section writes its files into.
     """
-    from delayform.analysis.ctcr import stability_map
+    from delayform.analysis.ctcr.stability_map import stability_map
 
     plt = _pyplot()
     points = _chart_points(scenario)
@@ -194,10 +194,10 @@ def roots_section(
         reaching twice as far left as the dominant root.
     progress
         Optional callback ``progress(done, total)`` over the factors whose roots are
-        listed (:func:`~delayform.analysis.factor_roots.factor_roots_in`; for a progress bar).
+        listed (:func:`~delayform.analysis.roots.team_roots.factor_roots_in`; for a progress bar).
     """
-    from delayform.analysis.factor_roots import factor_roots_in
-    from delayform.analysis.spectrum import dominant_root
+    from delayform.analysis.roots.team_roots import factor_roots_in
+    from delayform.analysis.roots.dominant import dominant_root
 
     team, P, D = scenario.topology, scenario.P, scenario.D
     dom = dominant_root(team, P, D, scenario.tau1, scenario.tau2)
@@ -283,9 +283,9 @@ def region_section(scenario: Scenario, out: Path, *, tau1: float | None = None, 
     tau1, tau2
         Delays (s); default the scenario's.
     """
-    from delayform.analysis.bounds import DENSE_BOUND_LIMIT, spectrum_bound
-    from delayform.analysis.certificates import safe_delays
-    from delayform.analysis.region import lambda_region
+    from delayform.analysis.plane.spectrum_bounds import DENSE_BOUND_LIMIT, spectrum_bound
+    from delayform.analysis.plane.spectrum_sets import safe_delays
+    from delayform.analysis.plane.region import lambda_region
 
     plt = _pyplot()
     t1 = scenario.tau1 if tau1 is None else tau1
@@ -355,11 +355,11 @@ def safe_delays_section(
     tau1_max, tau2_max
         The delay window.
     spectrum
-        What :func:`delayform.analysis.certificates.safe_delays` accepts.
+        What :func:`delayform.analysis.plane.spectrum_sets.safe_delays` accepts.
     points
         ``(label, tau1, tau2)`` delay pairs to mark and classify.
     """
-    from delayform.analysis.certificates import safe_delays
+    from delayform.analysis.plane.spectrum_sets import safe_delays
 
     plt = _pyplot()
     m = safe_delays(P, D, tau1_max, tau2_max, spectrum=spectrum)
@@ -409,9 +409,9 @@ def map_section(scenario: Scenario, out: Path, *, progress: MapProgress | None =
         Folder the section writes its files into.
     progress
         Optional callback ``progress(done, total)`` passed to
-        :func:`~delayform.analysis.spectrum.dominant_root_map` (for a progress bar).
+        :func:`~delayform.analysis.roots.dominant.dominant_root_map` (for a progress bar).
     """
-    from delayform.analysis.spectrum import dominant_root_map
+    from delayform.analysis.roots.dominant import dominant_root_map
 
     plt = _pyplot()
     grid = scenario.map

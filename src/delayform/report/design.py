@@ -73,7 +73,7 @@ def schedule_section(
     settling_rows = [("predicted settling time ln(50)/|Re|", f"{_fmt(float(result.settling_time))} s")]
     if result.factor.is_centroid:
         # the slowest mode is the centroid's speed: say so, and give the shape's own settling time
-        from delayform.analysis.spectrum import SETTLING_FACTOR, dominant_root
+        from delayform.analysis.roots.dominant import SETTLING_FACTOR, dominant_root
 
         shape = complex(dominant_root(scenario.topology, scenario.P, scenario.D, result.tau1, result.tau2).formation_root)
         summary |= {"dominant_is_centroid": True, "formation_root": shape,
@@ -146,7 +146,7 @@ def gains_section(
     label
         Names the delays in titles and file names (e.g. ``"c"``).
     """
-    from delayform.analysis.spectrum import dominant_root
+    from delayform.analysis.roots.dominant import dominant_root
 
     plt = _pyplot()
     tau1 = scenario.tau1 if tau1 is None else tau1
@@ -271,7 +271,7 @@ def gain_comparison_section(
     duration
         Simulated time (s); the scenario's by default.
     """
-    from delayform.analysis.spectrum import SETTLING_FACTOR, dominant_root
+    from delayform.analysis.roots.dominant import SETTLING_FACTOR, dominant_root
     from delayform.design.scheduling import schedule_delays
 
     plt = _pyplot()

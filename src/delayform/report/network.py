@@ -49,7 +49,7 @@ def _setup(scenario: Scenario, *, tau1: float, tau2: float, duration: float, dt:
 
 def _predicted(scenario: Scenario, tau1: float, tau2: float) -> float:
     """``ln(50) / |Re s|`` of the dominant root at (tau1, tau2); inf where it does not decay."""
-    from delayform.analysis.spectrum import dominant_root
+    from delayform.analysis.roots.dominant import dominant_root
 
     re = complex(dominant_root(scenario.topology, scenario.P, scenario.D, tau1, tau2).root).real
     return _LN50 / abs(re) if re < 0 else math.inf
@@ -270,7 +270,7 @@ def promises_section(
     progress
         Optional callback ``(levels done, levels)``.
     """
-    from delayform.analysis.spectrum import dominant_root
+    from delayform.analysis.roots.dominant import dominant_root
     from delayform.simulation.network import BernoulliLoss, Jitter, Network
     from delayform.sweeps import network_sweep
 

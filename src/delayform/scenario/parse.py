@@ -164,7 +164,7 @@ def _simulation(reader: _Reader, data: Mapping[str, Any]) -> SimulationSpec:
 
 _ROBOT_KEYS = (
     "wheel_radius", "axle_length", "max_wheel_speed", "max_speed", "max_turn_rate", "max_acceleration",
-    "slow_speed", "turn_time_constant",
+    "slow_speed", "turn_time_constant", "radius",
 )  # fmt: skip
 
 

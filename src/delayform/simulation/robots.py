@@ -80,6 +80,9 @@ class RobotLimits:
         acceleration u is large, so the heading loop's rate stays below
         ``1 / turn_time_constant`` (a real robot's heading loop has a finite
         bandwidth; a fixed step must resolve it).
+    radius
+        Radius (m) of the disc that contains the robot's body, for contacts and
+        the safety filter (the Create: 0.34 m across, so 0.17 m).
 
     See :data:`IROBOT_CREATE` for defaults of the paper's robot.
     """
@@ -92,6 +95,7 @@ class RobotLimits:
     max_acceleration: float = 0.5
     slow_speed: float = 0.05
     turn_time_constant: float = 0.05
+    radius: float = 0.17
 
     def __post_init__(self) -> None:
         for f in fields(self):

@@ -7,14 +7,14 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from delayform.analysis._generator import (
+from delayform.analysis.roots.generator import (
     _eigenvalues_at,
     _initial_degree,
     _max_delay,
     _root_scale,
 )
-from delayform.analysis._quasi import MAX_DEGREE, _cluster, _multiplicity, _polish, _Problem
-from delayform.analysis.certificate import (
+from delayform.analysis.roots.problem import MAX_DEGREE, _cluster, _multiplicity, _polish, _Problem
+from delayform.analysis.roots.argument_principle import (
     _batch_lines,
     _choose_line,
     _count_right_batch,

@@ -1,6 +1,6 @@
 """CTCR crossing sets in phase space: (omega, theta1, theta2) with q(j omega) = 0.
 
-Internal to :mod:`delayform.analysis.ctcr` (method in its module docstring):
+Internal to :mod:`delayform.analysis.ctcr.stability_map` (method in its module docstring):
 polynomials in omega, the closed form of three-term quasi-polynomials (law of
 cosines), the resultant elimination of general ones, the adaptive sampling of
 a path, and the exact single-delay problems of the axes.

@@ -1,11 +1,11 @@
 """Every characteristic root of every factor in a rectangle, for a whole team at once.
 
-:func:`delayform.analysis.spectrum.roots_in` lists the roots of one factor of
+:func:`delayform.analysis.roots.dominant.roots_in` lists the roots of one factor of
 eq. factorized; a team of thousands of agents has thousands of factors, and a
 loop over them pays a full-size discretization, a Python round trip per
 Newton step and a rectangle-wide clustering for each. Here the factors of
 eq. factorized are solved as one family (the structure of
-:mod:`delayform.analysis._family`: every factor is
+:mod:`delayform.analysis.roots.family.solve`: every factor is
 ``s^2 + D s + P - lam (P e^{-tau1 s} + D s e^{-tau2 s})`` with its own lam):
 
 1. the seeds of all factors come from stacked eigenvalue calls on the
@@ -20,7 +20,7 @@ eq. factorized are solved as one family (the structure of
    persistent zero) and factors without delay go through :func:`roots_in`
    itself, so the result is never less certain than the per-factor loop.
 
-Conventions as in :mod:`delayform.analysis.spectrum`: a conjugate pair
+Conventions as in :mod:`delayform.analysis.roots.dominant`: a conjugate pair
 factor lists the roots of lam and of conj(lam); the centroid factor's
 persistent root 0 is included (the plain root set of q).
 """
@@ -33,14 +33,14 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from delayform._validation import check_delay
-from delayform.analysis._family import family_reach_scales
-from delayform.analysis._polish import _polish_rows, _q
-from delayform.analysis._rows import _lams, _Rows
-from delayform.analysis._seeds import _generator_blocks
-from delayform.analysis._generator import _initial_degree, _require_resolvable
-from delayform.analysis._quasi import _TINY_DELAY, Region, _cluster, _multiplicity, _problem_of_factor
-from delayform.analysis.roots import _check_region, _in_region, roots_in
-from delayform.analysis.spectrum import _checked_factors
+from delayform.analysis.roots.family.solve import family_reach_scales
+from delayform.analysis.roots.family.polish import _polish_rows, _q
+from delayform.analysis.roots.family.rows import _lams, _Rows
+from delayform.analysis.roots.family.seeds import _generator_blocks
+from delayform.analysis.roots.generator import _initial_degree, _require_resolvable
+from delayform.analysis.roots.problem import _TINY_DELAY, Region, _cluster, _multiplicity, _problem_of_factor
+from delayform.analysis.roots.single import _check_region, _in_region, roots_in
+from delayform.analysis.roots.dominant import _checked_factors
 from delayform.characteristic import CharacteristicFactor
 from delayform.topology import Topology
 

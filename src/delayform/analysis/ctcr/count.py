@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from delayform.analysis._phase import _CHORD_TOL, _deriv, _horner
-from delayform.analysis._plane import CrossingCurve, _tendency, _ZeroLine
+from delayform.analysis.ctcr.phase import _CHORD_TOL, _deriv, _horner
+from delayform.analysis.ctcr.curves import CrossingCurve, _tendency, _ZeroLine
 from delayform.characteristic import TwoDelayQuasiPolynomial
 
 # ===================================================================== counting helpers

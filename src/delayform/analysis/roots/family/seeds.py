@@ -14,9 +14,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from delayform.analysis._generator import _chebyshev, _lagrange_rows
-from delayform.analysis._quasi import _TINY_DELAY, MAX_DEGREE
-from delayform.analysis._rows import Gain, _at, _delay_free, _root_scales
+from delayform.analysis.roots.generator import _chebyshev, _lagrange_rows
+from delayform.analysis.roots.problem import _TINY_DELAY, MAX_DEGREE
+from delayform.analysis.roots.family.rows import Gain, _at, _delay_free, _root_scales
 
 
 try:  # the gufunc behind np.linalg.eigvals (see _eigvals)
@@ -78,7 +78,7 @@ def _seed_plan(
 ) -> tuple[float, NDArray[np.bool_], NDArray[np.float64] | None, NDArray[np.complex128] | None]:
     """What the seeds of a family need beyond the delays: the root scale, the real-lam mask, lam stacked.
 
-    The scale is :func:`delayform.analysis._generator._root_scale` over all factors (the
+    The scale is :func:`delayform.analysis.roots.generator._root_scale` over all factors (the
     delay-free roots and the norm of A); real lam are stacked as real (F_r, 1, 1), complex lam
     as complex (F_c, 1, 1) (None when there are none). Cached per (lam, P, D).
     """

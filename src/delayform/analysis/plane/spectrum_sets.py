@@ -1,7 +1,7 @@
 """Certificates for classes of teams: the delays safe for every spectrum in a set.
 
 A team is stable at (tau1, tau2) exactly when every eigenvalue of its C lies
-in the stable region of the eigenvalue plane (:mod:`delayform.analysis.region`),
+in the stable region of the eigenvalue plane (:mod:`delayform.analysis.plane.region`),
 the centroid's root s = 0 aside. So a delay pair is *safe for a set S* of
 eigenvalues when S (minus the centroid eigenvalue 1) lies in the region, and
 then every team whose spectrum lies in S is stable there, whatever its size or
@@ -18,7 +18,7 @@ end a of an interval, the centre of a disc) and the curve does not meet S
 (the point 1 aside):
 
 * **Base.** NU of the factor ``q(s, base)`` is read from the exact CTCR map of
-  that factor (:func:`~delayform.analysis.ctcr.crossing_map`).
+  that factor (:func:`~delayform.analysis.ctcr.stability_map.crossing_map`).
 * **Interval [a, b].** ``L(j omega) - 1 = j omega m(j omega) / b(j omega)`` with
   ``m(s) = s - D expm1(-tau2 s) - P expm1(-tau1 s) / s`` (smooth at 0), so the
   real points of the curve other than L(0) = 1 are the zeros of
@@ -40,7 +40,7 @@ The chart draws the boundary: the CTCR curves of the base factors and the
 envelope of the CTCR curves of the set's family of eigenvalues (the interior
 of an interval, the circle of a disc), where an eigenvalue of the family
 gets an imaginary root that does not move under a change of the eigenvalue
-along the family (:mod:`delayform.analysis.envelope`).
+along the family (:mod:`delayform.analysis.plane.envelope`).
 
 Each condition is decided on omega in [0, omega_max] (beyond which |L| exceeds
 every |lam| of S) by *certified* sampling: on a sample interval of width h a
@@ -67,9 +67,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from delayform._validation import check_delay_array, check_gains, check_positive
-from delayform.analysis.boundary_curve import omega_limit
-from delayform.analysis.ctcr import StabilityMap, _lam_factor, crossing_map
-from delayform.analysis.envelope import envelope_of_family, tangency_parabola
+from delayform.analysis.plane.boundary_curve import omega_limit
+from delayform.analysis.ctcr.stability_map import StabilityMap, _lam_factor, crossing_map
+from delayform.analysis.plane.envelope import envelope_of_family, tangency_parabola
 from delayform.errors import DelayError, InputError
 from delayform.resources import require
 
@@ -81,7 +81,7 @@ __all__ = [
     "SafeDelayMap",
     "safe_delays",
     "parse_spectrum",
-    "omega_limit",  # from delayform.analysis.boundary_curve
+    "omega_limit",  # from delayform.analysis.plane.boundary_curve
 ]
 
 _MIN_WIDTH = 1e-10
@@ -205,7 +205,7 @@ def parse_spectrum(spectrum: object) -> SpectrumSet:
     spectrum
         ``"undirected"``, ``"any"``, ``"interval:a,b"``, ``"disc:c,r"`` (c real)
         or ``"disc:re,im,r"``, a :class:`SpectrumSet`, or any object with a
-        ``spectrum_set`` attribute (a :class:`~delayform.analysis.bounds.SpectrumBound`).
+        ``spectrum_set`` attribute (a :class:`~delayform.analysis.plane.spectrum_bounds.SpectrumBound`).
 
     Returns
     -------
@@ -582,7 +582,7 @@ def safe_delays(
         ``"undirected"`` (real spectrum in [-1, 1]: every undirected team),
         ``"any"`` (the closed unit disc: every team), ``"interval:a,b"``,
         ``"disc:c,r"``, ``"disc:re,im,r"``, a :class:`SpectrumSet`, or a
-        :class:`~delayform.analysis.bounds.SpectrumBound` of a team.
+        :class:`~delayform.analysis.plane.spectrum_bounds.SpectrumBound` of a team.
 
     Returns
     -------

@@ -60,9 +60,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from delayform._validation import check_complex_array, check_delay, check_gains
-from delayform.analysis.bounds import SpectrumBound, spectrum_bound
-from delayform.analysis.boundary_curve import ab_terms, omega_limit
-from delayform.analysis.certificates import SafeDelayMap, SpectrumSet, parse_spectrum, safe_delays
+from delayform.analysis.plane.spectrum_bounds import SpectrumBound, spectrum_bound
+from delayform.analysis.plane.boundary_curve import ab_terms, omega_limit
+from delayform.analysis.plane.spectrum_sets import SafeDelayMap, SpectrumSet, parse_spectrum, safe_delays
 from delayform.errors import InputError, ResourceLimitError
 from delayform.topology import Topology
 

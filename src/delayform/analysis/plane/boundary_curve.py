@@ -3,9 +3,9 @@
 Every factor of eq. factorized is ``q(s, lam) = a(s) - lam b(s)`` with
 ``a(s) = s^2 + D s + P`` and ``b(s) = D s e^{-tau2 s} + P e^{-tau1 s}``; q has the
 root ``j omega`` exactly when ``lam = L(j omega)``. Shared by the region
-(:mod:`delayform.analysis.region`), the certificates
-(:mod:`delayform.analysis.certificates`) and the envelopes
-(:mod:`delayform.analysis.envelope`).
+(:mod:`delayform.analysis.plane.region`), the certificates
+(:mod:`delayform.analysis.plane.spectrum_sets`) and the envelopes
+(:mod:`delayform.analysis.plane.envelope`).
 """
 
 from __future__ import annotations

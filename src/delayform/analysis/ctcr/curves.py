@@ -1,7 +1,7 @@
 """CTCR curves in the delay plane: kernel and offspring images of phase paths (eq. nltrans).
 
 A traced quasi-polynomial (:class:`_Part`) gives phase paths
-(:mod:`delayform.analysis._phase`); every image ``tau = (theta + 2 pi i) / omega``
+(:mod:`delayform.analysis.ctcr.phase`); every image ``tau = (theta + 2 pi i) / omega``
 that meets the window becomes a :class:`CrossingCurve` with its root
 tendencies; the axes' crossings and the counts at the origin complete the data
 the CTCR count needs.
@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from delayform.analysis._phase import (
+from delayform.analysis.ctcr.phase import (
     TWO_PI,
     _general_paths,
     _single_delay_roots,
@@ -179,7 +179,7 @@ class _Part:
 
     ``lam`` is set when qp is the three-term factor of eq. factorized of that
     eigenvalue of C (``s^2 + D s + P - lam (P z1 + D s z2)``): all such parts
-    are traced together by :mod:`delayform.analysis._family_curves`.
+    are traced together by :mod:`delayform.analysis.ctcr.family_curves`.
     """
 
     qp: TwoDelayQuasiPolynomial

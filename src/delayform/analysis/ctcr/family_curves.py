@@ -1,9 +1,9 @@
 """CTCR curves of all factors of eq. factorized at once (the lam family), vectorized.
 
-Every traced part of :func:`delayform.analysis.ctcr.stability_map` is the
+Every traced part of :func:`delayform.analysis.ctcr.stability_map.stability_map` is the
 three-term quasi-polynomial ``q_lam(s) = s^2 + D s + P - lam (P z1 + D s z2)``
-of one eigenvalue lam of C. The per-part code of :mod:`delayform.analysis._phase`
-and :mod:`delayform.analysis._plane` pays a Python round trip per part, per
+of one eigenvalue lam of C. The per-part code of :mod:`delayform.analysis.ctcr.phase`
+and :mod:`delayform.analysis.ctcr.curves` pays a Python round trip per part, per
 refinement round and per image, which for a team of thousands of agents is
 most of the time. Here the same constructions run on flat arrays of all parts:
 
@@ -13,7 +13,7 @@ most of the time. Here the same constructions run on flat arrays of all parts:
   is a quartic in w; its roots for all parts come from one stacked
   companion-matrix eigenvalue call and are polished by Newton's method;
 * the law-of-cosines phases and the adaptive sampling of every path
-  (:func:`delayform.analysis._phase._adaptive_path`, same tests, same
+  (:func:`delayform.analysis.ctcr.phase._adaptive_path`, same tests, same
   parametrisation) with all paths' samples in one array; the turning-point
   test, which per path scans every tau2 image k, uses that the chord
   differences of image k are linear in k, so the set of k with a turn at a
@@ -34,8 +34,8 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from delayform.analysis._phase import _MAX_POINTS, _MAX_ROUNDS, _OMEGA_FLOOR, TWO_PI, _CHORD_TOL, _MAX_CHORD
-from delayform.analysis._plane import CrossingCurve, _Part
+from delayform.analysis.ctcr.phase import _MAX_POINTS, _MAX_ROUNDS, _OMEGA_FLOOR, TWO_PI, _CHORD_TOL, _MAX_CHORD
+from delayform.analysis.ctcr.curves import CrossingCurve, _Part
 from delayform.characteristic import tendency_sign
 
 #: Samples of the paths sampled and embedded together: bounds the transient memory (about
@@ -47,7 +47,7 @@ _SAMPLE_BUDGET = 30_000
 def _batch_positive_roots(p: NDArray[np.float64]) -> NDArray[np.float64]:
     """Positive real roots of real polynomials (rows, increasing powers), NaN-padded, polished.
 
-    The rules of :func:`delayform.analysis._phase._positive_real_roots` for
+    The rules of :func:`delayform.analysis.ctcr.phase._positive_real_roots` for
     every row at once: roots whose imaginary part is below 1e-6 of their size
     count as real; values closer than 1e-6 relative form one (double) root;
     a simple root is polished by Newton on p, a double one on p'.
@@ -127,7 +127,7 @@ class _Paths:
     def phases(self, t: NDArray[np.float64], pid: NDArray[np.int64]) -> tuple[NDArray, NDArray, NDArray]:
         """omega and (theta1, theta2) in [0, 2 pi) at parameters t of paths pid (law of cosines).
 
-        As :func:`delayform.analysis._phase._three_term_phases` with
+        As :func:`delayform.analysis.ctcr.phase._three_term_phases` with
         g1 = P - omega^2 + j D omega, g2 = -lam P, g3 = -j lam D omega.
         """
         P, D = self.P, self.D
@@ -214,7 +214,7 @@ def _turning_needs_flat(
     count: NDArray[np.int64], same: NDArray[np.bool_], t2max: float, scale: float,
     points: NDArray[np.bool_] | None = None,
 ) -> NDArray[np.bool_]:
-    """:func:`delayform.analysis._phase._turning_needs` of every path, per interval j (j, j+1).
+    """:func:`delayform.analysis.ctcr.phase._turning_needs` of every path, per interval j (j, j+1).
 
     tau_k = (u2 + 2 pi k) / omega, so every difference along the path and the
     midpoint's deviation from the chord are linear in k: the k with a turn at a
@@ -383,7 +383,7 @@ def _chord_needs(
     om: NDArray, u1: NDArray, u2: NDArray, iv: NDArray[np.int64], m_om: NDArray, m1: NDArray, m2: NDArray,
     window: tuple[float, float], scale: float,
 ) -> NDArray[np.bool_]:
-    """The chord tests of :func:`delayform.analysis._phase._needs_refinement` on intervals iv."""
+    """The chord tests of :func:`delayform.analysis.ctcr.phase._needs_refinement` on intervals iv."""
     inv = 1.0 / om
     ia, ib = inv[iv], inv[iv + 1]
     m_inv = 1.0 / m_om
@@ -435,7 +435,7 @@ def _embed_all(
     om: NDArray, u1: NDArray, u2: NDArray, pid: NDArray[np.int64], path_part: NDArray[np.int64],
     parts: Sequence[_Part], lam: NDArray[np.complex128], P: float, D: float, window: tuple[float, float],
 ) -> list[CrossingCurve]:
-    """:func:`delayform.analysis._plane._embed` of every sampled path, tendencies in one call.
+    """:func:`delayform.analysis.ctcr.curves._embed` of every sampled path, tendencies in one call.
 
     Only the samples an image keeps (inside the window, or next to such a
     sample) are stored, so memory follows the curve points kept.
@@ -503,7 +503,7 @@ def _split_kept(
     gidx: NDArray[np.int64], om: NDArray, tau1: NDArray, tau2: NDArray, p1: NDArray, p2: NDArray,
     rts: tuple[NDArray[np.int64], NDArray[np.int64]], weight: int, source: int, factor: int,
 ) -> list[CrossingCurve]:
-    """:func:`delayform.analysis._plane._split_runs` on the kept samples (gidx: their sample indices)."""
+    """:func:`delayform.analysis.ctcr.curves._split_runs` on the kept samples (gidx: their sample indices)."""
     i1 = np.floor(p1 / TWO_PI).astype(np.int64)
     i2 = np.floor(p2 / TWO_PI).astype(np.int64)
     kernel = (i1 == 0) & (i2 == 0)
@@ -535,7 +535,7 @@ def family_axis_crossings(
     parts: Sequence[_Part], lam: NDArray[np.complex128], P: float, D: float,
     window: tuple[float, float], *, axis: int,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
-    """:func:`delayform.analysis._plane._axis_crossings` of all lam-family parts at once.
+    """:func:`delayform.analysis.ctcr.curves._axis_crossings` of all lam-family parts at once.
 
     On tau1 = 0: ``h0 = s^2 + D s + P (1 - lam)``, ``h1 = -lam D s``; on tau2 = 0:
     ``h0 = s^2 + D s (1 - lam) + P``, ``h1 = -lam P``. A crossing frequency solves

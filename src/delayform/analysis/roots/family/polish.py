@@ -1,7 +1,7 @@
 """Polishing the family's roots on q itself: Halley and Newton steps, vectorized over rows.
 
 Seeds (continuation predictions or eigenvalues of a discretization) are polished
-on q (:mod:`delayform.analysis._rows`); Maehly's deflation q / s in the centroid
+on q (:mod:`delayform.analysis.roots.family.rows`); Maehly's deflation q / s in the centroid
 rows (eq. factor1) keeps the persistent zero away. A converged root is accepted by a
 Taylor bound of its residual, without evaluating q once more.
 """
@@ -14,8 +14,8 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from delayform.analysis._quasi import RESIDUAL_TOL
-from delayform.analysis._rows import Gain, _at, _Rows
+from delayform.analysis.roots.problem import RESIDUAL_TOL
+from delayform.analysis.roots.family.rows import Gain, _at, _Rows
 
 
 #: Newton steps of the fast path (a seed still moving after them is left to the fallback).
@@ -47,7 +47,7 @@ def _polish_rows(seeds: NDArray[np.complex128], rows: _Rows) -> tuple[NDArray[np
     """Halley's method on q from seeds (R, K) (on q / s, Maehly's deflation, in the centroid rows).
 
     Returns the roots and whether each has relative residual <= RESIDUAL_TOL
-    (as :func:`delayform.analysis._quasi._polish`; seeds that reach s ~ 0 in a
+    (as :func:`delayform.analysis.roots.problem._polish`; seeds that reach s ~ 0 in a
     deflated row are rejected, the generic path settles a double zero). A few seeds
     (one delay pair) go through :func:`_newton_few` instead.
 

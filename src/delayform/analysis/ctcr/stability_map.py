@@ -108,15 +108,15 @@ from numpy.typing import ArrayLike, NDArray
 from delayform._validation import check_delay_array, check_positive
 # the curves and the count live in one module per concept; names other modules and
 # tests import from here stay importable from here
-from delayform.analysis._count import (  # noqa: F401
+from delayform.analysis.ctcr.count import (  # noqa: F401
     _axis_sum,
     _exact_crossing,
     _horizontal_crossings,
     _segment_table,
     _zero_line_count,
 )
-from delayform.analysis._family_curves import family_axis_crossings, family_curves
-from delayform.analysis._phase import (  # noqa: F401
+from delayform.analysis.ctcr.family_curves import family_axis_crossings, family_curves
+from delayform.analysis.ctcr.phase import (  # noqa: F401
     _CHORD_TOL,
     _MAX_CHORD,
     _OMEGA_FLOOR,
@@ -127,7 +127,7 @@ from delayform.analysis._phase import (  # noqa: F401
     _single_delay_roots,
     _three_term_paths,
 )
-from delayform.analysis._plane import (  # noqa: F401
+from delayform.analysis.ctcr.curves import (  # noqa: F401
     CrossingCurve,
     _axis_crossings,
     _conjugate,

@@ -1,6 +1,6 @@
 """The problem solved for roots: a quasi-polynomial, its DDE realization, evaluation and Newton polishing.
 
-Internal to :mod:`delayform.analysis.spectrum` (method in its module
+Internal to :mod:`delayform.analysis.roots.dominant` (method in its module
 docstring): eq. genfactor terms, q and dq/ds evaluated with broadcasting,
 Newton's method on q itself (Maehly's deflation of the persistent root 0 of
 eq. factor1) and the multiplicity of polished roots.

@@ -9,10 +9,10 @@ for the factors of eq. factorized.
 
 Method
 ------
-The roots come from :mod:`delayform.analysis.roots` (a Chebyshev discretization
+The roots come from :mod:`delayform.analysis.roots.single` (a Chebyshev discretization
 of the generator for seeds, Newton on the quasi-polynomial, a certificate by the
 argument principle: see that module); all factors at one or many delay pairs are
-solved together as one vectorized family (:mod:`delayform.analysis._family`).
+solved together as one vectorized family (:mod:`delayform.analysis.roots.family.solve`).
 
 Guarantee
 ---------
@@ -38,9 +38,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from delayform._validation import check_delay, check_gains
-from delayform.analysis._family import family_grid, family_rightmost
-from delayform.analysis._quasi import MAX_DEGREE, RESIDUAL_TOL, _Problem, _problem_of_factor, _problem_of_qp
-from delayform.analysis.roots import (  # noqa: F401 - the roots of one quasi-polynomial, re-exported
+from delayform.analysis.roots.family.solve import family_grid, family_rightmost
+from delayform.analysis.roots.problem import MAX_DEGREE, RESIDUAL_TOL, _Problem, _problem_of_factor, _problem_of_qp
+from delayform.analysis.roots.single import (  # noqa: F401 - the roots of one quasi-polynomial, re-exported
     _check_reach,
     _family_reach,
     _rightmost,
@@ -349,7 +349,7 @@ def dominant_root_map(
 
     Fast by design: all factors (a conjugate pair through its second-order
     factor of lam) and all grid points are one vectorized family
-    (:mod:`delayform.analysis._family`). The grid is visited coarse to fine:
+    (:mod:`delayform.analysis.roots.family.solve`). The grid is visited coarse to fine:
     the coarsest points are seeded by the discretized generator, every later
     point by the roots of its nearest solved point; Newton's method and the
     argument-principle certificate run on all rows at once, and only rows the

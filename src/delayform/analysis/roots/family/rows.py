@@ -6,7 +6,7 @@ second-order factor of lam) the same quasi-polynomial
     q(s) = s^2 + D s + P - lam (P e^{-tau1 s} + D s e^{-tau2 s})
 
 with its own eigenvalue lam of C, so a *row* is (lam, tau1, tau2) and the
-vectorized root finding (:mod:`delayform.analysis._family`) runs on arrays of rows.
+vectorized root finding (:mod:`delayform.analysis.roots.family.solve`) runs on arrays of rows.
 """
 
 from __future__ import annotations
@@ -40,7 +40,7 @@ def _delay_free(lam: Any, P: Gain, D: Gain) -> NDArray[np.complex128]:
 
 
 def _root_scales(lam: Any, P: Gain, D: Gain) -> NDArray[np.float64]:
-    """The root scale of the factor of lam (:func:`delayform.analysis._generator._root_scale`) in closed form.
+    """The root scale of the factor of lam (:func:`delayform.analysis.roots.generator._root_scale`) in closed form.
 
     max(1, the delay-free roots, ||A||) with A = [[0, 1], [-P, -D]]: A + B1 + B2 of the factor of lam
     is [[0, 1], [-P (1 - lam), -D (1 - lam)]], whose eigenvalues are the delay-free roots.

@@ -1,7 +1,7 @@
 """Characteristic roots of one quasi-polynomial or factor: in a rectangle, right of a line, the rightmost.
 
 These are the roots for any retarded quasi-polynomial of eq. genfactor and for
-the factors of eq. factorized; :mod:`delayform.analysis.spectrum` builds the
+the factors of eq. factorized; :mod:`delayform.analysis.roots.dominant` builds the
 formation's dominant root and the dominant-root maps on them.
 
 Method
@@ -62,8 +62,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from delayform._validation import check_delay
-from delayform.analysis._family import family_reach_scales, family_rightmost
-from delayform.analysis._generator import (
+from delayform.analysis.roots.family.solve import family_reach_scales, family_rightmost
+from delayform.analysis.roots.generator import (
     _eigenvalues_at,
     _igd_seeds,
     _initial_degree,
@@ -71,7 +71,7 @@ from delayform.analysis._generator import (
     _require_resolvable,
     _root_scale,
 )
-from delayform.analysis._quasi import (
+from delayform.analysis.roots.problem import (
     MAX_DEGREE,
     RESIDUAL_TOL,
     Region,
@@ -84,8 +84,8 @@ from delayform.analysis._quasi import (
     _problem,
     _problem_of_factor,
 )
-from delayform.analysis._rightmost import _BATCH_SEEDS, _certify, _pick_rightmost, _solve_rightmost
-from delayform.analysis.certificate import _count_right_single, _region_count
+from delayform.analysis.roots.rightmost import _BATCH_SEEDS, _certify, _pick_rightmost, _solve_rightmost
+from delayform.analysis.roots.argument_principle import _count_right_single, _region_count
 from delayform.characteristic import CharacteristicFactor, TwoDelayQuasiPolynomial
 from delayform.errors import DelayError, InputError, NotConvergedError
 

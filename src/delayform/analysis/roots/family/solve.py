@@ -7,7 +7,7 @@ second-order factor of lam) the same quasi-polynomial
 
 with its own eigenvalue lam of C. So one *row* -- a factor at a delay pair --
 is described by (lam, tau1, tau2), and the polishing, the line choice and
-the argument-principle certificate of :mod:`delayform.analysis.certificate`
+the argument-principle certificate of :mod:`delayform.analysis.roots.argument_principle`
 run on flat arrays of rows, all factors and all delay pairs in one NumPy
 expression each. The generic per-factor code pays a Python round trip per
 term and per factor; here q, its derivatives, the bounds and the Cauchy radius
@@ -40,19 +40,19 @@ from functools import lru_cache
 import numpy as np
 from numpy.typing import NDArray
 
-from delayform.analysis._generator import _igd_seeds
-from delayform.analysis._quasi import _problem_of_factor
-from delayform.analysis._rightmost import (
+from delayform.analysis.roots.generator import _igd_seeds
+from delayform.analysis.roots.problem import _problem_of_factor
+from delayform.analysis.roots.rightmost import (
     _BATCH_SEEDS,
     _certify,
     _pick_rightmost,
     _solve_rightmost,
 )
-from delayform.analysis._polish import _newton_one, _polish_rows, _q
-from delayform.analysis._rows import _delay_free, _lams, _root_scales, _Rows
-from delayform.analysis._seeds import _family_seeds, _row_seeds
-from delayform.analysis._walk import _count_few, _count_rows
-from delayform.analysis.certificate import _LINE_OFFSET, _choose_line, _choose_lines
+from delayform.analysis.roots.family.polish import _newton_one, _polish_rows, _q
+from delayform.analysis.roots.family.rows import _delay_free, _lams, _root_scales, _Rows
+from delayform.analysis.roots.family.seeds import _family_seeds, _row_seeds
+from delayform.analysis.roots.family.walk import _count_few, _count_rows
+from delayform.analysis.roots.argument_principle import _LINE_OFFSET, _choose_line, _choose_lines
 from delayform.characteristic import CharacteristicFactor
 
 
@@ -80,7 +80,7 @@ def _certify_rows(
     the window is set by the rightmost of the first ``fresh`` columns (a redo's new
     discretization seeds: a stale seed that converges nowhere would drop the good ones).
 
-    The vectorized counterpart of :func:`delayform.analysis._rightmost._certify`
+    The vectorized counterpart of :func:`delayform.analysis.roots.rightmost._certify`
     (same seed window, distinct roots, mirror images and line choice). The
     rightmost root is reported with Im >= 0 (real lam: of a conjugate pair;
     complex lam: the factor of conj(lam) mirrors it).
@@ -136,7 +136,7 @@ def _lines_of_rows(
 ) -> tuple[NDArray[np.complex128], NDArray[np.float64], NDArray[np.float64], NDArray[np.complex128]]:
     """Per row: the rightmost root (Im >= 0), the certifying line, the expected count, the distinct roots.
 
-    The vectorized :func:`delayform.analysis.certificate._choose_line` on the distinct
+    The vectorized :func:`delayform.analysis.roots.argument_principle._choose_line` on the distinct
     accepted roots (sorted; a root within 1e-7 relative of its predecessor dropped), a
     complex root of a real row counted twice (with its mirror image), and the centroid's
     persistent zero added. NaN line: no root accepted.
@@ -178,7 +178,7 @@ def _certify_few(
     Row by row, the same steps as the vectorized path: seeds folded to Im >= 0 in real
     rows, the persistent zero moved off, the seed window, Newton (:func:`_newton_one`),
     the distinct roots (sorted, a root within 1e-7 relative of the previous one dropped),
-    mirror images, the line (:func:`delayform.analysis.certificate._choose_line`) and the
+    mirror images, the line (:func:`delayform.analysis.roots.argument_principle._choose_line`) and the
     expected count; then one :func:`_count_few` for all rows. On a handful of rows each
     NumPy call costs more than its arithmetic, and a single ``dominant_root`` is made of them.
     """
@@ -354,7 +354,7 @@ def _pad(roots: NDArray[np.complex128], k: int) -> NDArray[np.complex128]:
 
 @lru_cache(maxsize=16)
 def family_reach_scales(fs: tuple[CharacteristicFactor, ...]) -> NDArray[np.float64]:
-    """The root scale of every factor (:func:`delayform.analysis._generator._root_scale`), in closed form.
+    """The root scale of every factor (:func:`delayform.analysis.roots.generator._root_scale`), in closed form.
 
     A + B1 + B2 of the factor of lam is [[0, 1], [-P (1 - lam), -D (1 - lam)]]:
     its eigenvalues are the delay-free roots of s^2 + D (1 - lam) s + P (1 - lam).

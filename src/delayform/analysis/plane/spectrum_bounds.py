@@ -3,7 +3,7 @@
 A team is stable at (tau1, tau2) when every eigenvalue of C (1 aside) lies
 in the stable region of the eigenvalue plane, so a *set* that holds the
 spectrum gives a certified **sufficient** answer: the delays that are safe for
-the set (:func:`delayform.analysis.certificates.safe_delays`) are stable for
+the set (:func:`delayform.analysis.plane.spectrum_sets.safe_delays`) are stable for
 the team. It is not necessary: delays outside may still be stable for this
 particular team.
 
@@ -37,7 +37,7 @@ C has a zero diagonal and rows summing to 1, so Gershgorin's discs are all
 the unit disc: the bound is the closed unit disc (``"any"``), the only bound
 that holds for every directed team. For P = 1, D = 0.5 no delay pair is safe
 for it (docs/theory.md), so for directed teams the sufficient answer is empty
-there; compute the dense eigenvalues (:func:`delayform.analysis.ctcr.stability_map`)
+there; compute the dense eigenvalues (:func:`delayform.analysis.ctcr.stability_map.stability_map`)
 while the team is small enough.
 """
 
@@ -51,7 +51,7 @@ import scipy.sparse as sp
 from numpy.typing import NDArray
 from scipy.sparse import csgraph
 
-from delayform.analysis.certificates import ANY, UNDIRECTED, SpectrumSet
+from delayform.analysis.plane.spectrum_sets import ANY, UNDIRECTED, SpectrumSet
 from delayform.errors import InputError
 from delayform.resources import memory_limit
 from delayform.topology import Topology
@@ -95,7 +95,7 @@ class SpectrumBound:
     ----------
     spectrum_set
         The set (an interval for undirected teams, the unit disc otherwise);
-        pass the bound itself as ``spectrum=`` to :func:`~delayform.analysis.certificates.safe_delays`.
+        pass the bound itself as ``spectrum=`` to :func:`~delayform.analysis.plane.spectrum_sets.safe_delays`.
     agents
         Number of agents.
     undirected

@@ -14,7 +14,7 @@ from functools import lru_cache
 import numpy as np
 from numpy.typing import NDArray
 
-from delayform.analysis._quasi import _TINY_DELAY, MAX_DEGREE, _Problem
+from delayform.analysis.roots.problem import _TINY_DELAY, MAX_DEGREE, _Problem
 from delayform.errors import ResourceLimitError
 
 #: Delay pairs per batched eigenvalue call (bounds memory).

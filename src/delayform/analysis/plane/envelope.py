@@ -16,7 +16,7 @@ scalar function of (omega, t): every vertex drawn is its zero on an edge of a
 grid of the (omega, t) plane, found by Brent's method on the closed form; the
 grid only decides which vertices are joined (marching squares), so a piece
 shorter than a grid cell can be missing from the drawing. No classification
-of delay pairs uses these curves (:mod:`delayform.analysis.certificates`).
+of delay pairs uses these curves (:mod:`delayform.analysis.plane.spectrum_sets`).
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from delayform.analysis.boundary_curve import ab_terms, omega_limit
+from delayform.analysis.plane.boundary_curve import ab_terms, omega_limit
 
 __all__ = ["triangle_phases", "tangency", "envelope_of_family", "tangency_parabola"]
 

@@ -1,7 +1,7 @@
 """The family's argument-principle certificate: certified root counts right of lines Re s = c.
 
-The walk of :func:`delayform.analysis.certificate._count_right_batch`, written
-out for the family of :mod:`delayform.analysis._rows` and vectorized over rows,
+The walk of :func:`delayform.analysis.roots.argument_principle._count_right_batch`, written
+out for the family of :mod:`delayform.analysis.roots.family.rows` and vectorized over rows,
 with a chord test for the samples and the winding counted from Arg at the walk's
 ends plus its crossings of Arg's branch cut (:func:`_count_rows`).
 """
@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from delayform.analysis._rows import Gain, _at, _delay_free, _Rows
+from delayform.analysis.roots.family.rows import Gain, _at, _delay_free, _Rows
 
 
 #: Rows of the walk's samples at its two ends (top, bottom), for the tails.
@@ -129,7 +129,7 @@ def _count_rows(
 ) -> NDArray[np.float64]:
     """Certified number of roots of q with Re s > c per row (NaN: not certified).
 
-    The walk of :func:`delayform.analysis.certificate._count_right_batch` with
+    The walk of :func:`delayform.analysis.roots.argument_principle._count_right_batch` with
     a chord test: on the line Re s = c the delayed terms have constant moduli
     E1 = |lam| P e^{-tau1 c}, E2 = |lam| D e^{-tau2 c}, so
 

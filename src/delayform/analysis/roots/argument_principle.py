@@ -1,7 +1,7 @@
 """Argument-principle certificates: certified counts of roots right of a line or inside a rectangle.
 
 The sampling of arg q is certified by a Lipschitz bound (the module
-docstring of :mod:`delayform.analysis.spectrum`); the line Re s = c is
+docstring of :mod:`delayform.analysis.roots.dominant`); the line Re s = c is
 closed at infinity by a Cauchy-type radius (Rouche). Also the choice of the
 certifying line in a gap left of the rightmost known root.
 """
@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from delayform.analysis._quasi import (
+from delayform.analysis.roots.problem import (
     Region,
     _abs_poly,
     _abs_poly_der,
@@ -337,7 +337,7 @@ def _batch_lines(
 
 
 def _choose_lines(key: NDArray[np.float64], top: NDArray[np.float64]) -> NDArray[np.float64]:
-    """:func:`delayform.analysis.certificate._choose_line` per row of known real parts (-inf: none)."""
+    """:func:`delayform.analysis.roots.argument_principle._choose_line` per row of known real parts (-inf: none)."""
     R = key.shape[0]
     rix = np.arange(R)
     srt = -np.sort(-key, axis=1)  # descending; -inf (none) last

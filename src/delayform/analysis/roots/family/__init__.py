@@ -1,0 +1,8 @@
+"""The factor family: certified rightmost roots of every factor of eq. factorized at many delay pairs.
+
+``rows``    a factor at a delay pair as flat arrays
+``seeds``   discretized-generator seeds in stacked eigenvalue calls
+``polish``  Halley and Newton steps on q itself, vectorized over rows
+``walk``    the argument-principle certificate along lines Re s = c
+``solve``   lines, certification and continuation: the drivers
+"""
