@@ -42,6 +42,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from delayform._files import atomic_path
 from delayform.analysis.ctcr.stability_map import StabilityMap, stability_map
 from delayform.analysis.roots.team_roots import factor_roots_in
 from delayform.analysis.roots.dominant import DominantRoot, dominant_root, roots_in
@@ -678,7 +679,8 @@ class Explorer:
         if path.parent != self.out_dir:
             raise InputError(f"refusing to write {name!r} outside {self.out_dir}")
         self.out_dir.mkdir(parents=True, exist_ok=True)
-        path.write_bytes(data)
+        with atomic_path(path) as tmp:
+            tmp.write_bytes(data)
         return path
 
     def _stem(self, P: float, D: float, tau1: float, tau2: float, duration: float, tau1_max: float,

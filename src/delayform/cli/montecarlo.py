@@ -98,10 +98,14 @@ def montecarlo_command(scenario: Path | None, runs: int, seed: int | None, worke
     """
     from delayform.report import montecarlo_section, scenario_setup
     from delayform.simulation.montecarlo import guard
-    from delayform.sweeps import executor_for
+    from delayform.sweeps import check_workers, executor_for, parse_scheduler
 
     if workers is not None and scheduler is not None:
         raise click.UsageError("give either --workers (a local cluster) or --scheduler (an existing one), not both")
+    if workers is not None:  # against this machine's cores, before any budget or process
+        check_workers(workers)
+    if scheduler is not None:  # parsed now; executor_for proves a scheduler answers before --out is made
+        parse_scheduler(scheduler)
     given = _limits_given(overrides)
     sc = _scenario(scenario, seed=seed, **overrides)
     seed = 0 if seed is None else seed

@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from delayform._files import save_npz
 from delayform.scenario import Scenario
 from delayform.report._common import (
     Figure,
@@ -119,7 +120,7 @@ def chart_section(scenario: Scenario, out: Path) -> Section:
     files = list(_save(fig, out, "stability_chart"))
     curve_rows, arrays = _curve_rows(smap)
     files.append(_write_csv(out / "ctcr_curves.csv", ("curve", "source", "kind", "tau1", "tau2", "omega"), curve_rows))
-    np.savez_compressed(out / "ctcr_curves.npz", **arrays)
+    save_npz(out / "ctcr_curves.npz", **arrays)
     files.append("ctcr_curves.npz")
     fraction = float(smap.stable_fraction())
     summary = {
@@ -367,7 +368,7 @@ def safe_delays_section(
     m.plot(ax=ax, points={label: (a, b) for label, a, b in points})
     files = list(_save(fig, out, "safe_delays"))
     t1, t2, safe = m.grid(200)
-    np.savez_compressed(out / "safe_delays.npz", tau1=t1, tau2=t2, safe=safe)
+    save_npz(out / "safe_delays.npz", tau1=t1, tau2=t2, safe=safe)
     files.append("safe_delays.npz")
     fraction = float(safe.mean())
     marks = [(label, a, b, bool(m.is_safe(a, b))) for label, a, b in points]
@@ -427,7 +428,7 @@ def map_section(scenario: Scenario, out: Path, *, progress: MapProgress | None =
     dmap.plot_contour(ax=ax)
     files += _save(fig, out, "dominant_contour")
     roots = np.asarray(dmap.roots, dtype=complex)
-    np.savez_compressed(out / "dominant_map.npz", tau1=t1, tau2=t2, real_part=re, roots=roots)
+    save_npz(out / "dominant_map.npz", tau1=t1, tau2=t2, real_part=re, roots=roots)
     files.append("dominant_map.npz")
     T1, T2 = np.meshgrid(t1, t2, indexing="ij")
     files.append(_write_csv(

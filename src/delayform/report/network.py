@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from delayform._files import save_npz
 from delayform.errors import ScenarioError
 from delayform.report._common import Figure, Section, _fmt, _fmt_complex, _pyplot, _save, _write_csv
 from delayform.scenario import Scenario
@@ -107,7 +108,7 @@ def montecarlo_section(
     names = [n.strip("|").replace("/", "_") or "unused" for n in mc.command_names]
     files.append(_write_csv(out / "montecarlo_runs.csv",
                             ("run", "settling_time", "final_error", f"peak_{names[0]}", f"peak_{names[1]}"), rows))  # fmt: skip
-    np.savez_compressed(out / "montecarlo.npz", times=mc.times, errors=mc.errors, settling_times=mc.settling_times)
+    save_npz(out / "montecarlo.npz", times=mc.times, errors=mc.errors, settling_times=mc.settling_times)
     files.append("montecarlo.npz")
     where = "given" if scenario.initial.positions is not None else "random (one draw per run)"
     return Section(
@@ -206,7 +207,7 @@ def sweep_section(
     ]  # fmt: skip
     files.append(_write_csv(out / "sweep.csv", ("tau1", "tau2", "settled_fraction", "settling_median",
                                                 "settling_q05", "settling_q95", "final_error_median"), rows))  # fmt: skip
-    np.savez_compressed(out / "sweep.npz", tau1=np.asarray(tau1_values, dtype=float),
+    save_npz(out / "sweep.npz", tau1=np.asarray(tau1_values, dtype=float),
                         tau2=np.asarray(tau2_values, dtype=float), settled_fraction=settled,
                         final_error_median=final, **{f"settling_{k}": v for k, v in stats.items()})  # fmt: skip
     files.append("sweep.npz")
