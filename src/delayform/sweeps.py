@@ -428,9 +428,10 @@ class SweepResult:
         metric
             ``settling_time``, ``final_error``, ``peak_command_1`` or ``peak_command_2``.
         q
-            Probability of the quantile (runs that did not settle count as infinite).
+            Probability of the quantile (:func:`~delayform.simulation.montecarlo.quantile`:
+            the ordinary median at 0.5; runs that did not settle count as infinite).
         """
-        return np.array([np.quantile(r.metric(metric), q, method="inverted_cdf") for r in self.results])
+        return np.array([float(mc.quantile(r.metric(metric), q)) for r in self.results])
 
     def table(self) -> tuple[tuple[str, str], ...]:
         """Rows ``(point, settling median [5 %, 95 %] and settled fraction)``."""

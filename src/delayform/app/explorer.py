@@ -267,7 +267,9 @@ class Animation:
     frames
         Indices of the saved samples sent as frames (finite samples only).
     diverged_at
-        Time of the first non-finite sample (an unstable run overflowing), or None.
+        Time of the first non-finite sample, or where integration stopped
+        because the state passed 1e8 times its size (the time the run's
+        warning names), or None.
     network
         The imperfect network of the run, or None (the paper's ideal links).
     """
@@ -375,7 +377,10 @@ class Explorer:
         net = self.scenario.network
         if net is None:
             return _DEFAULT_LOSS, _DEFAULT_JITTER
-        loss = 0.0 if net.loss is None else min(net.loss.loss_rate, _MAX_LOSS)
+        rate = 0.0 if net.loss is None else net.loss.loss_rate
+        if isinstance(net.loss, BernoulliLoss):  # a matrix: its mean over the team's links only
+            rate = net.loss.link_loss_rate(self.scenario.topology.adjacency)
+        loss = min(rate, _MAX_LOSS)
         jitter = 0.0 if net.jitter is None else min(max(net.jitter.bound1, net.jitter.bound2), _MAX_JITTER)
         return loss, jitter
 
@@ -637,6 +642,9 @@ class Explorer:
             (:class:`~delayform.errors.NetworkError`: a delay minus its jitter must stay >= dt).
         """
         s = self.scenario
+        if not network and (loss, jitter) != self._network_defaults():
+            raise InputError(f"loss, jitter: they set the network imperfections, which are off (network=0); "
+                             f"add network=1 to run over a network with loss {loss:g} and jitter {jitter:g} s")  # fmt: skip
         dt = self._run_step(tau1, tau2, duration)
         robot, net = self._switches(limits, network, loss, jitter)
 
@@ -654,7 +662,8 @@ class Explorer:
         # the page's run and the figures download share one simulation
         key = (P, D, tau1, tau2, duration, limits, network, loss if network else 0.0, jitter if network else 0.0)
         tr, last = self._cached(self._runs, key, _TRAJECTORY_CACHE, run)
-        diverged = None if last == tr.times.size else float(tr.times[last])
+        # the first non-finite sample, else where integration stopped on overflow (the warnings' time)
+        diverged = float(tr.times[last]) if last < tr.times.size else tr.stopped_at
         idx = np.unique(np.linspace(0, max(last - 1, 0), frames).round().astype(np.int64))
         return Animation(tr, idx, diverged, net if net is None or not net.is_ideal else None)
 

@@ -70,7 +70,8 @@ def _network(base: Any, *, loss: float | None, burst: tuple[float, float] | None
 @click.option("--burst", type=FloatTuple(2, minimum=0.0), metavar="P_GB,P_BG",
               help="Bursty loss: Gilbert-Elliott good->bad and bad->good probabilities per packet.")
 @click.option("--jitter", type=FloatTuple(2, minimum=0.0), metavar="B1,B2",
-              help="Jitter bounds (s) on position and velocity delays (network.jitter).")
+              help="Jitter bounds (s) on position and velocity delays (network.jitter); every delay minus "
+                   "its jitter must be >= --dt.")
 @click.option("--rate", type=POSITIVE, help="Sampled transmission: packets per second (network.rate).")
 @click.option("--noise", type=FloatTuple(2, minimum=0.0), metavar="SX,SV",
               help="Measurement noise: std of positions (m) and velocities (m/s) (network.noise).")
@@ -85,7 +86,9 @@ def montecarlo_command(scenario: Path | None, runs: int, seed: int | None, worke
     """Monte Carlo of the scenario over an imperfect network: N seeded runs.
 
     The network comes from the scenario's [network] table and the options
-    --loss, --burst, --jitter, --rate, --noise, --delay-spread. Robots with
+    --loss, --burst, --jitter, --rate, --noise, --delay-spread. Every value
+    heard is at least one step old: with any of these on, every delay minus
+    its jitter (and variation) must be >= dt (so tau1, tau2 >= dt). Robots with
     actuator limits (the scenario's [robot] table, --limits and the limit
     options) are the saturated unicycle driven by what each robot hears.
     Writes the quantile bands of the formation error

@@ -117,7 +117,7 @@ def montecarlo_section(
         text=(
             f"{runs} runs of the {scenario.topology.n} agents ({sim.model}, {sim.duration:g} s, step {sim.dt:g} s) "
             f"from {where} initial positions, each with its own draw of the network "
-            f"({'ideal' if net is None else net.describe()}); seeds from SeedSequence({seed}).spawn({runs}), "
+            f"({'ideal' if net is None else net.describe(scenario.topology.adjacency)}); seeds from SeedSequence({seed}).spawn({runs}), "
             "so the numbers are the same whichever way the runs are spread over workers."
         ),
         figures=(
@@ -199,7 +199,7 @@ def sweep_section(
     fig, ax = plt.subplots(figsize=(6.4, 4.8))
     robots = "ideal robots" if scenario.robot is None else "robots with limits"
     plot_metric_grid(tau1_values, tau2_values, stats["median"], ax=ax, label="median settling time (s)",
-                     title=f"{runs} runs per point, {'ideal network' if net is None else net.describe()}, {robots}")  # fmt: skip
+                     title=f"{runs} runs per point, {'ideal network' if net is None else net.describe(scenario.topology.adjacency)}, {robots}")  # fmt: skip
     files = list(_save(fig, out, "sweep_settling"))
     rows = [
         (t1, t2, settled[i, j], stats["median"][i, j], stats["q05"][i, j], stats["q95"][i, j], final[i, j])
@@ -217,7 +217,7 @@ def sweep_section(
         text=(
             f"Monte Carlo of the {scenario.topology.n} agents ({sim.model}, {sim.duration:g} s, step {sim.dt:g} s, "
             f"{robots}) at every (tau1, tau2) of the grid, over the "
-            f"{'ideal network' if net is None else 'network ' + net.describe()}; every point uses the seeds of "
+            f"{'ideal network' if net is None else 'network ' + net.describe(scenario.topology.adjacency)}; every point uses the seeds of "
             f"SeedSequence({seed}).spawn({runs}), so the points differ by their delays, not by their draws."
         ),
         figures=(Figure("sweep_settling", "Settling time over the delay grid",

@@ -79,6 +79,9 @@ class Trajectory:
         Sentences for a reader about a run that did not settle.
     labels
         Agent labels of the topology (figures number agents from 1).
+    stopped_at
+        Time (s) at which integration stopped because the state passed 1e8
+        times its initial size (status ``"stopped"``), else None.
     """
 
     times: _Array
@@ -104,6 +107,7 @@ class Trajectory:
     status: str = "settled"
     warnings: tuple[str, ...] = ()
     labels: tuple[Any, ...] = field(default=())
+    stopped_at: float | None = None
 
     @property
     def n(self) -> int:
