@@ -46,6 +46,7 @@ from delayform._files import atomic_path
 from delayform.analysis.ctcr.stability_map import StabilityMap, stability_map
 from delayform.analysis.roots.team_roots import factor_roots_in
 from delayform.analysis.roots.dominant import DominantRoot, dominant_root, roots_in
+from delayform.analysis.roots.single import delay_reach
 from delayform.app.params import ExplorerLimits, Param
 from delayform.app.plane import RegionReport, region_report
 from delayform.app.scenario_toml import scenario_toml
@@ -508,7 +509,7 @@ class Explorer:
         tau1, tau2
             The delays.
         """
-        self._check_bandwidth(P, D, max(tau1, tau2), "tau1, tau2")
+        self._check_bandwidth(P, D, max(tau1, tau2), "tau1, tau2", roots=True)
         count = int(self._map_covering(P, D, tau1, tau2).unstable_count(tau1, tau2))
         return PointReport(P, D, tau1, tau2, count, dominant_root(self.scenario.topology, P, D, tau1, tau2))
 
@@ -528,7 +529,7 @@ class Explorer:
         tau1, tau2
             The delays.
         """
-        self._check_bandwidth(P, D, max(tau1, tau2), "tau1, tau2")
+        self._check_bandwidth(P, D, max(tau1, tau2), "tau1, tau2", roots=True)
         topology = self.scenario.topology
         dom = dominant_root(topology, P, D, tau1, tau2).root
         height = max(min(_ROOT_WINDOW_IM, _ROOT_WINDOW_PHASE / max(tau1, tau2, 1e-12)), abs(dom.imag) + 0.5)
@@ -577,14 +578,40 @@ class Explorer:
         self._check_bandwidth(P, D, max(tau1, tau2), "tau1, tau2")
         return region_report(self.scenario.topology, P, D, tau1, tau2)
 
-    def _check_bandwidth(self, P: float, D: float, delay: float, what: str) -> None:
-        """Refuse delays whose product with the crossing-frequency bound exceeds the limit."""
+    def delay_limits(self, P: float, D: float) -> dict[str, float]:
+        """The longest delays the explorer takes at gains (P, D), per kind of request.
+
+        ``"chart"`` and ``"region"``: ``max_delay_bandwidth`` over the
+        crossing-frequency bound; ``"roots"`` (point, roots: the dominant-root
+        finder) also the finder's own reach,
+        :func:`~delayform.analysis.roots.single.delay_reach`, the rule the
+        finder refuses by, so this table never allows a delay the finder then
+        refuses, and follows the finder when its reach changes.
+
+        Parameters
+        ----------
+        P, D
+            Gains of eq. protocol.
+        """
+        bandwidth = self.limits.max_delay_bandwidth / crossing_frequency_bound(P, D)
+        work = min(self.limits.max_delay, bandwidth)
+        return {"chart": work, "region": work,
+                "roots": min(work, delay_reach(tuple(factors(self.scenario.topology, P, D))))}  # fmt: skip
+
+    def _check_bandwidth(self, P: float, D: float, delay: float, what: str, *, roots: bool = False) -> None:
+        """Refuse delays beyond :meth:`delay_limits` (the root finder's reach too with ``roots``)."""
         omega = crossing_frequency_bound(P, D)
         if delay * omega > self.limits.max_delay_bandwidth:
             raise InputError(
                 f"{what}: {delay:g} s x crossing-frequency bound {omega:.3g} rad/s exceeds the explorer "
                 f"limit max_delay_bandwidth = {self.limits.max_delay_bandwidth:g} "
                 f"(at P = {P:g}, D = {D:g}: delays up to {self.limits.max_delay_bandwidth / omega:.3g} s)"
+            )
+        reach = self.delay_limits(P, D)["roots"] if roots else math.inf
+        if delay > reach:
+            raise InputError(
+                f"{what}: {delay:g} s is beyond the dominant-root finder's reach at P = {P:g}, D = {D:g} "
+                f"(delays up to {reach:.3g} s); the chart has no such limit"
             )
 
     def _step(self, tau1: float, tau2: float) -> float:
@@ -642,7 +669,8 @@ class Explorer:
             (:class:`~delayform.errors.NetworkError`: a delay minus its jitter must stay >= dt).
         """
         s = self.scenario
-        if not network and (loss, jitter) != self._network_defaults():
+        # with the network off, loss and jitter are refused rather than ignored (unless unset: 0 or the defaults)
+        if not network and (loss, jitter) not in ((0.0, 0.0), self._network_defaults()):
             raise InputError(f"loss, jitter: they set the network imperfections, which are off (network=0); "
                              f"add network=1 to run over a network with loss {loss:g} and jitter {jitter:g} s")  # fmt: skip
         dt = self._run_step(tau1, tau2, duration)

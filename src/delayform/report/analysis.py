@@ -439,13 +439,15 @@ def map_section(scenario: Scenario, out: Path, *, progress: MapProgress | None =
     summary = {
         "tau1": [float(t1[0]), float(t1[-1]), int(t1.size)],
         "tau2": [float(t2[0]), float(t2[-1]), int(t2.size)],
-        "stable_fraction": float(np.mean(re < 0)),
+        # DominantRootMap.stable, the one meaning of stable: on tau1 = 0 the centroid's drift (Re = 0
+        # exactly) is not instability, as in the chart and roots (Re < 0 alone would call that row unstable)
+        "stable_fraction": float(np.mean(dmap.stable)),
         "min_real_part": float(re[best]),
         "argmin": [float(t1[best[0]]), float(t2[best[1]])],
     }
     table = (
         ("grid", f"{t1.size} x {t2.size} over [{t1[0]:g}, {t1[-1]:g}] x [{t2[0]:g}, {t2[-1]:g}] s"),
-        ("fraction with Re < 0", f"{summary['stable_fraction']:.3f}"),
+        ("stable fraction (the centroid's drift on tau1 = 0 excepted)", f"{summary['stable_fraction']:.3f}"),
         ("most negative Re on the grid", f"{re[best]:.4g} at ({t1[best[0]]:g}, {t2[best[1]]:g})"),
     )
     return Section(
