@@ -23,7 +23,7 @@ from delayform.characteristic import factors
 from delayform.errors import DelayError, InputError, NetworkError, SimulationInputError
 from delayform.scenario import paper_scenario
 from delayform.simulation import simulate
-from delayform.simulation.montecarlo import make_setup, monte_carlo, quantile
+from delayform.simulation.montecarlo import make_setup, monte_carlo, run_quantile
 from delayform.simulation.network import BernoulliLoss, GilbertElliott, Jitter, Network, SmoothVariation
 from delayform.simulation.reception import _loss_mask
 from delayform.topology import paper_six, ring
@@ -157,13 +157,13 @@ def test_quantiles_are_the_ordinary_ones_of_python_statistics() -> None:
     rng = np.random.default_rng(4)
     for n in (2, 3, 10, 41):
         v = rng.exponential(size=n)
-        assert float(quantile(v, 0.5)) == pytest.approx(statistics.median(v.tolist()), rel=1e-14)
+        assert float(run_quantile(v, 0.5)) == pytest.approx(statistics.median(v.tolist()), rel=1e-14)
         cuts = statistics.quantiles(v.tolist(), n=20, method="inclusive")  # 5 %, 10 %, ..., 95 %
-        np.testing.assert_allclose(quantile(v, np.arange(1, 20) / 20), cuts, rtol=1e-12)
-    assert float(quantile([10.0, math.inf], 0.5)) == math.inf == statistics.median([10.0, math.inf])
-    assert float(quantile([1.0, 2.0, 3.0, math.inf], 0.5)) == 2.5
+        np.testing.assert_allclose(run_quantile(v, np.arange(1, 20) / 20), cuts, rtol=1e-12)
+    assert float(run_quantile([10.0, math.inf], 0.5)) == math.inf == statistics.median([10.0, math.inf])
+    assert float(run_quantile([1.0, 2.0, 3.0, math.inf], 0.5)) == 2.5
     with pytest.raises(SimulationInputError):
-        quantile([], 0.5)
+        run_quantile([], 0.5)
 
 
 def test_the_monte_carlo_median_of_two_runs_is_their_mean() -> None:

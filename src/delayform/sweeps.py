@@ -431,7 +431,7 @@ class SweepResult:
             Probability of the quantile (:func:`~delayform.simulation.montecarlo.quantile`:
             the ordinary median at 0.5; runs that did not settle count as infinite).
         """
-        return np.array([float(mc.quantile(r.metric(metric), q)) for r in self.results])
+        return np.array([float(mc.run_quantile(r.metric(metric), q)) for r in self.results])
 
     def table(self) -> tuple[tuple[str, str], ...]:
         """Rows ``(point, settling median [5 %, 95 %] and settled fraction)``."""

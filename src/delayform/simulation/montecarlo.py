@@ -51,7 +51,7 @@ __all__ = [
     "monte_carlo",
     "collect",
     "estimate_cost",
-    "quantile",
+    "run_quantile",
 ]
 
 _Array = NDArray[np.float64]
@@ -59,7 +59,7 @@ _Array = NDArray[np.float64]
 #: Called with (runs done, runs in all) as runs finish.
 Progress = Callable[[int, int], None]
 
-def quantile(values: ArrayLike, q: ArrayLike) -> _Array:
+def run_quantile(values: ArrayLike, q: ArrayLike) -> _Array:
     """Quantiles of run metrics where a run that never settled counts as +inf.
 
     The definition is the usual one, linear interpolation between order
@@ -84,9 +84,9 @@ def quantile(values: ArrayLike, q: ArrayLike) -> _Array:
     ndarray
         One quantile per probability, in the shape of ``q``.
 
-    >>> float(quantile([4.0, 1.0, 3.0, 2.0], 0.5))
+    >>> float(run_quantile([4.0, 1.0, 3.0, 2.0], 0.5))
     2.5
-    >>> float(quantile([1.0, 2.0, np.inf, np.inf], 0.5))
+    >>> float(run_quantile([1.0, 2.0, np.inf, np.inf], 0.5))
     inf
     """
     v = np.sort(np.asarray(values, dtype=np.float64).ravel())
@@ -365,7 +365,7 @@ class MonteCarloResult:
                 continue
             v = self.metric(name)
             finite = v[np.isfinite(v)]
-            q05, q50, q95 = (float(x) for x in quantile(v, (0.05, 0.5, 0.95)))
+            q05, q50, q95 = (float(x) for x in run_quantile(v, (0.05, 0.5, 0.95)))
             out[name] = {
                 "median": q50, "q05": q05, "q95": q95,
                 "mean": float(finite.mean()) if finite.size else math.inf,

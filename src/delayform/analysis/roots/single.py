@@ -90,7 +90,7 @@ from delayform.characteristic import CharacteristicFactor, TwoDelayQuasiPolynomi
 from delayform.errors import DelayError, InputError, NotConvergedError
 
 __all__ = ["RESIDUAL_TOL", "roots_in", "rightmost_root", "count_roots_right_of", "relative_residual",
-           "delay_reach", "check_reach"]
+           "delay_reach"]
 
 
 def relative_residual(
@@ -177,18 +177,6 @@ def delay_reach(fs: tuple[CharacteristicFactor, ...]) -> float:
     """
     return min((_box_reach(_problem_of_factor(f)) for f in fs), default=math.inf)
 
-
-def check_reach(fs: tuple[CharacteristicFactor, ...], tau1: float, tau2: float) -> None:
-    """Raise the finder's own :class:`DelayError` when it would refuse the pair (tau1, tau2), else nothing.
-
-    Parameters
-    ----------
-    fs
-        The factors of eq. factorized.
-    tau1, tau2
-        The delays.
-    """
-    _family_reach(fs, tau1, tau2)
 
 
 
