@@ -174,8 +174,12 @@ def test_a_real_scheduler_passes_the_check_and_one_without_workers_is_refused() 
                 pass
 
 
-def test_cli_workers_beyond_the_cores_exit_2_at_once(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
-    code, out, err = cli(capsys, "montecarlo", "--runs", "2", "--workers", "1000", "--out", str(tmp_path / "o"))
+@pytest.mark.parametrize("command", [("montecarlo", "--runs", "2"),
+                                     ("sweep", "--tau1-values", "0.3", "--tau2-values", "0.2", "--runs", "1")])  # fmt: skip
+def test_cli_workers_beyond_the_cores_exit_2_at_once(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, command: tuple[str, ...]
+) -> None:
+    code, out, err = cli(capsys, *command, "--workers", "1000", "--out", str(tmp_path / "o"))
     assert code == 2 and out == ""
     assert f"this machine has {usable_cores()} core" in one_line(err)
     assert not (tmp_path / "o").exists()

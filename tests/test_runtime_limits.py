@@ -109,6 +109,8 @@ def explorer(tmp_path_factory: pytest.TempPathFactory) -> Explorer:
 def test_explorer_refuses_loss_with_the_network_off_instead_of_ignoring_it(explorer: Explorer) -> None:
     with pytest.raises(InputError, match=r"network=0.*add network=1"):
         explorer.animation(1.0, 0.5, 0.3, 0.2, 5.0, 10, network=False, loss=0.3)
+    with pytest.raises(InputError, match=r"network=0"):  # the downloads alike
+        explorer.scenario_file(1.0, 0.5, 0.3, 0.2, 5.0, 8.0, 8.0, limits=False, network=False, loss=0.0, jitter=0.07)
     lossy = explorer.animation(1.0, 0.5, 0.3, 0.2, 5.0, 10, network=True, loss=0.3, jitter=0.0)
     assert lossy.as_json()["network"] == "loss 0.3"
     assert explorer.animation(1.0, 0.5, 0.3, 0.2, 5.0, 10).as_json()["network"] is None

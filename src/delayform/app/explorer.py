@@ -386,7 +386,14 @@ class Explorer:
         return loss, jitter
 
     def _switches(self, limits: bool, network: bool, loss: float, jitter: float) -> tuple[RobotLimits | None, Network | None]:
-        """The run's actuator limits and network (both at once: robots with limits over the network)."""
+        """The run's actuator limits and network (both at once: robots with limits over the network).
+
+        With the network off, a loss or jitter other than 0 or the defaults is
+        refused rather than ignored (simulation, scenario and figure downloads alike).
+        """
+        if not network and (loss, jitter) not in ((0.0, 0.0), self._network_defaults()):
+            raise InputError(f"loss, jitter: they set the network imperfections, which are off (network=0); "
+                             f"add network=1 to run over a network with loss {loss:g} and jitter {jitter:g} s")  # fmt: skip
         return self._limits(limits), (self.network(loss, jitter) if network else None)
 
     def _limits(self, limits: bool) -> RobotLimits | None:
@@ -669,10 +676,6 @@ class Explorer:
             (:class:`~delayform.errors.NetworkError`: a delay minus its jitter must stay >= dt).
         """
         s = self.scenario
-        # with the network off, loss and jitter are refused rather than ignored (unless unset: 0 or the defaults)
-        if not network and (loss, jitter) not in ((0.0, 0.0), self._network_defaults()):
-            raise InputError(f"loss, jitter: they set the network imperfections, which are off (network=0); "
-                             f"add network=1 to run over a network with loss {loss:g} and jitter {jitter:g} s")  # fmt: skip
         dt = self._run_step(tau1, tau2, duration)
         robot, net = self._switches(limits, network, loss, jitter)
 
