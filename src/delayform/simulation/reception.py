@@ -160,15 +160,28 @@ def _loss_mask(
     return lost
 
 
-def _check_delay_floor(stream: int, base: float, amplitude: float, bound: float, dt: float, *, packets: bool) -> None:
+def _packet_causes(network: Network) -> str:
+    """What makes the streams packets, in words: "packet loss", "sampling", ... (only what is set)."""
+    causes = [("jitter", network.jitter is not None and not network.jitter.is_off),
+              ("packet loss", network.loss is not None and not network.loss.is_off),
+              ("sampling", network.sampling is not None),
+              ("noise", network.noise is not None and not network.noise.is_off)]  # fmt: skip
+    return " and ".join(w for w, on in causes if on)
+
+
+def _check_delay_floor(stream: int, base: float, amplitude: float, bound: float, dt: float, *,
+                       packets: str, per_link: bool) -> None:  # fmt: skip
     """The rule "every delay minus its jitter and variation >= dt", stated with only the parts that are set.
 
     Every value an agent hears is read from the computed solution, so it must
     be at least one step old (a continuous stream may also have delay exactly
     0: the current value). ``base`` is the shortest link delay of the stream,
-    ``amplitude`` and ``bound`` its variation and jitter (0 when not set).
+    ``amplitude`` and ``bound`` its variation and jitter (0 when not set);
+    ``packets`` says what makes the streams packets ("" for continuous ones).
     """
     name, tau = ("position", "tau1") if stream == 0 else ("velocity", "tau2")
+    if per_link:  # LinkDelays: the shortest link's delay, not tau itself
+        tau = f"the shortest {name} link delay"
     shortest = base - amplitude - bound
     if not packets and base == 0.0 and amplitude == 0.0:
         return
@@ -183,10 +196,11 @@ def _check_delay_floor(stream: int, base: float, amplitude: float, bound: float,
             f"(every delay minus its {' and '.join(words)} must be >= dt); reduce the {' or '.join(words)}, "
             f"raise {tau} or choose a smaller dt"
         )
-    why = "packets (loss, sampling or noise are on) are" if packets else "a non-zero delay is"
+    why = f"with {packets} on, values travel as packets, and a packet is" if packets else "a non-zero delay is"
     fix = f"raise {tau} to >= {dt:g} s" + (f" or choose dt <= {base:g} s" if base > 0.0 else "")
+    what = tau if per_link else f"the {name} delay {tau}"
     raise NetworkError(
-        f"the {name} delay {tau} = {base:g} s is below the step dt = {dt:g} s: {why} heard at the earliest "
+        f"{what} = {base:g} s is below the step dt = {dt:g} s: {why} heard at the earliest "
         f"one step after being sent (every delay must be >= dt); {fix}"
     )
 
@@ -233,6 +247,8 @@ def reception(
     jitter = network.jitter if network.jitter is not None and not network.jitter.is_off else None
     bounds = (0.0, 0.0) if jitter is None else (jitter.bound1, jitter.bound2)
     packets_on = network.packets
+    causes = _packet_causes(network)
+    per_link = network.delays is not None and not network.delays.is_uniform
 
     k = np.arange(steps + 1, dtype=np.float64)[:, None, None]
     c = np.array(_SUBSTEPS)[None, :, None]
@@ -251,7 +267,7 @@ def reception(
         if not packets_on:
             zero = (base == 0.0) & (amp == 0.0)
             if np.any(~zero):
-                _check_delay_floor(s, float(base[~zero].min()), amp, 0.0, dt, packets=False)
+                _check_delay_floor(s, float(base[~zero].min()), amp, 0.0, dt, packets="", per_link=per_link)
             # relative position m = c - d(t) / dt of the value heard, in steps from t_k (as in integrator._lookup)
             t = (k + c) * dt
             d = base[None, None, :] + (amp * np.sin(2.0 * math.pi * t / variation.period + phases[s]) if amp else 0.0)
@@ -260,7 +276,7 @@ def reception(
             current.append(zero)
             noise.append(None)
             continue
-        _check_delay_floor(s, float(base.min()), amp, bounds[s], dt, packets=True)
+        _check_delay_floor(s, float(base.min()), amp, bounds[s], dt, packets=causes, per_link=per_link)
         delay = np.broadcast_to(base, (n_packets, E)).copy()
         if amp:
             delay += amp * np.sin(2.0 * math.pi * sample_times[:, None] / variation.period + phases[s])
