@@ -320,3 +320,25 @@ def test_report_interrupted_leaves_the_older_report_intact_and_a_new_one_replace
     assert sorted(p.name for p in out.iterdir()) == ["index.html", "mine.txt", "summary.json"]
     assert "old report" not in (out / "index.html").read_text()
     assert f"Report: {out / 'index.html'}" in stdout
+
+
+def test_every_file_the_package_writes_goes_through_atomic_path() -> None:
+    """A static check, so a new writer cannot bypass the mechanism: raw writes only to a temporary name."""
+    import re
+
+    package = Path(delayform.__file__).parent
+    writer = re.compile(r"(\.write_text|\.write_bytes|savez_compressed|np\.savez|savetxt|savefig|\.save)\((\w+)")
+    opened = re.compile(r"open\([^)]*[\"'][wax]b?[\"']")
+    offenders = []
+    for path in package.rglob("*.py"):
+        if path.name == "_files.py":
+            continue
+        for number, line in enumerate(path.read_text().splitlines(), start=1):
+            for match in writer.finditer(line):
+                receiver = line[: match.start()].rsplit(None, 1)[-1] if line[: match.start()].strip() else ""
+                into_memory = match.group(1) == "savefig" and match.group(2) == "data"  # a BytesIO
+                if match.group(2) != "tmp" and not receiver.endswith("tmp") and not into_memory:
+                    offenders.append(f"{path.relative_to(package)}:{number}: {line.strip()}")
+            if opened.search(line) and "tmp" not in line:
+                offenders.append(f"{path.relative_to(package)}:{number}: {line.strip()}")
+    assert offenders == []
