@@ -136,8 +136,7 @@ def staged_folder(folder: str | os.PathLike[str], *, manifest: str = "summary.js
     """
     target = Path(folder)
     target.mkdir(parents=True, exist_ok=True)
-    build = target / f"{PARTIAL_MARK.lstrip('.')}{secrets.token_hex(4)}"
-    build = build.with_name("." + build.name)
+    build = target / f"{PARTIAL_MARK}{secrets.token_hex(4)}"  # hidden: the mark starts with a dot
     build.mkdir()
     try:
         yield build
