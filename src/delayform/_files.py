@@ -68,7 +68,10 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     tmp = _temporary_name(target)
     try:
         yield tmp
-        os.replace(tmp, target)
+        try:
+            os.replace(tmp, target)
+        except OSError as exc:  # e.g. the name is taken by a folder: name the file the user asked for
+            raise type(exc)(exc.errno, exc.strerror, str(target)) from None
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
