@@ -251,9 +251,9 @@ def check_scheduler(address: object, timeout: float = CONNECT_TIMEOUT) -> str:
     except OSError as exc:
         raise ClusterError(f"cannot reach {where} ({exc.strerror or type(exc).__name__})") from None
     with sock:
-        try:
+        try:  # Dask's framing (distributed.comm.tcp): native-order uint64 counts
             head = _receive(sock, 8)
-            (size,) = struct.unpack("<Q", head) if len(head) == 8 else (0,)
+            (size,) = struct.unpack("=Q", head) if len(head) == 8 else (0,)
             if not 16 <= size <= _MAX_GREETING:
                 raise ClusterError(f"{address!r} is not a Dask scheduler (it answered {head!r})")
             body = _receive(sock, size)
@@ -262,8 +262,10 @@ def check_scheduler(address: object, timeout: float = CONNECT_TIMEOUT) -> str:
                                "(a Dask scheduler greets first; a web server waits)") from None  # fmt: skip
         except OSError as exc:
             raise ClusterError(f"cannot reach {where} ({exc.strerror or type(exc).__name__})") from None
-    count = struct.unpack("<Q", body[:8])[0] if len(body) >= 8 else 0
-    lengths = struct.unpack(f"<{count}Q", body[8 : 8 + 8 * count]) if 0 < count <= 64 and len(body) >= 8 + 8 * count else ()
+    # the message: a frame count, the frame lengths, the frames; they must add up to the length sent
+    count = struct.unpack("=Q", body[:8])[0] if len(body) >= 8 else 0
+    framed = 0 < count <= 64 and len(body) >= 8 + 8 * count
+    lengths = struct.unpack(f"={count}Q", body[8 : 8 + 8 * count]) if framed else ()
     if not lengths or 8 + 8 * count + sum(lengths) != size:
         raise ClusterError(f"{address!r} is not a Dask scheduler (its first message is not a Dask handshake)")
     return str(address)
