@@ -174,6 +174,18 @@ def test_a_real_scheduler_passes_the_check_and_one_without_workers_is_refused() 
                 pass
 
 
+def test_a_local_cluster_that_cannot_start_is_one_cluster_error(monkeypatch: pytest.MonkeyPatch) -> None:
+    import distributed
+
+    def fails(*args: object, **kwargs: object) -> None:
+        raise RuntimeError("Nanny failed to start.")
+
+    monkeypatch.setattr(distributed, "LocalCluster", fails)
+    with pytest.raises(ClusterError, match=r"could not start a local Dask cluster of 1 worker process \(Nanny"):
+        with executor_for(workers=1):
+            pass
+
+
 @pytest.mark.parametrize("command", [("montecarlo", "--runs", "2"),
                                      ("sweep", "--tau1-values", "0.3", "--tau2-values", "0.2", "--runs", "1")])  # fmt: skip
 def test_cli_workers_beyond_the_cores_exit_2_at_once(

@@ -343,8 +343,12 @@ def _local(workers: int) -> Iterator[DaskExecutor]:
     from distributed import Client, LocalCluster
 
     # processes with one thread each: the runs are pure Python/NumPy loops that hold the GIL
-    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                           dashboard_address=None, worker_dashboard_address=None, silence_logs=logging.ERROR)  # fmt: skip
+    try:
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                               dashboard_address=None, worker_dashboard_address=None, silence_logs=logging.ERROR)  # fmt: skip
+    except (RuntimeError, OSError, TimeoutError) as exc:  # e.g. "Nanny failed to start": no traceback of Dask's
+        raise ClusterError(f"could not start a local Dask cluster of {workers} worker process"
+                           f"{'es' if workers > 1 else ''} ({exc}); run without workers") from None  # fmt: skip
     try:
         with Client(cluster) as client:
             yield DaskExecutor(client)
