@@ -89,8 +89,11 @@ def run_quantile(values: ArrayLike, q: ArrayLike) -> _Array:
     >>> float(run_quantile([1.0, 2.0, np.inf, np.inf], 0.5))
     inf
     """
-    v = np.sort(np.asarray(values, dtype=np.float64).ravel())
-    p = np.asarray(q, dtype=np.float64)
+    try:
+        v = np.sort(np.asarray(values, dtype=np.float64).ravel())
+        p = np.asarray(q, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise SimulationInputError("quantile: values and probabilities must be numbers") from None
     if v.size == 0 or np.any(np.isnan(v)) or np.any((p < 0.0) | (p > 1.0) | np.isnan(p)):
         raise SimulationInputError("quantile: needs at least one value (no NaN) and probabilities in [0, 1]")
     h = (v.size - 1) * p

@@ -157,6 +157,13 @@ def _check_reach(prob: _Problem, t1: float, t2: float) -> None:
         )
 
 
+def _iterable(value: object) -> tuple[object, ...]:
+    try:
+        return tuple(value)  # type: ignore[call-overload]
+    except TypeError:
+        return (value,)
+
+
 def _box_reach(prob: _Problem) -> float:
     """Largest X such that :func:`_check_reach` accepts every pair in [0, X] x [0, X]."""
     widest = max([a + b for _, a, b in prob.delayed] + [0])  # h = (a + b) X at tau1 = tau2 = X
@@ -174,8 +181,15 @@ def delay_reach(fs: tuple[CharacteristicFactor, ...]) -> float:
     ----------
     fs
         The factors of eq. factorized of a team at its gains.
+
+    Raises
+    ------
+    InputError
+        When ``fs`` is not a sequence of factors.
     """
-    return min((_box_reach(_problem_of_factor(f)) for f in fs), default=math.inf)
+    if isinstance(fs, (str, bytes)) or not all(isinstance(f, CharacteristicFactor) for f in _iterable(fs)):
+        raise InputError("delay_reach: expected the factors of a team (delayform.characteristic.factors)")
+    return min((_box_reach(_problem_of_factor(f)) for f in tuple(fs)), default=math.inf)
 
 
 
