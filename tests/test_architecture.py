@@ -22,7 +22,8 @@ STAGES: dict[str, int] = {
     "errors": 0,
     "_validation": 0,
     "resources": 0,  # a leaf: memory and time budget guard
-    "plots": 0,  # a leaf: draws results by their attributes, imports no delayform module
+    "_files": 0,  # a leaf: complete-or-absent output files
+    "plots": 0,  # a leaf: draws results by their attributes, imports only the file helper _files
     "topology": 1,
     "characteristic": 2,
     "formation": 2,

@@ -87,7 +87,7 @@ def test_robots_with_limits_from_the_robot_table_and_the_options(tmp_path: Path)
         ("loss = { p_good_to_bad = 0.1 }", (), "network.loss.p_bad_to_good"),
         ("", ("--jitter", "0.28,0.0"), "below the step"),
         ("", ("--loss", "0.1", "--burst", "0.1,0.3"), "--burst"),
-        ("", ("--scheduler", "tcp://127.0.0.1:1"), "cannot reach the Dask scheduler"),
+        ("", ("--scheduler", "tcp://127.0.0.1:1"), "cannot reach a Dask scheduler"),
         ("", ("--limits",), "use --model unicycle"),
         ("", ("--no-limits", "--max-speed", "0.3"), "--no-limits cannot be combined with --max-speed"),
         ("", ("--runs", "100000", "--duration", "1000", "--dt", "0.01"), "would take about"),

@@ -412,9 +412,9 @@ def test_download_names_carry_every_setting_that_changes_the_content(tmp_path: P
             assert resp.status == 200, bodies[label]
             names[label] = re.fullmatch(r'attachment; filename="(.+)"', resp.getheader("Content-Disposition"))[1]
             conn.close()
-        # loss and jitter change nothing without the network: the same file, the same name
+        # loss and jitter without the network are refused, never silently ignored (issue 24)
         status, _, again = get(running, f"/download/scenario.toml?{base}&loss=0.3&jitter=0.01")
-        assert status == 200 and again == bodies["plain"]
+        assert status == 400 and b"network=0" in again
         for label in ("plain", "network"):
             status, _, _ = get(running, f"/download/figures.zip?{variants[label]}")
             assert status == 200

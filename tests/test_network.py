@@ -319,7 +319,6 @@ def test_smoothly_varying_delays_match_an_independent_integration() -> None:
         (lambda: LinkDelays(tau1=[1.0, 2.0]), "square"),
         (lambda: SmoothVariation(1.0, 0.0, period=2.0), "rate"),
         (lambda: Sampling(0.0), "positive"),
-        (lambda: GilbertElliott(0.1, 0.0), "p_bad_to_good"),
         (lambda: MeasurementNoise(position=float("nan")), "finite"),
         (lambda: Network(loss=0.3), "BernoulliLoss"),
         (lambda: Network(seed=-1), "seed"),

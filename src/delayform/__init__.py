@@ -98,6 +98,13 @@ _EXPORTS: dict[str, str] = {
     "Explorer": "app",
     "ExplorerLimits": "app",
     "scenario_toml": "app",
+    # run-time hardening (issue 24, items 2-5)
+    "check_workers": "sweeps",
+    "check_scheduler": "sweeps",
+    "parse_scheduler": "sweeps",
+    "usable_cores": "sweeps",
+    "run_quantile": "simulation.montecarlo",
+    "delay_reach": "analysis.roots.single",
 }
 
 __all__ = sorted(_EXPORTS) + ["errors", "__version__"]

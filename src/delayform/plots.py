@@ -2,7 +2,8 @@
 
 This is the only module that imports matplotlib at import time; computing
 modules never open a figure. It is a leaf of the package: it imports no
-other delayform module and reads the results it draws by their attributes,
+other delayform module but the file helper :mod:`delayform._files` (every
+file is written complete or not at all) and reads the results it draws by their attributes,
 so every result's ``.plot()`` may call it without an import cycle (data flow
 topology -> factors -> analysis -> design -> simulation -> report stays one
 way; ``tests/test_architecture.py`` checks it).
@@ -29,6 +30,8 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.collections import LineCollection  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
+
+from delayform._files import atomic_path  # noqa: E402
 
 
 def stability_chart(
@@ -117,7 +120,8 @@ def save_figure(
     paths = []
     for fmt in formats:
         path = stem.with_name(f"{stem.name}.{fmt}")
-        fig.savefig(path, dpi=dpi, bbox_inches="tight")
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp, format=fmt, dpi=dpi, bbox_inches="tight")
         paths.append(path)
     return paths
 
@@ -326,8 +330,11 @@ def save_trajectory_gif(traj: Any, path: Any, *, frames: int = 80, fps: int = 15
         return [dots, marks, title]
 
     anim = FuncAnimation(fig, draw, frames=samples, blit=False)
-    anim.save(path, writer=PillowWriter(fps=fps))
-    plt.close(fig)
+    try:
+        with atomic_path(path) as tmp:
+            anim.save(tmp, writer=PillowWriter(fps=fps))
+    finally:
+        plt.close(fig)
     return path
 
 

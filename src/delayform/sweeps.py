@@ -62,7 +62,12 @@ from delayform.topology import Topology
 
 __all__ = [
     "DaskExecutor",
+    "CONNECT_TIMEOUT",
+    "check_scheduler",
     "check_sweep",
+    "check_workers",
+    "parse_scheduler",
+    "usable_cores",
     "executor_for",
     "make_setup",
     "SweepResult",
@@ -117,18 +122,182 @@ class DaskExecutor:
         return self.client.gather(futures)
 
 
+#: seconds to wait for a Dask scheduler (TCP connection, then its greeting) before giving up
+CONNECT_TIMEOUT = 5.0
+#: largest first message a Dask scheduler sends (its handshake is a few hundred bytes)
+_MAX_GREETING = 1 << 20
+
+
+def usable_cores() -> int:
+    """Number of CPU cores this process may run on (its affinity mask where the OS has one)."""
+    import os
+
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):  # macOS, Windows: no affinity mask
+        return max(1, os.cpu_count() or 1)
+
+
+def check_workers(workers: object) -> int:
+    """A local cluster's worker count, checked against this machine before any process starts.
+
+    Each worker is one process with one thread running GIL-bound NumPy loops,
+    so more workers than cores only compete for the same cores (and every
+    process costs memory and semaphores): the count must be at most
+    :func:`usable_cores`.
+
+    Parameters
+    ----------
+    workers
+        A positive integer.
+
+    Raises
+    ------
+    ClusterError
+        Not a positive integer, or more than the cores of this machine.
+    """
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise ClusterError(f"workers must be a positive integer, got {workers!r}")
+    cores = usable_cores()
+    if workers > cores:
+        raise ClusterError(f"workers: {workers} worker processes asked for, but this machine has {cores} "
+                           f"core{'s' if cores > 1 else ''}; use at most {cores} (one process per core)")  # fmt: skip
+    return workers
+
+
+def parse_scheduler(address: object) -> tuple[str, str, int]:
+    """``(scheme, host, port)`` of a Dask scheduler address, checked before anything connects.
+
+    Accepted: ``tcp://host:port`` or ``tls://host:port`` (``host:port`` means
+    tcp), the host a name, an IPv4 address or a bracketed IPv6 address
+    (``tcp://[::1]:8786``), the port 1-65535; nothing after the port.
+
+    Parameters
+    ----------
+    address
+        The address as a string.
+
+    Raises
+    ------
+    ClusterError
+        Anything else, in one line naming the address.
+
+    >>> parse_scheduler("tcp://[::1]:8786")
+    ('tcp', '::1', 8786)
+    """
+    from urllib.parse import urlsplit
+
+    def bad(reason: str) -> ClusterError:
+        return ClusterError(f"scheduler: {address!r} is not an address like tcp://host:8786 ({reason})")
+
+    if not isinstance(address, str):
+        raise ClusterError(f"scheduler must be an address like tcp://host:8786, got {type(address).__name__}")
+    text = address.strip()
+    if not text or any(c.isspace() for c in text):
+        raise bad("empty or with spaces")
+    try:
+        parts = urlsplit(text if "://" in text else f"tcp://{text}")
+        port = parts.port
+    except ValueError as exc:  # an unclosed IPv6 bracket, a port that is no number
+        raise bad(str(exc).lower()) from None
+    if parts.scheme not in ("tcp", "tls"):
+        raise bad(f"the protocol must be tcp or tls, not {parts.scheme or 'empty'}")
+    if not parts.hostname:
+        raise bad("no host")
+    if port is None or port == 0:
+        raise bad("no port")
+    if parts.path not in ("", "/") or parts.query or parts.fragment or parts.username is not None:
+        raise bad("nothing may follow the port")
+    return parts.scheme, parts.hostname, port
+
+
+def check_scheduler(address: object, timeout: float = CONNECT_TIMEOUT) -> str:
+    """Prove, within ``timeout`` seconds, that a Dask scheduler answers at ``address``; return the address.
+
+    The address is parsed first (:func:`parse_scheduler`). For ``tcp`` the
+    check opens a connection and waits for the scheduler's greeting: a Dask
+    server speaks first, a handshake framed as an 8-byte length, a frame
+    count and frame lengths that add up. A closed port, a host that does not
+    answer, a server that stays silent (a web server waits for a request) or
+    one that sends anything else (its first bytes read as a length of
+    exabytes) is refused here, instead of hanging the Client or making it
+    allocate that length. ``tls`` is left to the Client (with the same timeout).
+
+    Parameters
+    ----------
+    address
+        The scheduler's address.
+    timeout
+        Seconds for the connection and for the greeting, each.
+
+    Raises
+    ------
+    ClusterError
+        A malformed address, or no Dask scheduler there, in one line.
+    """
+    import socket
+    import struct
+
+    scheme, host, port = parse_scheduler(address)
+    if isinstance(timeout, bool) or not isinstance(timeout, (int, float)) or not 0 < timeout < math.inf:
+        raise ClusterError(f"timeout must be a positive number of seconds, got {timeout!r}")
+    if scheme != "tcp":
+        return str(address)
+    where = f"a Dask scheduler at {address!r}"
+    try:
+        sock = socket.create_connection((host, port), timeout=timeout)
+    except TimeoutError:
+        raise ClusterError(f"cannot reach {where}: no answer within {timeout:g} s") from None
+    except OSError as exc:
+        raise ClusterError(f"cannot reach {where} ({exc.strerror or type(exc).__name__})") from None
+    with sock:
+        try:  # Dask's framing (distributed.comm.tcp): native-order uint64 counts
+            head = _receive(sock, 8)
+            (size,) = struct.unpack("=Q", head) if len(head) == 8 else (0,)
+            if not 16 <= size <= _MAX_GREETING:
+                raise ClusterError(f"{address!r} is not a Dask scheduler (it answered {head!r})")
+            body = _receive(sock, size)
+        except TimeoutError:
+            raise ClusterError(f"{address!r} is not a Dask scheduler: nothing came back within {timeout:g} s "
+                               "(a Dask scheduler greets first; a web server waits)") from None  # fmt: skip
+        except OSError as exc:
+            raise ClusterError(f"cannot reach {where} ({exc.strerror or type(exc).__name__})") from None
+    # the message: a frame count, the frame lengths, the frames; they must add up to the length sent
+    count = struct.unpack("=Q", body[:8])[0] if len(body) >= 8 else 0
+    framed = 0 < count <= 64 and len(body) >= 8 + 8 * count
+    lengths = struct.unpack(f"={count}Q", body[8 : 8 + 8 * count]) if framed else ()
+    if not lengths or 8 + 8 * count + sum(lengths) != size:
+        raise ClusterError(f"{address!r} is not a Dask scheduler (its first message is not a Dask handshake)")
+    return str(address)
+
+
+def _receive(sock: Any, n: int) -> bytes:
+    """Exactly ``n`` bytes, or fewer if the peer closed the connection (timeouts raise)."""
+    chunks, got = [], 0
+    while got < n:
+        chunk = sock.recv(min(n - got, 65536))
+        if not chunk:
+            break
+        chunks.append(chunk)
+        got += len(chunk)
+    return b"".join(chunks)
+
+
 @contextmanager
-def executor_for(*, workers: int | None = None, scheduler: str | None = None, timeout: float = 10.0) -> Iterator[Executor]:
+def executor_for(*, workers: int | None = None, scheduler: str | None = None,
+                 timeout: float = CONNECT_TIMEOUT) -> Iterator[Executor]:  # fmt: skip
     """Where runs go: this process, a local Dask cluster, or an existing one (module doc).
 
     Parameters
     ----------
     workers
-        Start a local cluster of this many worker processes (one thread each).
+        Start a local cluster of this many worker processes (one thread
+        each), at most the cores of this machine (:func:`check_workers`).
     scheduler
-        Address of an existing Dask scheduler, e.g. ``"tcp://10.0.0.5:8786"``.
+        Address of an existing Dask scheduler, e.g. ``"tcp://10.0.0.5:8786"``
+        (:func:`check_scheduler`).
     timeout
-        Seconds to wait for the scheduler before giving up.
+        Seconds to wait for the scheduler (and for its first worker) before giving up.
 
     Yields
     ------
@@ -138,13 +307,15 @@ def executor_for(*, workers: int | None = None, scheduler: str | None = None, ti
     Raises
     ------
     ClusterError
-        Both ``workers`` and ``scheduler`` given, ``workers`` below 1, or a
-        scheduler that cannot be reached.
+        Both ``workers`` and ``scheduler`` given, a bad worker count, a
+        malformed address, no Dask scheduler at it, or a scheduler without workers.
     """
     if workers is not None and scheduler is not None:
         raise ClusterError("give either workers (a local cluster) or scheduler (an existing one), not both")
-    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
-        raise ClusterError(f"workers must be a positive integer, got {workers!r}")
+    if workers is not None:
+        check_workers(workers)
+    if scheduler is not None:
+        check_scheduler(scheduler, timeout)
     if workers is None and scheduler is None:
         yield SerialExecutor()
         return
@@ -160,7 +331,7 @@ def executor_for(*, workers: int | None = None, scheduler: str | None = None, ti
             with _local(workers) as ex:
                 yield ex
         else:
-            with _remote(scheduler, timeout) as ex:
+            with _remote(str(scheduler), timeout) as ex:
                 yield ex
     finally:
         for n, level in levels.items():
@@ -172,8 +343,12 @@ def _local(workers: int) -> Iterator[DaskExecutor]:
     from distributed import Client, LocalCluster
 
     # processes with one thread each: the runs are pure Python/NumPy loops that hold the GIL
-    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                           dashboard_address=None, worker_dashboard_address=None, silence_logs=logging.ERROR)  # fmt: skip
+    try:
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                               dashboard_address=None, worker_dashboard_address=None, silence_logs=logging.ERROR)  # fmt: skip
+    except (RuntimeError, OSError, TimeoutError) as exc:  # e.g. "Nanny failed to start": no traceback of Dask's
+        raise ClusterError(f"could not start a local Dask cluster of {workers} worker process"
+                           f"{'es' if workers > 1 else ''} ({exc}); run without workers") from None  # fmt: skip
     try:
         with Client(cluster) as client:
             yield DaskExecutor(client)
@@ -185,37 +360,19 @@ def _local(workers: int) -> Iterator[DaskExecutor]:
 def _remote(scheduler: str, timeout: float) -> Iterator[DaskExecutor]:
     from distributed import Client
 
-    _reachable(scheduler, timeout)
     try:
         client = Client(scheduler, timeout=timeout)
     except (OSError, TimeoutError, ValueError) as exc:
         raise ClusterError(f"cannot reach the Dask scheduler at {scheduler!r} ({type(exc).__name__})") from None
     try:
+        try:  # a scheduler without workers would take the tasks and never run them
+            client.wait_for_workers(1, timeout=timeout)
+        except (OSError, TimeoutError):
+            raise ClusterError(f"the Dask scheduler at {scheduler!r} has no workers (none joined within "
+                               f"{timeout:g} s); start some with `dask worker {scheduler}`") from None  # fmt: skip
         yield DaskExecutor(client)
     finally:
         client.close()
-
-
-def _reachable(address: str, timeout: float) -> None:
-    """Fail at once on a TCP address nobody listens at (the Client would retry until its timeout)."""
-    import socket
-    from urllib.parse import urlsplit
-
-    if not isinstance(address, str) or not address:
-        raise ClusterError(f"scheduler must be an address like tcp://host:8786, got {address!r}")
-    parts = urlsplit(address if "://" in address else f"tcp://{address}")
-    if parts.scheme != "tcp":
-        return  # tls, ucx, ...: left to the Client
-    try:
-        port = parts.port
-    except ValueError:
-        port = None
-    if parts.hostname is None or port is None:
-        raise ClusterError(f"scheduler must be an address like tcp://host:8786, got {address!r}")
-    try:
-        socket.create_connection((parts.hostname, port), timeout=timeout).close()
-    except OSError as exc:
-        raise ClusterError(f"cannot reach the Dask scheduler at {address!r} ({exc.strerror or type(exc).__name__})") from None
 
 
 @contextmanager
@@ -277,9 +434,10 @@ class SweepResult:
         metric
             ``settling_time``, ``final_error``, ``peak_command_1`` or ``peak_command_2``.
         q
-            Probability of the quantile (runs that did not settle count as infinite).
+            Probability of the quantile (:func:`~delayform.simulation.montecarlo.quantile`:
+            the ordinary median at 0.5; runs that did not settle count as infinite).
         """
-        return np.array([np.quantile(r.metric(metric), q, method="inverted_cdf") for r in self.results])
+        return np.array([float(mc.run_quantile(r.metric(metric), q)) for r in self.results])
 
     def table(self) -> tuple[tuple[str, str], ...]:
         """Rows ``(point, settling median [5 %, 95 %] and settled fraction)``."""
@@ -417,6 +575,12 @@ def check_sweep(
     SimulationInputError, NetworkError, ClusterError, ResourceLimitError
         As :func:`sweep`.
     """
+    if workers is not None and scheduler is not None:
+        raise ClusterError("give either workers (a local cluster) or scheduler (an existing one), not both")
+    if workers is not None:
+        check_workers(workers)
+    if scheduler is not None:
+        parse_scheduler(scheduler)
     if not changes:
         raise SimulationInputError("a sweep needs at least one point")
     for change in changes:
@@ -428,7 +592,7 @@ def check_sweep(
     _guard_total(max(c[0] for c in costs), sum(c[1] for c in costs), len(changes) * runs, 1 if workers is None else workers)
     points = [mc.checked(setup.with_changes(**change)) for change in changes]
     if scheduler is not None:
-        _reachable(scheduler, 10.0)
+        check_scheduler(scheduler)
     return points
 
 

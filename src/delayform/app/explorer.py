@@ -42,9 +42,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from delayform._files import atomic_path
 from delayform.analysis.ctcr.stability_map import StabilityMap, stability_map
 from delayform.analysis.roots.team_roots import factor_roots_in
 from delayform.analysis.roots.dominant import DominantRoot, dominant_root, roots_in
+from delayform.analysis.roots.single import delay_reach
 from delayform.app.params import ExplorerLimits, Param
 from delayform.app.plane import RegionReport, region_report
 from delayform.app.scenario_toml import scenario_toml
@@ -266,7 +268,9 @@ class Animation:
     frames
         Indices of the saved samples sent as frames (finite samples only).
     diverged_at
-        Time of the first non-finite sample (an unstable run overflowing), or None.
+        Time of the first non-finite sample, or where integration stopped
+        because the state passed 1e8 times its size (the time the run's
+        warning names), or None.
     network
         The imperfect network of the run, or None (the paper's ideal links).
     """
@@ -374,12 +378,22 @@ class Explorer:
         net = self.scenario.network
         if net is None:
             return _DEFAULT_LOSS, _DEFAULT_JITTER
-        loss = 0.0 if net.loss is None else min(net.loss.loss_rate, _MAX_LOSS)
+        rate = 0.0 if net.loss is None else net.loss.loss_rate
+        if isinstance(net.loss, BernoulliLoss):  # a matrix: its mean over the team's links only
+            rate = net.loss.link_loss_rate(self.scenario.topology.adjacency)
+        loss = min(rate, _MAX_LOSS)
         jitter = 0.0 if net.jitter is None else min(max(net.jitter.bound1, net.jitter.bound2), _MAX_JITTER)
         return loss, jitter
 
     def _switches(self, limits: bool, network: bool, loss: float, jitter: float) -> tuple[RobotLimits | None, Network | None]:
-        """The run's actuator limits and network (both at once: robots with limits over the network)."""
+        """The run's actuator limits and network (both at once: robots with limits over the network).
+
+        With the network off, a loss or jitter other than 0 or the defaults is
+        refused rather than ignored (simulation, scenario and figure downloads alike).
+        """
+        if not network and (loss, jitter) not in ((0.0, 0.0), self._network_defaults()):
+            raise InputError(f"loss, jitter: they set the network imperfections, which are off (network=0); "
+                             f"add network=1 to run over a network with loss {loss:g} and jitter {jitter:g} s")  # fmt: skip
         return self._limits(limits), (self.network(loss, jitter) if network else None)
 
     def _limits(self, limits: bool) -> RobotLimits | None:
@@ -502,7 +516,7 @@ class Explorer:
         tau1, tau2
             The delays.
         """
-        self._check_bandwidth(P, D, max(tau1, tau2), "tau1, tau2")
+        self._check_bandwidth(P, D, max(tau1, tau2), "tau1, tau2", roots=True)
         count = int(self._map_covering(P, D, tau1, tau2).unstable_count(tau1, tau2))
         return PointReport(P, D, tau1, tau2, count, dominant_root(self.scenario.topology, P, D, tau1, tau2))
 
@@ -522,7 +536,7 @@ class Explorer:
         tau1, tau2
             The delays.
         """
-        self._check_bandwidth(P, D, max(tau1, tau2), "tau1, tau2")
+        self._check_bandwidth(P, D, max(tau1, tau2), "tau1, tau2", roots=True)
         topology = self.scenario.topology
         dom = dominant_root(topology, P, D, tau1, tau2).root
         height = max(min(_ROOT_WINDOW_IM, _ROOT_WINDOW_PHASE / max(tau1, tau2, 1e-12)), abs(dom.imag) + 0.5)
@@ -571,14 +585,40 @@ class Explorer:
         self._check_bandwidth(P, D, max(tau1, tau2), "tau1, tau2")
         return region_report(self.scenario.topology, P, D, tau1, tau2)
 
-    def _check_bandwidth(self, P: float, D: float, delay: float, what: str) -> None:
-        """Refuse delays whose product with the crossing-frequency bound exceeds the limit."""
+    def delay_limits(self, P: float, D: float) -> dict[str, float]:
+        """The longest delays the explorer takes at gains (P, D), per kind of request.
+
+        ``"chart"`` and ``"region"``: ``max_delay_bandwidth`` over the
+        crossing-frequency bound; ``"roots"`` (point, roots: the dominant-root
+        finder) also the finder's own reach,
+        :func:`~delayform.analysis.roots.single.delay_reach`, the rule the
+        finder refuses by, so this table never allows a delay the finder then
+        refuses, and follows the finder when its reach changes.
+
+        Parameters
+        ----------
+        P, D
+            Gains of eq. protocol.
+        """
+        bandwidth = self.limits.max_delay_bandwidth / crossing_frequency_bound(P, D)
+        work = min(self.limits.max_delay, bandwidth)
+        return {"chart": work, "region": work,
+                "roots": min(work, delay_reach(tuple(factors(self.scenario.topology, P, D))))}  # fmt: skip
+
+    def _check_bandwidth(self, P: float, D: float, delay: float, what: str, *, roots: bool = False) -> None:
+        """Refuse delays beyond :meth:`delay_limits` (the root finder's reach too with ``roots``)."""
         omega = crossing_frequency_bound(P, D)
         if delay * omega > self.limits.max_delay_bandwidth:
             raise InputError(
                 f"{what}: {delay:g} s x crossing-frequency bound {omega:.3g} rad/s exceeds the explorer "
                 f"limit max_delay_bandwidth = {self.limits.max_delay_bandwidth:g} "
                 f"(at P = {P:g}, D = {D:g}: delays up to {self.limits.max_delay_bandwidth / omega:.3g} s)"
+            )
+        reach = self.delay_limits(P, D)["roots"] if roots else math.inf
+        if delay > reach:
+            raise InputError(
+                f"{what}: {delay:g} s is beyond the dominant-root finder's reach at P = {P:g}, D = {D:g} "
+                f"(delays up to {reach:.3g} s); the chart has no such limit"
             )
 
     def _step(self, tau1: float, tau2: float) -> float:
@@ -653,7 +693,8 @@ class Explorer:
         # the page's run and the figures download share one simulation
         key = (P, D, tau1, tau2, duration, limits, network, loss if network else 0.0, jitter if network else 0.0)
         tr, last = self._cached(self._runs, key, _TRAJECTORY_CACHE, run)
-        diverged = None if last == tr.times.size else float(tr.times[last])
+        # the first non-finite sample, else where integration stopped on overflow (the warnings' time)
+        diverged = float(tr.times[last]) if last < tr.times.size else tr.stopped_at
         idx = np.unique(np.linspace(0, max(last - 1, 0), frames).round().astype(np.int64))
         return Animation(tr, idx, diverged, net if net is None or not net.is_ideal else None)
 
@@ -678,7 +719,8 @@ class Explorer:
         if path.parent != self.out_dir:
             raise InputError(f"refusing to write {name!r} outside {self.out_dir}")
         self.out_dir.mkdir(parents=True, exist_ok=True)
-        path.write_bytes(data)
+        with atomic_path(path) as tmp:
+            tmp.write_bytes(data)
         return path
 
     def _stem(self, P: float, D: float, tau1: float, tau2: float, duration: float, tau1_max: float,

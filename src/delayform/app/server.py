@@ -210,6 +210,8 @@ def create_app(explorer: Explorer) -> Any:
             "points": [{"label": k, "tau1": a, "tau2": b} for k, a, b in s.chart.points],
             "defaults": defaults | {"tau1": s.tau1, "tau2": s.tau2},
             "limits": explorer.limits.__dict__,
+            # the longest delay per kind of request at the scenario's gains (the roots' from the finder's own rule)
+            "delay_limits": explorer.delay_limits(s.P, s.D),
             "toggles": explorer.toggles,
             "out_dir": str(explorer.out_dir),
         }

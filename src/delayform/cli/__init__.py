@@ -48,8 +48,14 @@ def main(argv: list[str] | None = None) -> None:
         _fail(exc.format_message().replace("\n", " ") + hint)
     except click.ClickException as exc:
         _fail(exc.format_message().replace("\n", " "))
-    except click.Abort:
-        click.echo("delayform: aborted", err=True)
+    except click.Abort as exc:
+        # click turns Ctrl-C into Abort (after the blank line that ends the terminal's ^C echo)
+        interrupted = isinstance(exc.__cause__, KeyboardInterrupt)
+        click.echo("delayform: interrupted; files being written were discarded, earlier outputs are intact"
+                   if interrupted else "delayform: aborted", err=True)  # fmt: skip
+        sys.exit(130)
+    except KeyboardInterrupt:  # outside click's own handling (e.g. while it prints)
+        click.echo("delayform: interrupted; files being written were discarded, earlier outputs are intact", err=True)
         sys.exit(130)
     except InputError as exc:
         _fail(str(exc).replace("\n", " "))

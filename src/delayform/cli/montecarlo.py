@@ -70,7 +70,8 @@ def _network(base: Any, *, loss: float | None, burst: tuple[float, float] | None
 @click.option("--burst", type=FloatTuple(2, minimum=0.0), metavar="P_GB,P_BG",
               help="Bursty loss: Gilbert-Elliott good->bad and bad->good probabilities per packet.")
 @click.option("--jitter", type=FloatTuple(2, minimum=0.0), metavar="B1,B2",
-              help="Jitter bounds (s) on position and velocity delays (network.jitter).")
+              help="Jitter bounds (s) on position and velocity delays (network.jitter); every delay minus "
+                   "its jitter must be >= --dt.")
 @click.option("--rate", type=POSITIVE, help="Sampled transmission: packets per second (network.rate).")
 @click.option("--noise", type=FloatTuple(2, minimum=0.0), metavar="SX,SV",
               help="Measurement noise: std of positions (m) and velocities (m/s) (network.noise).")
@@ -85,7 +86,9 @@ def montecarlo_command(scenario: Path | None, runs: int, seed: int | None, worke
     """Monte Carlo of the scenario over an imperfect network: N seeded runs.
 
     The network comes from the scenario's [network] table and the options
-    --loss, --burst, --jitter, --rate, --noise, --delay-spread. Robots with
+    --loss, --burst, --jitter, --rate, --noise, --delay-spread. Every value
+    heard is at least one step old: with any of these on, every delay minus
+    its jitter (and variation) must be >= dt (so tau1, tau2 >= dt). Robots with
     actuator limits (the scenario's [robot] table, --limits and the limit
     options) are the saturated unicycle driven by what each robot hears.
     Writes the quantile bands of the formation error
@@ -98,10 +101,14 @@ def montecarlo_command(scenario: Path | None, runs: int, seed: int | None, worke
     """
     from delayform.report import montecarlo_section, scenario_setup
     from delayform.simulation.montecarlo import guard
-    from delayform.sweeps import executor_for
+    from delayform.sweeps import check_workers, executor_for, parse_scheduler
 
     if workers is not None and scheduler is not None:
         raise click.UsageError("give either --workers (a local cluster) or --scheduler (an existing one), not both")
+    if workers is not None:  # against this machine's cores, before any budget or process
+        check_workers(workers)
+    if scheduler is not None:  # parsed now; executor_for proves a scheduler answers before --out is made
+        parse_scheduler(scheduler)
     given = _limits_given(overrides)
     sc = _scenario(scenario, seed=seed, **overrides)
     seed = 0 if seed is None else seed

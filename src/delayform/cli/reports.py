@@ -24,7 +24,27 @@ if TYPE_CHECKING:
 
 
 def _write_full_report(sc: Scenario, directory: Path, *, paper: bool, as_json: bool) -> None:
-    from delayform.report import jsonable, paper_sections, scenario_sections, write_report
+    """Build the report in a hidden folder inside ``directory`` and move it in when complete.
+
+    The previous report's files are replaced all at once (:func:`delayform._files.staged_folder`):
+    Ctrl-C or an error during the build leaves the previous report as it was.
+    """
+    from delayform._files import staged_folder
+    from delayform.report import jsonable
+
+    with staged_folder(directory) as staging:
+        sections, index, seconds = _build_full_report(sc, staging, paper=paper)
+    index = directory / index.name
+    if as_json:
+        click.echo(json.dumps(jsonable({s.key: s.summary for s in sections} | {"index": str(index)}), indent=2))
+        return
+    for section in sections:
+        _emit(section, directory, as_json=False)
+    click.echo(f"Report: {index} ({seconds:.1f} s)")
+
+
+def _build_full_report(sc: Scenario, directory: Path, *, paper: bool) -> tuple[list[Any], Path, float]:
+    from delayform.report import paper_sections, scenario_sections, write_report
 
     build = paper_sections if paper else scenario_sections
     network = paper or sc.network is not None  # the network section: promises (paper) or a Monte Carlo
@@ -54,12 +74,7 @@ def _write_full_report(sc: Scenario, directory: Path, *, paper: bool, as_json: b
             title = f"delayform report: {sc.name}"
             intro = sc.description or f"Scenario {sc.source}."
         index = write_report(sections, directory, title=title, intro=intro, scenario=sc, seconds=seconds)
-    if as_json:
-        click.echo(json.dumps(jsonable({s.key: s.summary for s in sections} | {"index": str(index)}), indent=2))
-        return
-    for section in sections:
-        _emit(section, directory, as_json=False)
-    click.echo(f"Report: {index} ({seconds:.1f} s)")
+    return sections, index, seconds
 
 
 @cli.command("report")

@@ -10,6 +10,8 @@ from typing import Any
 
 import numpy as np
 
+from delayform._files import atomic_path
+
 
 #: Called with a short description before each step of a long computation.
 Progress = Callable[[str], None]
@@ -119,7 +121,7 @@ def _pyplot() -> Any:
 
 
 def _write_csv(path: Path, header: Sequence[str], rows: Iterable[Sequence[Any]]) -> str:
-    with path.open("w", newline="") as fh:
+    with atomic_path(path) as tmp, tmp.open("w", newline="") as fh:
         writer = csv.writer(fh)
         writer.writerow(header)
         writer.writerows(rows)

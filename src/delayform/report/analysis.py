@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from delayform._files import save_npz
 from delayform.scenario import Scenario
 from delayform.report._common import (
     Figure,
@@ -119,7 +120,7 @@ def chart_section(scenario: Scenario, out: Path) -> Section:
     files = list(_save(fig, out, "stability_chart"))
     curve_rows, arrays = _curve_rows(smap)
     files.append(_write_csv(out / "ctcr_curves.csv", ("curve", "source", "kind", "tau1", "tau2", "omega"), curve_rows))
-    np.savez_compressed(out / "ctcr_curves.npz", **arrays)
+    save_npz(out / "ctcr_curves.npz", **arrays)
     files.append("ctcr_curves.npz")
     fraction = float(smap.stable_fraction())
     summary = {
@@ -367,7 +368,7 @@ def safe_delays_section(
     m.plot(ax=ax, points={label: (a, b) for label, a, b in points})
     files = list(_save(fig, out, "safe_delays"))
     t1, t2, safe = m.grid(200)
-    np.savez_compressed(out / "safe_delays.npz", tau1=t1, tau2=t2, safe=safe)
+    save_npz(out / "safe_delays.npz", tau1=t1, tau2=t2, safe=safe)
     files.append("safe_delays.npz")
     fraction = float(safe.mean())
     marks = [(label, a, b, bool(m.is_safe(a, b))) for label, a, b in points]
@@ -427,7 +428,7 @@ def map_section(scenario: Scenario, out: Path, *, progress: MapProgress | None =
     dmap.plot_contour(ax=ax)
     files += _save(fig, out, "dominant_contour")
     roots = np.asarray(dmap.roots, dtype=complex)
-    np.savez_compressed(out / "dominant_map.npz", tau1=t1, tau2=t2, real_part=re, roots=roots)
+    save_npz(out / "dominant_map.npz", tau1=t1, tau2=t2, real_part=re, roots=roots)
     files.append("dominant_map.npz")
     T1, T2 = np.meshgrid(t1, t2, indexing="ij")
     files.append(_write_csv(
@@ -438,13 +439,15 @@ def map_section(scenario: Scenario, out: Path, *, progress: MapProgress | None =
     summary = {
         "tau1": [float(t1[0]), float(t1[-1]), int(t1.size)],
         "tau2": [float(t2[0]), float(t2[-1]), int(t2.size)],
-        "stable_fraction": float(np.mean(re < 0)),
+        # DominantRootMap.stable, the one meaning of stable: on tau1 = 0 the centroid's drift (Re = 0
+        # exactly) is not instability, as in the chart and roots (Re < 0 alone would call that row unstable)
+        "stable_fraction": float(np.mean(dmap.stable)),
         "min_real_part": float(re[best]),
         "argmin": [float(t1[best[0]]), float(t2[best[1]])],
     }
     table = (
         ("grid", f"{t1.size} x {t2.size} over [{t1[0]:g}, {t1[-1]:g}] x [{t2[0]:g}, {t2[-1]:g}] s"),
-        ("fraction with Re < 0", f"{summary['stable_fraction']:.3f}"),
+        ("stable fraction (the centroid's drift on tau1 = 0 excepted)", f"{summary['stable_fraction']:.3f}"),
         ("most negative Re on the grid", f"{re[best]:.4g} at ({t1[best[0]]:g}, {t2[best[1]]:g})"),
     )
     return Section(

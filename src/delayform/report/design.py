@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from delayform._files import save_npz, write_text
 from delayform.errors import NoStableDelaysError, NoStableGainsError
 from delayform.scenario import Scenario
 from delayform.report._common import (
@@ -83,7 +84,7 @@ def schedule_section(
             ("predicted settling of the formation's shape", f"{_fmt(SETTLING_FACTOR / abs(shape.real))} s"),
         ]
     name = f"schedule{suffix}.json"
-    (out / name).write_text(json.dumps(jsonable(summary), indent=2))
+    write_text(out / name, json.dumps(jsonable(summary), indent=2))
     verdict = "unstable" if hardware.real > 0 else "stable"
     return Section(
         key=f"schedule{suffix}",
@@ -162,7 +163,7 @@ def gains_section(
     result.plot(ax=ax, points={"scenario": (scenario.P, scenario.D)})
     files = list(_save(fig, out, f"gain_plane{suffix}"))
     gm = result.gain_map
-    np.savez_compressed(out / f"gain_plane{suffix}.npz", P=gm.P_values, D=gm.D_values,
+    save_npz(out / f"gain_plane{suffix}.npz", P=gm.P_values, D=gm.D_values,
                         abscissa=gm.abscissa, roots=gm.roots, delays=gm.delays)  # fmt: skip
     files.append(f"gain_plane{suffix}.npz")
     summary = {
@@ -184,7 +185,7 @@ def gains_section(
         "stable_fraction_of_gain_grid": float(np.mean(gm.stable)),
     }
     name = f"gains{suffix}.json"
-    (out / name).write_text(json.dumps(jsonable(summary), indent=2))
+    write_text(out / name, json.dumps(jsonable(summary), indent=2))
     files.append(name)
     worst = "worst case over the box" if robust else "dominant root"
     table = (
@@ -299,7 +300,7 @@ def gain_comparison_section(
         except NoStableGainsError:
             rows.append({"point": label, "method": "gain design", "found": False})
     name = "gain_comparison.json"
-    (out / name).write_text(json.dumps(jsonable(rows), indent=2))
+    write_text(out / name, json.dumps(jsonable(rows), indent=2))
     files = [name]
     fig, ax = plt.subplots(figsize=(7.0, 4.4))
     methods = ("scenario gains", "delay scheduling", "gain design")

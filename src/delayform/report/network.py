@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from delayform._files import save_npz
 from delayform.errors import ScenarioError
 from delayform.report._common import Figure, Section, _fmt, _fmt_complex, _pyplot, _save, _write_csv
 from delayform.scenario import Scenario
@@ -107,7 +108,7 @@ def montecarlo_section(
     names = [n.strip("|").replace("/", "_") or "unused" for n in mc.command_names]
     files.append(_write_csv(out / "montecarlo_runs.csv",
                             ("run", "settling_time", "final_error", f"peak_{names[0]}", f"peak_{names[1]}"), rows))  # fmt: skip
-    np.savez_compressed(out / "montecarlo.npz", times=mc.times, errors=mc.errors, settling_times=mc.settling_times)
+    save_npz(out / "montecarlo.npz", times=mc.times, errors=mc.errors, settling_times=mc.settling_times)
     files.append("montecarlo.npz")
     where = "given" if scenario.initial.positions is not None else "random (one draw per run)"
     return Section(
@@ -116,7 +117,7 @@ def montecarlo_section(
         text=(
             f"{runs} runs of the {scenario.topology.n} agents ({sim.model}, {sim.duration:g} s, step {sim.dt:g} s) "
             f"from {where} initial positions, each with its own draw of the network "
-            f"({'ideal' if net is None else net.describe()}); seeds from SeedSequence({seed}).spawn({runs}), "
+            f"({'ideal' if net is None else net.describe(scenario.topology.adjacency)}); seeds from SeedSequence({seed}).spawn({runs}), "
             "so the numbers are the same whichever way the runs are spread over workers."
         ),
         figures=(
@@ -198,7 +199,7 @@ def sweep_section(
     fig, ax = plt.subplots(figsize=(6.4, 4.8))
     robots = "ideal robots" if scenario.robot is None else "robots with limits"
     plot_metric_grid(tau1_values, tau2_values, stats["median"], ax=ax, label="median settling time (s)",
-                     title=f"{runs} runs per point, {'ideal network' if net is None else net.describe()}, {robots}")  # fmt: skip
+                     title=f"{runs} runs per point, {'ideal network' if net is None else net.describe(scenario.topology.adjacency)}, {robots}")  # fmt: skip
     files = list(_save(fig, out, "sweep_settling"))
     rows = [
         (t1, t2, settled[i, j], stats["median"][i, j], stats["q05"][i, j], stats["q95"][i, j], final[i, j])
@@ -206,7 +207,7 @@ def sweep_section(
     ]  # fmt: skip
     files.append(_write_csv(out / "sweep.csv", ("tau1", "tau2", "settled_fraction", "settling_median",
                                                 "settling_q05", "settling_q95", "final_error_median"), rows))  # fmt: skip
-    np.savez_compressed(out / "sweep.npz", tau1=np.asarray(tau1_values, dtype=float),
+    save_npz(out / "sweep.npz", tau1=np.asarray(tau1_values, dtype=float),
                         tau2=np.asarray(tau2_values, dtype=float), settled_fraction=settled,
                         final_error_median=final, **{f"settling_{k}": v for k, v in stats.items()})  # fmt: skip
     files.append("sweep.npz")
@@ -216,7 +217,7 @@ def sweep_section(
         text=(
             f"Monte Carlo of the {scenario.topology.n} agents ({sim.model}, {sim.duration:g} s, step {sim.dt:g} s, "
             f"{robots}) at every (tau1, tau2) of the grid, over the "
-            f"{'ideal network' if net is None else 'network ' + net.describe()}; every point uses the seeds of "
+            f"{'ideal network' if net is None else 'network ' + net.describe(scenario.topology.adjacency)}; every point uses the seeds of "
             f"SeedSequence({seed}).spawn({runs}), so the points differ by their delays, not by their draws."
         ),
         figures=(Figure("sweep_settling", "Settling time over the delay grid",

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from delayform._files import atomic_path, save_npz
 from delayform.simulation.robots import RobotLimits, wheel_speeds
 
 __all__ = ["RobotCommands", "LimitExceedance"]
@@ -269,7 +270,8 @@ class RobotCommands:
             [np.repeat(self.times, n), np.tile(np.arange(1, n + 1), T)] + [table[c].reshape(-1) for c, _ in COLUMNS]
         )
         header = "time,robot," + ",".join(c for c, _ in COLUMNS)
-        np.savetxt(path, cols, delimiter=",", header=header, comments="", fmt="%.10g")
+        with atomic_path(path) as tmp:
+            np.savetxt(tmp, cols, delimiter=",", header=header, comments="", fmt="%.10g")
         return path
 
     def to_npz(self, path: str | Path) -> Path:
@@ -282,7 +284,7 @@ class RobotCommands:
         """
         path = Path(path)
         lim = self.robot
-        np.savez_compressed(
+        save_npz(
             path, times=self.times, **self._table(),
             limits=np.array([lim.max_speed, lim.max_turn_rate, lim.max_acceleration, lim.max_wheel_speed]),
             geometry=np.array([lim.wheel_radius, lim.axle_length]),

@@ -51,12 +51,60 @@ __all__ = [
     "monte_carlo",
     "collect",
     "estimate_cost",
+    "run_quantile",
 ]
 
 _Array = NDArray[np.float64]
 
 #: Called with (runs done, runs in all) as runs finish.
 Progress = Callable[[int, int], None]
+
+def run_quantile(values: ArrayLike, q: ArrayLike) -> _Array:
+    """Quantiles of run metrics where a run that never settled counts as +inf.
+
+    The definition is the usual one, linear interpolation between order
+    statistics (Hyndman and Fan's type 7, numpy's default ``"linear"``, the
+    ``"inclusive"`` method of Python's :mod:`statistics`): with the sorted
+    values ``v_0 <= ... <= v_{n-1}`` and ``h = (n - 1) q``,
+    ``Q(q) = v_floor(h) + (h - floor(h)) (v_ceil(h) - v_floor(h))``. So
+    ``q = 0.5`` is the ordinary median, the mean of the two middle values for
+    an even number of runs. An interpolation towards +inf is +inf (half the
+    runs settled at 10 s and half never: the median run never settles), and
+    exactly on an order statistic the value is that statistic.
+
+    Parameters
+    ----------
+    values
+        One value per run (finite or +inf), at least one.
+    q
+        Probabilities in [0, 1] (scalar or array).
+
+    Returns
+    -------
+    ndarray
+        One quantile per probability, in the shape of ``q``.
+
+    >>> float(run_quantile([4.0, 1.0, 3.0, 2.0], 0.5))
+    2.5
+    >>> float(run_quantile([1.0, 2.0, np.inf, np.inf], 0.5))
+    inf
+    """
+    try:
+        v = np.sort(np.asarray(values, dtype=np.float64).ravel())
+        p = np.asarray(q, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise SimulationInputError("quantile: values and probabilities must be numbers") from None
+    if v.size == 0 or np.any(np.isnan(v)) or np.any((p < 0.0) | (p > 1.0) | np.isnan(p)):
+        raise SimulationInputError("quantile: needs at least one value (no NaN) and probabilities in [0, 1]")
+    h = (v.size - 1) * p
+    lo = np.floor(h).astype(np.intp)
+    hi = np.minimum(lo + 1, v.size - 1)
+    frac = h - lo
+    a, b = v[lo], v[hi]
+    with np.errstate(invalid="ignore"):  # inf - inf where both are inf: handled by the where
+        linear = a + frac * (b - a)
+    return np.where(frac == 0.0, a, np.where(np.isinf(b), np.inf, linear))
+
 
 #: points of the formation error kept per run for the quantile bands
 ERROR_SAMPLES = 301
@@ -125,7 +173,7 @@ class Setup:
         return {
             "topology": self.topology.name, "agents": self.topology.n, "P": self.P, "D": self.D,
             "tau1": self.tau1, "tau2": self.tau2, "model": self.model,
-            "network": "ideal" if self.network is None else self.network.describe(),
+            "network": "ideal" if self.network is None else self.network.describe(self.topology.adjacency),
             "robots": "ideal" if self.limits is None else self.limits.describe(),
             "duration": self.duration, "dt": self.dt,
         }  # fmt: skip
@@ -308,8 +356,9 @@ class MonteCarloResult:
     def summary(self) -> dict[str, Any]:
         """JSON-ready statistics: per metric the median, 5 % and 95 % quantiles, mean, min and max.
 
-        Quantiles of the settling time count runs that did not settle as
-        infinite (reported as None in JSON).
+        Quantiles as :func:`quantile` defines them (the ordinary median: the
+        mean of the two middle runs for an even count); the settling time of
+        runs that did not settle counts as infinite (reported as None in JSON).
         """
         out: dict[str, Any] = {"runs": self.runs, "seed": self.seed, "settled_fraction": self.settled_fraction,
                                "setup": self.setup.describe(), "command_names": list(self.command_names),
@@ -319,7 +368,7 @@ class MonteCarloResult:
                 continue
             v = self.metric(name)
             finite = v[np.isfinite(v)]
-            q05, q50, q95 = (float(x) for x in np.quantile(v, (0.05, 0.5, 0.95), method="inverted_cdf"))
+            q05, q50, q95 = (float(x) for x in run_quantile(v, (0.05, 0.5, 0.95)))
             out[name] = {
                 "median": q50, "q05": q05, "q95": q95,
                 "mean": float(finite.mean()) if finite.size else math.inf,

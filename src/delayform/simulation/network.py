@@ -140,6 +140,38 @@ def _matrix(name: str, value: ArrayLike | None, *, probability: bool = False) ->
     return arr
 
 
+def _links_of(adjacency: ArrayLike, n: int, name: str) -> NDArray[np.bool_]:
+    """Boolean ``(n, n)`` mask of the links of an adjacency, after checking it matches an n x n matrix."""
+    links = np.asarray(adjacency.toarray() if hasattr(adjacency, "toarray") else adjacency) != 0
+    if links.shape != (n, n):
+        raise NetworkError(f"{name} must be {links.shape[0]} x {links.shape[0]} (one entry per pair of agents), "
+                           f"got {n} x {n}")  # fmt: skip
+    return links & ~np.eye(n, dtype=bool)
+
+
+def check_link_matrix(name: str, matrix: NDArray[np.float64], n: int) -> None:
+    """A per-link matrix (delays, loss) must be n x n for a team of n agents.
+
+    Parameters
+    ----------
+    name
+        The setting, for the message (``"loss.probability"``).
+    matrix
+        The checked square matrix.
+    n
+        Number of agents.
+
+    Raises
+    ------
+    NetworkError
+        Another size: a smaller matrix leaves links without a value, a larger
+        one describes agents the team does not have.
+    """
+    if matrix.shape != (n, n):
+        raise NetworkError(f"{name} must be {n} x {n} (one entry per pair of agents), "
+                           f"got {matrix.shape[0]} x {matrix.shape[1]}")  # fmt: skip
+
+
 # ------------------------------------------------------------ the model
 @dataclass(frozen=True, eq=False)
 class LinkDelays:
@@ -267,8 +299,33 @@ class BernoulliLoss:
 
     @property
     def loss_rate(self) -> float:
-        """Long-run fraction of lost packets (the mean of a matrix's entries)."""
-        return float(np.mean(self.probability))
+        """Long-run fraction of lost packets: the probability, or a matrix's mean over its off-diagonal entries.
+
+        A matrix's entries off the links change nothing; :meth:`link_loss_rate`
+        averages over the links of a topology only.
+        """
+        p = self.probability
+        if not isinstance(p, np.ndarray):
+            return float(p)
+        n = p.shape[0]
+        return float(p[~np.eye(n, dtype=bool)].mean()) if n > 1 else 0.0
+
+    def link_loss_rate(self, adjacency: ArrayLike) -> float:
+        """Long-run fraction of lost packets over the links ``a_ik = 1`` of an adjacency (module doc, Links).
+
+        Parameters
+        ----------
+        adjacency
+            The ``(n, n)`` adjacency of the team (row i: what agent i receives).
+
+        >>> BernoulliLoss([[0, 1], [0.5, 0]]).link_loss_rate([[0, 0], [1, 0]])
+        0.5
+        """
+        p = self.probability
+        if not isinstance(p, np.ndarray):
+            return float(p)
+        links = _links_of(adjacency, p.shape[0], "loss.probability")
+        return float(p[links].mean()) if links.any() else 0.0
 
 
 @dataclass(frozen=True)
@@ -283,8 +340,13 @@ class GilbertElliott:
     Parameters
     ----------
     p_good_to_bad, p_bad_to_good
-        Transition probabilities per packet; ``p_bad_to_good`` > 0 (else a
-        burst never ends). The mean burst length is ``1 / p_bad_to_good`` packets.
+        Transition probabilities per packet. The mean burst length is
+        ``1 / p_bad_to_good`` packets. ``p_bad_to_good = 0`` is allowed, as
+        Bernoulli loss 1 is: the bad state is then absorbing, its stationary
+        probability is 1 (with ``p_good_to_bad > 0``) and every stream is in it
+        from the first packet, i.e. Bernoulli loss ``loss_bad``. With both
+        probabilities 0 the chain never moves; every stream stays in the good
+        state (Bernoulli loss ``loss_good``).
     loss_good, loss_bad
         Loss probabilities in each state.
 
@@ -300,13 +362,12 @@ class GilbertElliott:
     def __post_init__(self) -> None:
         for name in ("p_good_to_bad", "p_bad_to_good", "loss_good", "loss_bad"):
             object.__setattr__(self, name, _probability(f"loss.{name}", getattr(self, name)))
-        if self.p_bad_to_good == 0.0:
-            raise NetworkError("loss.p_bad_to_good must be positive (else the first burst never ends)")
 
     @property
     def bad_fraction(self) -> float:
-        """Stationary probability of the bad state."""
-        return self.p_good_to_bad / (self.p_good_to_bad + self.p_bad_to_good)
+        """Stationary probability of the bad state (0 for a chain that never moves, class doc)."""
+        moves = self.p_good_to_bad + self.p_bad_to_good
+        return self.p_good_to_bad / moves if moves > 0.0 else 0.0
 
     @property
     def loss_rate(self) -> float:
@@ -446,8 +507,15 @@ class Network:
         """
         return replace(self, seed=seed)
 
-    def describe(self) -> str:
-        """One line for tables and titles."""
+    def describe(self, adjacency: ArrayLike | None = None) -> str:
+        """One line for tables and titles.
+
+        Parameters
+        ----------
+        adjacency
+            The team's adjacency: a loss matrix is then summarised by its
+            mean over the links only (entries off the links change nothing).
+        """
         parts = []
         if self.delays is not None and not self.delays.is_uniform:
             parts.append("per-link delays" + (f" (spread {self.delays.spread:g})" if self.delays.spread else ""))
@@ -457,9 +525,13 @@ class Network:
         if self.jitter is not None and not self.jitter.is_off:
             parts.append(f"jitter +-({self.jitter.bound1:g}, {self.jitter.bound2:g}) s")
         if isinstance(self.loss, BernoulliLoss) and not self.loss.is_off:
-            parts.append(f"loss {self.loss.loss_rate:.3g}")
+            rate = self.loss.loss_rate if adjacency is None else self.loss.link_loss_rate(adjacency)
+            per_link = isinstance(self.loss.probability, np.ndarray)
+            parts.append(f"loss {rate:.3g}" + (" (mean over the links)" if per_link and adjacency is not None else ""))
         elif isinstance(self.loss, GilbertElliott) and not self.loss.is_off:
-            parts.append(f"bursty loss {self.loss.loss_rate:.3g} (bursts of {1 / self.loss.p_bad_to_good:.3g})")
+            g = self.loss
+            bursts = f"bursts of {1 / g.p_bad_to_good:.3g}" if g.p_bad_to_good > 0 else "a burst never ends"
+            parts.append(f"bursty loss {g.loss_rate:.3g} ({bursts})")
         if self.sampling is not None:
             parts.append(f"sampled at {self.sampling.rate:g} Hz")
         if self.noise is not None and not self.noise.is_off:

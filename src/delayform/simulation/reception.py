@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 from delayform.errors import NetworkError
 from delayform.resources import require
 from delayform.simulation.integrator import Agent, Progress, Samples
-from delayform.simulation.network import BernoulliLoss, GilbertElliott, Network
+from delayform.simulation.network import BernoulliLoss, GilbertElliott, Network, check_link_matrix
 from delayform.topology import Topology
 
 __all__ = ["Reception", "reception", "integrate_network", "network_memory"]
@@ -125,8 +125,7 @@ def _link_delays(
     for s, tau in enumerate(taus):
         matrix = None if spec is None else (spec.tau1, spec.tau2)[s]
         if matrix is not None:
-            if matrix.shape != (n, n):
-                raise NetworkError(f"delays.tau{s + 1} must be {n} x {n} (one entry per pair of agents), got {matrix.shape[0]} x {matrix.shape[1]}")
+            check_link_matrix(f"delays.tau{s + 1}", matrix, n)
             d = matrix[rows, cols].astype(np.float64)
         else:
             d = np.full(rows.size, tau)
@@ -161,16 +160,49 @@ def _loss_mask(
     return lost
 
 
-def _check_delay_floor(name: str, shortest: float, dt: float, *, zero_allowed: bool) -> None:
-    if shortest < -1e-12:
-        raise NetworkError(f"{name} would become negative ({shortest:.3g} s); reduce the jitter or variation")
-    if zero_allowed and shortest == 0.0:
+def _packet_causes(network: Network) -> str:
+    """What makes the streams packets, in words: "packet loss", "sampling", ... (only what is set)."""
+    causes = [("jitter", network.jitter is not None and not network.jitter.is_off),
+              ("packet loss", network.loss is not None and not network.loss.is_off),
+              ("sampling", network.sampling is not None),
+              ("noise", network.noise is not None and not network.noise.is_off)]  # fmt: skip
+    return " and ".join(w for w, on in causes if on)
+
+
+def _check_delay_floor(stream: int, base: float, amplitude: float, bound: float, dt: float, *,
+                       packets: str, per_link: bool) -> None:  # fmt: skip
+    """The rule "every delay minus its jitter and variation >= dt", stated with only the parts that are set.
+
+    Every value an agent hears is read from the computed solution, so it must
+    be at least one step old (a continuous stream may also have delay exactly
+    0: the current value). ``base`` is the shortest link delay of the stream,
+    ``amplitude`` and ``bound`` its variation and jitter (0 when not set);
+    ``packets`` says what makes the streams packets ("" for continuous ones).
+    """
+    name, tau = ("position", "tau1") if stream == 0 else ("velocity", "tau2")
+    if per_link:  # LinkDelays: the shortest link's delay, not tau itself
+        tau = f"the shortest {name} link delay"
+    shortest = base - amplitude - bound
+    if not packets and base == 0.0 and amplitude == 0.0:
         return
-    if shortest < dt * (1.0 - 1e-9):
+    if shortest >= dt * (1.0 - 1e-9):
+        return
+    cut = [(w, v) for w, v in (("variation", amplitude), ("jitter", bound)) if v > 0.0]
+    if cut:
+        terms = " - ".join([f"{tau} {base:g} s"] + [f"{w} {v:g} s" for w, v in cut])
+        words = [w for w, _ in cut]
         raise NetworkError(
-            f"{name} can fall to {shortest:.3g} s, below the step dt = {dt:g} s; "
-            "reduce the jitter or variation, or the step"
+            f"a {name} delay can fall to {terms} = {shortest:.3g} s, below the step dt = {dt:g} s "
+            f"(every delay minus its {' and '.join(words)} must be >= dt); reduce the {' or '.join(words)}, "
+            f"raise {tau} or choose a smaller dt"
         )
+    why = f"with {packets} on, values travel as packets, and a packet is" if packets else "a non-zero delay is"
+    fix = f"raise {tau} to >= {dt:g} s" + (f" or choose dt <= {base:g} s" if base > 0.0 else "")
+    what = tau if per_link else f"the {name} delay {tau}"
+    raise NetworkError(
+        f"{what} = {base:g} s is below the step dt = {dt:g} s: {why} heard at the earliest "
+        f"one step after being sent (every delay must be >= dt); {fix}"
+    )
 
 
 def reception(
@@ -202,6 +234,8 @@ def reception(
         For a delay matrix of the wrong size, or delays that jitter or
         variation could make negative or shorter than ``dt``.
     """
+    if isinstance(network.loss, BernoulliLoss) and isinstance(network.loss.probability, np.ndarray):
+        check_link_matrix("loss.probability", network.loss.probability, topology.n)
     rows, cols, weights = _links(topology)
     E = rows.size
     seeds = np.random.SeedSequence(network.seed).spawn(5)
@@ -213,6 +247,8 @@ def reception(
     jitter = network.jitter if network.jitter is not None and not network.jitter.is_off else None
     bounds = (0.0, 0.0) if jitter is None else (jitter.bound1, jitter.bound2)
     packets_on = network.packets
+    causes = _packet_causes(network)
+    per_link = network.delays is not None and not network.delays.is_uniform
 
     k = np.arange(steps + 1, dtype=np.float64)[:, None, None]
     c = np.array(_SUBSTEPS)[None, :, None]
@@ -231,7 +267,7 @@ def reception(
         if not packets_on:
             zero = (base == 0.0) & (amp == 0.0)
             if np.any(~zero):
-                _check_delay_floor(f"a {name} delay", float((base[~zero] - amp).min()), dt, zero_allowed=False)
+                _check_delay_floor(s, float(base[~zero].min()), amp, 0.0, dt, packets="", per_link=per_link)
             # relative position m = c - d(t) / dt of the value heard, in steps from t_k (as in integrator._lookup)
             t = (k + c) * dt
             d = base[None, None, :] + (amp * np.sin(2.0 * math.pi * t / variation.period + phases[s]) if amp else 0.0)
@@ -240,7 +276,7 @@ def reception(
             current.append(zero)
             noise.append(None)
             continue
-        _check_delay_floor(f"a {name} packet's delay", float((base - amp - bounds[s]).min()), dt, zero_allowed=False)
+        _check_delay_floor(s, float(base.min()), amp, bounds[s], dt, packets=causes, per_link=per_link)
         delay = np.broadcast_to(base, (n_packets, E)).copy()
         if amp:
             delay += amp * np.sin(2.0 * math.pi * sample_times[:, None] / variation.period + phases[s])

@@ -385,7 +385,7 @@ def _trajectory(
         formation_error=error, settling_time=settled,
         final_centroid=centroid_weights(topology) @ pos[-1],
         min_distance=min_distance(pos), commands=commands, limits=limits,
-        status=status, warnings=warnings, labels=topology.labels,
+        status=status, warnings=warnings, labels=topology.labels, stopped_at=run.stopped,
     )  # fmt: skip
 
 

@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from delayform._files import atomic_path, save_npz
 from delayform.simulation.commands import RobotCommands
 from delayform.simulation.robots import RobotLimits
 
@@ -78,6 +79,9 @@ class Trajectory:
         Sentences for a reader about a run that did not settle.
     labels
         Agent labels of the topology (figures number agents from 1).
+    stopped_at
+        Time (s) at which integration stopped because the state passed 1e8
+        times its initial size (status ``"stopped"``), else None.
     """
 
     times: _Array
@@ -103,6 +107,7 @@ class Trajectory:
     status: str = "settled"
     warnings: tuple[str, ...] = ()
     labels: tuple[Any, ...] = field(default=())
+    stopped_at: float | None = None
 
     @property
     def n(self) -> int:
@@ -176,7 +181,8 @@ class Trajectory:
         )
         input_names = "dv_dt,omega" if self.model == "unicycle" else "u_x,u_y"
         header = f"time,agent,x,y,heading,speed,{input_names}"
-        np.savetxt(path, cols, delimiter=",", header=header, comments="", fmt="%.10g")
+        with atomic_path(path) as tmp:
+            np.savetxt(tmp, cols, delimiter=",", header=header, comments="", fmt="%.10g")
         return path
 
     def to_npz(self, path: str | Path) -> Path:
@@ -188,7 +194,7 @@ class Trajectory:
             File to write (``.npz``).
         """
         path = Path(path)
-        np.savez_compressed(
+        save_npz(
             path, times=self.times, positions=self.positions, velocities=self.velocities,
             headings=self.headings, speeds=self.speeds, inputs=self.inputs,
             formation_error=self.formation_error, desired=self.desired,

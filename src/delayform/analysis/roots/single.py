@@ -89,7 +89,8 @@ from delayform.analysis.roots.argument_principle import _count_right_single, _re
 from delayform.characteristic import CharacteristicFactor, TwoDelayQuasiPolynomial
 from delayform.errors import DelayError, InputError, NotConvergedError
 
-__all__ = ["RESIDUAL_TOL", "roots_in", "rightmost_root", "count_roots_right_of", "relative_residual"]
+__all__ = ["RESIDUAL_TOL", "roots_in", "rightmost_root", "count_roots_right_of", "relative_residual",
+           "delay_reach"]
 
 
 def relative_residual(
@@ -154,6 +155,42 @@ def _check_reach(prob: _Problem, t1: float, t2: float) -> None:
             f"a delay of {h:.4g} s is too long for the dominant-root finder with these gains (it handles "
             f"delays up to about {_MAX_REACH / scale:.3g} s); choose shorter delays (the stability chart has no such limit)"
         )
+
+
+def _iterable(value: object) -> tuple[object, ...]:
+    try:
+        return tuple(value)  # type: ignore[call-overload]
+    except TypeError:
+        return (value,)
+
+
+def _box_reach(prob: _Problem) -> float:
+    """Largest X such that :func:`_check_reach` accepts every pair in [0, X] x [0, X]."""
+    widest = max([a + b for _, a, b in prob.delayed] + [0])  # h = (a + b) X at tau1 = tau2 = X
+    return math.inf if widest == 0 else _MAX_REACH / (_root_scale(prob) * widest)
+
+
+def delay_reach(fs: tuple[CharacteristicFactor, ...]) -> float:
+    """The delays the dominant-root finder handles for these factors: every pair in [0, X]^2, X returned.
+
+    The one source of the finder's reach: :func:`_check_reach` refuses with the
+    same rule, so a table built on this (the explorer's) can never allow a
+    delay the finder then refuses. ``math.inf`` when the finder has no limit.
+
+    Parameters
+    ----------
+    fs
+        The factors of eq. factorized of a team at its gains.
+
+    Raises
+    ------
+    InputError
+        When ``fs`` is not a sequence of factors.
+    """
+    if isinstance(fs, (str, bytes)) or not all(isinstance(f, CharacteristicFactor) for f in _iterable(fs)):
+        raise InputError("delay_reach: expected the factors of a team (delayform.characteristic.factors)")
+    return min((_box_reach(_problem_of_factor(f)) for f in tuple(fs)), default=math.inf)
+
 
 
 

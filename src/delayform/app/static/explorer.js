@@ -33,7 +33,8 @@ function point() { return { tau1: num("tau1"), tau2: num("tau2") }; }
 function toggleParams() {
   const out = {};
   for (const name of state.toggles) out[name] = $(`toggle-${name}`).checked ? 1 : 0;
-  if (state.toggles.includes("network")) { out.loss = num("loss"); out.jitter = num("jitter"); }
+  // loss and jitter only with the network on: the server refuses them otherwise, never ignores them
+  if (out.network === 1) { out.loss = num("loss"); out.jitter = num("jitter"); }
   return out;
 }
 
