@@ -10,7 +10,7 @@ for docs/benchmarks.md.
    Goal: under 50 microseconds. Peer: the simulation's own vectorized model
    (``LimitedUnicycle.rhs`` on one robot, after the same neighbour sums with
    NumPy), the code the tick is checked against.
-2. ``write_mcap`` of 100 ideal robots over 100 s at 100 Hz (10^4 saved
+2. ``write_mcap`` of 100 ideal robots (complete graph, a settling run) over 100 s at 100 Hz (10^4 saved
    steps: 10^6 Twists, 10^6 PoseStamped, 10^4 TFMessages of 100 transforms).
    Goal: under 20 s. Peer: the plain way with the same libraries, one
    ``Typestore.serialize_cdr`` and one ``Writer.add_message`` per message,
@@ -32,7 +32,7 @@ from delayform.deploy import FormationController, NeighbourMessage, robot_profil
 from delayform.deploy.recording import MCAP_TOPICS, write_mcap
 from delayform.simulation import simulate
 from delayform.simulation.robots import LimitedUnicycle
-from delayform.topology import ring
+from delayform.topology import complete
 
 
 def bench_tick(repeats: int = 20000) -> dict[str, float]:
@@ -76,7 +76,7 @@ def bench_tick(repeats: int = 20000) -> dict[str, float]:
 
 def bench_mcap() -> dict[str, float]:
     n = 100
-    traj = simulate(ring(n), 1.0, 1.0, 0.2, 0.1, "polygon", duration=100.0, dt=0.01, save_every=1,
+    traj = simulate(complete(n), 1.0, 1.0, 0.2, 0.1, "polygon", duration=100.0, dt=0.01, save_every=1,
                     initial_speed=0.05, seed=0)  # fmt: skip
     assert traj.times.size == 10001
     with tempfile.TemporaryDirectory() as folder:

@@ -13,10 +13,13 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from delayform.deploy import FormationController, NeighbourMessage, robot_profile
 from delayform.errors import ControllerInputError, InputError
 from delayform.simulation import IROBOT_CREATE, simulate
+from delayform.simulation.robots import LimitedUnicycle
 from delayform.topology import paper_six, ring
 
 
@@ -135,3 +138,28 @@ def test_bad_input_is_a_named_error():
         FormationController.from_design(paper_six(), 1.0, 0.5, 0.3, 0.2, "hexagon", robot=7)
     with pytest.raises(ValueError):
         FormationController(robot=1, P=-1.0, D=1.0, tau1=0.1, tau2=0.1, weights={2: 1.0})
+
+
+_finite = st.floats(-20.0, 20.0, allow_nan=False)
+
+
+@settings(max_examples=200, deadline=None)
+@given(x=_finite, y=_finite, theta=st.floats(-7.0, 7.0), v=st.floats(-0.3, 0.3), nx=_finite, ny=_finite,
+       nvx=st.floats(-1.0, 1.0), nvy=st.floats(-1.0, 1.0))  # fmt: skip
+def test_tick_is_the_saturated_model_at_any_state(x, y, theta, v, nx, ny, nvx, nvy):
+    """Every branch (clipping, fading, braking, reversing): the tick equals LimitedUnicycle.rhs for the same u."""
+    lim = robot_profile("create3").limits
+    ctrl = FormationController(robot=1, P=1.3, D=0.7, tau1=0.0, tau2=0.0, weights={2: 1.0}, forcing=(0.1, -0.2),
+                               limits=lim)  # fmt: skip
+    ctrl.receive(NeighbourMessage(2, 0.0, nx, ny, nvx, nvy))
+    cmd = ctrl.tick(0.0, x, y, theta, v)
+    state = np.array([[x, y, theta, v]])
+    model = LimitedUnicycle(state[:, :2], state[:, 2], state[:, 3], lim)
+    vel = model.velocity(state)
+    u = 1.3 * (np.array([[nx, ny]]) - state[:, :2]) + 0.7 * (np.array([[nvx, nvy]]) - vel) + np.array([[0.1, -0.2]])
+    _, _, (accel, omega, along, demand, _) = model.rhs(state, u)
+    assert cmd.ux == pytest.approx(u[0, 0], rel=1e-12, abs=1e-12)
+    assert cmd.turn_rate == pytest.approx(omega[0], rel=1e-9, abs=1e-12)
+    assert cmd.acceleration == pytest.approx(accel[0], rel=1e-9, abs=1e-12)
+    assert cmd.ideal_turn_rate == pytest.approx(demand[0], rel=1e-9, abs=1e-12)
+    assert cmd.ideal_acceleration == pytest.approx(along[0], rel=1e-9, abs=1e-12)
