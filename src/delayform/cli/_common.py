@@ -195,6 +195,25 @@ def _robot(robot: Any, use_limits: bool | None, given: dict[str, Any], model: st
     return robot
 
 
+def _with_robot(scenario: Scenario, use_limits: bool | None, given: dict[str, Any], model: str) -> Scenario:
+    """The scenario with the robots of :func:`_robot`; a robot profile's body and arena checked against the formation.
+
+    With a profile (``--robot`` or the scenario's ``[robot] profile``) a
+    formation the robots cannot hold is refused here, before anything runs
+    (:func:`delayform.deploy.fit.require_formation_fit`).
+    """
+    from dataclasses import replace
+
+    robot = _robot(scenario.robot, use_limits, given, model)
+    profile = given.get("profile", scenario.robot_profile if robot is not None else None)
+    if profile is not None:
+        from delayform.deploy import robot_profile
+        from delayform.deploy.fit import require_formation_fit
+
+        require_formation_fit(scenario.desired_positions(), replace(robot_profile(profile), limits=robot))
+    return replace(scenario, robot=robot, robot_profile=profile)
+
+
 def _team_options() -> list[Callable[[F], F]]:
     return [
         click.argument("scenario", required=False, type=click.Path(path_type=Path)),

@@ -13,7 +13,7 @@ from delayform.cli._common import (
     _emit,
     _inner_progress,
     _limits_given,
-    _robot,
+    _with_robot,
     _out_dir,
     _scenario,
     _simulation_spec,
@@ -54,21 +54,14 @@ def simulate_command(scenario: Path | None, model: str | None, duration: float |
     given = _limits_given(overrides)
     sc = _scenario(scenario, seed=seed, **overrides)
     sim = _simulation_spec(sc, model=model, duration=duration, dt=dt)
-    robot = _robot(sc.robot, use_limits, given, sim.model)
-    profile = given.get("profile", sc.robot_profile if robot is not None else None)
-    sc = replace(sc, simulation=sim, robot=robot, robot_profile=profile,
-                 initial=replace(sc.initial, seed=sc.initial.seed if seed is None else seed))  # fmt: skip
     if mcap is not None:
         from delayform.deploy.recording import check_mcap_path
 
         if sim.model != "unicycle":
             raise click.UsageError("--mcap records robots: use --model unicycle")
         check_mcap_path(mcap)
-    if profile is not None:
-        from delayform.deploy import robot_profile
-        from delayform.deploy.fit import require_formation_fit
-
-        require_formation_fit(sc.desired_positions(), replace(robot_profile(profile), limits=robot))
+    sc = replace(_with_robot(sc, use_limits, given, sim.model), simulation=sim,
+                 initial=replace(sc.initial, seed=sc.initial.seed if seed is None else seed))  # fmt: skip
     directory = _out_dir(out, sc)
     with _inner_progress(f"simulate {sim.model}, {sim.duration:g} s (steps)") as callback:
         section = simulation_section(sc, directory, gif=gif, csv=csv, mcap=mcap, progress=callback)
