@@ -156,6 +156,8 @@ def test_simulate_bad_robot_inputs_leave_nothing(tmp_path):
     one_line_error(run("simulate", "tight.toml", "--out", "o", "--mcap", "r.mcap", cwd=tmp_path),
                    "does not fit Robotarium GRITSbot", "0.11 m")  # fmt: skip
     one_line_error(run("simulate", "--robot", "create3", "--no-limits", "--out", "o", cwd=tmp_path), "--robot")
+    one_line_error(run("montecarlo", "--robot", "robotarium", "--runs", "2", "--out", "o", cwd=tmp_path),
+                   "more than the arena's 3.2 m x 2 m")  # fmt: skip
     assert sorted(p.name for p in tmp_path.iterdir()) == ["tight.toml"]
 
 
@@ -187,3 +189,24 @@ def test_control_rate_certificate_against_the_rightmost_root():
     margin = j.numbers["jitter_margin"]
     assert 0.0 < margin < 1.0
     assert dominant_root(tight.topology, 1.0, 0.5, 0.3 + 0.9 * margin, 1.0 + 0.9 * margin).is_stable
+
+
+@pytest.mark.slow
+def test_robot_check_numbers_and_plot():
+    from delayform.report.check import robot_check
+    from delayform.scenario import SimulationSpec
+
+    sc = load_scenario(EXAMPLE)
+    sc = dataclasses.replace(sc, simulation=SimulationSpec(model="unicycle", duration=30.0, dt=0.02))
+    result = robot_check(sc, "create3")
+    assert result.fits, result.page()
+    traj = result.trajectory
+    assert float(np.abs(traj.commands.speed).max()) <= 0.306  # the profile's limits drove the run
+    pos = traj.positions
+    brute = min(float(np.hypot(*(pos[:, i] - pos[:, j]).T).min()) for i in range(6) for j in range(i))
+    radius = next(v for v in result.verdicts if v.key == "radius")
+    assert radius.numbers["closest_approach"] == pytest.approx(brute, rel=1e-12)
+    assert [v.key for v in result.verdicts] == ["limits", "radius", "arena", "control rate", "jitter"]
+    assert result.summary()["verdicts"]["arena"]["fits"] is None
+    ax = result.plot()
+    assert len(ax.patches) == 6  # one body per robot, no arena
