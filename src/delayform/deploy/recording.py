@@ -165,13 +165,14 @@ class _Layout:
         for (obj, attr, _), value in zip(slots, markers):
             setattr(obj, attr, value)
         marked = bytes(store.serialize_cdr(message, msgtype))
-        offsets = []
+        # the slots come in the order they are encoded: each search starts where the last ended
+        offsets, start = [], 0
         for (_, attr, code), value in zip(slots, markers):
-            pattern = struct.pack("<" + code, value)
-            at = marked.find(pattern)
-            if at < 0 or marked.find(pattern, at + 1) >= 0:
+            at = marked.find(struct.pack("<" + code, value), start)
+            if at < 0:
                 raise RecordingError(f"internal: cannot locate {msgtype}.{attr} in its CDR encoding")
             offsets.append(at)
+            start = at + struct.calcsize(code)
         for obj, attr, code in slots:
             setattr(obj, attr, 0.0 if code == "d" else 0)
         self.template = np.frombuffer(bytes(store.serialize_cdr(message, msgtype)), dtype=np.uint8)
@@ -180,6 +181,10 @@ class _Layout:
                                "formats": [formats[code] for _, _, code in slots],
                                "offsets": offsets, "itemsize": self.template.size})  # fmt: skip
         self.size = int(self.template.size)
+        # the markers written at those offsets into the zero message must give rosbags' marked message
+        # back, byte for byte: otherwise an offset was found in the wrong place
+        if self.fill([np.array([m]) for m in markers]) != marked:
+            raise RecordingError(f"internal: the layout of {msgtype} found from its markers is not rosbags' encoding")
 
     def fill(self, columns: Sequence[np.ndarray]) -> bytes:
         """The bytes of ``m`` messages back to back, field j of message r from ``columns[j].flat[r]``."""
