@@ -30,6 +30,7 @@ STAGES: dict[str, int] = {
     "analysis": 3,
     "design": 4,
     "simulation": 5,
+    "deploy": 5,  # robot profiles, the on-robot controller, MCAP recordings: after simulation, beside it
     "sweeps": 6,
     "scenario": 7,
     "report": 8,

@@ -105,6 +105,15 @@ _EXPORTS: dict[str, str] = {
     "usable_cores": "sweeps",
     "run_quantile": "simulation.montecarlo",
     "delay_reach": "analysis.roots.single",
+    # from design to robots (issue 22): profiles, the on-robot controller, MCAP, the check
+    "RobotProfile": "deploy",
+    "PROFILES": "deploy",
+    "robot_profile": "deploy",
+    "FormationController": "deploy",
+    "NeighbourMessage": "deploy",
+    "write_mcap": "deploy.recording",
+    "robot_check": "report.check",
+    "RobotCheck": "report.check",
 }
 
 __all__ = sorted(_EXPORTS) + ["errors", "__version__"]

@@ -23,6 +23,9 @@ The tree::
     |   +-- ClusterError                   Dask workers / scheduler address of a sweep
     |   +-- ScenarioError                  a TOML scenario file
     |   +-- ResourceLimitError             a job larger than the machine's memory or time budget
+    |   +-- RobotProfileError              an unknown robot profile, or one the formation cannot meet
+    |   +-- ControllerInputError           the on-robot controller: a bad state or message
+    |   +-- RecordingError                 an MCAP recording that cannot be written there
     +-- NotConvergedError (RuntimeError)   carries the partial result
 """
 
@@ -48,6 +51,9 @@ __all__ = [
     "ScenarioError",
     "ResourceLimitError",
     "NotConvergedError",
+    "RobotProfileError",
+    "ControllerInputError",
+    "RecordingError",
 ]
 
 
@@ -122,6 +128,18 @@ class ResourceLimitError(InputError):
     Raised before the job starts (see :mod:`delayform.resources`); the
     message says how much would be needed and which setting to change.
     """
+
+
+class RobotProfileError(InputError):
+    """An unknown robot profile, or a profile whose limits the scenario's formation cannot meet."""
+
+
+class ControllerInputError(InputError):
+    """A state, message or time the on-robot controller cannot use (:mod:`delayform.deploy.controller`)."""
+
+
+class RecordingError(InputError):
+    """An MCAP recording that cannot be written: a folder that is missing or not writable, a bad name."""
 
 
 class NotConvergedError(DelayformError, RuntimeError):

@@ -139,7 +139,8 @@ def scenario_toml(scenario: Scenario) -> str:
     if ini.headings is not None:
         out.append(f"headings = {_array(ini.headings)}")
     if s.robot is not None:  # actuator limits (delayform.simulation.RobotLimits)
-        out += ["", "[robot]"] + [f"{f.name} = {_number(getattr(s.robot, f.name))}" for f in fields(s.robot)]
+        out += ["", "[robot]"] + ([f"profile = {_string(s.robot_profile)}"] if s.robot_profile else [])
+        out += [f"{f.name} = {_number(getattr(s.robot, f.name))}" for f in fields(s.robot)]
     chart = s.chart
     out += ["", "[chart]", f"tau1_max = {_number(chart.tau1_max)}", f"tau2_max = {_number(chart.tau2_max)}"]
     if chart.points:

@@ -147,38 +147,71 @@ _LIMIT_OPTIONS = (
 )
 
 
+#: the names of delayform.deploy.PROFILES (kept literal: the CLI starts fast; tests/test_deploy_cli.py checks them)
+ROBOT_NAMES = ("create", "create2", "create3", "robotarium", "turtlebot3_burger")
+
+
 def limit_options(func: F) -> F:
-    """``--limits/--no-limits`` and one option per actuator limit (the scenario's ``[robot]`` table)."""
+    """``--robot``, ``--limits/--no-limits`` and one option per actuator limit (the scenario's ``[robot]`` table)."""
     for field, flag, text in reversed(_LIMIT_OPTIONS):
         func = click.option(flag, field, type=POSITIVE,
                             help=f"{text} Implies --limits [default: robot.{field} or the iRobot Create's].")(func)  # fmt: skip
+    func = click.option("--robot", "robot_profile", metavar="NAME",
+                        help=f"A real robot's limits and geometry ({', '.join(ROBOT_NAMES)}; docs/deploy.md). "
+                             "Implies --limits; the limit options override single values.")(func)  # fmt: skip
     return click.option("--limits/--no-limits", "use_limits", default=None,
                         help="Robots with actuator limits (the scenario's [robot] table, else the iRobot Create's) "
                              "or ideal robots [default: limits when the scenario has a [robot] table].")(func)  # fmt: skip
 
 
-def _limits_given(overrides: dict[str, Any]) -> dict[str, float]:
-    """Pop the limit options from a command's keyword arguments; those given."""
+def _limits_given(overrides: dict[str, Any]) -> dict[str, Any]:
+    """Pop the limit options (and ``--robot``, as ``"profile"``) from a command's keyword arguments; those given."""
     given = {field: overrides.pop(field) for field, _, _ in _LIMIT_OPTIONS}
+    given["profile"] = overrides.pop("robot_profile", None)
     return {k: v for k, v in given.items() if v is not None}
 
 
-def _robot(robot: Any, use_limits: bool | None, given: dict[str, float], model: str) -> Any:
-    """The robots' limits from the scenario's ``[robot]`` table, ``--limits/--no-limits`` and the limit options."""
+def _robot(robot: Any, use_limits: bool | None, given: dict[str, Any], model: str) -> Any:
+    """The robots' limits from the scenario's ``[robot]`` table, ``--robot``, ``--limits/--no-limits`` and the limit options."""
     from dataclasses import replace
 
     from delayform.simulation import IROBOT_CREATE
 
+    given = dict(given)
+    name = given.pop("profile", None)
     if use_limits is False:
-        if given:
+        if given or name is not None:
             raise click.UsageError("--no-limits cannot be combined with " + ", ".join(
-                flag for field, flag, _ in _LIMIT_OPTIONS if field in given))  # fmt: skip
+                ["--robot"] * (name is not None) + [flag for field, flag, _ in _LIMIT_OPTIONS if field in given]))  # fmt: skip
         return None
+    if name is not None:
+        from delayform.deploy import robot_profile
+
+        robot = robot_profile(name).limits
     if use_limits or given:
         robot = replace(robot or IROBOT_CREATE, **given)
     if robot is not None and model != "unicycle":
         raise click.UsageError("actuator limits apply to robots: use --model unicycle or --no-limits")
     return robot
+
+
+def _with_robot(scenario: Scenario, use_limits: bool | None, given: dict[str, Any], model: str) -> Scenario:
+    """The scenario with the robots of :func:`_robot`; a robot profile's body and arena checked against the formation.
+
+    With a profile (``--robot`` or the scenario's ``[robot] profile``) a
+    formation the robots cannot hold is refused here, before anything runs
+    (:func:`delayform.deploy.fit.require_formation_fit`).
+    """
+    from dataclasses import replace
+
+    robot = _robot(scenario.robot, use_limits, given, model)
+    profile = given.get("profile", scenario.robot_profile if robot is not None else None)
+    if profile is not None:
+        from delayform.deploy import robot_profile
+        from delayform.deploy.fit import require_formation_fit
+
+        require_formation_fit(scenario.desired_positions(), replace(robot_profile(profile), limits=robot))
+    return replace(scenario, robot=robot, robot_profile=profile)
 
 
 def _team_options() -> list[Callable[[F], F]]:

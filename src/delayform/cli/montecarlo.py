@@ -16,7 +16,7 @@ from delayform.cli._common import (
     _inner_progress,
     _limits_given,
     _out_dir,
-    _robot,
+    _with_robot,
     _scenario,
     _simulation_spec,
     cli,
@@ -114,7 +114,7 @@ def montecarlo_command(scenario: Path | None, runs: int, seed: int | None, worke
     seed = 0 if seed is None else seed
     sim = _simulation_spec(sc, model=model, duration=duration, dt=dt)
     network = _network(sc.network, loss=loss, burst=burst, jitter=jitter, rate=rate, noise=noise, spread=spread)
-    sc = replace(sc, simulation=sim, network=network, robot=_robot(sc.robot, use_limits, given, sim.model))
+    sc = replace(_with_robot(sc, use_limits, given, sim.model), simulation=sim, network=network)
     # every input and the budget are checked before anything is started or written
     setup = scenario_setup(sc)
     guard(setup, runs, workers or 1)

@@ -13,7 +13,7 @@ from delayform.cli._common import (
     _emit,
     _inner_progress,
     _limits_given,
-    _robot,
+    _with_robot,
     _out_dir,
     _scenario,
     _simulation_spec,
@@ -32,9 +32,11 @@ from delayform.cli._common import (
 @click.option("--csv/--no-csv", "csv", default=None,
               help="Also write the trajectory and commands as CSV [default: only when under 20 MiB; NPZ always].")
 @click.option("--gif/--no-gif", default=False, show_default=True, help="Also write an animated GIF.")
+@click.option("--mcap", type=click.Path(dir_okay=False, path_type=Path),
+              help="Also write the run as a ROS 2 recording (MCAP: Twist, PoseStamped, /tf; docs/deploy.md).")
 def simulate_command(scenario: Path | None, model: str | None, duration: float | None, dt: float | None,
-                     seed: int | None, use_limits: bool | None, csv: bool | None, gif: bool, out: Path | None,
-                     as_json: bool, **overrides: Any) -> None:  # fmt: skip
+                     seed: int | None, use_limits: bool | None, csv: bool | None, gif: bool, mcap: Path | None,
+                     out: Path | None, as_json: bool, **overrides: Any) -> None:  # fmt: skip
     """Simulate the team at the scenario's delays into its formation.
 
     Writes x and y versus time (sim_operating_traces.png/.svg), the paths in
@@ -42,19 +44,27 @@ def simulate_command(scenario: Path | None, model: str | None, duration: float |
     limits (sim_operating_commands.png/.svg, .npz), the trajectory as NPZ,
     CSV files when small or with --csv, and with --gif an animation;
     reports settling time, final formation error, closest approach and any
-    command beyond a limit. A run that diverges is noted on stderr.
+    command beyond a limit. With --robot (or the scenario's [robot] profile)
+    a formation the robots cannot hold (bodies overlapping, wider than the
+    arena) is refused before anything runs; --mcap FILE writes the run as a
+    ROS 2 recording. A run that diverges is noted on stderr.
     """
     from delayform.report import simulation_section
 
     given = _limits_given(overrides)
     sc = _scenario(scenario, seed=seed, **overrides)
     sim = _simulation_spec(sc, model=model, duration=duration, dt=dt)
-    robot = _robot(sc.robot, use_limits, given, sim.model)
-    sc = replace(sc, simulation=sim, robot=robot,
+    if mcap is not None:
+        from delayform.deploy.recording import check_mcap_path
+
+        if sim.model != "unicycle":
+            raise click.UsageError("--mcap records robots: use --model unicycle")
+        check_mcap_path(mcap)
+    sc = replace(_with_robot(sc, use_limits, given, sim.model), simulation=sim,
                  initial=replace(sc.initial, seed=sc.initial.seed if seed is None else seed))  # fmt: skip
     directory = _out_dir(out, sc)
     with _inner_progress(f"simulate {sim.model}, {sim.duration:g} s (steps)") as callback:
-        section = simulation_section(sc, directory, gif=gif, csv=csv, progress=callback)
+        section = simulation_section(sc, directory, gif=gif, csv=csv, mcap=mcap, progress=callback)
     _emit(section, directory, as_json=as_json)
     if section.summary["status"] in ("diverging", "stopped"):
         for warning in section.summary["warnings"]:

@@ -16,7 +16,7 @@ from delayform.cli._common import (
     _inner_progress,
     _limits_given,
     _out_dir,
-    _robot,
+    _with_robot,
     _scenario,
     _simulation_spec,
     cli,
@@ -64,7 +64,7 @@ def sweep_command(scenario: Path | None, tau1_values: tuple[float, ...], tau2_va
     given = _limits_given(overrides)
     sc = _scenario(scenario, seed=seed, **overrides)
     sim = _simulation_spec(sc, model=model, duration=duration, dt=dt)
-    sc = replace(sc, simulation=sim, robot=_robot(sc.robot, use_limits, given, sim.model))
+    sc = replace(_with_robot(sc, use_limits, given, sim.model), simulation=sim)
     # every input, the budget and the cluster are checked before anything is started or written
     grid = [{"tau1": a, "tau2": b} for a, b in product(tau1_values, tau2_values)]
     check_sweep(scenario_setup(sc), grid, runs=runs, workers=workers, scheduler=scheduler)

@@ -32,6 +32,7 @@ def simulation_section(
     traces: bool = True,
     gif: bool = False,
     csv: bool | None = None,
+    mcap: Path | None = None,
     progress: MapProgress | None = None,
 ) -> Section:
     """Simulate the team at one delay pair: paths, x/y versus time, commands, NPZ (and CSV), optional GIF.
@@ -59,6 +60,9 @@ def simulation_section(
     csv
         Write the CSV files: True always, False never, None (default) when
         the trajectory's CSV would be below :data:`CSV_AUTO_LIMIT`.
+    mcap
+        Also write the run as a ROS 2 recording there
+        (:func:`delayform.deploy.recording.write_mcap`; robots only).
     progress
         Optional callback ``(steps done, steps)`` while the run is integrated.
     """
@@ -111,6 +115,10 @@ def simulation_section(
         if write_csv:
             commands.to_csv(out / f"{stem}_commands.csv")
             files.append(f"{stem}_commands.csv")
+    if mcap is not None:
+        from delayform.deploy.recording import write_mcap
+
+        files.append(str(write_mcap(traj, mcap).resolve()))
     if gif:
         traj.save_gif(out / f"{stem}.gif")
         files.append(f"{stem}.gif")

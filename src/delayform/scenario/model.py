@@ -174,6 +174,9 @@ class Scenario:
         The optional tables, with their defaults filled in.
     robot
         Actuator limits of the robots (the ``[robot]`` table), or None for ideal robots.
+    robot_profile
+        Name of the real robot the ``[robot]`` table starts from (``profile = "NAME"``,
+        :data:`delayform.deploy.PROFILES`), or None.
     network
         The ``[network]`` table as a :class:`~delayform.simulation.network.Network`, or None.
     topology_spec
@@ -199,6 +202,7 @@ class Scenario:
     source: str = "<scenario>"
     robot: RobotLimits | None = None
     network: Network | None = None
+    robot_profile: str | None = None
 
     def summary(self) -> dict[str, Any]:
         """The scenario as plain JSON-ready values, for summaries and report tables."""
@@ -218,6 +222,7 @@ class Scenario:
             "dt": self.simulation.dt,
             "seed": self.initial.seed,
             "robot_limits": None if self.robot is None else self.robot.describe(),
+            "robot_profile": self.robot_profile,
             "chart_window": [self.chart.tau1_max, self.chart.tau2_max],
             "map_grid": {"tau1": list(self.map.tau1), "tau2": list(self.map.tau2), "size": list(self.map.size)},
             "schedule": {"tau_min": list(self.schedule.tau_min), "tau_max": list(self.schedule.tau_max)},

@@ -10,7 +10,8 @@ from typing import Any
 
 import numpy as np
 
-from delayform.errors import InputError, NetworkError, ScenarioError
+from delayform.deploy.profiles import PROFILES, robot_profile
+from delayform.errors import InputError, NetworkError, RobotProfileError, ScenarioError
 from delayform.scenario._reader import _Reader
 from delayform.scenario.model import (
     MODELS,
@@ -168,21 +169,35 @@ _ROBOT_KEYS = (
 )  # fmt: skip
 
 
-def _robot(reader: _Reader, data: Mapping[str, Any] | None, model: str) -> RobotLimits | None:
-    """The ``[robot]`` table: actuator limits, defaults from IROBOT_CREATE; None without the table."""
+def _robot(reader: _Reader, data: Mapping[str, Any] | None, model: str) -> tuple[RobotLimits | None, str | None]:
+    """The ``[robot]`` table: actuator limits and the profile they start from; (None, None) without the table.
+
+    ``profile = "NAME"`` starts from a real robot's limits
+    (:data:`delayform.deploy.PROFILES`), otherwise from IROBOT_CREATE; the
+    other keys override single values.
+    """
     if data is None:
-        return None
-    reader.keys(data, "robot", ("limits",) + _ROBOT_KEYS)
+        return None, None
+    reader.keys(data, "robot", ("limits", "profile") + _ROBOT_KEYS)
     enabled = data.get("limits", True)
     if not isinstance(enabled, bool):
         raise reader.error("robot.limits", "true or false", enabled)
+    base, name = IROBOT_CREATE, None
+    if "profile" in data:
+        if not isinstance(data["profile"], str):
+            raise reader.error("robot.profile", f"a profile name ({', '.join(PROFILES)})", data["profile"])
+        try:
+            profile = robot_profile(data["profile"])
+        except RobotProfileError as exc:
+            raise ScenarioError(f"{reader.source}: robot.profile: {exc}") from None
+        base, name = profile.limits, profile.name
     if not enabled:
-        return None
+        return None, name
     if model != "unicycle":
         raise reader.error("robot.limits", "false for simulation.model = 'double_integrator' (limits apply to robots)",
                            enabled)  # fmt: skip
     values = {key: reader.positive(f"robot.{key}", data[key]) for key in _ROBOT_KEYS if key in data}
-    return replace(IROBOT_CREATE, **values)
+    return replace(base, **values), name
 
 
 def _initial(reader: _Reader, data: Mapping[str, Any], n: int) -> InitialSpec:
@@ -305,14 +320,14 @@ def parse_scenario(data: Mapping[str, Any], *, source: str = "<scenario>", defau
     simulation = _simulation(reader, reader.table(data, "simulation", required=False) or {})
     _check_step(reader, simulation.dt, tau1, tau2)
     initial = _initial(reader, reader.table(data, "initial", required=False) or {}, n)
-    robot = _robot(reader, reader.table(data, "robot", required=False), simulation.model)
+    robot, profile_name = _robot(reader, reader.table(data, "robot", required=False), simulation.model)
     chart = _chart(reader, reader.table(data, "chart", required=False) or {})
     grid = _map(reader, reader.table(data, "map", required=False) or {}, chart)
     schedule = _schedule(reader, reader.table(data, "schedule", required=False) or {}, (tau1, tau2), chart)
     return Scenario(
         name=name, description=description, topology=topology, P=P, D=D, tau1=tau1, tau2=tau2,
         formation=formation, simulation=simulation, initial=initial, chart=chart, map=grid,
-        schedule=schedule, topology_spec=spec, source=source, robot=robot,
+        schedule=schedule, topology_spec=spec, source=source, robot=robot, robot_profile=profile_name,
         network=parse_network_table(reader, reader.table(data, "network", required=False), n),
     )  # fmt: skip
 
