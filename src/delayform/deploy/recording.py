@@ -41,6 +41,7 @@ from typing import Any
 
 import numpy as np
 
+from delayform._files import atomic_path
 from delayform.errors import RecordingError
 from delayform.simulation.trajectory import Trajectory
 
@@ -130,17 +131,11 @@ def write_mcap(trajectory: Trajectory, path: str | Path, *, compression: str = "
         raise RecordingError(f"compression must be one of {', '.join(kinds)}, got {compression!r}")
     path = check_mcap_path(path)
     store = get_typestore(Stores.ROS2_HUMBLE)
-    fd, tmp_name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".part")
-    try:
-        with os.fdopen(fd, "wb") as stream:
-            writer = Writer(stream, compression=kinds[compression])
-            writer.start(profile="ros2", library="delayform (mcap + rosbags)")
-            _write_messages(writer, store, trajectory)
-            writer.finish()
-        os.replace(tmp_name, path)
-    except BaseException:
-        Path(tmp_name).unlink(missing_ok=True)
-        raise
+    with atomic_path(path) as tmp, open(tmp, "wb") as stream:
+        writer = Writer(stream, compression=kinds[compression])
+        writer.start(profile="ros2", library="delayform (mcap + rosbags)")
+        _write_messages(writer, store, trajectory)
+        writer.finish()
     return path
 
 
