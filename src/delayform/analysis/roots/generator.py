@@ -126,6 +126,22 @@ def _degree_cap(prob: _Problem, hmax: float) -> int:
     return max(MAX_DEGREE, 4 * _needed_degree(hmax, _root_scale(prob)))
 
 
+def _cost(size: float) -> tuple[float, float]:
+    """Memory (bytes) and time (s) of dense nonsymmetric eigenvalues of a size x size matrix.
+
+    About 25 n^3 flops at ~1 GFlop/s on a shared core and ~4 n^2 complex words.
+    """
+    return 64.0 * size * size, 2.5e-8 * size**3
+
+
+def _largest_degree(prob: _Problem) -> int:
+    """The largest discretization degree N that :func:`_require_degree` accepts on this machine."""
+    size = min(math.sqrt(memory_limit() / 64.0), (time_budget() / 2.5e-8) ** (1.0 / 3.0))
+    while size > 1 and not all(c <= b for c, b in zip(_cost(size), (memory_limit(), time_budget()))):
+        size = math.nextafter(size, 0.0)  # rounding of the roots above; at most a step or two
+    return max(int(size // prob.d) - 1, MAX_DEGREE)
+
+
 def _require_degree(prob: _Problem, N: int, hmax: float) -> None:
     """Refuse, in one line, a discretization of degree N beyond the machine's memory or time budget.
 
@@ -134,7 +150,7 @@ def _require_degree(prob: _Problem, N: int, hmax: float) -> None:
     and ~4 n^2 complex words for n = d (N + 1).
     """
     size = float(prob.d * (N + 1))
-    nbytes, seconds = 64.0 * size * size, 2.5e-8 * size**3
+    nbytes, seconds = _cost(size)
     limit, budget = memory_limit(), time_budget()
     if nbytes <= limit and seconds <= budget:
         return

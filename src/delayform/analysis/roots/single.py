@@ -68,6 +68,7 @@ from delayform.analysis.roots.generator import (
     _eigenvalues_at,
     _igd_seeds,
     _initial_degree,
+    _largest_degree,
     _max_delay,
     _needed_degree,
     _require_degree,
@@ -231,7 +232,10 @@ def _iterable(value: object) -> tuple[object, ...]:
 def _box_reach(prob: _Problem) -> float:
     """Largest X such that :func:`_check_reach` accepts every pair in [0, X] x [0, X]."""
     widest = max([a + b for _, a, b in prob.delayed] + [0])  # h = (a + b) X at tau1 = tau2 = X
-    return math.inf if widest == 0 else _MAX_REACH / (_root_scale(prob) * widest)
+    if widest == 0:
+        return math.inf
+    # _needed_degree(h, scale) = ceil(1.2 scale h + 10) must stay within the machine's largest degree
+    return (_largest_degree(prob) - 10) / (1.2 * _root_scale(prob) * widest)
 
 
 def delay_reach(fs: tuple[CharacteristicFactor, ...]) -> float:
