@@ -36,6 +36,7 @@ argument-principle method does); the bounds themselves are rigorous.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -94,50 +95,69 @@ def _line_bounds(team: LinkTeam, c: float, y0: NDArray[np.float64], y1: NDArray[
         return Kd / pmin + K * (2.0 * rho + team.D) / pmin**2
 
 
-def _f_and_inverse_norm(team: LinkTeam, s: NDArray[np.complex128]) -> tuple[NDArray[np.complex128], NDArray[np.float64]]:
-    """f(s) = det(I - X(s)) and ||(I - X(s))^{-1}||_inf at each point (inf where singular)."""
+def _samples(team: LinkTeam, s: NDArray[np.complex128], *, keep: bool) -> tuple[NDArray[Any], ...]:
+    """f(s) = det(I - X(s)), ||(I - X(s))^{-1}||_inf (inf where singular), and when ``keep`` I - X and its inverse."""
     p = s * s + team.D * s + team.P
     G = team.matrix(s) / p[:, None, None]  # = I - X(s)
     f = np.linalg.det(G)
-    out = np.full(s.shape, np.inf)
+    nrm = np.full(s.shape, np.inf)
+    inv = np.full(G.shape, np.nan + 0j) if keep else np.zeros((0,))
     ok = np.isfinite(f) & (np.abs(f) > 0.0)
     if ok.any():
-        inv = np.linalg.inv(G[ok])
-        out[ok] = np.abs(inv).sum(axis=2).max(axis=1)
-    return f, out
+        iv = np.linalg.inv(G[ok])
+        nrm[ok] = np.abs(iv).sum(axis=2).max(axis=1)
+        if keep:
+            inv[ok] = iv
+    return (f, nrm, G, inv) if keep else (f, nrm, np.zeros((0,)), inv)
+
+
+#: Teams larger than this take each piece's phase from eigenvalues (longer pieces, dearer samples).
+EIGEN_PHASE_N = 10
+#: Bound on ||E||_inf per piece when the phase comes from eigenvalues.
+_R_EIGEN = 0.5
 
 
 def _phase_change(team: LinkTeam, c: float, R: float) -> float | None:
-    """Continuous change of arg f along c + i y, y from 0 to R; None if the budget is exceeded."""
-    rmax = math.sin(math.pi / (2.0 * team.n))
-    y = np.linspace(0.0, R, 129)
-    f, nrm = _f_and_inverse_norm(team, c + 1j * y)
+    """Continuous change of arg f along c + i y, y from 0 to R; None if the budget is exceeded.
+
+    Small teams: pieces with ``N asin(r) <= pi / 2`` and the principal argument of
+    f(s_b) / f(s_a). Larger teams: pieces with ``r <= 1/2`` and the sum of the
+    principal arguments of the eigenvalues of ``(I - X(s_a))^{-1} (I - X(s_b))``,
+    each in the disc |z - 1| <= r (module docstring): N times fewer pieces.
+    """
+    by_eigen = team.n > EIGEN_PHASE_N
+    rmax = _R_EIGEN if by_eigen else math.sin(math.pi / (2.0 * team.n))
+    y = np.linspace(0.0, R, 129 if not by_eigen else 33)
+    f, nrm, G, inv = _samples(team, c + 1j * y, keep=by_eigen)
     chunk = max(64, int(2e6 // max(team.n**2, 1)))
     while True:
         L = _line_bounds(team, c, y[:-1], y[1:])
         r = nrm[:-1] * L * np.diff(y)
         bad = ~(r <= rmax)
         if not bad.any():
-            return float(np.angle(f[1:] / f[:-1]).sum())
+            if not by_eigen:
+                return float(np.angle(f[1:] / f[:-1]).sum())
+            total = 0.0
+            for i in range(0, y.size - 1, chunk):
+                sl = slice(i, min(i + chunk, y.size - 1))
+                lam = np.linalg.eigvals(inv[sl] @ G[sl.start + 1 : sl.stop + 1])
+                total += float(np.angle(lam).sum())
+            return total
         if y.size > MAX_SAMPLES:
             return None
         # split each failing piece into as many parts as its bound asks for (at most 64)
-        parts = np.where(bad, np.clip(np.ceil(r / rmax), 2, 64), 1).astype(np.int64)
-        parts[~np.isfinite(r)] = 2
-        new_y = [y[:1]]
-        starts, ends = y[:-1], y[1:]
-        for k in np.flatnonzero(bad):
-            new_y.append(np.linspace(starts[k], ends[k], parts[k] + 1)[1:-1])
-        add = np.concatenate(new_y[1:])
+        parts = np.where(np.isfinite(r), np.clip(np.ceil(r / rmax), 2, 64), 2).astype(np.int64)
+        add = np.concatenate([np.linspace(y[k], y[k + 1], parts[k] + 1)[1:-1] for k in np.flatnonzero(bad)])
         if add.size + y.size > MAX_SAMPLES:
             return None
-        fa, na = np.empty(add.size, complex), np.empty(add.size)
-        for i in range(0, add.size, chunk):
-            fa[i : i + chunk], na[i : i + chunk] = _f_and_inverse_norm(team, c + 1j * add[i : i + chunk])
+        pieces = [_samples(team, c + 1j * add[i : i + chunk], keep=by_eigen) for i in range(0, add.size, chunk)]
         order = np.argsort(np.concatenate([y, add]), kind="stable")
         y = np.concatenate([y, add])[order]
-        f = np.concatenate([f, fa])[order]
-        nrm = np.concatenate([nrm, na])[order]
+        f = np.concatenate([f] + [p[0] for p in pieces])[order]
+        nrm = np.concatenate([nrm] + [p[1] for p in pieces])[order]
+        if by_eigen:
+            G = np.concatenate([G] + [p[2] for p in pieces])[order]
+            inv = np.concatenate([inv] + [p[3] for p in pieces])[order]
 
 
 def count_right_of(team: LinkTeam, c: float) -> int | None:

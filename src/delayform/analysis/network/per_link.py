@@ -190,11 +190,17 @@ def _distinct(s: NDArray[np.complex128]) -> NDArray[np.complex128]:
 
 
 def _choose_line(reals: NDArray[np.float64], top: float) -> float:
-    """A line Re s = c left of ``top`` in a gap of the known real parts (0 among them)."""
-    below = np.sort(reals[reals < top - 1e-9])[::-1]
-    nxt = below[0] if below.size else top - 1.0
-    gap = top - nxt
-    return float(top - min(0.1 * (1.0 + abs(top)), 0.5 * gap))
+    """A line Re s = c left of ``top``, as far as possible from every known real part (0 among them).
+
+    The line is sought in (top - 0.3 (1 + |top|), top): the widest gap there, or
+    the window's left end when that is farther from every root; far from roots
+    the certificate needs fewer samples.
+    """
+    lo = top - 0.3 * (1.0 + abs(top))
+    near = np.sort(np.unique(np.concatenate([reals[(reals > lo) & (reals < top)], [top]])))
+    cands = np.concatenate([0.5 * (near[1:] + near[:-1]), [lo]])
+    dist = np.min(np.abs(cands[:, None] - reals[None, :]), axis=1)
+    return float(cands[int(np.argmax(dist))])
 
 
 def link_roots_right_of(team: LinkTeam, c: float, *, degree: int | None = None) -> NDArray[np.complex128]:
