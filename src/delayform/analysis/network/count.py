@@ -114,7 +114,7 @@ def _samples(team: LinkTeam, s: NDArray[np.complex128], *, keep: bool) -> tuple[
 #: Teams larger than this take each piece's phase from eigenvalues (longer pieces, dearer samples).
 EIGEN_PHASE_N = 10
 #: Bound on ||E||_inf per piece when the phase comes from eigenvalues.
-_R_EIGEN = 0.5
+_R_EIGEN = 0.9
 
 
 def _phase_change(team: LinkTeam, c: float, R: float) -> float | None:
@@ -137,11 +137,13 @@ def _phase_change(team: LinkTeam, c: float, R: float) -> float | None:
         if not bad.any():
             if not by_eigen:
                 return float(np.angle(f[1:] / f[:-1]).sum())
-            total = 0.0
-            for i in range(0, y.size - 1, chunk):
-                sl = slice(i, min(i + chunk, y.size - 1))
-                lam = np.linalg.eigvals(inv[sl] @ G[sl.start + 1 : sl.stop + 1])
-                total += float(np.angle(lam).sum())
+            # pieces with N asin(r) <= pi / 2 need only the ratio of determinants
+            cheap = team.n * np.arcsin(np.minimum(r, 1.0)) <= 0.5 * math.pi
+            total = float(np.angle(f[1:][cheap] / f[:-1][cheap]).sum())
+            dear = np.flatnonzero(~cheap)
+            for i in range(0, dear.size, chunk):
+                k = dear[i : i + chunk]
+                total += float(np.angle(np.linalg.eigvals(inv[k] @ G[k + 1])).sum())
             return total
         if y.size > MAX_SAMPLES:
             return None
