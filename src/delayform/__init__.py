@@ -98,6 +98,15 @@ _EXPORTS: dict[str, str] = {
     "Explorer": "app",
     "ExplorerLimits": "app",
     "scenario_toml": "app",
+    # guarantees for real networks (issue 20)
+    "link_dominant_root": "analysis.network",
+    "LinkDominantRoot": "analysis.network",
+    "robust_stability": "analysis.network",
+    "RobustStability": "analysis.network",
+    "jitter_margin": "analysis.network",
+    "jitter_margin_map": "analysis.network",
+    "JitterMargin": "analysis.network",
+    "JitterMarginMap": "analysis.network",
 }
 
 __all__ = sorted(_EXPORTS) + ["errors", "__version__"]

@@ -58,7 +58,7 @@ from delayform.topology import Topology
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from matplotlib.axes import Axes
 
-__all__ = ["RobustStability", "robust_stability", "box_certificate"]
+__all__ = ["RobustStability", "robust_stability"]
 
 #: Most frequency samples spent on one box.
 MAX_SAMPLES = 100_000

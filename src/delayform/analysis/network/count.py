@@ -63,7 +63,7 @@ def _row_bounds(team: LinkTeam, c: float) -> tuple[float, float]:
 
 
 def root_radius(team: LinkTeam, c: float) -> float:
-    """R such that det M(s) has no zero with Re s >= c and |s| >= R (module docstring)."""
+    """R such that det M(s) of ``team`` has no zero with Re s >= c and |s| >= R (module docstring)."""
     a, b = _row_bounds(team, c)
     m1, m2 = np.sort(np.abs(_p_roots(team)))
     # (rho - m1)(rho - m2) > a + b rho  <=>  rho^2 - (m1 + m2 + b) rho + m1 m2 - a > 0
@@ -164,6 +164,8 @@ def _phase_change(team: LinkTeam, c: float, R: float) -> float | None:
 
 def count_right_of(team: LinkTeam, c: float) -> int | None:
     """Certified number of roots of det M(s) with Re s > c, multiplicity counted (s = 0 included).
+
+    ``team`` is the per-link team (:class:`~delayform.analysis.network.links.LinkTeam`).
 
     None when the line cannot be certified within the sampling budget (a root on
     or extremely close to Re s = c).

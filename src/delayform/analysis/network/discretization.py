@@ -58,7 +58,7 @@ def _interpolation_rows(x: NDArray[np.float64], w: NDArray[np.float64], xq: NDAr
 
 
 def generator_matrix(team: LinkTeam, M: int) -> sp.csr_array:
-    """The collocated generator (module docstring) as a sparse matrix of size 2N (M + 1).
+    """The collocated generator of ``team`` (module docstring) as a sparse matrix of size 2N (M + 1).
 
     Unknowns ordered node-major: block j holds z(theta_j) = (x, v).
     """
@@ -88,7 +88,7 @@ def generator_matrix(team: LinkTeam, M: int) -> sp.csr_array:
 
 
 def generator_seeds(team: LinkTeam, M: int, radius: float) -> NDArray[np.complex128]:
-    """Eigenvalues of the collocated generator with |s| <= radius (conjugates included).
+    """Eigenvalues of the generator of ``team`` collocated at M + 1 points, with |s| <= radius (conjugates included).
 
     Dense for small problems; otherwise shift-and-invert Arnoldi at shifts along
     the imaginary axis 0 <= Im s <= radius (sparse LU of the generator), which

@@ -204,7 +204,10 @@ def _choose_line(reals: NDArray[np.float64], top: float) -> float:
 
 
 def link_roots_right_of(team: LinkTeam, c: float, *, degree: int | None = None) -> NDArray[np.complex128]:
-    """Polished roots of det M with Re s > c found from the discretization (Im >= 0), not certified."""
+    """Polished roots of det M of ``team`` with Re s > c from the discretization (Im >= 0), not certified.
+
+    ``degree`` is the number of Chebyshev intervals (default: from the delays and the root radius).
+    """
     R = root_radius(team, c)
     M = degree or _degree(team, R)
     seeds = generator_seeds(team, M, 1.5 * R)
