@@ -119,15 +119,15 @@ def _per_link(name: str, value: ArrayLike, n: int, mask: NDArray[np.bool_]) -> N
         try:
             v = float(value)  # type: ignore[arg-type]
         except (TypeError, ValueError):
-            raise DelayError(f"{name} must be a delay or an {n} x {n} array of delays") from None
+            raise DelayError(f"{name} must be a delay or a {n} x {n} array of delays") from None
         arr = np.full((n, n), v)
     else:
         try:
             arr = np.array(value, dtype=np.float64)
         except (TypeError, ValueError):
-            raise DelayError(f"{name} must be a delay or an {n} x {n} array of delays") from None
+            raise DelayError(f"{name} must be a delay or a {n} x {n} array of delays") from None
         if arr.shape != (n, n):
-            raise DelayError(f"{name} must be an {n} x {n} array of per-link delays, got shape {arr.shape}")
+            raise DelayError(f"{name} must be a {n} x {n} array of per-link delays, got shape {arr.shape}")
     links = arr[mask]
     if not np.all(np.isfinite(links)):
         raise DelayError(f"{name} must be finite on every link")
