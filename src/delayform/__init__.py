@@ -107,6 +107,8 @@ _EXPORTS: dict[str, str] = {
     "jitter_margin_map": "analysis.network",
     "JitterMargin": "analysis.network",
     "JitterMarginMap": "analysis.network",
+    "mean_square_stability": "analysis.network",
+    "MeanSquareStability": "analysis.network",
 }
 
 __all__ = sorted(_EXPORTS) + ["errors", "__version__"]
