@@ -73,42 +73,54 @@ def root_radius(team: LinkTeam, c: float) -> float:
     return 1.05 * max(rho, m2) + 1e-9
 
 
-def _line_bounds(team: LinkTeam, c: float, y0: NDArray[np.float64], y1: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Lipschitz constant of X(c + i y) on each piece [y0, y1] (0 <= y0 < y1), inf-norm."""
-    rho = np.hypot(c, y1)
+def _row_vectors(team: LinkTeam, c: float) -> NDArray[np.float64]:
+    """Per-row sums (N, 4) bounding the rows of X' on the line Re s = c (see :func:`_growth`).
+
+    Row i of K and K' is bounded by ``kp_i + kd_i rho`` and ``(kp1_i + kd_i) + kd2_i rho``.
+    """
     e1 = np.exp(-team.tau1 * c)
     e2 = np.exp(-team.tau2 * c)
-    n = team.n
-    kp = np.bincount(team.rows, team.weights * team.P * e1, minlength=n)
-    kd = np.bincount(team.rows, team.weights * team.D * e2, minlength=n)
-    kp1 = np.bincount(team.rows, team.weights * team.P * team.tau1 * e1, minlength=n)
-    kd2 = np.bincount(team.rows, team.weights * team.D * team.tau2 * e2, minlength=n)
-    # ||K|| <= max_i (kp_i + kd_i rho);  ||K'|| <= max_i (kp1_i + kd_i + kd2_i rho)
-    K = (kp[None, :] + kd[None, :] * rho[:, None]).max(axis=1)
-    Kd = (kp1[None, :] + kd[None, :] + kd2[None, :] * rho[:, None]).max(axis=1)
-    # |p| >= product of distances from the zeros of p to the piece
+    cols = [team.P * e1 * team.tau1, team.D * e2, team.D * e2 * team.tau2, team.P * e1]
+    kp1, kd, kd2, kp = (np.bincount(team.rows, team.weights * v, minlength=team.n) for v in cols)
+    return np.stack([kp1 + kd, kd2, kp, kd], axis=1)
+
+
+def _growth(team: LinkTeam, c: float, y0: NDArray[np.float64], y1: NDArray[np.float64],
+            W: NDArray[np.float64]) -> NDArray[np.float64]:  # fmt: skip
+    """Bound of ||(I - X(s_a))^{-1} (X(s) - X(s_a))||_inf / |s - s_a| on each piece [y0, y1].
+
+    ``W = |(I - X(s_a))^{-1}| @ _row_vectors`` at the pieces' left ends: the entrywise
+    bound ``|X'_ik| <= (|K'_ik| |p| + |K_ik| |p'|) / |p|^2`` summed over each row, then
+    weighted by ``|A|`` (for non-negative matrices the inf-norm is the largest row sum,
+    so ``|| |A| L ||_inf = max (|A| (L 1))``): tighter than the product of the norms.
+    """
+    rho = np.hypot(c, y1)
     pmin = np.ones_like(y0)
-    for r in _p_roots(team):
+    for r in _p_roots(team):  # |p| >= product of distances from the zeros of p to the piece
         dy = np.clip(r.imag, y0, y1) - r.imag
         pmin = pmin * np.hypot(c - r.real, dy)
-    with np.errstate(divide="ignore"):
-        return Kd / pmin + K * (2.0 * rho + team.D) / pmin**2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rows = ((W[:, :, 0] + W[:, :, 1] * rho[:, None]) / pmin[:, None]
+                + (W[:, :, 2] + W[:, :, 3] * rho[:, None]) * ((2.0 * rho + team.D) / pmin**2)[:, None])  # fmt: skip
+        out = rows.max(axis=1)
+    return np.where(np.isfinite(out), out, np.inf)
 
 
-def _samples(team: LinkTeam, s: NDArray[np.complex128], *, keep: bool) -> tuple[NDArray[Any], ...]:
-    """f(s) = det(I - X(s)), ||(I - X(s))^{-1}||_inf (inf where singular), and when ``keep`` I - X and its inverse."""
+def _samples(team: LinkTeam, s: NDArray[np.complex128], U: NDArray[np.float64], *, keep: bool) -> tuple[NDArray[Any], ...]:
+    """f(s) = det(I - X(s)), ``|(I - X(s))^{-1}| @ U`` (inf where singular), and when ``keep`` I - X and its inverse."""
     p = s * s + team.D * s + team.P
-    G = team.matrix(s) / p[:, None, None]  # = I - X(s)
-    f = np.linalg.det(G)
-    nrm = np.full(s.shape, np.inf)
+    with np.errstate(all="ignore"):  # a zero of p on the line: f is inf there and the piece is split
+        G = team.matrix(s) / p[:, None, None]  # = I - X(s)
+        f = np.linalg.det(G)
+    W = np.full(s.shape + U.shape, np.inf)
     inv = np.full(G.shape, np.nan + 0j) if keep else np.zeros((0,))
     ok = np.isfinite(f) & (np.abs(f) > 0.0)
     if ok.any():
         iv = np.linalg.inv(G[ok])
-        nrm[ok] = np.abs(iv).sum(axis=2).max(axis=1)
+        W[ok] = np.abs(iv) @ U
         if keep:
             inv[ok] = iv
-    return (f, nrm, G, inv) if keep else (f, nrm, np.zeros((0,)), inv)
+    return (f, W, G, inv) if keep else (f, W, np.zeros((0,)), inv)
 
 
 #: Teams larger than this take each piece's phase from eigenvalues (longer pieces, dearer samples).
@@ -128,11 +140,12 @@ def _phase_change(team: LinkTeam, c: float, R: float) -> float | None:
     by_eigen = team.n > EIGEN_PHASE_N
     rmax = _R_EIGEN if by_eigen else math.sin(math.pi / (2.0 * team.n))
     y = np.linspace(0.0, R, 129 if not by_eigen else 33)
-    f, nrm, G, inv = _samples(team, c + 1j * y, keep=by_eigen)
+    U = _row_vectors(team, c)
+    f, nrm, G, inv = _samples(team, c + 1j * y, U, keep=by_eigen)
     chunk = max(64, int(2e6 // max(team.n**2, 1)))
     while True:
-        L = _line_bounds(team, c, y[:-1], y[1:])
-        r = nrm[:-1] * L * np.diff(y)
+        with np.errstate(invalid="ignore"):
+            r = _growth(team, c, y[:-1], y[1:], nrm[:-1]) * np.diff(y)
         bad = ~(r <= rmax)
         if not bad.any():
             if not by_eigen:
@@ -152,7 +165,7 @@ def _phase_change(team: LinkTeam, c: float, R: float) -> float | None:
         add = np.concatenate([np.linspace(y[k], y[k + 1], parts[k] + 1)[1:-1] for k in np.flatnonzero(bad)])
         if add.size + y.size > MAX_SAMPLES:
             return None
-        pieces = [_samples(team, c + 1j * add[i : i + chunk], keep=by_eigen) for i in range(0, add.size, chunk)]
+        pieces = [_samples(team, c + 1j * add[i : i + chunk], U, keep=by_eigen) for i in range(0, add.size, chunk)]
         order = np.argsort(np.concatenate([y, add]), kind="stable")
         y = np.concatenate([y, add])[order]
         f = np.concatenate([f] + [p[0] for p in pieces])[order]

@@ -270,7 +270,9 @@ def dominant_of_team(team: LinkTeam) -> LinkDominantRoot:
             continue
         last = (roots, kern)
         top = float(roots[nonzero].real.max())
-        c = _choose_line(np.concatenate([roots.real, [0.0]]), top)
+        # away from the roots found, from 0, and from the zeros of p (the poles of det(I - K/p))
+        poles = np.roots([1.0, team.D, team.P]).real
+        c = _choose_line(np.concatenate([roots.real, [0.0], poles]), top)
         count = count_right_of(team, c)
         right = roots.real > c
         weight = np.where(roots.imag > 0.0, 2, 1)  # a conjugate pair counts twice
