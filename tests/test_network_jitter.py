@@ -95,3 +95,17 @@ def test_map_and_plot():
 def test_bad_map_axes():
     with pytest.raises(DelayError):
         jitter_margin_map(paper_six(), 1.0, 0.5, [], [0.2])
+
+
+@pytest.mark.slow
+def test_margin_map_is_zero_exactly_where_the_exact_chart_is_unstable():
+    from delayform.analysis.ctcr import stability_map
+
+    ax1, ax2 = [0.3, 2.0], [0.2, 2.0]
+    m = jitter_margin_map(paper_six(), 1.0, 0.5, ax1, ax2)
+    smap = stability_map(paper_six(), 1.0, 0.5, 3.0, 3.0)
+    for i, a in enumerate(ax1):
+        for j, b in enumerate(ax2):
+            assert (m.delta[i, j] > 0) == smap.is_stable(a, b)
+    ax = smap.plot()
+    assert m.plot(ax=ax) is ax  # drawn on the stability chart
