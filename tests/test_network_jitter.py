@@ -109,3 +109,13 @@ def test_margin_map_is_zero_exactly_where_the_exact_chart_is_unstable():
             assert (m.delta[i, j] > 0) == smap.is_stable(a, b)
     ax = smap.plot()
     assert m.plot(ax=ax) is ax  # drawn on the stability chart
+
+
+def test_margin_solves_the_gain_condition_of_the_worst_channel():
+    from delayform.analysis.network.jitter import _delta_of_gain
+
+    for gain, tau in [(6.6, 0.3), (2.0, 0.1), (50.0, 0.05), (3.0, 0.0)]:
+        d = _delta_of_gain(gain, tau)
+        assert d * (d + min(d, tau)) * gain**2 < 1.0  # the small-gain condition holds
+        e = d * 1.001
+        assert e * (e + min(e, tau)) * gain**2 >= 1.0 - 1e-6  # and it is the largest such delta

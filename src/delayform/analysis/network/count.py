@@ -24,10 +24,14 @@ Certified sampling of the line
 On a piece [s_a, s_b] of the line, ``||X(s) - X(s_a)||_inf <= L |s - s_a|`` with L
 from the closed-form bounds of ``||K||``, ``||K'||`` and the distance to the zeros
 of p. With ``E = (I - X(s_a))^{-1} (X(s) - X(s_a))``, ``f(s) = f(s_a) det(I - E)``
-and ``||E||_inf <= r = ||(I - X(s_a))^{-1}||_inf L h``. Every eigenvalue of I - E
-stays in the disc |z - 1| <= r, so when ``N asin(r) <= pi / 2`` f has no zero on
-the piece and its continuous phase change is the principal argument of
-f(s_b) / f(s_a). Pieces are split until every one passes; by the symmetry
+and ``||E||_inf <= r`` (the row sums of an entrywise bound of X' weighted by
+``|(I - X(s_a))^{-1}|``, times h). Every eigenvalue of I - E stays in the disc
+|z - 1| <= r < 1, so f has no zero on the piece and its continuous phase change is
+``Im tr log(I - E) = -Im tr E - sum_{k >= 2} Im tr(E^k) / k``, the tail at most
+``N r^2 / (2 (1 - r))``. Pieces are split until that is <= pi / 2: the change is then
+the principal argument of f(s_b) / f(s_a) plus the multiple of 2 pi nearest the
+first-order term ``Im tr((I - X(s_a))^{-1} (I - X(s_b)))``, O(N^2) per piece (when
+``N asin(r) <= pi / 2`` on every piece the multiple is 0). Pieces are split until every one passes; by the symmetry
 f(conj s) = conj f(s) (real C and delays) only 0 <= Im s <= R is sampled.
 Soundness rests on floating point evaluation of f at the samples (as every
 argument-principle method does); the bounds themselves are rigorous.
@@ -106,73 +110,88 @@ def _growth(team: LinkTeam, c: float, y0: NDArray[np.float64], y1: NDArray[np.fl
     return np.where(np.isfinite(out), out, np.inf)
 
 
-def _samples(team: LinkTeam, s: NDArray[np.complex128], U: NDArray[np.float64], *, keep: bool) -> tuple[NDArray[Any], ...]:
-    """f(s) = det(I - X(s)), ``|(I - X(s))^{-1}| @ U`` (inf where singular), and when ``keep`` I - X and its inverse."""
+def _samples(team: LinkTeam, s: NDArray[np.complex128], U: NDArray[np.float64]) -> tuple[NDArray[Any], NDArray[Any]]:
+    """f(s) = det(I - X(s)) and ``|(I - X(s))^{-1}| @ U`` (inf where singular)."""
+    f, W, _, _ = _factored(team, s, U)
+    return f, W
+
+
+def _factored(team: LinkTeam, s: NDArray[np.complex128], U: NDArray[np.float64]) -> tuple[NDArray[Any], ...]:
+    """f, ``|A| @ U``, G = I - X(s) and A = G^{-1} (NaN where singular) at each point."""
     p = s * s + team.D * s + team.P
     with np.errstate(all="ignore"):  # a zero of p on the line: f is inf there and the piece is split
         G = team.matrix(s) / p[:, None, None]  # = I - X(s)
         f = np.linalg.det(G)
     W = np.full(s.shape + U.shape, np.inf)
-    inv = np.full(G.shape, np.nan + 0j) if keep else np.zeros((0,))
+    inv = np.full(G.shape, np.nan + 0j)
     ok = np.isfinite(f) & (np.abs(f) > 0.0)
     if ok.any():
-        iv = np.linalg.inv(G[ok])
-        W[ok] = np.abs(iv) @ U
-        if keep:
-            inv[ok] = iv
-    return (f, W, G, inv) if keep else (f, W, np.zeros((0,)), inv)
+        inv[ok] = np.linalg.inv(G[ok])
+        W[ok] = np.abs(inv[ok]) @ U
+    return f, W, G, inv
 
 
-#: Teams larger than this take each piece's phase from eigenvalues (longer pieces, dearer samples).
-EIGEN_PHASE_N = 10
-#: Bound on ||E||_inf per piece when the phase comes from eigenvalues.
-_R_EIGEN = 0.9
+#: Up to this many agents the phase comes from ratios of determinants alone.
+SMALL_TEAM = 10
+
+
+def _piece_radius(n: int) -> float:
+    """Largest r with N r^2 / (2 (1 - r)) <= pi / 2: the first-order phase then picks the branch."""
+    return (-math.pi + math.sqrt(math.pi**2 + 4.0 * n * math.pi)) / (2.0 * n)
+
+
+def _branch_phase(team: LinkTeam, c: float, y: NDArray[np.float64], f: NDArray[np.complex128],
+                  U: NDArray[np.float64], chunk: int) -> float:  # fmt: skip
+    """Sum over the pieces of the continuous phase change of f (module docstring).
+
+    On a piece, the change is ``Im tr log(I - E)`` (every eigenvalue of I - E in the disc
+    |z - 1| <= r), ``= -Im tr E - sum_{k >= 2} Im tr(E^k) / k`` with the tail below
+    ``N r^2 / (2 (1 - r)) <= pi / 2``; ``-Im tr E = Im tr(A_a G_b)`` costs O(N^2). The change is
+    the principal argument of f(s_b) / f(s_a) plus the multiple of 2 pi nearest that estimate.
+    """
+    s = c + 1j * y
+    theta = np.angle(f[1:] / f[:-1])
+    est = np.empty(theta.size)
+    for i in range(0, theta.size, chunk):
+        k = np.arange(i, min(i + chunk, theta.size))
+        _, _, G, A = _factored(team, s[np.concatenate([k, [k[-1] + 1]])], U)
+        est[k] = np.einsum("kij,kji->k", A[:-1], G[1:]).imag
+    return float(np.sum(theta + 2.0 * math.pi * np.round((est - theta) / (2.0 * math.pi))))
 
 
 def _phase_change(team: LinkTeam, c: float, R: float) -> float | None:
     """Continuous change of arg f along c + i y, y from 0 to R; None if the budget is exceeded.
 
-    Small teams: pieces with ``N asin(r) <= pi / 2`` and the principal argument of
-    f(s_b) / f(s_a). Larger teams: pieces with ``r <= 1/2`` and the sum of the
-    principal arguments of the eigenvalues of ``(I - X(s_a))^{-1} (I - X(s_b))``,
-    each in the disc |z - 1| <= r (module docstring): N times fewer pieces.
+    Pieces are split until ``N asin(r) <= pi / 2`` (small teams: ratios of determinants
+    alone) or ``r <= _piece_radius(N)``, about sqrt(pi / N) (larger teams: the branch
+    from the first-order term).
     """
-    by_eigen = team.n > EIGEN_PHASE_N
-    rmax = _R_EIGEN if by_eigen else math.sin(math.pi / (2.0 * team.n))
-    y = np.linspace(0.0, R, 129 if not by_eigen else 33)
+    # small teams: short pieces and determinants only; larger ones: longer pieces and one more
+    # pass of inverses for the branch (cheaper once N asin(r) <= pi / 2 would need many pieces)
+    small = team.n <= SMALL_TEAM
+    rmax = math.sin(math.pi / (2.0 * team.n)) if small else _piece_radius(team.n)
+    y = np.linspace(0.0, R, 129)
     U = _row_vectors(team, c)
-    f, nrm, G, inv = _samples(team, c + 1j * y, U, keep=by_eigen)
     chunk = max(64, int(2e6 // max(team.n**2, 1)))
+    f, nrm = _samples(team, c + 1j * y, U)
     while True:
         with np.errstate(invalid="ignore"):
             r = _growth(team, c, y[:-1], y[1:], nrm[:-1]) * np.diff(y)
         bad = ~(r <= rmax)
         if not bad.any():
-            if not by_eigen:
+            if np.all(team.n * np.arcsin(np.minimum(r, 1.0)) <= 0.5 * math.pi):
                 return float(np.angle(f[1:] / f[:-1]).sum())
-            # pieces with N asin(r) <= pi / 2 need only the ratio of determinants
-            cheap = team.n * np.arcsin(np.minimum(r, 1.0)) <= 0.5 * math.pi
-            total = float(np.angle(f[1:][cheap] / f[:-1][cheap]).sum())
-            dear = np.flatnonzero(~cheap)
-            for i in range(0, dear.size, chunk):
-                k = dear[i : i + chunk]
-                total += float(np.angle(np.linalg.eigvals(inv[k] @ G[k + 1])).sum())
-            return total
-        if y.size > MAX_SAMPLES:
-            return None
+            return _branch_phase(team, c, y, f, U, chunk)
         # split each failing piece into as many parts as its bound asks for (at most 64)
         parts = np.where(np.isfinite(r), np.clip(np.ceil(r / rmax), 2, 64), 2).astype(np.int64)
         add = np.concatenate([np.linspace(y[k], y[k + 1], parts[k] + 1)[1:-1] for k in np.flatnonzero(bad)])
         if add.size + y.size > MAX_SAMPLES:
             return None
-        pieces = [_samples(team, c + 1j * add[i : i + chunk], U, keep=by_eigen) for i in range(0, add.size, chunk)]
+        pieces = [_samples(team, c + 1j * add[i : i + chunk], U) for i in range(0, add.size, chunk)]
         order = np.argsort(np.concatenate([y, add]), kind="stable")
         y = np.concatenate([y, add])[order]
         f = np.concatenate([f] + [p[0] for p in pieces])[order]
         nrm = np.concatenate([nrm] + [p[1] for p in pieces])[order]
-        if by_eigen:
-            G = np.concatenate([G] + [p[2] for p in pieces])[order]
-            inv = np.concatenate([inv] + [p[3] for p in pieces])[order]
 
 
 def count_right_of(team: LinkTeam, c: float) -> int | None:

@@ -103,12 +103,12 @@ class JitterMargin:
         return self.nominal_root.real < 0.0
 
 
-def _delta_of_gain(gain: float, tau_min: float) -> float:
-    """Largest delta with delta (delta + min(delta, tau_min)) < 1 / gain^2."""
+def _delta_of_gain(gain: float, tau: float) -> float:
+    """Largest delta with delta (delta + min(delta, tau)) < 1 / gain^2 (tau: the longest nominal delay)."""
     g = 1.0 / gain
     d = g / math.sqrt(2.0)
-    if d > tau_min:
-        d = 0.5 * (-tau_min + math.sqrt(tau_min * tau_min + 4.0 * g * g))
+    if d > tau:
+        d = 0.5 * (-tau + math.sqrt(tau * tau + 4.0 * g * g))
     return d * (1.0 - 1e-9)
 
 
@@ -273,8 +273,9 @@ def margin_of_team(team: LinkTeam) -> JitterMargin:
             bound, wpk, scaled = b2, w2, True
     if not math.isfinite(bound):
         raise NotConvergedError("the H-infinity bound of the jitter loop did not converge", partial=bound)
-    tau_min = float(min(team.tau1.min(initial=math.inf), team.tau2.min(initial=math.inf)))
-    return JitterMargin(_delta_of_gain(bound, tau_min), bound, wpk, scaled, nominal.root)
+    # gamma_j^2 = delta (delta + min(delta, tau_j)) grows with tau_j: the longest nominal delay is the worst channel
+    tau_max = float(max(team.tau1.max(initial=0.0), team.tau2.max(initial=0.0)))
+    return JitterMargin(_delta_of_gain(bound, tau_max), bound, wpk, scaled, nominal.root)
 
 
 def jitter_margin(topology: Topology, P: float, D: float, tau1: ArrayLike, tau2: ArrayLike) -> JitterMargin:
