@@ -147,3 +147,15 @@ def test_plot_draws_roots():
     r = link_dominant_root(Topology.from_adjacency(np.array([[0, 1], [1, 0]])), 1.0, 1.0, 0.5, 0.5)
     ax = r.plot()
     assert ax.get_xlabel() == "Re s"
+
+
+@pytest.mark.parametrize("c", [-0.3, 0.05])
+def test_count_of_a_larger_team_matches_the_factorized_count(c):
+    # 14 agents: the large-team phase rule (first-order branch); equal delays factorize, so the
+    # per-factor argument-principle counts of delayform.analysis.roots are an independent check
+    from delayform.analysis.roots import count_roots_right_of
+    from delayform.characteristic import factors
+
+    T = random_digraph(14, 0.15, seed=5)
+    expected = sum(f.multiplicity * count_roots_right_of(f, 1.0, 0.8, c) for f in factors(T, 1.0, 0.5))
+    assert count_right_of(link_team(T, 1.0, 0.5, 1.0, 0.8), c) == expected
