@@ -54,6 +54,15 @@ def network_guarantees(topology: Any, P: float, D: float, tau1: float, tau2: flo
     network
         The simulated network; None is the ideal one.
     """
+    from delayform.errors import NotConvergedError
+
+    try:
+        return _guarantees(topology, P, D, tau1, tau2, network)
+    except NotConvergedError as exc:  # a certificate that did not converge certifies nothing
+        return (Guarantee("certificates", None, f"could not be computed: {exc}"),)
+
+
+def _guarantees(topology: Any, P: float, D: float, tau1: float, tau2: float, network: Any) -> tuple[Guarantee, ...]:
     from delayform.analysis.network import jitter_margin, link_dominant_root, mean_square_stability
     from delayform.simulation.network import BernoulliLoss
 

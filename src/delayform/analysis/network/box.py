@@ -52,7 +52,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from delayform.analysis.network.links import LinkTeam, link_team
 from delayform.analysis.network.per_link import dominant_of_team
-from delayform.errors import DelayError
+from delayform.errors import DelayError, NotConvergedError
 from delayform.topology import Topology
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
@@ -136,7 +136,7 @@ def _omega_tail(P: float, D: float) -> float:
     return 1.01 * float(np.max(roots[np.abs(roots.imag) < 1e-9].real)) + 1e-9
 
 
-class _Box:
+class DelayBox:
     """The centre team and the per-link half-widths and upper ends of a box."""
 
     def __init__(self, centre: LinkTeam, h1: NDArray[np.float64], h2: NDArray[np.float64],
@@ -198,7 +198,7 @@ def _spectral_radius(X: NDArray[np.float64]) -> NDArray[np.float64]:
     return np.max(np.abs(np.linalg.eigvals(X)), axis=-1)
 
 
-def _bounds(box: _Box, w: NDArray[np.float64], deflated: bool) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def _bounds(box: DelayBox, w: NDArray[np.float64], deflated: bool) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Perron bounds at the samples and on the pieces between them, with Mh (deflated) or M itself."""
     if deflated:
         C, pert, lip = box.centre_matrix(w), box.perturbation, box.lipschitz
@@ -220,7 +220,7 @@ def _bounds(box: _Box, w: NDArray[np.float64], deflated: bool) -> tuple[NDArray[
     return point, piece
 
 
-def box_certificate(box: _Box) -> tuple[bool, float, float, str]:
+def box_certificate(box: DelayBox) -> tuple[bool, float, float, str]:
     """The frequency sweep of steps 3 and 4: (certified, margin, worst frequency, reason).
 
     Each piece passes with the bound of Mh, or with that of M itself (valid away
@@ -308,7 +308,7 @@ def robust_stability(
         return RobustStability("unstable", "exact per-link roots at the centre", "the centre of the box is unstable",
                                ends1, ends2, -math.inf, float("nan"), (_full(centre, centre.tau1), _full(centre, centre.tau2)),
                                nominal.root, 1)  # fmt: skip
-    box = _Box(centre, 0.5 * (high.tau1 - low.tau1), 0.5 * (high.tau2 - low.tau2), high.tau1, high.tau2)
+    box = DelayBox(centre, 0.5 * (high.tau1 - low.tau1), 0.5 * (high.tau2 - low.tau2), high.tau1, high.tau2)
     ok, margin, worst, reason = box_certificate(box)
     method = "zero exclusion on the imaginary axis with a Perron bound per link (docs/theory.md)"
     if ok:
@@ -321,7 +321,10 @@ def robust_stability(
     for f1, f2 in draws:
         t1 = low.tau1 + f1 * (high.tau1 - low.tau1)
         t2 = low.tau2 + f2 * (high.tau2 - low.tau2)
-        r = dominant_of_team(replace(centre, tau1=t1, tau2=t2))
+        try:
+            r = dominant_of_team(replace(centre, tau1=t1, tau2=t2))
+        except NotConvergedError:  # an assignment that could not be certified is no witness either way
+            continue
         checked += 1
         if not r.is_stable:
             return RobustStability("unstable", "an unstable assignment found by exact per-link roots", reason,

@@ -52,7 +52,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from delayform.analysis.network.box import _Box
+from delayform.analysis.network.box import DelayBox
 from delayform.analysis.network.links import LinkTeam, link_team
 from delayform.analysis.network.per_link import dominant_of_team
 from delayform.errors import DelayError, NotConvergedError
@@ -133,7 +133,7 @@ class _Loop:
         self.e = float(np.linalg.norm(self.E, 2))
         self.hf = float(np.linalg.norm(self.Sel[L:] @ self.E, 2))  # the high-frequency gain
         self.c2 = float(np.linalg.norm(team.C, 2))
-        self.box = _Box(team, np.zeros(L), np.zeros(L), team.tau1, team.tau2)
+        self.box = DelayBox(team, np.zeros(L), np.zeros(L), team.tau1, team.tau2)
 
     def _out(self, w: NDArray[np.float64]) -> NDArray[np.complex128]:
         # iw on position channels (z = velocity), (iw)^2 on velocity channels (z = acceleration)
