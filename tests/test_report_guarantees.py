@@ -53,3 +53,20 @@ def test_a_diverging_run_under_a_holding_certificate_is_reported():
     assert len(bugs) == 1 and "run 1" in bugs[0]
     assert contradictions(gs, ("settled", "not settled")) == []
     assert np.all([isinstance(b, str) for b in bugs])
+
+
+def test_the_explorer_serves_the_certified_jitter_margin(tmp_path):
+    import json
+    import urllib.request
+
+    from delayform.analysis.network import jitter_margin
+    from delayform.app import Explorer, start
+    from delayform.scenario import paper_scenario
+
+    with start(Explorer(paper_scenario(), out_dir=tmp_path)) as running:
+        with urllib.request.urlopen(f"{running.url}api/guarantee?tau1=0.3&tau2=0.2", timeout=60) as r:
+            got = json.loads(r.read())
+        with urllib.request.urlopen(f"{running.url}api/guarantee?tau1=1&tau2=2", timeout=60) as r:
+            unstable = json.loads(r.read())
+    assert abs(got["jitter_margin"] - jitter_margin(paper_six(), 1.0, 0.5, 0.3, 0.2).delta) < 1e-12
+    assert unstable["jitter_margin"] == 0.0
