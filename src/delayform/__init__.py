@@ -116,6 +116,17 @@ _EXPORTS: dict[str, str] = {
     "write_mcap": "deploy.recording",
     "robot_check": "report.check",
     "RobotCheck": "report.check",
+    # guarantees for real networks (issue 20)
+    "link_dominant_root": "analysis.network",
+    "LinkDominantRoot": "analysis.network",
+    "robust_stability": "analysis.network",
+    "RobustStability": "analysis.network",
+    "jitter_margin": "analysis.network",
+    "jitter_margin_map": "analysis.network",
+    "JitterMargin": "analysis.network",
+    "JitterMarginMap": "analysis.network",
+    "mean_square_stability": "analysis.network",
+    "MeanSquareStability": "analysis.network",
 }
 
 __all__ = sorted(_EXPORTS) + ["errors", "__version__"]

@@ -44,6 +44,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from delayform._files import atomic_path
 from delayform.analysis.ctcr.stability_map import StabilityMap, stability_map
+from delayform.analysis.network import JitterMargin, jitter_margin
 from delayform.analysis.roots.team_roots import factor_roots_in
 from delayform.analysis.roots.dominant import DominantRoot, dominant_root, roots_in
 from delayform.analysis.roots.single import delay_reach
@@ -170,6 +171,33 @@ class PointReport(_AtPoint):
             "growth_rate": max(root.real, 0.0),
             "dominant_factor": self.dominant.factor.describe(),
         }  # fmt: skip
+
+
+@dataclass(frozen=True, eq=False)
+class GuaranteeReport(_AtPoint):
+    """What is certified at one clicked delay pair beyond the chart (issue 20).
+
+    Attributes
+    ----------
+    P, D, tau1, tau2
+        The gains and delays.
+    jitter
+        The certified jitter margin there
+        (:func:`~delayform.analysis.network.jitter_margin`), or None for teams
+        above :data:`GUARANTEE_AGENTS` agents (its cost grows as N^4).
+    """
+
+    jitter: JitterMargin | None
+
+    def as_json(self) -> dict[str, Any]:
+        """``jitter_margin`` in seconds (0 where the point is unstable; None when not computed)."""
+        m = self.jitter
+        return self._where() | {"jitter_margin": None if m is None else m.delta,
+                                "jitter_method": None if m is None else m.method}  # fmt: skip
+
+
+#: the explorer certifies a jitter margin for teams up to this size
+GUARANTEE_AGENTS = 30
 
 
 @dataclass(frozen=True, eq=False)
@@ -519,6 +547,21 @@ class Explorer:
         self._check_bandwidth(P, D, max(tau1, tau2), "tau1, tau2", roots=True)
         count = int(self._map_covering(P, D, tau1, tau2).unstable_count(tau1, tau2))
         return PointReport(P, D, tau1, tau2, count, dominant_root(self.scenario.topology, P, D, tau1, tau2))
+
+    def guarantee(self, P: float, D: float, tau1: float, tau2: float) -> GuaranteeReport:
+        """The certified jitter margin at one delay pair (issue 20), for teams up to :data:`GUARANTEE_AGENTS`.
+
+        Parameters
+        ----------
+        P, D
+            Gains of eq. protocol.
+        tau1, tau2
+            The nominal delays.
+        """
+        self._check_bandwidth(P, D, max(tau1, tau2), "tau1, tau2")
+        team = self.scenario.topology
+        margin = jitter_margin(team, P, D, tau1, tau2) if team.n <= GUARANTEE_AGENTS else None
+        return GuaranteeReport(P, D, tau1, tau2, margin)
 
     def roots(self, P: float, D: float, tau1: float, tau2: float) -> RootsReport:
         """The roots of every factor in a window around the imaginary axis and the dominant root.

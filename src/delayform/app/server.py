@@ -8,6 +8,7 @@ Endpoints (all ``GET``; every number is checked by :mod:`delayform.app.params`):
     /api/scenario              the scenario, the limits, the defaults of every parameter
     /api/chart                 P, D, tau1_max, tau2_max, grid -> exact curves and NU shading
     /api/point                 tau1, tau2 [, P, D] -> stable, unstable_count, dominant_root [re, im]
+    /api/guarantee             tau1, tau2 [, P, D] -> jitter_margin (s, certified; issue 20)
     /api/roots                 tau1, tau2 [, P, D] -> the roots of every factor near the imaginary axis
     /api/region                tau1, tau2 [, P, D] -> the eigenvalue plane: boundary curve L(j omega),
                                NU(lam) on a grid, the team's eigenvalues of C with their NU
@@ -238,6 +239,7 @@ def create_app(explorer: Explorer) -> Any:
         Route("/api/chart", json_endpoint(explorer.chart_params, explorer.chart)),
         Route("/api/point", json_endpoint(explorer.point_params, explorer.point)),
         Route("/api/roots", json_endpoint(explorer.point_params, explorer.roots)),
+        Route("/api/guarantee", json_endpoint(explorer.point_params, explorer.guarantee)),
         Route("/api/region", json_endpoint(explorer.point_params, explorer.region)),
         Route("/api/simulate", json_endpoint(explorer.animation_params, explorer.animation)),
         Route("/download/scenario.toml", file_endpoint(explorer.scenario_file, "application/toml")),

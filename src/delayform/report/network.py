@@ -111,6 +111,7 @@ def montecarlo_section(
     save_npz(out / "montecarlo.npz", times=mc.times, errors=mc.errors, settling_times=mc.settling_times)
     files.append("montecarlo.npz")
     where = "given" if scenario.initial.positions is not None else "random (one draw per run)"
+    table, summary, bugs = _beside_guarantees(scenario, net, mc)
     return Section(
         key="montecarlo",
         title=f"Monte Carlo over the network: {runs} runs at (tau1, tau2) = ({scenario.tau1:g}, {scenario.tau2:g}) s",
@@ -118,7 +119,9 @@ def montecarlo_section(
             f"{runs} runs of the {scenario.topology.n} agents ({sim.model}, {sim.duration:g} s, step {sim.dt:g} s) "
             f"from {where} initial positions, each with its own draw of the network "
             f"({'ideal' if net is None else net.describe(scenario.topology.adjacency)}); seeds from SeedSequence({seed}).spawn({runs}), "
-            "so the numbers are the same whichever way the runs are spread over workers."
+            "so the numbers are the same whichever way the runs are spread over workers. "
+            "The certificates that apply to this network are listed beside what the runs observed"
+            + (f"; BUG: {'; '.join(bugs)}" if bugs else ".")
         ),
         figures=(
             Figure("montecarlo_bands", "Formation error over time",
@@ -126,10 +129,29 @@ def montecarlo_section(
             Figure("montecarlo_histograms", "Distributions",
                    "Histograms over the runs of the settling time, the final formation error and the peak command."),
         ),  # fmt: skip
-        table=mc.table(),
-        summary=mc.summary(),
+        table=table,
+        summary=summary,
         files=tuple(files),
     )
+
+
+#: the certificates beside a Monte Carlo are computed for teams up to this size (their cost grows as N^4)
+GUARANTEE_AGENTS = 30
+
+
+def _beside_guarantees(scenario: Scenario, net: Any, mc: Any) -> tuple[tuple[tuple[str, str], ...], dict[str, Any], list[str]]:
+    """The Monte Carlo table and summary with the applicable certificates (issue 20) and any contradiction."""
+    from delayform.report.guarantees import contradictions, guarantee_rows, network_guarantees, summary_of
+
+    summary = dict(mc.summary())
+    if scenario.topology.n > GUARANTEE_AGENTS:
+        summary["guarantees"] = []
+        return mc.table() + (("certificates", f"not computed above {GUARANTEE_AGENTS} agents"),), summary, []
+    gs = network_guarantees(scenario.topology, scenario.P, scenario.D, scenario.tau1, scenario.tau2, net)
+    bugs = contradictions(gs, mc.statuses)
+    summary["guarantees"] = summary_of(gs)
+    summary["contradictions"] = bugs
+    return mc.table() + guarantee_rows(gs), summary, bugs
 
 
 def scenario_setup(scenario: Scenario) -> Any:

@@ -38,6 +38,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from delayform._validation import check_delay, check_gains
+from delayform.analysis.network.per_link import LinkDominantRoot, link_dominant_root
 from delayform.analysis.roots.family.solve import family_grid, family_rightmost
 from delayform.analysis.roots.problem import MAX_DEGREE, RESIDUAL_TOL, _Problem, _problem_of_factor, _problem_of_qp
 from delayform.analysis.roots.single import (  # noqa: F401 - the roots of one quasi-polynomial, re-exported
@@ -210,8 +211,15 @@ def _factors_of(topology: Topology, P: float, D: float) -> tuple[CharacteristicF
     return factors(topology, P, D)
 
 
-def dominant_root(topology: Topology, P: float, D: float, tau1: float, tau2: float) -> DominantRoot:
+def dominant_root(
+    topology: Topology, P: float, D: float, tau1: float | ArrayLike, tau2: float | ArrayLike
+) -> DominantRoot | LinkDominantRoot:
     """The dominant root of the formation and its time constant.
+
+    With N x N arrays of per-link delays (``tau1[i, k]``: what agent i hears
+    from k) the answer is the certified dominant root of det of the N x N matrix
+    quasi-polynomial, a :class:`~delayform.analysis.network.LinkDominantRoot`
+    (:mod:`delayform.analysis.network.per_link`).
 
     Parameters
     ----------
@@ -220,11 +228,12 @@ def dominant_root(topology: Topology, P: float, D: float, tau1: float, tau2: flo
     P, D
         Positive gains of eq. protocol.
     tau1, tau2
-        Non-negative delays on positions and velocities.
+        Non-negative delays on positions and velocities, or N x N arrays of
+        per-link delays (entries without a link ignored).
 
     Returns
     -------
-    DominantRoot
+    DominantRoot or LinkDominantRoot
         The rightmost root over the factors of eq. factorized, excluding the
         persistent root 0 of eq. factor1 (its other roots count).
 
@@ -235,6 +244,8 @@ def dominant_root(topology: Topology, P: float, D: float, tau1: float, tau2: flo
     >>> r.is_stable, round(r.root.real, 4)
     (False, 0.0836)
     """
+    if np.ndim(tau1) or np.ndim(tau2):  # per-link delays: the matrix quasi-polynomial, no factorization
+        return link_dominant_root(topology, P, D, tau1, tau2)
     t1, t2 = check_delay("tau1", tau1), check_delay("tau2", tau2)
     fs = _checked_factors(topology, P, D)
     # all factors in one batch (one stacked discretization, one vectorized certificate)

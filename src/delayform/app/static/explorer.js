@@ -129,6 +129,13 @@ async function selectPoint(p) {
   $("point-ms").textContent = `${ms.toFixed(0)} ms`;
   document.body.dataset.pointMs = ms.toFixed(1);
   document.body.dataset.point = `${p.tau1},${p.tau2}`;
+  // what is certified beyond the chart: any per-link delay variation within +-delta (issue 20)
+  $("jitter-margin").textContent = "\u2026";
+  getJSON("/api/guarantee", { ...p, ...gains() }).then((g) => {
+    if (seq !== state.pointSeq) return;
+    $("jitter-margin").textContent = g.jitter_margin === null ? "not computed (team too large)"
+      : g.jitter_margin === 0 ? "0 (unstable)" : `\u00b1${fmt(g.jitter_margin, 3)} s, any variation`;
+  }).catch((err) => { if (seq === state.pointSeq) $("jitter-margin").textContent = err.message; });
   // then the roots near the axis (a certified count per factor), the eigenvalue plane and the robots' run
   try {
     const roots = await getJSON("/api/roots", { ...p, ...gains() });

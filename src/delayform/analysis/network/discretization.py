@@ -1,0 +1,114 @@
+"""Seeds for the per-link roots: Chebyshev collocation of the 2N-state DDE's generator.
+
+The state of eq. protocol with per-link delays is z = (x, x') in R^{2N} with
+
+    x' = v,   v_i' = -P x_i - D v_i + sum_k C_ik (P x_k(t - tau1_ik) + D v_k(t - tau2_ik)).
+
+Its infinitesimal generator acts on the history z(theta), theta in [-h, 0]
+(h the longest delay). Collocating the history at the M + 1 Chebyshev points
+theta_j = h (x_j - 1) / 2, x_j = cos(j pi / M) (Breda, Maset & Vermiglio,
+SIAM J. Sci. Comput. 2005) gives a matrix of size 2N (M + 1) whose rightmost
+eigenvalues converge spectrally to the rightmost characteristic roots: the rows
+j >= 1 are the differentiation matrix, row 0 is the DDE itself with each
+delayed value read by barycentric interpolation at theta = -tau_ik. Only the
+links enter row 0, so the matrix is sparse for a sparse team; its eigenvalues
+are seeds, polished on det M(s) (:mod:`delayform.analysis.network.per_link`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.linalg as sla
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+from numpy.typing import NDArray
+
+from delayform.analysis.network.links import LinkTeam
+
+__all__ = ["generator_matrix", "generator_seeds"]
+
+#: Above this many states the eigenvalues come from shift-and-invert Arnoldi, not a dense solve.
+DENSE_STATES = 900
+
+
+def _nodes(M: int) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Chebyshev points x_j = cos(j pi / M), their barycentric weights and differentiation matrix."""
+    j = np.arange(M + 1)
+    x = np.cos(np.pi * j / M)
+    w = (-1.0) ** j
+    w[[0, -1]] *= 0.5
+    dx = x[:, None] - x[None, :]
+    np.fill_diagonal(dx, 1.0)
+    Dm = (w[None, :] / w[:, None]) / dx
+    np.fill_diagonal(Dm, 0.0)
+    np.fill_diagonal(Dm, -Dm.sum(axis=1))  # rows of a differentiation matrix annihilate constants
+    return x, w, Dm
+
+
+def _interpolation_rows(x: NDArray[np.float64], w: NDArray[np.float64], xq: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Barycentric Lagrange basis at the points xq: shape (len(xq), M + 1)."""
+    diff = xq[:, None] - x[None, :]
+    exact = np.isclose(diff, 0.0, atol=1e-15)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        terms = w[None, :] / diff
+        rows = terms / terms.sum(axis=1, keepdims=True)
+    hit = exact.any(axis=1)
+    rows[hit] = exact[hit].astype(np.float64)
+    return rows
+
+
+def generator_matrix(team: LinkTeam, M: int) -> sp.csr_array:
+    """The collocated generator of ``team`` (module docstring) as a sparse matrix of size 2N (M + 1).
+
+    Unknowns ordered node-major: block j holds z(theta_j) = (x, v).
+    """
+    n = team.n
+    m = 2 * n
+    h = max(team.max_delay, 1e-12)
+    x, w, Dm = _nodes(M)
+    scale = 2.0 / h  # d/dtheta = (2 / h) d/dx
+    blocks = sp.kron(sp.csr_array(scale * Dm[1:, :]), sp.eye(m, format="csr"), format="coo")
+    r = [blocks.row + m, ]
+    c = [blocks.col, ]
+    v = [blocks.data, ]
+    idx = np.arange(n)
+    # row 0: the DDE at theta = 0 (own state undelayed, eq. protocol)
+    r += [idx, n + idx, n + idx]
+    c += [n + idx, idx, n + idx]
+    v += [np.ones(n), np.full(n, -team.P), np.full(n, -team.D)]
+    for taus, gain, comp in ((team.tau1, team.P, 0), (team.tau2, team.D, n)):
+        L = _interpolation_rows(x, w, 1.0 - 2.0 * taus / h)  # theta = -tau  <->  x = 1 - 2 tau / h
+        jj, nodes = np.nonzero(L)
+        r.append(n + team.rows[jj])
+        c.append(nodes * m + comp + team.cols[jj])
+        v.append(gain * team.weights[jj] * L[jj, nodes])
+    size = m * (M + 1)
+    A = sp.coo_array((np.concatenate(v), (np.concatenate(r), np.concatenate(c))), shape=(size, size))
+    return A.tocsr()
+
+
+def generator_seeds(team: LinkTeam, M: int, radius: float) -> NDArray[np.complex128]:
+    """Eigenvalues of the generator of ``team`` collocated at M + 1 points, with |s| <= radius (conjugates included).
+
+    Dense for small problems; otherwise shift-and-invert Arnoldi at shifts along
+    the imaginary axis 0 <= Im s <= radius (sparse LU of the generator), which
+    finds the eigenvalues nearest each shift: the ones near the axis, where the
+    dominant roots are.
+    """
+    A = generator_matrix(team, M)
+    size = A.shape[0]
+    if size <= DENSE_STATES:
+        vals = sla.eigvals(A.toarray(), check_finite=False)
+    else:
+        k = min(40, size - 2)
+        shifts = np.linspace(0.0, radius, max(2, int(np.ceil(radius / 0.75)) + 1))
+        found = []
+        for sig in shifts:
+            op = spla.splu((A - sig * 1j * sp.eye(size, format="csc")).astype(np.complex128).tocsc())
+            lin = spla.LinearOperator((size, size), matvec=op.solve, dtype=np.complex128)
+            mu = spla.eigs(lin, k=k, which="LM", return_eigenvectors=False, tol=1e-10, maxiter=2000)
+            found.append(sig * 1j + 1.0 / mu)
+        vals = np.concatenate(found)
+        vals = np.concatenate([vals, vals.conj()])
+    vals = vals[np.isfinite(vals)]
+    return vals[np.abs(vals) <= radius]

@@ -1,0 +1,119 @@
+"""Guarantees for real networks (issue 20): links, box, jitter.
+
+Each command prints its certificate (text, or JSON with ``--json``) and writes
+no file, so a rejected input leaves nothing behind. Per-link delays come from
+``--tau1-file`` / ``--tau2-file``: an N x N matrix as CSV (comma-separated) or
+``.npy``, entry ``[i, k]`` for what agent i receives from agent k.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import click
+
+from delayform.cli._common import NON_NEGATIVE, FloatTuple, _scenario, cli, team_options
+
+__all__ = ["links_command", "box_command", "jitter_command"]
+
+
+def _matrix_file(path: Path | None, name: str) -> Any:
+    """An N x N delay matrix from CSV or .npy, or None; one-line errors."""
+    if path is None:
+        return None
+    import numpy as np
+
+    from delayform.errors import DelayError
+
+    if not path.is_file():
+        raise DelayError(f"{name}: {path} is not a file")
+    try:
+        arr = np.load(path) if path.suffix == ".npy" else np.loadtxt(path, delimiter=",", ndmin=2)
+    except (ValueError, OSError, EOFError) as exc:
+        raise DelayError(f"{name}: {path} is not a matrix of numbers ({str(exc).splitlines()[0]})") from None
+    return np.asarray(arr, dtype=np.float64)
+
+
+def _delays(overrides: dict[str, Any], tau1_file: Path | None, tau2_file: Path | None) -> tuple[Any, Any, Any]:
+    sc = _scenario(None if overrides.get("scenario") is None else overrides["scenario"],
+                   **{k: v for k, v in overrides.items() if k != "scenario"})  # fmt: skip
+    t1 = _matrix_file(tau1_file, "--tau1-file")
+    t2 = _matrix_file(tau2_file, "--tau2-file")
+    return sc, sc.tau1 if t1 is None else t1, sc.tau2 if t2 is None else t2
+
+
+def _delay_options(func: Any) -> Any:
+    for option in reversed([
+        click.option("--tau1", type=NON_NEGATIVE, help="Position delay on every link (overrides the scenario)."),
+        click.option("--tau2", type=NON_NEGATIVE, help="Velocity delay on every link (overrides the scenario)."),
+        click.option("--tau1-file", type=click.Path(path_type=Path), help="Per-link position delays: N x N CSV or .npy."),
+        click.option("--tau2-file", type=click.Path(path_type=Path), help="Per-link velocity delays: N x N CSV or .npy."),
+    ]):  # fmt: skip
+        func = option(func)
+    return func
+
+
+@cli.command("links")
+@team_options
+@_delay_options
+def links_command(scenario: Path | None, as_json: bool, tau1_file: Path | None, tau2_file: Path | None,
+                  **overrides: Any) -> None:  # fmt: skip
+    """The certified dominant root with per-link constant delays (det of the N x N matrix)."""
+    from delayform.analysis.network import link_dominant_root
+
+    sc, t1, t2 = _delays({"scenario": scenario, **overrides}, tau1_file, tau2_file)
+    r = link_dominant_root(sc.topology, sc.P, sc.D, t1, t2)
+    summary = {"dominant_root": [r.root.real, r.root.imag], "stable": r.is_stable, "time_constant_s": r.time_constant if r.is_stable else None,
+               "certified_line": r.line, "roots_right_of_line": r.count, "drift": r.drift}  # fmt: skip
+    if as_json:
+        click.echo(json.dumps(summary, indent=2))
+        return
+    verdict = "stable" if r.is_stable else "UNSTABLE"
+    click.echo(f"dominant root {r.root.real:.6f} {r.root.imag:+.6f}j: {verdict} "
+               f"(certified: {r.count} roots right of Re s = {r.line:.4f}, the centroid's zero included)")  # fmt: skip
+
+
+@cli.command("box")
+@team_options
+@click.option("--tau1-box", type=FloatTuple(2, minimum=0.0), required=True, help="LO,HI of every position delay.")
+@click.option("--tau2-box", type=FloatTuple(2, minimum=0.0), required=True, help="LO,HI of every velocity delay.")
+def box_command(scenario: Path | None, as_json: bool, tau1_box: tuple[float, float], tau2_box: tuple[float, float],
+                **overrides: Any) -> None:  # fmt: skip
+    """Is the team stable for every constant per-link assignment in the box? (certified / unstable / undecided)."""
+    from delayform.analysis.network import robust_stability
+
+    sc = _scenario(scenario, **overrides)
+    for name, (lo, hi) in (("--tau1-box", tau1_box), ("--tau2-box", tau2_box)):
+        if lo > hi:
+            raise click.BadParameter(f"LO = {lo:g} > HI = {hi:g}", param_hint=name)
+    r = robust_stability(sc.topology, sc.P, sc.D, tau1_box, tau2_box)
+    if as_json:
+        click.echo(json.dumps({"status": r.status, "method": r.method, "reason": r.reason, "margin": r.margin,
+                               "checked": r.checked,
+                               "witness_root": None if r.witness_root is None else [r.witness_root.real, r.witness_root.imag]},
+                              indent=2))  # fmt: skip
+        return
+    click.echo(f"{r.status}: {r.method}" + (f"; {r.reason}" if r.reason else ""))
+
+
+@cli.command("jitter")
+@team_options
+@_delay_options
+def jitter_command(scenario: Path | None, as_json: bool, tau1_file: Path | None, tau2_file: Path | None,
+                   **overrides: Any) -> None:  # fmt: skip
+    """The certified jitter margin: every delay may vary in [tau - delta, tau + delta], per link, arbitrarily fast."""
+    from delayform.analysis.network import jitter_margin
+    from delayform.errors import DelayError
+
+    sc, t1, t2 = _delays({"scenario": scenario, **overrides}, tau1_file, tau2_file)
+    m = jitter_margin(sc.topology, sc.P, sc.D, t1, t2)
+    if not m.nominal_stable:
+        raise DelayError(f"the nominal delays are unstable (dominant root {m.nominal_root.real:.4g} "
+                         f"{m.nominal_root.imag:+.4g}j): there is no jitter margin to certify")  # fmt: skip
+    if as_json:
+        click.echo(json.dumps({"delta_s": m.delta, "gain": m.gain, "peak_frequency": m.peak_frequency,
+                               "scaled": m.scaled, "method": m.method}, indent=2))  # fmt: skip
+        return
+    click.echo(f"jitter margin delta = {m.delta:.4g} s ({m.method}; loop gain <= {m.gain:.4g})")

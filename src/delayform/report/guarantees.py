@@ -1,0 +1,133 @@
+"""What is guaranteed beside what was observed (issue 20, part 5).
+
+:func:`network_guarantees` lists the certificates of
+:mod:`delayform.analysis.network` that apply to a scenario's network: the exact
+per-link dominant root for per-link constant delays, the jitter margin for jitter
+and smooth variations, exact mean-square stability for independent loss with
+sampling and delays that are whole multiples of the period. :func:`contradictions`
+sets them against Monte Carlo runs: a run that diverges where a certificate says
+stable is a bug (of the certificate or of the simulator), never an accepted outcome.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+__all__ = ["Guarantee", "network_guarantees", "contradictions", "guarantee_rows", "summary_of"]
+
+
+@dataclass(frozen=True)
+class Guarantee:
+    """One certificate about the scenario's network.
+
+    Attributes
+    ----------
+    name
+        What is certified.
+    holds
+        True when it guarantees the runs converge; False when it proves
+        instability; None when it does not cover this network.
+    detail
+        One sentence with the numbers.
+    """
+
+    name: str
+    holds: bool | None
+    detail: str
+
+
+def _link_delays(net: Any, tau1: float, tau2: float) -> tuple[Any, Any]:
+    d = getattr(net, "delays", None)
+    if d is None or (d.tau1 is None and d.tau2 is None):
+        return tau1, tau2
+    return (tau1 if d.tau1 is None else d.tau1), (tau2 if d.tau2 is None else d.tau2)
+
+
+def network_guarantees(topology: Any, P: float, D: float, tau1: float, tau2: float, network: Any) -> tuple[Guarantee, ...]:
+    """The certificates that apply to ``network`` (a :class:`~delayform.simulation.network.Network` or None).
+
+    Parameters
+    ----------
+    topology, P, D, tau1, tau2
+        The team, its gains and its nominal delays.
+    network
+        The simulated network; None is the ideal one.
+    """
+    from delayform.errors import NotConvergedError
+
+    try:
+        return _guarantees(topology, P, D, tau1, tau2, network)
+    except NotConvergedError as exc:  # a certificate that did not converge certifies nothing
+        return (Guarantee("certificates", None, f"could not be computed: {exc}"),)
+
+
+def _guarantees(topology: Any, P: float, D: float, tau1: float, tau2: float, network: Any) -> tuple[Guarantee, ...]:
+    from delayform.analysis.network import jitter_margin, link_dominant_root, mean_square_stability
+    from delayform.simulation.network import BernoulliLoss
+
+    out: list[Guarantee] = []
+    t1, t2 = _link_delays(network, tau1, tau2)
+    spread = getattr(getattr(network, "delays", None), "spread", 0.0) or 0.0
+    if spread:
+        out.append(Guarantee("per-link delays", None, "delays drawn per run (spread): use robust_stability on their box"))
+    root = link_dominant_root(topology, P, D, t1, t2)
+    varies = network is not None and any(
+        getattr(network, part, None) is not None and not getattr(network, part).is_off
+        for part in ("jitter", "variation", "loss", "noise")
+    ) or getattr(network, "sampling", None) is not None
+    # the constant-delay root covers the runs only when nothing varies; instability it proves anyway
+    out.append(Guarantee("constant delays (exact, per link)", root.is_stable if not varies else (None if root.is_stable else False),
+                         f"dominant root {root.root.real:.4g} {root.root.imag:+.4g}j, certified"
+                         + (" (covers constant delays only)" if varies else "")))  # fmt: skip
+    jit, var = getattr(network, "jitter", None), getattr(network, "variation", None)
+    size = max([0.0] + [getattr(jit, a, 0.0) for a in ("bound1", "bound2")]
+               + [getattr(var, a, 0.0) for a in ("amplitude1", "amplitude2")])  # fmt: skip
+    if size > 0.0 and root.is_stable:
+        m = jitter_margin(topology, P, D, t1, t2)
+        covered = size <= m.delta
+        out.append(Guarantee("time-varying delays (jitter margin)", True if covered else None,
+                             f"certified for any variation within +-{m.delta:.4g} s; this network varies by "
+                             f"+-{size:.4g} s: {'covered' if covered else 'not covered'}"))  # fmt: skip
+    loss, sampling = getattr(network, "loss", None), getattr(network, "sampling", None)
+    lossy = loss is not None and not loss.is_off
+    if sampling is not None or lossy:
+        if sampling is None or size > 0.0 or spread or not (loss is None or isinstance(loss, BernoulliLoss)):
+            out.append(Guarantee("sampling and loss (mean square)", None,
+                                 "exact only for Sampling with independent (Bernoulli) loss, without jitter or variation"))  # fmt: skip
+        else:
+            p = 0.0 if loss is None else loss.probability
+            try:
+                ms = mean_square_stability(topology, P, D, t1, t2, rate=sampling.rate, loss=p)
+            except ValueError as exc:  # delays not whole multiples of the period
+                out.append(Guarantee("sampling and loss (mean square)", None, str(exc)))
+            else:
+                rate = f"expected decay rate {ms.decay_rate:.4g} 1/s" if ms.stable else "not mean-square stable"
+                out.append(Guarantee("sampling and loss (mean square, exact)", ms.stable,
+                                     f"rho = {ms.rho:.6f} per period, {rate}"))  # fmt: skip
+    return tuple(out)
+
+
+def contradictions(guarantees: tuple[Guarantee, ...], statuses: tuple[str, ...]) -> list[str]:
+    """Runs that diverged although a certificate guarantees convergence (each one a bug).
+
+    ``statuses`` are the runs' :attr:`~delayform.simulation.Trajectory.status` values.
+    Only the certificates that cover the whole network count: the constant-delay
+    root alone does not, when jitter, variation or loss are present.
+    """
+    covering = [g for g in guarantees if g.holds is True]
+    diverged = [k for k, s in enumerate(statuses) if s == "diverging"]
+    if not diverged:
+        return []
+    return [f"run {k} diverged although '{g.name}' holds ({g.detail})" for g in covering for k in diverged]
+
+
+def guarantee_rows(guarantees: tuple[Guarantee, ...]) -> tuple[tuple[str, str], ...]:
+    """Table rows ``(certificate, verdict: detail)``, one per entry of ``guarantees``."""
+    word = {True: "guaranteed", False: "proven unstable", None: "not covered"}
+    return tuple((f"certificate: {g.name}", f"{word[g.holds]}: {g.detail}") for g in guarantees)
+
+
+def summary_of(guarantees: tuple[Guarantee, ...]) -> list[dict[str, Any]]:
+    """JSON-ready list of ``guarantees``."""
+    return [{"name": g.name, "holds": g.holds, "detail": g.detail} for g in guarantees]
