@@ -21,6 +21,7 @@ from delayform.analysis.ctcr.phase import (
     _three_term_paths,
     _PhasePath,
 )
+from delayform.analysis.ctcr.degenerate import crossing_changes, vertex_tendencies
 from delayform.characteristic import TwoDelayQuasiPolynomial
 
 # ===================================================================== results
@@ -88,8 +89,10 @@ def _tendency(
     """(RT1, RT2) = sgn Re ds/dtau_k at s = j omega (Definition "Root Tendency").
 
     Unchecked delays, because curve polylines may run a little past the axes.
+    0 at a multiple root: its crossing is decided where the count meets it
+    (:mod:`delayform.analysis.ctcr.degenerate`).
     """
-    return qp.root_tendencies(omega, t1, t2)
+    return vertex_tendencies(qp, omega, t1, t2)
 
 
 
@@ -259,8 +262,7 @@ def _axis_crossings(parts: list[_Part], window: tuple[float, float], *, axis: in
                 if tau <= 1e-12 * tmax or tau > tmax:
                     continue
                 t1, t2 = (np.array([0.0]), np.array([tau])) if axis == 2 else (np.array([tau]), np.array([0.0]))
-                rt1, rt2 = _tendency(part.qp, np.array([om]), t1, t2)
-                rt = rt2 if axis == 2 else rt1
+                rt = crossing_changes(part.qp, np.array([om]), t1, t2, delay=axis)
                 where.append(tau)
                 delta.append(part.weight * int(rt[0]))
     order = np.argsort(where)
