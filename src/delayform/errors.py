@@ -24,6 +24,7 @@ The tree::
     |   +-- ScenarioError                  a TOML scenario file
     |   +-- ResourceLimitError             a job larger than the machine's memory or time budget
     +-- NotConvergedError (RuntimeError)   carries the partial result
+    +-- EssentialSpectrumError (RuntimeError)  neutral: no root right of the essential spectrum
 """
 
 from __future__ import annotations
@@ -48,6 +49,7 @@ __all__ = [
     "ScenarioError",
     "ResourceLimitError",
     "NotConvergedError",
+    "EssentialSpectrumError",
 ]
 
 
@@ -142,3 +144,23 @@ class NotConvergedError(DelayformError, RuntimeError):
 
 class NoStableGainsError(GainError):
     """No gains within the bounds given to gain design make the team converge."""
+
+
+class EssentialSpectrumError(DelayformError, RuntimeError):
+    """A neutral system whose rightmost root does not lie right of its essential spectrum.
+
+    The supremum of the real parts of the roots is then the essential
+    abscissa C_D of the difference operator (or a root lies within the
+    search margin of it), so there is no rightmost root to return.
+
+    Parameters
+    ----------
+    message
+        What was asked and the abscissa.
+    abscissa
+        C_D, the robust abscissa of the essential spectrum.
+    """
+
+    def __init__(self, message: str, abscissa: float) -> None:
+        super().__init__(message)
+        self.abscissa = abscissa

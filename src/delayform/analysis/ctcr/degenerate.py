@@ -85,7 +85,15 @@ def _derivatives(
 def degenerate_mask(
     qp: TwoDelayQuasiPolynomial, omega: NDArray[np.float64], t1: NDArray[np.float64], t2: NDArray[np.float64]
 ) -> NDArray[np.bool_]:
-    """True where ``j omega`` is a multiple root of q at (t1, t2): ``|dq/ds|`` is rounding noise."""
+    """True where ``j omega`` is a multiple root of q at (t1, t2): ``|dq/ds|`` is rounding noise.
+
+    Parameters
+    ----------
+    qp
+        The traced quasi-polynomial.
+    omega, t1, t2
+        Crossing frequencies and delay pairs (broadcasting).
+    """
     dq_ds, _, _, scale = _derivatives(qp, omega, t1, t2)
     return ~(np.abs(dq_ds) > DOUBLE_ROOT_TOL * scale)
 
@@ -94,6 +102,13 @@ def vertex_tendencies(
     qp: TwoDelayQuasiPolynomial, omega: NDArray[np.float64], t1: NDArray[np.float64], t2: NDArray[np.float64]
 ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     """(RT1, RT2) at curve vertices; 0 at multiple roots, whose sign the quotient does not give.
+
+    Parameters
+    ----------
+    qp
+        The traced quasi-polynomial.
+    omega, t1, t2
+        Crossing frequencies and delay pairs (broadcasting).
 
     A 0 makes the CTCR count decide the crossing at the crossing point itself
     (:func:`crossing_changes`), as it already does for touching roots.
@@ -111,6 +126,15 @@ def crossing_changes(
     *, delay: int,
 ) -> NDArray[np.int64]:
     """Change of the number of roots right of the axis near ``j omega`` as tau_k grows through (t1, t2).
+
+    Parameters
+    ----------
+    qp
+        The traced quasi-polynomial.
+    omega, t1, t2
+        Crossing frequencies and delay pairs (broadcasting).
+    delay
+        1 or 2: the delay that grows.
 
     ``sgn Re ds/dtau_k`` at a simple root that crosses; the count beside the
     point (:func:`local_change`) at a multiple root or a touching one.

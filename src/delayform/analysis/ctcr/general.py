@@ -131,7 +131,13 @@ class TermsQP:
 
 
 def as_traced(qp: QuasiPolynomial) -> TwoDelayQuasiPolynomial | TermsQP:
-    """The paper's form when q's terms are among eq. genfactor's six, else :class:`TermsQP`."""
+    """The paper's form when q's terms are among eq. genfactor's six, else :class:`TermsQP`.
+
+    Parameters
+    ----------
+    qp
+        A quasi-polynomial in two delays.
+    """
     if qp.n_delays != 2:
         raise QuasiPolynomialError(
             f"crossing_map needs a quasi-polynomial in two delays; this one has {qp.n_delays}"
@@ -142,7 +148,15 @@ def as_traced(qp: QuasiPolynomial) -> TwoDelayQuasiPolynomial | TermsQP:
 
 
 def collapse(qp: TwoDelayQuasiPolynomial | TermsQP, delay: int) -> list[NDArray[np.complex128]]:
-    """h_j(s) of ``q = sum_j h_j(s) z^j`` with the *other* delay set to zero (z = e^{-tau_delay s})."""
+    """h_j(s) of ``q = sum_j h_j(s) z^j`` with the *other* delay set to zero (z = e^{-tau_delay s}).
+
+    Parameters
+    ----------
+    qp
+        The two-delay quasi-polynomial.
+    delay
+        1 or 2: the delay kept; the other is zero.
+    """
     degs = [(a if delay == 1 else b) for _, a, b in qp.terms()]
     out = [np.zeros(0, complex) for _ in range(max(degs) + 1)]
     for (c, _, _), j in zip(qp.terms(), degs, strict=True):
@@ -244,7 +258,15 @@ def _polish_single(h: list[NDArray[np.complex128]], om: float, th: float) -> tup
 
 # ===================================================================== two delays (curves)
 def resultant_solutions(qp: TermsQP, omega: NDArray[np.float64]) -> list[NDArray[np.float64]]:
-    """All (theta1, theta2) on the torus with q(j omega) = 0 at each omega (module docstring)."""
+    """All (theta1, theta2) on the torus with q(j omega) = 0 at each omega (module docstring).
+
+    Parameters
+    ----------
+    qp
+        The quasi-polynomial by its terms.
+    omega
+        Frequencies.
+    """
     terms = qp.terms()
     K1 = max(a for _, a, _ in terms)
     K2 = max(b for _, _, b in terms)
@@ -298,7 +320,17 @@ def unit_circle_roots(poly: NDArray[np.complex128], rel_tol: float) -> NDArray[n
 
 
 def newton_phases(g: NDArray[np.complex128], mult: NDArray[np.float64], t1: float, t2: float) -> tuple[float, float] | None:
-    """Polish (theta1, theta2) on ``sum_k g_k e^{-j(a_k theta1 + b_k theta2)} = 0`` at one omega."""
+    """Polish (theta1, theta2) on ``sum_k g_k e^{-j(a_k theta1 + b_k theta2)} = 0`` at one omega.
+
+    Parameters
+    ----------
+    g
+        The terms' polynomials at j omega.
+    mult
+        Their delay multiples, one row (a, b) per term.
+    t1, t2
+        Starting phases.
+    """
     scale = float(np.sum(np.abs(g)))
     for _ in range(30):
         e = g * np.exp(-1j * (mult[:, 0] * t1 + mult[:, 1] * t2))

@@ -187,9 +187,10 @@ def roots_in(
     Parameters
     ----------
     qp
-        A retarded quasi-polynomial of eq. genfactor, or a factor of
+        A quasi-polynomial of eq. genfactor, or a factor of
         eq. factorized (for the centroid factor eq. factor1 the persistent
-        root 0 is *included*: this is the plain root set of q).
+        root 0 is *included*: this is the plain root set of q). A neutral
+        one is solved by :func:`delayform.analysis.neutral.neutral_roots_in`.
     tau1, tau2
         Non-negative delays.
     region
@@ -206,8 +207,6 @@ def roots_in(
 
     Raises
     ------
-    NeutralQuasiPolynomialError
-        For a quasi-polynomial of neutral type.
     ResourceLimitError
         When the rectangle reaches so far from the origin that the roots
         there cannot be resolved (|s| above about 2 MAX_DEGREE / largest delay).
@@ -226,6 +225,11 @@ def roots_in(
     """
     region = asked = _check_region(region)
     t1, t2 = check_delay("tau1", tau1), check_delay("tau2", tau2)
+    if _neutral(qp):  # hook: analysis/neutral (argument-principle subdivision)
+        from delayform.analysis.neutral.spectrum import neutral_roots_in  # imports roots: not at the top
+
+        r, m = neutral_roots_in(qp, t1, t2, region=region)  # type: ignore[arg-type]
+        return np.repeat(r, m)
     prob = _problem(qp)
     base = prob if not prob.deflate_zero else _Problem(prob.terms, prob.A, prob.delayed, prob.mirror)
     x0, x1, y0, y1 = region
@@ -343,6 +347,10 @@ def count_roots_right_of(
         When a root lies on (or within rounding of) the line.
     """
     t1, t2 = check_delay("tau1", tau1), check_delay("tau2", tau2)
+    if _neutral(qp):  # hook: analysis/neutral (only right of the essential spectrum)
+        from delayform.analysis.neutral.spectrum import neutral_count_right_of
+
+        return neutral_count_right_of(qp, t1, t2, c=float(c))  # type: ignore[arg-type]
     prob = _problem(qp)
     base = _Problem(prob.terms, prob.A, prob.delayed, prob.mirror)
     n = _count_right_single(base, t1, t2, float(c))
@@ -387,7 +395,16 @@ def rightmost_root(
     if isinstance(qp, CharacteristicFactor):  # a factor of eq. factorized: the vectorized family path
         _family_reach((qp,), t1, t2)
         return complex(family_rightmost((qp,), float(qp.P), float(qp.D), t1, t2)[0])
+    if _neutral(qp):  # hook: analysis/neutral (EssentialSpectrumError when none lies right of it)
+        from delayform.analysis.neutral.spectrum import neutral_rightmost_root
+
+        return neutral_rightmost_root(qp, t1, t2)  # type: ignore[arg-type]
     return _rightmost(_problem(qp), t1, t2)
+
+
+def _neutral(qp: object) -> bool:
+    """A neutral quasi-polynomial of eq. genfactor: solved by :mod:`delayform.analysis.neutral`."""
+    return isinstance(qp, TwoDelayQuasiPolynomial) and not qp.is_retarded
 
 
 def _rightmost(prob: _Problem, t1: float, t2: float) -> complex:
