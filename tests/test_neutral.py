@@ -151,3 +151,51 @@ def test_bad_input():
         neutral_roots_in(q, 1.0, region=(0, -1, 0, 1))
     with pytest.raises(DelayError):
         difference_operator(q).essential_abscissa(0.0)
+
+
+# ----------------------------------------------------------------------------- CTCR maps of neutral systems
+def _half_disk_reference(terms: dict, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Independent count: on Re s >= 0, |D| >= 1 - sum |c_k| (> 0 here), which bounds |s| of unstable roots."""
+    from ref_roots_ctcr import count_unstable_function
+
+    n = len(terms[(0, 0)]) - 1
+    lead = terms[(0, 0)][n]
+    c_sum = sum(abs(c[n] / lead) for k, c in terms.items() if any(k) and len(c) == n + 1)
+    assert c_sum < 1.0
+    low = sum(float(np.sum(np.abs(np.asarray(c)[:n]))) for c in terms.values())
+    R = 1.05 * max(1.0, low / (abs(lead) * (1.0 - c_sum))) + 1.0
+
+    def f(s, a, b):
+        return sum(pv(s, np.asarray(c, complex)) * np.exp(-(k[0] * a + k[1] * b) * s) for k, c in terms.items())
+
+    return count_unstable_function(f, R, x, y)
+
+
+@pytest.mark.parametrize("terms", [
+    {(0, 0): [3.0, 2.0, 1.0], (1, 0): [-2.0, 0.5, 0.3], (1, 2): [0.4, 0.0, -0.2], (0, 1): [0.0, 1.0, 0.1]},
+    {(0, 0): [1.0, 1.0], (1, 0): [0.0, 0.5], (0, 1): [-1.5, 0.2]},
+])
+def test_neutral_crossing_map_against_independent_count(terms):
+    from delayform.analysis.ctcr.stability_map import crossing_map, curve_residual
+
+    m = crossing_map(QuasiPolynomial(terms), 5.0, 5.0)
+    for c in m.curves:
+        assert np.all(curve_residual(m.traced[c.source], c) <= 1e-9)
+    rng = np.random.default_rng(4)
+    x, y = rng.uniform(0, 5, 150), rng.uniform(0, 5, 150)
+    ref, uncertain = _half_disk_reference(terms, x, y)
+    assert uncertain.sum() <= 7
+    np.testing.assert_array_equal(m.unstable_count(x, y)[~uncertain], ref[~uncertain])
+    assert len(np.unique(ref)) >= 2
+
+
+def test_neutral_crossing_map_refused_without_strong_stability():
+    from delayform.analysis.ctcr.stability_map import crossing_map
+    from delayform.characteristic import TwoDelayQuasiPolynomial
+    from delayform.errors import NeutralQuasiPolynomialError
+
+    with pytest.raises(NeutralQuasiPolynomialError, match="strongly stable"):
+        crossing_map(TwoDelayQuasiPolynomial([1.0, 1.0], [0.0, 1.5]), 1.0, 1.0)
+    with pytest.raises(NeutralQuasiPolynomialError, match="strongly stable"):
+        crossing_map(QuasiPolynomial({(0, 0): [1.0, 1], (1, 0): [0, 1.2], (2, 0): [0.3, 0.5], (1, 1): [0, -0.4]}),
+                     1.0, 1.0)

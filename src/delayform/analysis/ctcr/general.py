@@ -34,8 +34,9 @@ import numpy.polynomial.chebyshev as cheb
 import numpy.polynomial.polynomial as npoly
 from numpy.typing import ArrayLike, NDArray
 
+from delayform.analysis.neutral.difference import certified_polydisk_min, difference_operator
 from delayform.characteristic import DELAY_MULTIPLES, TwoDelayQuasiPolynomial
-from delayform.errors import QuasiPolynomialError
+from delayform.errors import NeutralQuasiPolynomialError, QuasiPolynomialError
 from delayform.quasipolynomial import QuasiPolynomial
 
 __all__ = ["TermsQP", "as_traced", "resultant_solutions", "unit_roots_single", "collapse", "newton_phases", "unit_circle_roots"]
@@ -53,8 +54,13 @@ class TermsQP:
         the principal term (0, 0) first.
     """
 
-    def __init__(self, terms: tuple[tuple[NDArray[np.complex128], int, int], ...]) -> None:
+    def __init__(
+        self, terms: tuple[tuple[NDArray[np.complex128], int, int], ...], *, crossing_bound: float | None = None
+    ) -> None:
         self._terms = tuple((np.asarray(c, np.complex128), int(a), int(b)) for c, a, b in terms)
+        #: for a neutral qp, the bound on crossing frequencies from its difference operator
+        #: (:func:`neutral_traced`); None: the retarded Cauchy-like bound
+        self.crossing_bound = crossing_bound
         if self._terms[0][1:] != (0, 0):
             raise QuasiPolynomialError("the principal term (0, 0) must come first")
 
@@ -96,7 +102,7 @@ class TermsQP:
 
     def conjugate(self) -> TermsQP:
         """conj(q(conj s)): its omega > 0 crossings are the omega < 0 crossings of q."""
-        return TermsQP(tuple((np.conj(c), a, b) for c, a, b in self._terms))
+        return TermsQP(tuple((np.conj(c), a, b) for c, a, b in self._terms), crossing_bound=self.crossing_bound)
 
     def evaluate(self, s: ArrayLike, tau1: ArrayLike, tau2: ArrayLike) -> NDArray[np.complex128]:
         """q(s) at the delays (broadcasting)."""
@@ -130,6 +136,39 @@ class TermsQP:
         return QuasiPolynomial({(a, b): c for c, a, b in self._terms}).describe()
 
 
+def neutral_traced(qp: QuasiPolynomial) -> TermsQP:
+    """A neutral two-delay qp prepared for CTCR, or NeutralQuasiPolynomialError when its D does not allow it.
+
+    CTCR counts roots where they cross the imaginary axis; a neutral system
+    can also gain roots from infinity. It cannot when the difference operator
+    D is strongly stable for every delay pair (D zero-free on the closed unit
+    polydisk, certified by :func:`~delayform.analysis.neutral.difference.certified_polydisk_min`
+    with a lower bound delta of |D| there). Then on the axis
+    ``|q(j omega)| >= |p_0[n]| delta omega^n - sum_{i<n} sum_k |p_k[i]| omega^i``,
+    so every crossing frequency is below
+    ``max(1, sum_{i<n} sum_k |p_k[i]| / (|p_0[n]| delta))``, the bound the
+    curves and axes are traced to.
+
+    Parameters
+    ----------
+    qp
+        A neutral quasi-polynomial in two delays.
+    """
+    D = difference_operator(qp)
+    delta = certified_polydisk_min(D)
+    if not delta > 0.0:
+        raise NeutralQuasiPolynomialError(
+            "the quasi-polynomial is neutral and its difference operator is not certified strongly stable for "
+            "every delay pair (D has, or may have, a zero in the closed unit polydisk): roots can reach the "
+            "right half-plane from infinity, which a crossing map does not see; use neutral_spectrum at "
+            "given delays instead"
+        )
+    n = qp.degree
+    low = sum(float(np.sum(np.abs(c[:n]))) for c in qp.terms.values())
+    bound = max(1.0, low / (abs(qp.principal[n]) * delta)) * (1.0 + 1e-9)
+    return TermsQP(tuple((c, k[0], k[1]) for k, c in qp.terms.items()), crossing_bound=bound)
+
+
 def as_traced(qp: QuasiPolynomial) -> TwoDelayQuasiPolynomial | TermsQP:
     """The paper's form when q's terms are among eq. genfactor's six, else :class:`TermsQP`.
 
@@ -142,6 +181,8 @@ def as_traced(qp: QuasiPolynomial) -> TwoDelayQuasiPolynomial | TermsQP:
         raise QuasiPolynomialError(
             f"crossing_map needs a quasi-polynomial in two delays; this one has {qp.n_delays}"
         )
+    if qp.is_neutral:
+        return neutral_traced(qp)
     if all(k in DELAY_MULTIPLES for k in qp.terms):
         return qp.to_two_delay()
     return TermsQP(tuple((c, k[0], k[1]) for k, c in qp.terms.items()))
@@ -168,7 +209,9 @@ def collapse(qp: TwoDelayQuasiPolynomial | TermsQP, delay: int) -> list[NDArray[
 
 
 def omega_bound(qp: TwoDelayQuasiPolynomial | TermsQP) -> float:
-    """Bound on |s| of every root with Re s >= 0 (Cauchy-like; see phase._omega_bound)."""
+    """Bound on |s| of every root with Re s >= 0 (Cauchy-like; see phase._omega_bound; a neutral qp's own)."""
+    if isinstance(qp, TermsQP) and qp.crossing_bound is not None:
+        return qp.crossing_bound
     d = qp.degree
     lower = np.zeros(d + 1)
     for c in qp.coefficients:
@@ -190,13 +233,24 @@ def _sylvester(p: NDArray, q: NDArray) -> NDArray:
     return S
 
 
-def unit_roots_single(h: list[NDArray[np.complex128]]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """omega > 0 and theta in [0, 2 pi) with ``sum_j h_j(j omega) e^{-j j theta} = 0`` (module docstring)."""
+def unit_roots_single(
+    h: list[NDArray[np.complex128]], bound: float | None = None
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """omega > 0 and theta in [0, 2 pi) with ``sum_j h_j(j omega) e^{-j j theta} = 0`` (module docstring).
+
+    Parameters
+    ----------
+    h
+        ``h_j``, coefficients ascending in s, one per power of z.
+    bound
+        Bound on the crossing frequencies (None: the retarded Cauchy-like one).
+    """
     K = len(h) - 1
     if K < 1 or all(c.size == 0 for c in h[1:]):
         return np.zeros(0), np.zeros(0)
     n = max(c.size for c in h) - 1
-    bound = omega_bound(TermsQP(tuple((c if c.size else np.zeros(1, complex), j, 0) for j, c in enumerate(h))))
+    if bound is None:
+        bound = omega_bound(TermsQP(tuple((c if c.size else np.zeros(1, complex), j, 0) for j, c in enumerate(h))))
     W = 1.5 * bound
     deg = 2 * K * max(n, 1)
     N = 2 * deg + 8

@@ -112,6 +112,8 @@ def _omega_bound(qp: TwoDelayQuasiPolynomial) -> float:
     coefficients gives a polynomial with one sign change (Descartes), whose
     positive root bounds |s| for every pair of delays.
     """
+    if isinstance(qp, TermsQP) and qp.crossing_bound is not None:
+        return qp.crossing_bound  # a neutral qp: the bound of its difference operator
     coeffs = qp.coefficients
     d = qp.degree
     lower = np.zeros(d + 1)

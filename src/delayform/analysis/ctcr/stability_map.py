@@ -390,7 +390,9 @@ def crossing_map(qp: TwoDelayQuasiPolynomial | QuasiPolynomial, tau1_max: float,
     Raises
     ------
     NeutralQuasiPolynomialError
-        When a delayed term has the degree of g1.
+        For a neutral qp whose difference operator is not certified strongly
+        stable for every delay pair (:func:`~delayform.analysis.ctcr.general.neutral_traced`);
+        a neutral qp whose difference operator is gets its map.
     DelayError
         When the window is not positive and finite.
     ResourceLimitError
@@ -404,12 +406,11 @@ def crossing_map(qp: TwoDelayQuasiPolynomial | QuasiPolynomial, tau1_max: float,
     >>> int(m.unstable_count(0.1, 0.1)), bool(m.is_stable(0.1, 0.1))
     (0, True)
     """
+    if isinstance(qp, TwoDelayQuasiPolynomial) and not qp.is_retarded:
+        qp = QuasiPolynomial.from_two_delay(qp)  # neutral: the general path with D's frequency bound
     if isinstance(qp, QuasiPolynomial):
-        qp.require_retarded()
         qp = as_traced(qp)  # type: ignore[assignment]
-    elif isinstance(qp, TwoDelayQuasiPolynomial):
-        qp.require_retarded()
-    else:
+    elif not isinstance(qp, TwoDelayQuasiPolynomial):
         raise QuasiPolynomialError(
             f"qp must be a QuasiPolynomial in two delays or a TwoDelayQuasiPolynomial, got {type(qp).__name__}"
         )

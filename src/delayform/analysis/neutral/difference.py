@@ -57,7 +57,7 @@ from delayform.characteristic import TwoDelayQuasiPolynomial
 from delayform.errors import DelayError, QuasiPolynomialError
 from delayform.quasipolynomial import QuasiPolynomial
 
-__all__ = ["DifferenceOperator", "difference_operator", "as_general"]
+__all__ = ["DifferenceOperator", "difference_operator", "as_general", "certified_min_modulus", "certified_polydisk_min"]
 
 #: Phases of theta_2 sampled before refining the best one.
 _PHASES = 256
@@ -134,6 +134,15 @@ class DifferenceOperator:
                 )
         return t
 
+    def one_delay_polynomial(self) -> NDArray[np.complex128]:
+        """D as a polynomial in the one delay's z (ascending), when only one delay occurs in D."""
+        (i,) = self.involved
+        poly = np.zeros(max(k[i] for k in self.exponents) + 1, complex)
+        poly[0] = 1.0
+        for k, c in zip(self.exponents, self.coefficients, strict=True):
+            poly[k[i]] += c
+        return np.trim_zeros(poly, "b")
+
     def hale_bound(self, *taus: float) -> float:
         """The r with ``sum_k |c_k| e^{-r k.tau} = 1``: D has no zero with real part above it."""
         t = self._check(taus)
@@ -164,12 +173,7 @@ class DifferenceOperator:
             return -np.inf
         if len(inv) == 1:
             i = inv[0]
-            K = max(k[i] for k in self.exponents)
-            poly = np.zeros(K + 1, complex)
-            poly[0] = 1.0
-            for k, c in zip(self.exponents, self.coefficients, strict=True):
-                poly[k[i]] += c
-            roots = np.roots(np.trim_zeros(poly, "b")[::-1])
+            roots = np.roots(self.one_delay_polynomial()[::-1])
             if roots.size == 0:
                 return -np.inf
             return float(np.max(-np.log(np.abs(roots))) / t[i])
@@ -266,9 +270,11 @@ def _z1_moduli(D: DifferenceOperator, t: NDArray, inv: tuple[int, int], r: NDArr
 
 def _largest_r(D: DifferenceOperator, t: NDArray, inv: tuple[int, int], th2: NDArray, top: float) -> NDArray:
     """Per phase, the largest r <= top with g(r) = 0 (g = _z1_moduli), NaN when none above the scan's end."""
-    span = 40.0 / min(t[i] for i in inv)
-    rs = top - np.linspace(0.0, span, 801)
-    g = _z1_moduli(D, t, inv, rs[:, None], th2[None, :])  # (nr, nth)
+    # 40 e-foldings of the shorter delay below the Hale bound, but never where e^{-r tau} overflows
+    bottom = max(top - 40.0 / min(t[i] for i in inv), -600.0 / max(t[i] for i in inv))
+    rs = np.linspace(top, bottom, 801)
+    with np.errstate(all="ignore"):  # a vanishing leading coefficient sends a root to infinity (NaN, skipped)
+        g = _z1_moduli(D, t, inv, rs[:, None], th2[None, :])  # (nr, nth)
     pos = g >= 0.0
     first = np.argmax(pos, axis=0)
     found = pos[first, np.arange(th2.size)]
@@ -281,7 +287,8 @@ def _largest_r(D: DifferenceOperator, t: NDArray, inv: tuple[int, int], th2: NDA
     hi, lo = rs[i - 1], rs[i]  # g(hi) < 0 <= g(lo), bisected for all phases at once
     for _ in range(60):
         mid = 0.5 * (lo + hi)
-        up = _z1_moduli(D, t, inv, mid, th2[j]) >= 0.0
+        with np.errstate(all="ignore"):
+            up = _z1_moduli(D, t, inv, mid, th2[j]) >= 0.0
         lo = np.where(up, mid, lo)
         hi = np.where(up, hi, mid)
     out[j] = lo
@@ -342,28 +349,91 @@ def certified_min_modulus(D: DifferenceOperator, t: NDArray[np.float64], r0: flo
     grids = np.meshgrid(r0 + rw * (2 * np.arange(n_r) + 1), *([tw * (2 * np.arange(n_th) + 1)] * J), indexing="ij")
     centre = np.stack([g.ravel() for g in grids], -1)  # (cells, 1 + J)
     half = np.tile(np.array([rw] + [tw] * J), (centre.shape[0], 1))
-    best = np.inf
-    spent = 0
+    def value_and_slack(centre: NDArray, half: NDArray) -> tuple[NDArray, NDArray]:
+        r, th = centre[:, :1], centre[:, 1:]
+        w = a * np.exp(-(r - half[:, :1]) * h)  # (cells, terms): moduli of the terms at the cell's lowest r
+        vals = 1.0 + np.sum(coef * np.exp(-r * h + 1j * (th @ ks.T)), axis=-1)
+        slack = np.sum(w * h, axis=-1) * half[:, 0] + np.sum((w @ np.abs(ks)) * half[:, 1:], axis=-1)
+        return np.abs(vals), slack
+
+    best = _certify_cells(centre, half, value_and_slack)
+    return min(best, 0.5)
+
+
+def certified_polydisk_min(D: DifferenceOperator) -> float:
+    """A certified lower bound of |D| on the closed unit polydisk ``|z_i| <= 1``; <= 0 when none was found.
+
+    Positive exactly when D is strongly stable for *every* choice of delays
+    (``C_D(tau) < 0`` for all tau: the radii ``e^{-r tau_i}``, r >= 0, sweep
+    the polydisk), the condition under which a CTCR map of a neutral system
+    counts roots only where they cross the imaginary axis (none comes from
+    infinity into the right half-plane). One delay: D's roots, exactly
+    (``|D(z)| >= |lead| prod (|z_i| - 1)``). Two: cells over the moduli
+    ``rho in [0, 1]^2`` and the phases, with Lipschitz bounds as in
+    :func:`certified_min_modulus`. More: not attempted (0).
+    """
+    if D.is_trivial:
+        return 1.0
+    inv = list(D.involved)
+    if len(inv) == 1:
+        poly = D.one_delay_polynomial()
+        roots = np.roots(poly[::-1])
+        if roots.size == 0:
+            return 1.0
+        if np.any(np.abs(roots) <= 1.0):
+            return 0.0
+        return float(abs(poly[-1]) * np.prod(np.abs(roots) - 1.0))
+    if len(inv) > 2:
+        return 0.0
+    # a zero in the polydisk shows as C_D >= 0 along some direction of the delays: look at a few first
+    for u in ((1.0, 1.0), (1.0, 0.2), (0.2, 1.0), (1.0, 0.02), (0.02, 1.0)):
+        taus = np.ones(D.n_delays)
+        taus[inv] = u
+        if D.essential_abscissa(*taus) >= 0.0:
+            return 0.0
+    coef = np.array(D.coefficients)
+    a = np.abs(coef)
+    ks = np.array(D.exponents, float)[:, inv]  # (terms, 2)
+    n_rho, n_th = 8, 32
+    g_rho = (2 * np.arange(n_rho) + 1) / (2 * n_rho)
+    g_th = np.pi * (2 * np.arange(n_th) + 1) / n_th
+    grids = np.meshgrid(g_rho, g_rho, g_th, g_th, indexing="ij")
+    centre = np.stack([g.ravel() for g in grids], -1)  # (rho1, rho2, th1, th2)
+    half = np.tile([0.5 / n_rho, 0.5 / n_rho, np.pi / n_th, np.pi / n_th], (centre.shape[0], 1))
+
+    def value_and_slack(centre: NDArray, half: NDArray) -> tuple[NDArray, NDArray]:
+        rho, th = centre[:, :2], centre[:, 2:]
+        hi = np.minimum(rho + half[:, :2], 1.0)
+        mono = np.prod(rho[:, None, :] ** ks[None, :, :], axis=-1)  # (cells, terms)
+        vals = 1.0 + np.sum(coef * mono * np.exp(1j * (th @ ks.T)), axis=-1)
+        # |d/d rho_i| <= sum |c| k_i (rho <= 1);  |d/d theta_i| <= sum |c| k_i rho_hi^k
+        top = np.prod(hi[:, None, :] ** ks[None, :, :], axis=-1) * a  # (cells, terms)
+        slack = np.sum((a @ ks)[None, :] * half[:, :2], axis=-1) + np.sum((top @ ks) * half[:, 2:], axis=-1)
+        return np.abs(vals), slack
+
+    best = _certify_cells(centre, half, value_and_slack)
+    return min(best, 1.0)
+
+
+def _certify_cells(centre: NDArray, half: NDArray, value_and_slack: object) -> float:
+    """min over cells of ``|D(centre)| - slack``, splitting cells until each passes; 0 past the budget.
+
+    A cell passes once its slack is under 3/4 of |D| at its centre, so the
+    bound is within a factor 4 of the true minimum instead of barely positive.
+    A failing cell is split in half along every axis.
+    """
+    dim = centre.shape[1]
+    signs = np.array(np.meshgrid(*([[-0.5, 0.5]] * dim), indexing="ij")).reshape(dim, -1).T
+    best, spent = np.inf, 0
     while centre.shape[0]:
         spent += centre.shape[0]
         if spent > _CERT_BUDGET:
             return 0.0
-        r, th = centre[:, :1], centre[:, 1:]
-        lo_r = r - half[:, :1]
-        w = a * np.exp(-lo_r * h)  # (cells, terms): moduli of the terms at the cell's lowest r
-        vals = 1.0 + np.sum(coef * np.exp(-r * h + 1j * (th @ ks.T)), axis=-1)
-        slack = np.sum(w * h, axis=-1) * half[:, 0] + np.sum((w @ np.abs(ks)) * half[:, 1:], axis=-1)
-        bound = np.abs(vals) - slack
-        # accept a cell once its slack is under 3/4 of |D| there: the bound is then
-        # within a factor 4 of the true minimum instead of barely positive
-        ok = bound >= 0.25 * np.abs(vals)
+        value, slack = value_and_slack(centre, half)  # type: ignore[operator]
+        ok = value - slack >= 0.25 * value
         if np.any(ok):
-            best = min(best, float(bound[ok].min()))
+            best = min(best, float((value - slack)[ok].min()))
         centre, half = centre[~ok], half[~ok]
-        if centre.shape[0] == 0:
-            break
-        # split every failing cell in half along each axis (2^(1+J) children)
-        signs = np.array(np.meshgrid(*([[-0.5, 0.5]] * (1 + J)), indexing="ij")).reshape(1 + J, -1).T
-        centre = (centre[:, None, :] + signs[None, :, :] * half[:, None, :]).reshape(-1, 1 + J)
+        centre = (centre[:, None, :] + signs[None, :, :] * half[:, None, :]).reshape(-1, dim)
         half = np.repeat(half / 2.0, signs.shape[0], axis=0)
-    return min(best, 0.5)
+    return best
