@@ -156,9 +156,21 @@ def crossing_changes(
     # a delay absent from q moves nothing: dq/dtau_k = 0 identically
     if not any((a if delay == 1 else b) for _, a, b in qp.terms()):
         return np.zeros(omega.shape, np.int64)
-    for i in np.flatnonzero(undecided.ravel()):
+    # when q does not contain the other delay (one-delay qps: every horizontal path meets the
+    # same vertical line), the change does not depend on it: count once per (omega, tau_k)
+    other_absent = not any((b if delay == 1 else a) for _, a, b in qp.terms())
+    flat = np.flatnonzero(undecided.ravel())
+    seen: dict[tuple[float, ...], int] = {}
+    for i in flat:
         idx = np.unravel_index(i, omega.shape)
-        out[idx] = local_change(qp, float(omega[idx]), float(t1[idx]), float(t2[idx]), delay=delay)
+        w, a1, a2 = float(omega[idx]), float(t1[idx]), float(t2[idx])
+        if other_absent:
+            a2 = 0.0 if delay == 1 else a2
+            a1 = 0.0 if delay == 2 else a1
+        key = (round(w, 9), round(a1, 9), round(a2, 9))
+        if key not in seen:
+            seen[key] = local_change(qp, w, a1, a2, delay=delay)
+        out[idx] = seen[key]
     return out.astype(np.int64)
 
 

@@ -54,8 +54,9 @@ __all__ = ["NeutralSpectrum", "neutral_spectrum", "neutral_roots_in", "neutral_r
 
 _NEWTON = 60
 _RESIDUAL = 1e-10
-#: Margins right of C_D tried by the rightmost root, relative to max(1, |C_D|).
-_MARGINS = (0.1, 0.01, 1e-3)
+#: Margins right of C_D tried by the rightmost root, relative to max(1, |C_D|); each search
+#: after the first covers only the strip left of the previous line.
+_MARGINS = (0.1, 0.03, 0.01, 1e-3)
 #: Largest half-height times longest delay of the rectangle searched for the rightmost root.
 _MAX_REACH = 5e3
 #: Most boxes one search may open (a guard against a region holding very many roots).
@@ -271,6 +272,9 @@ def neutral_rightmost_root(qp: QuasiPolynomial | TwoDelayQuasiPolynomial, *taus:
         box = _search_box(g, D, taus, sigma0)
         if box is None:
             continue
+        if searched is not None:
+            # right of the last line searched there is no root: only the strip between is new
+            box = (box[0], searched, box[2], box[3])
         try:
             found = _roots_in(g, taus, box)
         except NotConvergedError:
