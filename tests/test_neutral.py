@@ -199,3 +199,10 @@ def test_neutral_crossing_map_refused_without_strong_stability():
     with pytest.raises(NeutralQuasiPolynomialError, match="strongly stable"):
         crossing_map(QuasiPolynomial({(0, 0): [1.0, 1], (1, 0): [0, 1.2], (2, 0): [0.3, 0.5], (1, 1): [0, -0.4]}),
                      1.0, 1.0)
+
+
+def test_stability_claim_uses_the_line_actually_searched():
+    """No rightmost root: stable only because no root lies right of the certified line, which is < 0."""
+    with pytest.raises(EssentialSpectrumError) as err:
+        neutral_rightmost_root(_product(1.0, 0.5), 2.0)
+    assert err.value.line is not None and err.value.abscissa < err.value.line < 0.0

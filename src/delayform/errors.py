@@ -159,8 +159,12 @@ class EssentialSpectrumError(DelayformError, RuntimeError):
         What was asked and the abscissa.
     abscissa
         C_D, the robust abscissa of the essential spectrum.
+    line
+        The abscissa right of which no root was certified to lie (C_D plus
+        the search margin); None when the question was about a line left of C_D.
     """
 
-    def __init__(self, message: str, abscissa: float) -> None:
+    def __init__(self, message: str, abscissa: float, line: float | None = None) -> None:
         super().__init__(message)
         self.abscissa = abscissa
+        self.line = line

@@ -294,7 +294,7 @@ def neutral_rightmost_root(qp: QuasiPolynomial | TwoDelayQuasiPolynomial, *taus:
     raise EssentialSpectrumError(
         f"no root lies right of Re s = {searched:.12g}, just right of the essential spectrum, whose abscissa "
         f"is C_D = {cD:.12g}: the supremum of the real parts of the roots is C_D (or a root between the two)",
-        abscissa=cD,
+        abscissa=cD, line=searched,
     )
 
 
@@ -410,20 +410,19 @@ def neutral_spectrum(qp: QuasiPolynomial | TwoDelayQuasiPolynomial, *taus: float
     D = difference_operator(g)
     strong = D.strongly_stable(*taus)
     cD = D.essential_abscissa(*taus)
-    searched = True
+    line: float | None = None  # no root right of it (certified), when no rightmost root is found
     try:
         right: complex | None = neutral_rightmost_root(g, *taus)
-    except EssentialSpectrumError:
-        right = None
+    except EssentialSpectrumError as err:
+        right, line = None, err.line
     except NotConvergedError:
-        right, searched = None, False
+        right = None
     if strong is False or (right is not None and right.real >= 0.0):
         stable: bool | None = False
     elif strong is True:
-        # no root right of C_D + 1e-3 margin is left of 0 ... unless none was found at all:
-        # then every root has Re s <= C_D + margin, and that must be < 0 to say stable
-        bound = right.real if right is not None else cD + _MARGINS[-1] * max(1.0, abs(cD))
-        stable = True if (searched and bound < 0.0) else None
+        # the rightmost root when found; otherwise every root lies left of the line searched
+        bound = right.real if right is not None else line
+        stable = True if (bound is not None and bound < 0.0) else None
     else:
         stable = None
     return NeutralSpectrum(g.is_neutral, D, cD, D.hale_bound(*taus), strong, right, stable)
