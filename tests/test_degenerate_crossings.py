@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from delayform.analysis.ctcr.degenerate import crossing_changes, degenerate_mask, local_change
 from delayform.analysis.ctcr.stability_map import crossing_map
@@ -129,3 +131,15 @@ def test_random_double_roots_counted_right(seed, two):
     keep = ~uncertain
     assert keep.sum() >= 12
     np.testing.assert_array_equal(got[keep], ref[keep])
+
+
+@settings(max_examples=6, deadline=None, derandomize=True)
+@given(seed=st.integers(0, 10_000), omega=st.floats(0.5, 3.0), tau=st.floats(0.4, 1.6))
+def test_property_built_double_roots_one_delay(seed, omega, tau):
+    """Any one-delay real qp with q = q' = 0 at (j omega, tau): NU right on both sides of the double crossing."""
+    q = _double_root_qp(seed, omega, tau, 0.0, two=False)
+    m = crossing_map(q, 2.0, 1.0)
+    x = np.array([tau - 1e-3, tau + 1e-3, tau - 0.05, tau + 0.05])
+    ref, uncertain = _reference(q, x, np.full(x.size, 0.5))
+    got = m.unstable_count(x, 0.5)
+    np.testing.assert_array_equal(got[~uncertain], ref[~uncertain])
