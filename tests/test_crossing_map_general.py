@@ -94,3 +94,22 @@ def test_refusals():
         crossing_map(QuasiPolynomial({(0, 0, 0): [1.0, 1.0], (1, 0, 1): [0.5]}), 1.0, 1.0)
     with pytest.raises(QuasiPolynomialError):
         crossing_map("s + 1", 1.0, 1.0)
+
+
+@pytest.mark.parametrize("seed", [7, 11])
+def test_matrix_dde_two_delays_against_the_determinant(seed):
+    """x' = A0 x + A1 x(t - tau1) + A2 x(t - tau2), 3 x 3 (the form of Haag 2009 Ex. 7/8): terms up to
+    z1^3, z1 z2^2, z1^2 z2; NU against a winding of det(sI - A0 - A1 z1 - A2 z2) (no expansion used)."""
+    from ref_roots_ctcr import count_unstable
+
+    rng = np.random.default_rng(seed)
+    A0 = np.array([[-2.0, 0.5, 0.0], [0.3, -1.5, 0.4], [0.0, 0.2, -1.0]])
+    A1 = rng.normal(size=(3, 3)) * 0.7
+    A2 = rng.normal(size=(3, 3)) * 0.7
+    q = QuasiPolynomial.from_matrices(A0, A1, A2)
+    assert isinstance(as_traced(q), TermsQP) and (1, 2) in q.terms  # beyond eq. genfactor's six terms
+    m = crossing_map(q, 4.0, 4.0)
+    x, y = rng.uniform(0, 4, 120), rng.uniform(0, 4, 120)
+    ref, uncertain = count_unstable(A0, A1, A2, x, y)
+    assert uncertain.sum() <= 6
+    np.testing.assert_array_equal(m.unstable_count(x, y)[~uncertain], ref[~uncertain])
