@@ -306,8 +306,9 @@ def test_curve_kinds_and_tendencies(paper_map: StabilityMap) -> None:
 
 # ----------------------------------------------------------------------------- errors
 def test_errors() -> None:
+    # neutral with a difference operator 1 + 1.5 z1 that is not strongly stable (tests/test_neutral.py)
     with pytest.raises(NeutralQuasiPolynomialError):
-        crossing_map(TwoDelayQuasiPolynomial([1.0, 1.0], [0.0, 0.5]), 1.0, 1.0)
+        crossing_map(TwoDelayQuasiPolynomial([1.0, 1.0], [0.0, 1.5]), 1.0, 1.0)
     qp = TwoDelayQuasiPolynomial([1.0, 0.5, 1.0], [-0.5], [0.0, -0.25])
     for bad in (0.0, -1.0, float("inf"), float("nan")):
         with pytest.raises(DelayError):

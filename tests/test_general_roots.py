@@ -24,7 +24,7 @@ from delayform import QuasiPolynomial, TwoDelayQuasiPolynomial, count_roots_righ
 from delayform.analysis.roots.single import relative_residual
 from delayform.characteristic import characteristic_matrix, factors
 from delayform.analysis.roots.dominant import dominant_root
-from delayform.errors import DelayError, InputError, NeutralQuasiPolynomialError, QuasiPolynomialError
+from delayform.errors import DelayError, InputError, QuasiPolynomialError
 from delayform.topology import paper_six
 
 
@@ -269,8 +269,13 @@ def test_messages_name_what_was_given() -> None:
     with pytest.raises(InputError, match="Re s = c"):
         count_roots_right_of(q, 1.0, 2.0, 3.0, float("nan"))
     neutral = QuasiPolynomial({(0,): [1.0, 1.0], (1,): [0.0, 0.5]})
-    with pytest.raises(NeutralQuasiPolynomialError, match="neutral"):
-        rightmost_root(neutral, 1.0)
+    # a neutral one is answered by analysis/neutral (tests/test_neutral.py): s + 1 + 0.5 s e^{-s} has its
+    # rightmost root on the reals, right of the essential spectrum Re s = ln 0.5 (brentq on the real function)
+    from scipy.optimize import brentq
+    real_root = brentq(lambda x: x + 1.0 + 0.5 * x * np.exp(-x), -0.69, 0.0, xtol=1e-15)
+    assert abs(rightmost_root(neutral, 1.0) - real_root) < 1e-12
+    with pytest.raises(InputError, match="delay"):
+        rightmost_root(neutral, 1.0, 2.0)
     with pytest.raises(InputError, match="QuasiPolynomial"):
         rightmost_root([1.0, 2.0], 1.0)  # type: ignore[arg-type]
     with pytest.raises(QuasiPolynomialError) as info:

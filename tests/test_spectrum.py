@@ -20,7 +20,6 @@ from delayform.characteristic import TwoDelayQuasiPolynomial, factors, full_char
 from delayform.errors import (
     DelayError,
     InputError,
-    NeutralQuasiPolynomialError,
     NoSpanningTreeError,
     NotConvergedError,
 )
@@ -273,8 +272,11 @@ def test_bad_inputs_raise_named_errors() -> None:
         roots_in(qp, 1.0, 1.0, (0.0, 1.0, -1.0))
     with pytest.raises(DelayError, match="tau1"):
         rightmost_root(qp, -1.0, 1.0)
-    with pytest.raises(NeutralQuasiPolynomialError):
-        rightmost_root(TwoDelayQuasiPolynomial([1.0, 1.0], [0.0, 0.5]), 1.0, 1.0)
+    # neutral (s + 1 + 0.5 s e^{-s}) is answered by analysis/neutral: its real root right of
+    # the essential spectrum Re s = ln 0.5 (the root of s + 1 + 0.5 s e^{-s} on the reals, brentq)
+    from scipy.optimize import brentq
+    real_root = brentq(lambda x: x + 1.0 + 0.5 * x * np.exp(-x), -0.69, 0.0, xtol=1e-15)
+    assert abs(rightmost_root(TwoDelayQuasiPolynomial([1.0, 1.0], [0.0, 0.5]), 1.0, 1.0) - real_root) < 1e-12
     with pytest.raises(DelayError, match="non-empty"):
         dominant_root_map(team, P, D, [], [1.0])
     with pytest.raises(DelayError, match="must not exceed"):

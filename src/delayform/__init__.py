@@ -127,6 +127,14 @@ _EXPORTS: dict[str, str] = {
     "JitterMarginMap": "analysis.network",
     "mean_square_stability": "analysis.network",
     "MeanSquareStability": "analysis.network",
+    # neutral quasi-polynomials (issue 19, item 5)
+    "difference_operator": "analysis.neutral",
+    "DifferenceOperator": "analysis.neutral",
+    "neutral_spectrum": "analysis.neutral",
+    "NeutralSpectrum": "analysis.neutral",
+    "neutral_roots_in": "analysis.neutral",
+    "neutral_rightmost_root": "analysis.neutral",
+    "neutral_count_right_of": "analysis.neutral",
 }
 
 __all__ = sorted(_EXPORTS) + ["errors", "__version__"]

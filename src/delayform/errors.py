@@ -27,6 +27,7 @@ The tree::
     |   +-- ControllerInputError           the on-robot controller: a bad state or message
     |   +-- RecordingError                 an MCAP recording that cannot be written there
     +-- NotConvergedError (RuntimeError)   carries the partial result
+    +-- EssentialSpectrumError (RuntimeError)  neutral: no root right of the essential spectrum
 """
 
 from __future__ import annotations
@@ -54,6 +55,7 @@ __all__ = [
     "RobotProfileError",
     "ControllerInputError",
     "RecordingError",
+    "EssentialSpectrumError",
 ]
 
 
@@ -160,3 +162,27 @@ class NotConvergedError(DelayformError, RuntimeError):
 
 class NoStableGainsError(GainError):
     """No gains within the bounds given to gain design make the team converge."""
+
+
+class EssentialSpectrumError(DelayformError, RuntimeError):
+    """A neutral system whose rightmost root does not lie right of its essential spectrum.
+
+    The supremum of the real parts of the roots is then the essential
+    abscissa C_D of the difference operator (or a root lies within the
+    search margin of it), so there is no rightmost root to return.
+
+    Parameters
+    ----------
+    message
+        What was asked and the abscissa.
+    abscissa
+        C_D, the robust abscissa of the essential spectrum.
+    line
+        The abscissa right of which no root was certified to lie (C_D plus
+        the search margin); None when the question was about a line left of C_D.
+    """
+
+    def __init__(self, message: str, abscissa: float, line: float | None = None) -> None:
+        super().__init__(message)
+        self.abscissa = abscissa
+        self.line = line

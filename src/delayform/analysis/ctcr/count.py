@@ -7,8 +7,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from delayform.analysis.ctcr.phase import _CHORD_TOL, _deriv, _horner
-from delayform.analysis.ctcr.curves import CrossingCurve, _tendency, _ZeroLine
+from delayform.analysis.ctcr.curves import CrossingCurve, _ZeroLine
+from delayform.analysis.ctcr.degenerate import crossing_changes
 from delayform.characteristic import TwoDelayQuasiPolynomial
+
+#: |det| of the crossing's Newton Jacobian below this fraction of its columns' product: singular.
+_SINGULAR = 1e-6
+
 
 # ===================================================================== counting helpers
 def _segment_table(curves: tuple[CrossingCurve, ...]) -> NDArray[np.float64]:
@@ -105,11 +110,17 @@ def _crossing_tendency(
     traced: tuple[TwoDelayQuasiPolynomial, ...], src: NDArray[np.int64], omega: NDArray[np.float64],
     tau1: NDArray[np.float64], tau2: NDArray[np.float64],
 ) -> NDArray[np.int64]:
-    """RT1 at crossing points (for segments whose ends disagree)."""
+    """RT1 at crossing points (segments whose ends disagree, touching or multiple roots).
+
+    At a degenerate point the change of NU is counted beside it
+    (:func:`~delayform.analysis.ctcr.degenerate.crossing_changes`); points
+    left of the tau2 axis are dropped by the caller and get 0.
+    """
     out = np.zeros(src.shape, np.int64)
     for k in np.unique(src):
-        sel = src == k
-        out[sel] = _tendency(traced[int(k)], omega[sel], tau1[sel], tau2[sel])[0]
+        sel = (src == k) & (tau1 > 0.0)
+        if np.any(sel):
+            out[sel] = crossing_changes(traced[int(k)], omega[sel], tau1[sel], tau2[sel], delay=1)
     return out
 
 
@@ -148,7 +159,9 @@ def _exact_crossing(
             with np.errstate(divide="ignore", invalid="ignore"):
                 d_om = (f.real * f1.imag - f1.real * f.imag) / det
                 d_t1 = (fo.real * f.imag - f.real * fo.imag) / det
-            ok = np.isfinite(d_om) & np.isfinite(d_t1)
+            # At a touching or multiple root the two columns are parallel (or zero): the
+            # crossing is then a flat zero of q and Newton drifts along it; keep the polyline.
+            ok = np.isfinite(d_om) & np.isfinite(d_t1) & (np.abs(det) > _SINGULAR * np.abs(fo) * np.abs(f1))
             om = np.where(ok, om - d_om, om)
             t1 = np.where(ok, t1 - d_t1, t1)
         s = 1j * om

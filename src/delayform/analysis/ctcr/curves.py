@@ -21,6 +21,8 @@ from delayform.analysis.ctcr.phase import (
     _three_term_paths,
     _PhasePath,
 )
+from delayform.analysis.ctcr.degenerate import crossing_changes, vertex_tendencies
+from delayform.analysis.ctcr.general import TermsQP, collapse, unit_roots_single
 from delayform.characteristic import TwoDelayQuasiPolynomial
 
 # ===================================================================== results
@@ -88,8 +90,10 @@ def _tendency(
     """(RT1, RT2) = sgn Re ds/dtau_k at s = j omega (Definition "Root Tendency").
 
     Unchecked delays, because curve polylines may run a little past the axes.
+    0 at a multiple root: its crossing is decided where the count meets it
+    (:mod:`delayform.analysis.ctcr.degenerate`).
     """
-    return qp.root_tendencies(omega, t1, t2)
+    return vertex_tendencies(qp, omega, t1, t2)
 
 
 
@@ -190,10 +194,14 @@ class _Part:
 
 def _conjugate(qp: TwoDelayQuasiPolynomial) -> TwoDelayQuasiPolynomial:
     """conj(q(conj s)): its omega > 0 crossings are the omega < 0 crossings of q."""
+    if isinstance(qp, TermsQP):
+        return qp.conjugate()  # type: ignore[return-value]
     return TwoDelayQuasiPolynomial(*(np.conj(c) for c in qp.coefficients))
 
 
 def _is_three_term(qp: TwoDelayQuasiPolynomial) -> bool:
+    if isinstance(qp, TermsQP):
+        return False
     return qp.g4.size == 0 and qp.g5.size == 0 and qp.g6.size == 0
 
 
@@ -218,11 +226,7 @@ def _part_curves(part: _Part, window: tuple[float, float], source: int) -> list[
 def _line_curves(part: _Part, window: tuple[float, float], source: int, *, vertical: bool) -> list[CrossingCurve]:
     """A qp in one delay only: its crossings are straight lines across the window."""
     qp = part.qp
-    if vertical:
-        h0, h1, h2 = qp.g1, qp.g2, qp.g4
-    else:
-        h0, h1, h2 = qp.g1, qp.g3, qp.g5
-    omegas, thetas = _single_delay_roots(h0, h1, h2)
+    omegas, thetas = _unit_roots(qp, 1 if vertical else 2)
     tmax, other = (window[0], window[1]) if vertical else (window[1], window[0])
     out = []
     for om, th in zip(omegas, thetas, strict=True):
@@ -245,34 +249,34 @@ def _axis_crossings(parts: list[_Part], window: tuple[float, float], *, axis: in
     where, delta = [], []
     tmax = window[axis - 1]
     for part in parts:
-        g = part.qp.coefficients
-        add = _padd
-        if axis == 2:   # tau1 = 0: z1 = 1
-            h0, h1, h2 = add(add(g[0], g[1]), g[3]), add(g[2], g[5]), g[4]
-        else:           # tau2 = 0: z2 = 1
-            h0, h1, h2 = add(add(g[0], g[2]), g[4]), add(g[1], g[5]), g[3]
-        h0, h1, h2 = (np.trim_zeros(np.asarray(h, complex), "b") for h in (h0, h1, h2))
-        omegas, thetas = _single_delay_roots(h0, h1, h2)
+        # tau1 = 0 (axis 2): z1 = 1, a problem in z2 alone; tau2 = 0 (axis 1): in z1 alone
+        omegas, thetas = _unit_roots(part.qp, axis)
         for om, th in zip(omegas, thetas, strict=True):
             for i in range(int(np.floor(tmax * om / TWO_PI)) + 2):
                 tau = (th + TWO_PI * i) / om
                 if tau <= 1e-12 * tmax or tau > tmax:
                     continue
                 t1, t2 = (np.array([0.0]), np.array([tau])) if axis == 2 else (np.array([tau]), np.array([0.0]))
-                rt1, rt2 = _tendency(part.qp, np.array([om]), t1, t2)
-                rt = rt2 if axis == 2 else rt1
+                rt = crossing_changes(part.qp, np.array([om]), t1, t2, delay=axis)
                 where.append(tau)
                 delta.append(part.weight * int(rt[0]))
     order = np.argsort(where)
     return np.asarray(where, float)[order], np.asarray(delta, np.int64)[order]
 
 
-def _padd(a: NDArray[np.complex128], b: NDArray[np.complex128]) -> NDArray[np.complex128]:
-    """Sum of two coefficient arrays of any lengths (empty = zero polynomial)."""
-    out = np.zeros(max(a.size, b.size), complex)
-    out[: a.size] += a
-    out[: b.size] += b
-    return out
+def _unit_roots(qp: TwoDelayQuasiPolynomial, delay: int) -> tuple[NDArray, NDArray]:
+    """(omega, theta) of the single-delay problem in z_delay with the other delay zero.
+
+    Up to z^2 (every eq. genfactor qp) the closed resultant of
+    :func:`~delayform.analysis.ctcr.phase._single_delay_roots`; higher powers
+    (commensurate terms) the Chebyshev resultant of
+    :func:`~delayform.analysis.ctcr.general.unit_roots_single`.
+    """
+    h = collapse(qp, delay)
+    if len(h) <= 3:
+        h = h + [np.zeros(0, complex)] * (3 - len(h))
+        return _single_delay_roots(h[0], h[1], h[2])
+    return unit_roots_single(h, getattr(qp, "crossing_bound", None))
 
 
 def _origin_counts(qp: TwoDelayQuasiPolynomial, weight: int) -> tuple[int, int, _ZeroLine | None]:

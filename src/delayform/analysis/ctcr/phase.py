@@ -15,6 +15,7 @@ import numpy as np
 import numpy.polynomial.polynomial as npoly
 from numpy.typing import ArrayLike, NDArray
 
+from delayform.analysis.ctcr.general import TermsQP, newton_phases, resultant_solutions, unit_circle_roots
 from delayform.characteristic import DELAY_MULTIPLES, TwoDelayQuasiPolynomial
 
 TWO_PI = 2.0 * np.pi
@@ -111,6 +112,8 @@ def _omega_bound(qp: TwoDelayQuasiPolynomial) -> float:
     coefficients gives a polynomial with one sign change (Descartes), whose
     positive root bounds |s| for every pair of delays.
     """
+    if isinstance(qp, TermsQP) and qp.crossing_bound is not None:
+        return qp.crossing_bound  # a neutral qp: the bound of its difference operator
     coeffs = qp.coefficients
     d = qp.degree
     lower = np.zeros(d + 1)
@@ -277,8 +280,13 @@ def _batched_conv(a: NDArray[np.complex128], b: NDArray[np.complex128]) -> NDArr
     return out
 
 
-def _general_solutions(qp: TwoDelayQuasiPolynomial, omega: NDArray[np.float64]) -> list[NDArray[np.float64]]:
-    """All (theta1, theta2) with q(j omega) = 0 at each omega: resultant in z2, unit roots, Newton."""
+def _general_solutions(qp: TwoDelayQuasiPolynomial | TermsQP, omega: NDArray[np.float64]) -> list[NDArray[np.float64]]:
+    """All (theta1, theta2) with q(j omega) = 0 at each omega: resultant in z2, unit roots, Newton.
+
+    Terms beyond eq. genfactor's six: :func:`~delayform.analysis.ctcr.general.resultant_solutions`.
+    """
+    if isinstance(qp, TermsQP):
+        return resultant_solutions(qp, omega)
     s = 1j * omega
     g = [_horner(s, c) if c.size else np.zeros(s.shape, complex) for c in qp.coefficients]
     g1, g2, g3, g4, g5, g6 = g
@@ -309,14 +317,7 @@ def _general_solutions(qp: TwoDelayQuasiPolynomial, omega: NDArray[np.float64]) 
         R[:, 1:8] -= _batched_conv(U, V)                  # offset -3 -> shift 1
     out: list[NDArray[np.float64]] = []
     for i in range(n):
-        poly = R[i]
-        scale = np.max(np.abs(poly))
-        nz = np.flatnonzero(np.abs(poly) > 1e-13 * scale) if scale > 0 else np.zeros(0, int)
-        if nz.size < 2:
-            out.append(np.zeros((0, 2)))
-            continue
-        z2 = np.roots(poly[nz[0] : nz[-1] + 1][::-1])
-        z2 = z2[np.abs(np.abs(z2) - 1.0) < 1e-4]
+        z2 = unit_circle_roots(R[i], 1e-13)
         sols = []
         for z in z2:
             bz = b[i, 0] + b[i, 1] * z
@@ -336,28 +337,8 @@ def _general_solutions(qp: TwoDelayQuasiPolynomial, omega: NDArray[np.float64]) 
 
 
 def _newton_phases(g: list[NDArray], i: int, t1: float, t2: float) -> tuple[float, float] | None:
-    """Polish (theta1, theta2) on sum_k g_k e^{-j(a theta1 + b theta2)} = 0 at one omega."""
-    coef = np.array([gk[i] for gk in g])
-    mult = np.array(DELAY_MULTIPLES, float)
-    scale = np.sum(np.abs(coef))
-    for _ in range(30):
-        e = coef * np.exp(-1j * (mult[:, 0] * t1 + mult[:, 1] * t2))
-        f = e.sum()
-        d1 = (-1j * mult[:, 0] * e).sum()
-        d2 = (-1j * mult[:, 1] * e).sum()
-        J = np.array([[d1.real, d2.real], [d1.imag, d2.imag]])
-        if abs(f) <= 1e-14 * scale:
-            break
-        try:
-            step = np.linalg.solve(J, [f.real, f.imag])
-        except np.linalg.LinAlgError:
-            return None
-        t1 -= step[0]
-        t2 -= step[1]
-    e = coef * np.exp(-1j * (mult[:, 0] * t1 + mult[:, 1] * t2))
-    if abs(e.sum()) > 1e-11 * scale:
-        return None
-    return float(np.mod(t1, TWO_PI)), float(np.mod(t2, TWO_PI))
+    """Polish (theta1, theta2) on sum_k g_k e^{-j(a theta1 + b theta2)} = 0 at one omega (eq. genfactor's terms)."""
+    return newton_phases(np.array([gk[i] for gk in g]), np.array(DELAY_MULTIPLES, float), t1, t2)
 
 
 def _unique_phases(th: NDArray[np.float64]) -> NDArray[np.float64]:

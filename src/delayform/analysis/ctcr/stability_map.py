@@ -137,7 +137,9 @@ from delayform.analysis.ctcr.curves import (  # noqa: F401
     _tendency,
     _ZeroLine,
 )
+from delayform.analysis.ctcr.general import as_traced
 from delayform.characteristic import TwoDelayQuasiPolynomial, factors
+from delayform.quasipolynomial import QuasiPolynomial
 from delayform.resources import require
 from delayform.errors import DelayError, QuasiPolynomialError
 from delayform.topology import Topology
@@ -367,14 +369,16 @@ def _guard_window(qps: list[TwoDelayQuasiPolynomial], t1: float, t2: float) -> N
 
 
 # ===================================================================== public entry points
-def crossing_map(qp: TwoDelayQuasiPolynomial, tau1_max: float, tau2_max: float) -> StabilityMap:
-    """The CTCR stability map of one retarded quasi-polynomial of eq. genfactor.
+def crossing_map(qp: TwoDelayQuasiPolynomial | QuasiPolynomial, tau1_max: float, tau2_max: float) -> StabilityMap:
+    """The CTCR stability map of one retarded two-delay quasi-polynomial.
 
     Parameters
     ----------
     qp
-        Any retarded :class:`~delayform.characteristic.TwoDelayQuasiPolynomial`,
-        real or complex coefficients.
+        Any retarded :class:`~delayform.characteristic.TwoDelayQuasiPolynomial`
+        (eq. genfactor), or a :class:`~delayform.quasipolynomial.QuasiPolynomial`
+        in two delays with any terms (commensurate ``z1^3``, ``z1 z2^2``, ...;
+        :mod:`delayform.analysis.ctcr.general`); real or complex coefficients.
     tau1_max, tau2_max
         The window [0, tau1_max] x [0, tau2_max]; positive.
 
@@ -386,7 +390,9 @@ def crossing_map(qp: TwoDelayQuasiPolynomial, tau1_max: float, tau2_max: float) 
     Raises
     ------
     NeutralQuasiPolynomialError
-        When a delayed term has the degree of g1.
+        For a neutral qp whose difference operator is not certified strongly
+        stable for every delay pair (:func:`~delayform.analysis.ctcr.general.neutral_traced`);
+        a neutral qp whose difference operator is gets its map.
     DelayError
         When the window is not positive and finite.
     ResourceLimitError
@@ -400,9 +406,14 @@ def crossing_map(qp: TwoDelayQuasiPolynomial, tau1_max: float, tau2_max: float) 
     >>> int(m.unstable_count(0.1, 0.1)), bool(m.is_stable(0.1, 0.1))
     (0, True)
     """
-    if not isinstance(qp, TwoDelayQuasiPolynomial):
-        raise QuasiPolynomialError(f"qp must be a TwoDelayQuasiPolynomial, got {type(qp).__name__}")
-    qp.require_retarded()
+    if isinstance(qp, TwoDelayQuasiPolynomial) and not qp.is_retarded:
+        qp = QuasiPolynomial.from_two_delay(qp)  # neutral: the general path with D's frequency bound
+    if isinstance(qp, QuasiPolynomial):
+        qp = as_traced(qp)  # type: ignore[assignment]
+    elif not isinstance(qp, TwoDelayQuasiPolynomial):
+        raise QuasiPolynomialError(
+            f"qp must be a QuasiPolynomial in two delays or a TwoDelayQuasiPolynomial, got {type(qp).__name__}"
+        )
     t1, t2 = _check_window(tau1_max, tau2_max)
     if qp.is_real:
         parts = [_Part(qp, 2, 0)]

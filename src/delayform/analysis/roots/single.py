@@ -298,10 +298,11 @@ def roots_in(
     Parameters
     ----------
     qp
-        A retarded :class:`~delayform.quasipolynomial.QuasiPolynomial`, a
+        A :class:`~delayform.quasipolynomial.QuasiPolynomial`, a
         quasi-polynomial of eq. genfactor, or a factor of eq. factorized
         (for the centroid factor eq. factor1 the persistent root 0 is
-        *included*: this is the plain root set of q).
+        *included*: this is the plain root set of q). A neutral one is
+        solved by :func:`delayform.analysis.neutral.neutral_roots_in`.
     *delays_and_region
         The delays ``tau1, ..., taum`` (m = ``qp.n_delays``; two for the
         paper's forms), non-negative, then the rectangle
@@ -320,8 +321,6 @@ def roots_in(
 
     Raises
     ------
-    NeutralQuasiPolynomialError
-        For a quasi-polynomial of neutral type.
     ResourceLimitError
         When the rectangle reaches so far from the origin that the roots
         there cannot be resolved (|s| above about 2 MAX_DEGREE / largest delay).
@@ -338,6 +337,11 @@ def roots_in(
     >>> roots_in(q, 0.0, 0.0, (-3, 0, -1, 1)).real.round(12)
     array([-1., -2.])
     """
+    if _neutral(qp):  # hook: analysis/neutral (argument-principle subdivision)
+        from delayform.analysis.neutral.spectrum import neutral_roots_in  # imports roots: not at the top
+
+        r, m = neutral_roots_in(qp, *delays_and_region[:-1], region=delays_and_region[-1])  # type: ignore[arg-type]
+        return np.repeat(r, m)
     call = _call(qp, delays_and_region, ("region",), "roots_in")
     prob, t1, t2 = call.prob, call.t1, call.t2
     region = asked = _check_region(call.rest[0])
@@ -456,6 +460,10 @@ def count_roots_right_of(
     NotConvergedError
         When a root lies on (or within rounding of) the line.
     """
+    if _neutral(qp):  # hook: analysis/neutral (only right of the essential spectrum)
+        from delayform.analysis.neutral.spectrum import neutral_count_right_of
+
+        return neutral_count_right_of(qp, *delays_and_c[:-1], c=_check_abscissa(delays_and_c[-1]))  # type: ignore[arg-type]
     call = _call(qp, delays_and_c, ("c",), "count_roots_right_of")
     prob, t1, t2 = call.prob, call.t1, call.t2
     c = _check_abscissa(call.rest[0])
@@ -500,12 +508,23 @@ def rightmost_root(qp: QuasiPolynomial | TwoDelayQuasiPolynomial | Characteristi
     >>> round(s.real, 6), round(s.imag, 6)
     (-0.605021, 1.788188)
     """
+    if _neutral(qp):  # hook: analysis/neutral (EssentialSpectrumError when none lies right of it)
+        from delayform.analysis.neutral.spectrum import neutral_rightmost_root
+
+        return neutral_rightmost_root(qp, *delays)  # type: ignore[arg-type]
     call = _call(qp, delays, (), "rightmost_root")
     t1, t2 = call.t1, call.t2
     if isinstance(qp, CharacteristicFactor):  # a factor of eq. factorized: the vectorized family path
         _family_reach((qp,), t1, t2)
         return complex(family_rightmost((qp,), float(qp.P), float(qp.D), t1, t2)[0])
     return _rightmost(call.prob, t1, t2, where=call.where)
+
+
+def _neutral(qp: object) -> bool:
+    """A neutral quasi-polynomial: solved by :mod:`delayform.analysis.neutral`."""
+    if isinstance(qp, QuasiPolynomial):
+        return qp.is_neutral
+    return isinstance(qp, TwoDelayQuasiPolynomial) and not qp.is_retarded
 
 
 def _polynomial_seeds(prob: _Problem) -> NDArray[np.complex128]:

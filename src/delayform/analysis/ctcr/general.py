@@ -1,0 +1,414 @@
+"""CTCR for any two-delay quasi-polynomial: commensurate terms, z1 z2^2, ... (issue 19, item 1).
+
+A :class:`~delayform.quasipolynomial.QuasiPolynomial` in two delays is
+``q(s) = sum_{a,b} p_ab(s) z1^a z2^b`` with ``z_k = e^{-tau_k s}``. When its
+terms are the six of eq. genfactor it is traced exactly as the paper's form;
+otherwise the same CTCR construction runs on :class:`TermsQP` with two
+eliminations that hold for any degrees K1 (in z1) and K2 (in z2):
+
+* On the imaginary axis ``|z_k| = 1``, so ``conj(z_k) = 1 / z_k``. With the
+  conjugate-reciprocal ``q~(z1, z2) = z1^K1 z2^K2 conj(q(1/conj z1, 1/conj z2))``
+  every solution on the torus is a common zero of q and q~. Their resultant
+  in z1 (a 2 K1 x 2 K1 Sylvester determinant whose entries are polynomials in
+  z2) is a polynomial of degree <= 2 K1 K2 in z2; it is evaluated on that many
+  roots of unity plus one and its coefficients recovered by the FFT (the
+  exact inverse of evaluation there). Its unit-modulus roots give z2, the
+  roots of q(., z2) of unit modulus give z1, and Newton's method on the two
+  phases polishes each pair on q itself. Frequencies are then joined into
+  paths as for the paper's general path (:func:`~delayform.analysis.ctcr.phase._general_paths`).
+* On an axis (one delay zero) or for a qp in one delay, ``h(z) = sum_j h_j(s) z^j``:
+  the frequencies with a unit root are the real roots of
+  ``R(omega) = Res_z(h, h~)``, a polynomial in omega of degree <= 2 K deg q,
+  interpolated at Chebyshev points of ``[0, 1.5 Omega]`` (Omega bounds every
+  crossing frequency) and solved as a Chebyshev series (well conditioned,
+  unlike monomials); each root is polished with z on q itself.
+
+Both are eliminations, not sign changes on a grid: a frequency or phase is
+found whenever it is a root of the eliminant, however close two of them lie.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.polynomial.chebyshev as cheb
+import numpy.polynomial.polynomial as npoly
+from numpy.typing import ArrayLike, NDArray
+
+from delayform.analysis.neutral.difference import certified_polydisk_min, difference_operator
+from delayform.characteristic import DELAY_MULTIPLES, TwoDelayQuasiPolynomial
+from delayform.errors import NeutralQuasiPolynomialError, QuasiPolynomialError
+from delayform.quasipolynomial import QuasiPolynomial
+
+__all__ = ["TermsQP", "as_traced", "resultant_solutions", "unit_roots_single", "collapse", "newton_phases", "unit_circle_roots"]
+
+TWO_PI = 2.0 * np.pi
+
+
+class TermsQP:
+    """A two-delay quasi-polynomial given by its terms, with the interface the CTCR engine reads.
+
+    Parameters
+    ----------
+    terms
+        ``(coefficients ascending in s, multiple of tau1, multiple of tau2)``,
+        the principal term (0, 0) first.
+    """
+
+    def __init__(
+        self, terms: tuple[tuple[NDArray[np.complex128], int, int], ...], *, crossing_bound: float | None = None
+    ) -> None:
+        self._terms = tuple((np.asarray(c, np.complex128), int(a), int(b)) for c, a, b in terms)
+        #: for a neutral qp, the bound on crossing frequencies from its difference operator
+        #: (:func:`neutral_traced`); None: the retarded Cauchy-like bound
+        self.crossing_bound = crossing_bound
+        if self._terms[0][1:] != (0, 0):
+            raise QuasiPolynomialError("the principal term (0, 0) must come first")
+
+    def terms(self) -> tuple[tuple[NDArray[np.complex128], int, int], ...]:
+        """The non-zero terms as (coefficients, multiple of tau1, multiple of tau2)."""
+        return self._terms
+
+    @property
+    def g1(self) -> NDArray[np.complex128]:
+        """The principal polynomial (named as in eq. genfactor)."""
+        return self._terms[0][0]
+
+    @property
+    def coefficients(self) -> tuple[NDArray[np.complex128], ...]:
+        """Coefficients of every term, principal first."""
+        return tuple(c for c, _, _ in self._terms)
+
+    @property
+    def degree(self) -> int:
+        """Degree of the principal polynomial."""
+        return int(self.g1.size - 1)
+
+    @property
+    def is_real(self) -> bool:
+        """True when every coefficient is real."""
+        return all(bool(np.all(c.imag == 0.0)) for c in self.coefficients)
+
+    @property
+    def is_retarded(self) -> bool:
+        """True when every delayed term has lower degree than the principal one."""
+        return all(c.size - 1 < self.degree for c, _, _ in self._terms[1:])
+
+    def delay_free(self) -> NDArray[np.complex128]:
+        """Coefficients of q at tau1 = tau2 = 0."""
+        out = np.zeros(max(c.size for c in self.coefficients), np.complex128)
+        for c in self.coefficients:
+            out[: c.size] += c
+        return out
+
+    def conjugate(self) -> TermsQP:
+        """conj(q(conj s)): its omega > 0 crossings are the omega < 0 crossings of q."""
+        return TermsQP(tuple((np.conj(c), a, b) for c, a, b in self._terms), crossing_bound=self.crossing_bound)
+
+    def evaluate(self, s: ArrayLike, tau1: ArrayLike, tau2: ArrayLike) -> NDArray[np.complex128]:
+        """q(s) at the delays (broadcasting)."""
+        s = np.asarray(s, complex)
+        return sum((npoly.polyval(s, c) * np.exp(-(a * np.asarray(tau1) + b * np.asarray(tau2)) * s)
+                    for c, a, b in self._terms), start=np.zeros(np.broadcast_shapes(s.shape, np.shape(tau1),
+                                                                                  np.shape(tau2)), complex))
+
+    def derivative(self, s: ArrayLike, tau1: ArrayLike, tau2: ArrayLike) -> NDArray[np.complex128]:
+        """dq/ds at the delays."""
+        s = np.asarray(s, complex)
+        out = np.zeros(np.broadcast_shapes(s.shape, np.shape(tau1), np.shape(tau2)), complex)
+        for c, a, b in self._terms:
+            h = a * np.asarray(tau1) + b * np.asarray(tau2)
+            out = out + (npoly.polyval(s, npoly.polyder(c)) - h * npoly.polyval(s, c)) * np.exp(-h * s)
+        return out
+
+    def delay_derivative(self, s: ArrayLike, tau1: ArrayLike, tau2: ArrayLike, *, delay: int) -> NDArray[np.complex128]:
+        """dq/dtau_k at fixed s."""
+        s = np.asarray(s, complex)
+        out = np.zeros(np.broadcast_shapes(s.shape, np.shape(tau1), np.shape(tau2)), complex)
+        for c, a, b in self._terms:
+            k = a if delay == 1 else b
+            if k:
+                h = a * np.asarray(tau1) + b * np.asarray(tau2)
+                out = out - k * s * npoly.polyval(s, c) * np.exp(-h * s)
+        return out
+
+    def describe(self) -> str:
+        """The terms written out."""
+        return QuasiPolynomial({(a, b): c for c, a, b in self._terms}).describe()
+
+
+def neutral_traced(qp: QuasiPolynomial) -> TermsQP:
+    """A neutral two-delay qp prepared for CTCR, or NeutralQuasiPolynomialError when its D does not allow it.
+
+    CTCR counts roots where they cross the imaginary axis; a neutral system
+    can also gain roots from infinity. It cannot when the difference operator
+    D is strongly stable for every delay pair (D zero-free on the closed unit
+    polydisk, certified by :func:`~delayform.analysis.neutral.difference.certified_polydisk_min`
+    with a lower bound delta of |D| there). Then on the axis
+    ``|q(j omega)| >= |p_0[n]| delta omega^n - sum_{i<n} sum_k |p_k[i]| omega^i``,
+    so every crossing frequency is below
+    ``max(1, sum_{i<n} sum_k |p_k[i]| / (|p_0[n]| delta))``, the bound the
+    curves and axes are traced to.
+
+    Parameters
+    ----------
+    qp
+        A neutral quasi-polynomial in two delays.
+    """
+    D = difference_operator(qp)
+    delta = certified_polydisk_min(D)
+    if not delta > 0.0:
+        raise NeutralQuasiPolynomialError(
+            "the quasi-polynomial is neutral and its difference operator is not certified strongly stable for "
+            "every delay pair (D has, or may have, a zero in the closed unit polydisk): roots can reach the "
+            "right half-plane from infinity, which a crossing map does not see; use neutral_spectrum at "
+            "given delays instead"
+        )
+    n = qp.degree
+    low = sum(float(np.sum(np.abs(c[:n]))) for c in qp.terms.values())
+    bound = max(1.0, low / (abs(qp.principal[n]) * delta)) * (1.0 + 1e-9)
+    return TermsQP(tuple((c, k[0], k[1]) for k, c in qp.terms.items()), crossing_bound=bound)
+
+
+def as_traced(qp: QuasiPolynomial) -> TwoDelayQuasiPolynomial | TermsQP:
+    """The paper's form when q's terms are among eq. genfactor's six, else :class:`TermsQP`.
+
+    Parameters
+    ----------
+    qp
+        A quasi-polynomial in two delays.
+    """
+    if qp.n_delays != 2:
+        raise QuasiPolynomialError(
+            f"crossing_map needs a quasi-polynomial in two delays; this one has {qp.n_delays}"
+        )
+    if qp.is_neutral:
+        return neutral_traced(qp)
+    if all(k in DELAY_MULTIPLES for k in qp.terms):
+        return qp.to_two_delay()
+    return TermsQP(tuple((c, k[0], k[1]) for k, c in qp.terms.items()))
+
+
+def collapse(qp: TwoDelayQuasiPolynomial | TermsQP, delay: int) -> list[NDArray[np.complex128]]:
+    """h_j(s) of ``q = sum_j h_j(s) z^j`` with the *other* delay set to zero (z = e^{-tau_delay s}).
+
+    Parameters
+    ----------
+    qp
+        The two-delay quasi-polynomial.
+    delay
+        1 or 2: the delay kept; the other is zero.
+    """
+    degs = [(a if delay == 1 else b) for _, a, b in qp.terms()]
+    out = [np.zeros(0, complex) for _ in range(max(degs) + 1)]
+    for (c, _, _), j in zip(qp.terms(), degs, strict=True):
+        acc = np.zeros(max(out[j].size, c.size), complex)
+        acc[: out[j].size] += out[j]
+        acc[: c.size] += c
+        out[j] = acc
+    return [np.trim_zeros(h, "b") for h in out]
+
+
+def omega_bound(qp: TwoDelayQuasiPolynomial | TermsQP) -> float:
+    """Bound on |s| of every root with Re s >= 0 (Cauchy-like; see phase._omega_bound; a neutral qp's own)."""
+    if isinstance(qp, TermsQP) and qp.crossing_bound is not None:
+        return qp.crossing_bound
+    d = qp.degree
+    lower = np.zeros(d + 1)
+    for c in qp.coefficients:
+        lower[: c.size] += np.abs(c)
+    lower[d] = 0.0
+    lower = lower / abs(qp.g1[d])
+    return float(max(1.0, lower.sum()) * 1.0001)
+
+
+# ===================================================================== one delay (axes, lines)
+def _sylvester(p: NDArray, q: NDArray) -> NDArray:
+    """Batched Sylvester matrices of p and q (last axis: coefficients, descending powers, same degree K)."""
+    K = p.shape[-1] - 1
+    n = 2 * K
+    S = np.zeros(p.shape[:-1] + (n, n), complex)
+    for i in range(K):
+        S[..., i, i : i + K + 1] = p
+        S[..., K + i, i : i + K + 1] = q
+    return S
+
+
+def unit_roots_single(
+    h: list[NDArray[np.complex128]], bound: float | None = None
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """omega > 0 and theta in [0, 2 pi) with ``sum_j h_j(j omega) e^{-j j theta} = 0`` (module docstring).
+
+    Parameters
+    ----------
+    h
+        ``h_j``, coefficients ascending in s, one per power of z.
+    bound
+        Bound on the crossing frequencies (None: the retarded Cauchy-like one).
+    """
+    K = len(h) - 1
+    if K < 1 or all(c.size == 0 for c in h[1:]):
+        return np.zeros(0), np.zeros(0)
+    n = max(c.size for c in h) - 1
+    if bound is None:
+        bound = omega_bound(TermsQP(tuple((c if c.size else np.zeros(1, complex), j, 0) for j, c in enumerate(h))))
+    W = 1.5 * bound
+    deg = 2 * K * max(n, 1)
+    N = 2 * deg + 8
+    x = np.cos(np.pi * (np.arange(N) + 0.5) / N)  # Chebyshev points of [-1, 1]
+    om = 0.5 * W * (x + 1.0)
+    vals = np.stack([npoly.polyval(1j * om, c) if c.size else np.zeros(N, complex) for c in h], -1)
+    p = vals[:, ::-1]                      # descending powers of z
+    q = np.conj(vals)                      # q~_j = conj(h_{K-j}): descending order is conj(h_0..h_K)
+    R = np.linalg.det(_sylvester(p, q))
+    coef = cheb.chebfit(x, R, deg)
+    scale = np.max(np.abs(coef))
+    if scale == 0.0:
+        return np.zeros(0), np.zeros(0)
+    nz = np.flatnonzero(np.abs(coef) > 1e-13 * scale)
+    roots = cheb.chebroots(coef[: nz[-1] + 1])
+    real = roots[(np.abs(roots.imag) <= 1e-6) & (roots.real > -1.0 - 1e-9) & (roots.real < 1.0 + 1e-9)].real
+    out_w, out_t = [], []
+    for r in np.unique(np.round(0.5 * W * (real + 1.0), 10)):
+        if r <= 1e-12 * W:
+            continue
+        zs = np.roots([npoly.polyval(1j * r, c) if c.size else 0j for c in h][::-1])
+        for z in zs:
+            if not np.isfinite(z) or abs(abs(z) - 1.0) > 1e-4:
+                continue
+            res = _polish_single(h, float(r), float(-np.angle(z)))
+            if res is not None and all(abs(res[0] - w) > 1e-9 * max(1, w) or
+                                       abs(np.angle(np.exp(1j * (res[1] - t)))) > 1e-7
+                                       for w, t in zip(out_w, out_t, strict=True)):
+                out_w.append(res[0])
+                out_t.append(res[1])
+    return np.array(out_w), np.array(out_t)
+
+
+def _polish_single(h: list[NDArray[np.complex128]], om: float, th: float) -> tuple[float, float] | None:
+    """Newton on (omega, theta) for ``sum_j h_j(j omega) e^{-j j theta} = 0``; keeps a flat (touching) start."""
+    js = np.arange(len(h))
+
+    def f_j(om: float, th: float) -> tuple[complex, complex, complex, float]:
+        s = 1j * om
+        v = np.array([npoly.polyval(s, c) if c.size else 0j for c in h])
+        dv = np.array([1j * npoly.polyval(s, npoly.polyder(c)) if c.size > 1 else 0j for c in h])
+        e = np.exp(-1j * js * th)
+        return (v * e).sum(), (dv * e).sum(), (-1j * js * v * e).sum(), float(np.abs(v).sum())
+
+    f, fo, ft, scale = f_j(om, th)
+    if abs(f) <= 1e-12 * scale:
+        return om, float(np.mod(th, TWO_PI))
+    for _ in range(20):
+        J = np.array([[fo.real, ft.real], [fo.imag, ft.imag]])
+        if abs(np.linalg.det(J)) <= 1e-14 * (abs(fo) * abs(ft) + 1e-300):
+            break
+        step = np.linalg.solve(J, [f.real, f.imag])
+        om, th = om - step[0], th - step[1]
+        f, fo, ft, scale = f_j(om, th)
+        if abs(f) <= 1e-15 * scale:
+            break
+    return (om, float(np.mod(th, TWO_PI))) if abs(f) <= 1e-10 * scale and om > 0 else None
+
+
+# ===================================================================== two delays (curves)
+def resultant_solutions(qp: TermsQP, omega: NDArray[np.float64]) -> list[NDArray[np.float64]]:
+    """All (theta1, theta2) on the torus with q(j omega) = 0 at each omega (module docstring).
+
+    Parameters
+    ----------
+    qp
+        The quasi-polynomial by its terms.
+    omega
+        Frequencies.
+    """
+    terms = qp.terms()
+    K1 = max(a for _, a, _ in terms)
+    K2 = max(b for _, _, b in terms)
+    s = 1j * np.asarray(omega, float)
+    vals = [npoly.polyval(s, c) for c, _, _ in terms]
+    mult = np.array([(a, b) for _, a, b in terms], float)
+    n_z = 2 * K1 * K2 + 1
+    z2 = np.exp(2j * np.pi * np.arange(n_z) / n_z)
+    # P[w, m, a] = sum_b c_ab(omega_w) z2_m^b ; Pt[w, m, a] = sum_b conj(c_ab) z2_m^(K2 - b)
+    P = np.zeros((s.size, n_z, K1 + 1), complex)
+    Pt = np.zeros((s.size, n_z, K1 + 1), complex)
+    for v, (_, a, b) in zip(vals, terms, strict=True):
+        P[:, :, a] += v[:, None] * z2[None, :] ** b
+        Pt[:, :, K1 - a] += np.conj(v)[:, None] * z2[None, :] ** (K2 - b)
+    R = np.linalg.det(_sylvester(P[..., ::-1], Pt[..., ::-1]))
+    coef = np.fft.fft(R, axis=1) / n_z  # R(z2_m) = sum_k coef_k z2_m^k on the n_z-th roots of unity
+    out: list[NDArray[np.float64]] = []
+    for i in range(s.size):
+        roots2 = unit_circle_roots(coef[i], 1e-11)
+        sols = []
+        g = np.array([v[i] for v in vals])
+        for z in roots2:
+            poly1 = np.zeros(K1 + 1, complex)
+            for gk, (a, b) in zip(g, mult.astype(int), strict=True):
+                poly1[a] += gk * z**b
+            nzp = np.flatnonzero(np.abs(poly1) > 0)
+            if nzp.size < 2:
+                continue
+            for z1 in np.roots(poly1[: nzp[-1] + 1][::-1]):
+                if abs(abs(z1) - 1.0) > 1e-3:
+                    continue
+                th = newton_phases(g, mult, -np.angle(z1), -np.angle(z))
+                if th is not None:
+                    sols.append(th)
+        out.append(_unique(np.array(sols).reshape(-1, 2)))
+    return out
+
+
+def unit_circle_roots(poly: NDArray[np.complex128], rel_tol: float) -> NDArray[np.complex128]:
+    """Roots within 1e-4 of the unit circle of a polynomial (ascending coefficients).
+
+    Coefficients below ``rel_tol`` of the largest are rounding noise of the
+    elimination and are dropped at both ends (a root at 0 or at infinity).
+    """
+    scale = np.max(np.abs(poly)) if poly.size else 0.0
+    nz = np.flatnonzero(np.abs(poly) > rel_tol * scale) if scale > 0 else np.zeros(0, int)
+    if nz.size < 2:
+        return np.zeros(0, complex)
+    roots = np.roots(poly[nz[0] : nz[-1] + 1][::-1])
+    return roots[np.abs(np.abs(roots) - 1.0) < 1e-4]
+
+
+def newton_phases(g: NDArray[np.complex128], mult: NDArray[np.float64], t1: float, t2: float) -> tuple[float, float] | None:
+    """Polish (theta1, theta2) on ``sum_k g_k e^{-j(a_k theta1 + b_k theta2)} = 0`` at one omega.
+
+    Parameters
+    ----------
+    g
+        The terms' polynomials at j omega.
+    mult
+        Their delay multiples, one row (a, b) per term.
+    t1, t2
+        Starting phases.
+    """
+    scale = float(np.sum(np.abs(g)))
+    for _ in range(30):
+        e = g * np.exp(-1j * (mult[:, 0] * t1 + mult[:, 1] * t2))
+        f = e.sum()
+        if abs(f) <= 1e-14 * scale:
+            break
+        d1 = (-1j * mult[:, 0] * e).sum()
+        d2 = (-1j * mult[:, 1] * e).sum()
+        J = np.array([[d1.real, d2.real], [d1.imag, d2.imag]])
+        # the system is 2 real equations in 2 unknowns; a singular J (a tangency) stops here
+        if abs(np.linalg.det(J)) <= 1e-14 * (abs(d1) * abs(d2) + 1e-300):
+            break
+        step = np.linalg.solve(J, [f.real, f.imag])
+        t1 -= step[0]
+        t2 -= step[1]
+    e = g * np.exp(-1j * (mult[:, 0] * t1 + mult[:, 1] * t2))
+    if abs(e.sum()) > 1e-11 * scale:
+        return None
+    return float(np.mod(t1, TWO_PI)), float(np.mod(t2, TWO_PI))
+
+
+def _unique(th: NDArray[np.float64]) -> NDArray[np.float64]:
+    keep: list[NDArray[np.float64]] = []
+    for row in th:
+        if all(np.max(np.abs(np.angle(np.exp(1j * (row - k))))) > 1e-7 for k in keep):
+            keep.append(row)
+    return np.array(keep).reshape(-1, 2)
