@@ -23,11 +23,13 @@ STAGES: dict[str, int] = {
     "_validation": 0,
     "resources": 0,  # a leaf: memory and time budget guard
     "plots": 0,  # a leaf: draws results by their attributes, imports no delayform module
+    "_display": 0,  # a leaf: Jupyter's _repr_png_ mixin, imports no delayform module
     "topology": 1,
     "characteristic": 2,
     "formation": 2,
     "analysis": 3,
     "design": 4,
+    "loops": 4,  # python-control loops: builds quasi-polynomials, counts their roots (issue 23)
     "simulation": 5,
     "sweeps": 6,
     "scenario": 7,

@@ -98,6 +98,12 @@ _EXPORTS: dict[str, str] = {
     "Explorer": "app",
     "ExplorerLimits": "app",
     "scenario_toml": "app",
+    # python-control loops: exact delay margins, loop quasi-polynomials (issue 23)
+    "delay_margin": "loops",
+    "DelayMargin": "loops",
+    "Crossover": "loops",
+    "loop_quasi_polynomial": "loops",
+    "loop_polynomials": "loops",
 }
 
 __all__ = sorted(_EXPORTS) + ["errors", "__version__"]

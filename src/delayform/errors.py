@@ -23,6 +23,8 @@ The tree::
     |   +-- ClusterError                   Dask workers / scheduler address of a sweep
     |   +-- ScenarioError                  a TOML scenario file
     |   +-- ResourceLimitError             a job larger than the machine's memory or time budget
+    |   +-- LoopError                      a feedback loop (python-control object) outside what is analysed
+    |       +-- UnstableLoopError          a loop unstable at tau = 0 asked for a delay margin
     +-- NotConvergedError (RuntimeError)   carries the partial result
 """
 
@@ -48,6 +50,8 @@ __all__ = [
     "ScenarioError",
     "ResourceLimitError",
     "NotConvergedError",
+    "LoopError",
+    "UnstableLoopError",
 ]
 
 
@@ -142,3 +146,17 @@ class NotConvergedError(DelayformError, RuntimeError):
 
 class NoStableGainsError(GainError):
     """No gains within the bounds given to gain design make the team converge."""
+
+
+class LoopError(InputError):
+    """A feedback loop that :mod:`delayform.loops` cannot turn into a quasi-polynomial.
+
+    Raised for an object that is not a linear continuous-time system, a
+    discrete-time loop or one carrying a delay of its own, an improper loop,
+    a biproper loop with |L(j inf)| >= 1 (neutral type, no delay margin), and
+    a MIMO loop where a SISO one is needed; the message says which.
+    """
+
+
+class UnstableLoopError(LoopError):
+    """A loop whose closed loop 1 + L(s) is not stable without delay, asked for a delay margin."""

@@ -590,3 +590,35 @@ def safe_delay_chart(
     title = f"Safe for every team with spectrum in: {smap.spectrum.label}"
     ax.set_title(title if not smap.never_safe else title + " (none)", fontsize="small")
     return ax
+
+
+# === section: delay margins of python-control loops (issue 23) ===
+def plot_delay_margin(result: Any, ax: Axes | None = None) -> Axes:
+    """Nyquist plot of a :class:`~delayform.loops.DelayMargin`'s loop, unit circle and crossovers.
+
+    The curve is clipped radially at |L| = 4 so that a loop with an
+    integrator stays readable; each gain crossover is marked with its first
+    delay (phase margin / omega).
+    """
+    import numpy.polynomial.polynomial as npoly
+
+    ax = _axes(ax)
+    top = max([c.omega for c in result.crossovers] + [1.0]) * 100.0
+    w = np.geomspace(1e-5 * top, top, 2000)
+    n, d = npoly.polyval(1j * w, result.numerator), npoly.polyval(1j * w, result.denominator)
+    gain = n / d
+    gain = np.where(np.abs(gain) > 4.0, gain / np.abs(gain) * 4.0, gain)
+    ax.plot(gain.real, gain.imag, color="C0", label="L(j omega), omega > 0")
+    t = np.linspace(0.0, 2 * np.pi, 200)
+    ax.plot(np.cos(t), np.sin(t), color="0.6", lw=0.8, label="|L| = 1")
+    ax.plot([-1.0], [0.0], "k+", ms=10)
+    for c in result.crossovers:
+        g = npoly.polyval(1j * c.omega, result.numerator) / npoly.polyval(1j * c.omega, result.denominator)
+        ax.plot([g.real], [g.imag], "o", color="C3")
+        ax.annotate(f"tau={c.tau:.3g}", (g.real, g.imag), textcoords="offset points", xytext=(5, 5))
+    ax.set_aspect("equal")
+    ax.set_xlabel("Re L")
+    ax.set_ylabel("Im L")
+    ax.set_title(f"delay margin {result.tau:.4g} s")
+    ax.legend(loc="best", fontsize="small")
+    return ax
