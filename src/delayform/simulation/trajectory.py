@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from delayform._display import FigureRepr  # Jupyter shows the figure (issue 23)
 from delayform.simulation.commands import RobotCommands
 from delayform.simulation.robots import RobotLimits
 
@@ -28,7 +29,7 @@ DIVERGING_GROWTH = 10.0
 
 
 @dataclass(frozen=True, eq=False)
-class Trajectory:
+class Trajectory(FigureRepr):
     """A simulated run of eq. formation: the motion, its metrics and its status.
 
     Attributes
@@ -79,6 +80,8 @@ class Trajectory:
     labels
         Agent labels of the topology (figures number agents from 1).
     """
+
+    _figure_method = "plot_traces"  # the robots' paths in the plane: what a notebook wants to see
 
     times: _Array
     positions: _Array
