@@ -50,6 +50,7 @@ tau_out covers both.
 
 from __future__ import annotations
 
+import base64
 import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -369,7 +370,9 @@ class DelayMargin(FigureRepr):
             f"<td>{c.tau:.6g}</td><td>{c.root_tendency:+d}</td></tr>"
             for c in self.crossovers
         )
+        image = base64.b64encode(self._repr_png_()).decode("ascii")
         return (
+            f'<img src="data:image/png;base64,{image}" alt="Nyquist plot of the loop"/>'
             f"<p><b>delay margin</b> tau = {self.tau:.8g} s"
             + (f" (root at j {self.omega:.6g})" if self.omega is not None else "")
             + f"; certified: {self.certified}</p>"
