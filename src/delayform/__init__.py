@@ -104,6 +104,9 @@ _EXPORTS: dict[str, str] = {
     "Crossover": "loops",
     "loop_quasi_polynomial": "loops",
     "loop_polynomials": "loops",
+    # example scenarios shipped in the wheel (issue 23)
+    "example_path": "packaged",
+    "example_names": "packaged",
 }
 
 __all__ = sorted(_EXPORTS) + ["errors", "__version__"]
