@@ -27,6 +27,7 @@ STAGES: dict[str, int] = {
     "packaged": 0,  # a leaf: paths of the shipped example scenarios  # a leaf: Jupyter's _repr_png_ mixin, imports no delayform module
     "topology": 1,
     "characteristic": 2,
+    "quasipolynomial": 2,  # after characteristic (converts its TwoDelayQuasiPolynomial)
     "formation": 2,
     "analysis": 3,
     "design": 4,
