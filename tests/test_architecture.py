@@ -23,8 +23,8 @@ STAGES: dict[str, int] = {
     "_validation": 0,
     "resources": 0,  # a leaf: memory and time budget guard
     "plots": 0,  # a leaf: draws results by their attributes, imports no delayform module
-    "_display": 0,
-    "packaged": 0,  # a leaf: paths of the shipped example scenarios  # a leaf: Jupyter's _repr_png_ mixin, imports no delayform module
+    "_display": 0,  # a leaf: Jupyter's _repr_png_ mixin, imports no delayform module
+    "packaged": 0,  # a leaf: paths of the shipped example scenarios
     "topology": 1,
     "characteristic": 2,
     "quasipolynomial": 2,  # after characteristic (converts its TwoDelayQuasiPolynomial)

@@ -22,7 +22,7 @@ from scipy.optimize import brentq
 
 import delayform as df
 from delayform.errors import LoopError, UnstableLoopError
-from delayform.loops import delay_margin, loop_polynomials, loop_quasi_polynomial
+from delayform.loops import delay_margin, loop_characteristic, loop_polynomials, loop_quasi_polynomial
 
 
 # ------------------------------------------------------------------ closed forms
@@ -146,7 +146,7 @@ def test_biproper_loop_with_small_feedthrough_is_accepted_but_not_counted() -> N
         (control.tf([1.0, 0.0, 0.0], [1.0, 1.0]), "improper"),
         (control.tf([2.0, 1.0], [1.0, 1.0]), "|L(j inf)| = 2 >= 1"),
         (control.tf([1.0], [1.0, 1.0], 0.1), "discrete-time"),
-        (control.tf([[[1.0]], [[1.0]]], [[[1.0, 1.0]], [[1.0, 2.0]]]), "SISO"),
+        (control.tf([[[1.0]], [[1.0]]], [[[1.0, 1.0]], [[1.0, 2.0]]]), "needs a square loop"),
         (control.frd([1.0, 0.5], [1.0, 2.0]), "FrequencyResponseData"),
         ("1/(s+1)", "got str"),
         (([1.0], [0.0]), "zero denominator"),
@@ -210,7 +210,7 @@ def test_mimo_loop_quasi_polynomial_is_the_closed_loop_determinant() -> None:
 
 
 def test_mimo_loop_too_large_or_with_feedthrough_is_refused() -> None:
-    with pytest.raises(LoopError, match="at most 2 x 2"):
+    with pytest.raises(LoopError, match="rank of BC = 3"):
         loop_quasi_polynomial(control.ss(-np.eye(3), np.eye(3), np.eye(3), np.zeros((3, 3))))
     with pytest.raises(LoopError, match="feedthrough"):
         loop_quasi_polynomial(control.ss(-np.eye(2), np.eye(2), np.eye(2), np.eye(2)))
@@ -225,3 +225,56 @@ def test_margin_displays_itself() -> None:
     m = delay_margin(control.tf([2.0], [1.0, 1.0]))
     assert m._repr_png_().startswith(b"\x89PNG")
     assert "delay margin" in m._repr_html_()
+
+
+def _coupled_mimo(coupling: float) -> control.StateSpace:
+    A = np.array([[-1.0, 0.0, 0.0], [0.0, -0.5, 1.0], [0.0, -1.0, -0.5]])
+    B = np.array([[1.0, 0.0], [0.0, 0.0], [0.0, 1.0]])
+    C = np.array([[1.5, coupling, 0.0], [coupling, 1.2, 0.0]])
+    return control.ss(A, B, C, np.zeros((2, 2)))
+
+
+def test_diagonal_mimo_margin_is_the_smaller_siso_margin() -> None:
+    la, lb = control.tf([2.0], [1.0, 1.0]), control.tf([1.0], [1.0, 1.0, 0.0])
+    sa, sb = control.ss(la), control.ss(lb)
+    A = np.block([[sa.A, np.zeros((1, 2))], [np.zeros((2, 1)), sb.A]])
+    B = np.block([[sa.B, np.zeros((1, 1))], [np.zeros((2, 1)), sb.B]])
+    C = np.block([[sa.C, np.zeros((1, 2))], [np.zeros((1, 1)), sb.C]])
+    m = delay_margin(control.ss(A, B, C, np.zeros((2, 2))))
+    assert m.tau == pytest.approx(min(delay_margin(la).tau, delay_margin(lb).tau), rel=1e-10)
+    assert m.certified and len(m.crossovers) == 2
+
+
+@pytest.mark.parametrize("coupling", [0.0, 0.3, 0.8])
+def test_coupled_mimo_margin_is_where_the_spectrum_crosses(coupling: float) -> None:
+    m = delay_margin(_coupled_mimo(coupling))
+    assert m.certified and math.isfinite(m.tau)
+    qp = m.quasi_polynomial
+    assert qp.g4.size  # a genuinely 2 x 2 loop: the e^{-2 tau s} term is there
+    assert m._repr_png_().startswith(b"\x89PNG")  # the characteristic loci
+    below = df.rightmost_root(qp, m.tau * (1 - 1e-3), 0.0)
+    above = df.rightmost_root(qp, m.tau * (1 + 1e-3), 0.0)
+    assert below.real < 0.0 < above.real
+    # and through the general QuasiPolynomial of the same loop (matrix expansion by FFT)
+    general = loop_characteristic(_coupled_mimo(coupling))
+    assert df.rightmost_root(general, m.tau * (1 + 1e-3)).real == pytest.approx(above.real, abs=1e-8)
+
+
+def test_loop_characteristic_of_three_delays_is_the_closed_loop() -> None:
+    loops = [control.tf([1.0], [1.0, 1.0]), control.tf([0.5, 0.0], [1.0, 2.0, 2.0]), control.tf([0.2], [1.0, 3.0])]
+    q = loop_characteristic(*loops)
+    assert q.n_delays == 3
+    dens = np.prod([np.polyval(loop.den[0][0], 0.3 + 0.7j) for loop in loops])
+    s, taus = 0.3 + 0.7j, (0.4, 1.1, 2.0)
+    expected = (1 + sum(complex(loop(s)) * np.exp(-t * s) for loop, t in zip(loops, taus, strict=True))) * dens
+    assert complex(q.evaluate(s, *taus)) == pytest.approx(expected, rel=1e-12)
+    with pytest.raises(LoopError, match="at least one"):
+        loop_characteristic()
+
+
+def test_one_delay_characteristic_changes_stability_at_the_margin() -> None:
+    loop = control.tf([1.2, 0.0], np.polymul([1.0, 1.0], [1.0, 0.05, 1.0]))
+    tau = delay_margin(loop).tau
+    q = loop_characteristic(loop)
+    assert df.count_roots_right_of(q, tau * (1 - 1e-3), 0.0) == 0
+    assert df.count_roots_right_of(q, tau * (1 + 1e-3), 0.0) == 2

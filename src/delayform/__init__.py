@@ -106,6 +106,7 @@ _EXPORTS: dict[str, str] = {
     "Crossover": "loops",
     "loop_quasi_polynomial": "loops",
     "loop_polynomials": "loops",
+    "loop_characteristic": "loops",
     # example scenarios shipped in the wheel (issue 23)
     "example_path": "packaged",
     "example_names": "packaged",

@@ -63,6 +63,7 @@ from delayform._display import FigureRepr
 from delayform.analysis.roots import count_roots_right_of
 from delayform.characteristic import TwoDelayQuasiPolynomial
 from delayform.errors import LoopError, NotConvergedError, UnstableLoopError
+from delayform.quasipolynomial import QuasiPolynomial
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -73,6 +74,7 @@ __all__ = [
     "delay_margin",
     "loop_quasi_polynomial",
     "loop_polynomials",
+    "loop_characteristic",
 ]
 
 #: a closed-loop pole with Re s above -POLE_TOL * max(1, |s|) counts as on the axis
@@ -292,29 +294,99 @@ def _polish(num: NDArray[np.float64], den: NDArray[np.float64], w: float) -> flo
     return best if abs(value) < 1e-8 else None
 
 
-def _crossover_frequencies(num: NDArray[np.float64], den: NDArray[np.float64]) -> NDArray[np.float64]:
-    jk_n = num * (1j ** np.arange(num.size))
-    jk_d = den * (1j ** np.arange(den.size))
-    p = npoly.polysub(npoly.polymul(jk_d, jk_d.conj()), npoly.polymul(jk_n, jk_n.conj())).real
-    p = _trim(p)
-    if p.size <= 1:  # |L(j omega)| = 1 nowhere or everywhere (an all-pass of gain 1 is refused earlier)
+def _in_omega(c: NDArray[np.complex128], sign: float = 1.0) -> NDArray[np.complex128]:
+    """Coefficients in omega of c(sign j omega) (for real c, sign -1 gives the conjugate)."""
+    return c * (sign * 1j) ** np.arange(c.size)
+
+
+def _positive_real_roots(p: NDArray[np.complex128]) -> NDArray[np.float64]:
+    p = p[: np.flatnonzero(np.abs(p) > 1e-14 * np.abs(p).max())[-1] + 1] if np.any(p) else p
+    if p.size <= 1:
         return np.zeros(0)
     roots = npoly.polyroots(p)
-    near_real = roots[(np.abs(roots.imag) <= REAL_ROOT_TOL * np.maximum(1.0, np.abs(roots))) & (roots.real > 0)]
-    found: list[float] = []
-    for w0 in np.sort(near_real.real):
-        w = _polish(num, den, float(w0))
-        if w is not None and all(abs(w - f) > 1e-9 * max(1.0, w) for f in found):
-            found.append(w)
-    return np.array(found)
+    keep = (np.abs(roots.imag) <= REAL_ROOT_TOL * np.maximum(1.0, np.abs(roots))) & (roots.real > 0)
+    return np.sort(roots[keep].real)
 
 
-def _crossovers(num: NDArray[np.float64], den: NDArray[np.float64], qp: TwoDelayQuasiPolynomial) -> tuple[Crossover, ...]:
+def _unique(values: list[tuple[float, float]]) -> list[tuple[float, float]]:
+    out: list[tuple[float, float]] = []
+    for w, tau in sorted(values):
+        if all(abs(w - u) > 1e-9 * max(1.0, w) or abs(tau - t) > 1e-9 * max(1.0, tau) for u, t in out):
+            out.append((w, tau))
+    return out
+
+
+def _first_delay(z: complex, w: float) -> tuple[float, float]:
+    """(phase margin, first delay) of a root z = e^{-j omega tau} on the unit circle."""
+    pm = float(np.angle(1.0 / z))  # pi + arg(mu) for the loop eigenvalue mu = -1/z
+    return pm, (pm if pm > 0.0 else pm + 2.0 * math.pi) / w
+
+
+def _siso_crossings(g1: NDArray[np.complex128], g2: NDArray[np.complex128]) -> list[tuple[float, float]]:
+    """g1 + g2 z: |z| = 1 where |g1(j omega)|^2 = |g2(j omega)|^2, the gain crossovers of L = g2 / g1."""
+    p = npoly.polysub(npoly.polymul(_in_omega(g1), _in_omega(g1, -1.0)), npoly.polymul(_in_omega(g2), _in_omega(g2, -1.0)))
     out = []
-    for w in _crossover_frequencies(num, den):
-        gain = npoly.polyval(1j * w, num) / npoly.polyval(1j * w, den)
-        pm = float(np.angle(-gain))
-        tau = (pm if pm > 0.0 else pm + 2.0 * math.pi) / w
+    for w0 in _positive_real_roots(p):
+        w = _polish(g2.real, g1.real, float(w0))
+        if w is not None:
+            out.append((w, _first_delay(-npoly.polyval(1j * w, g1) / npoly.polyval(1j * w, g2), w)[1]))
+    return _unique(out)
+
+
+def _newton_axis_root(qp: TwoDelayQuasiPolynomial, w: float, tau: float) -> tuple[float, float] | None:
+    """Newton on q(j omega, tau) = 0 for (omega, tau): the root polished on the quasi-polynomial itself."""
+    for _ in range(30):
+        s = 1j * w
+        f = complex(qp.evaluate(s, tau, 0.0))
+        scale = sum(abs(complex(npoly.polyval(s, c))) for c, _, _ in qp.terms())
+        if abs(f) <= 1e-14 * scale:
+            return w, tau
+        jac_w = 1j * complex(qp.derivative(s, tau, 0.0))
+        jac_t = complex(qp.delay_derivative(s, tau, 0.0, delay=1))
+        jac = np.array([[jac_w.real, jac_t.real], [jac_w.imag, jac_t.imag]])
+        try:
+            dw, dt = np.linalg.solve(jac, [-f.real, -f.imag])
+        except np.linalg.LinAlgError:
+            break
+        w, tau = w + dw, tau + dt
+        if not (w > 0 and tau >= 0):
+            return None
+    s = 1j * w
+    scale = sum(abs(complex(npoly.polyval(s, c))) for c, _, _ in qp.terms())
+    return (w, tau) if abs(complex(qp.evaluate(s, tau, 0.0))) <= 1e-10 * scale else None
+
+
+def _quadratic_crossings(qp: TwoDelayQuasiPolynomial) -> list[tuple[float, float]]:
+    """g1 + g2 z + g4 z^2 (a 2 x 2 loop): omega where a root z lies on the unit circle.
+
+    On s = j omega, z on the unit circle is also a root of the conjugate
+    reciprocal z^2 conj(q)(1 / conj z); the resultant of the two quadratics
+    in z, (a c' - c a')^2 - (a b' - b a')(b c' - c b'), is a polynomial in
+    omega whose positive real roots hold every crossing (elimination, as
+    for the SISO loop).
+    """
+    a, b, c = (_in_omega(g) for g in (qp.g4, qp.g2, qp.g1))
+    a2, b2, c2 = (_in_omega(g, -1.0) for g in (qp.g1, qp.g2, qp.g4))
+    mul, sub = npoly.polymul, npoly.polysub
+    ac = sub(mul(a, c2), mul(c, a2))
+    resultant = sub(mul(ac, ac), mul(sub(mul(a, b2), mul(b, a2)), sub(mul(b, c2), mul(c, b2))))
+    out = []
+    for w0 in _positive_real_roots(resultant):
+        s = 1j * w0
+        for z in npoly.polyroots([npoly.polyval(s, qp.g1), npoly.polyval(s, qp.g2), npoly.polyval(s, qp.g4)]):
+            if abs(abs(z) - 1.0) < 1e-5:
+                polished = _newton_axis_root(qp, float(w0), _first_delay(z, float(w0))[1])
+                if polished is not None:
+                    w = polished[0]
+                    out.append((w, polished[1] % (2.0 * math.pi / w)))
+    return _unique(out)
+
+
+def _crossovers(qp: TwoDelayQuasiPolynomial) -> tuple[Crossover, ...]:
+    pairs = _siso_crossings(qp.g1, qp.g2) if qp.g4.size == 0 else _quadratic_crossings(qp)
+    out = []
+    for w, tau in pairs:
+        pm = math.remainder(w * tau, 2.0 * math.pi)  # tau = (pm mod 2 pi) / omega
         rt = int(qp.root_tendency(np.array([w]), np.array([tau]), np.array([0.0]), delay=1)[0])
         out.append(Crossover(omega=float(w), phase_margin=pm, tau=float(tau), root_tendency=rt))
     return tuple(sorted(out, key=lambda c: c.tau))
@@ -346,7 +418,8 @@ class DelayMargin(FigureRepr):
     certificate
         What was checked, in words.
     quasi_polynomial
-        D(s) + N(s) e^{-tau1 s} (eq. genfactor, tau2 unused).
+        D(s) + N(s) e^{-tau1 s}, or for a 2 x 2 loop
+        g1 + g2 e^{-tau1 s} + g4 e^{-2 tau1 s} (eq. genfactor, tau2 unused).
     """
 
     tau: float
@@ -357,8 +430,6 @@ class DelayMargin(FigureRepr):
     certified: bool
     certificate: str = field(repr=False)
     quasi_polynomial: TwoDelayQuasiPolynomial = field(repr=False)
-    numerator: NDArray[np.float64] = field(repr=False)
-    denominator: NDArray[np.float64] = field(repr=False)
 
     def is_stable(self, tau: float) -> bool:
         """True when the closed loop with delay ``tau`` is below the margin (stable)."""
@@ -387,9 +458,9 @@ class DelayMargin(FigureRepr):
         return plot_delay_margin(self, ax=ax)
 
 
-def _closed_loop_poles(num: NDArray[np.float64], den: NDArray[np.float64]) -> NDArray[np.complex128]:
-    closed = npoly.polyadd(den, num)
-    return npoly.polyroots(_trim(closed)) if _trim(closed).size > 1 else np.zeros(0, complex)
+def _closed_loop_poles(qp: TwoDelayQuasiPolynomial) -> NDArray[np.complex128]:
+    closed = _trim(qp.delay_free().real)
+    return npoly.polyroots(closed) if closed.size > 1 else np.zeros(0, complex)
 
 
 def _require_stable_at_zero(
@@ -453,22 +524,25 @@ def delay_margin(loop: object, *, name: str = "loop") -> DelayMargin:
     >>> round(m.tau, 10), round(2 * math.pi / (3 * math.sqrt(3)), 10), m.certified
     (1.2091995762, 1.2091995762, True)
     """
-    num, den = loop_polynomials(loop, name=name)
-    _check_proper(num, den, name)
-    retarded = num.size < den.size
-    qp = TwoDelayQuasiPolynomial(den, num)
-    poles = _closed_loop_poles(num, den)
+    if _is_mimo(loop):
+        qp = _mimo_terms(_as_state_space(loop, name), name, max_power=2)
+        retarded = True  # strictly proper (checked): every delayed term has lower degree
+        what = "every crossing from the resultant of q(j omega, z) and its conjugate reciprocal in z"
+    else:
+        num, den = loop_polynomials(loop, name=name)
+        _check_proper(num, den, name)
+        retarded = num.size < den.size
+        qp = TwoDelayQuasiPolynomial(den, num)
+        what = "every gain crossover from the exact polynomial |D(j omega)|^2 = |N(j omega)|^2"
+    poles = _closed_loop_poles(qp)
     counted = _require_stable_at_zero(poles, qp, retarded, name)
-    crossovers = _crossovers(num, den, qp)
-    common = dict(crossovers=crossovers, closed_loop_poles=poles, quasi_polynomial=qp, numerator=num, denominator=den)
+    crossovers = _crossovers(qp)
+    common = dict(crossovers=crossovers, closed_loop_poles=poles, quasi_polynomial=qp)
     if not crossovers:
-        what = (
-            "|L(j omega)| < 1 for every omega > 0 (no root of |D(j omega)|^2 - |N(j omega)|^2), so no root "
-            "reaches the axis at any delay; stable at tau = 0"
-        )
+        text = f"{what}: none, so no root reaches the axis at any delay; stable at tau = 0"
         how = " (closed-loop poles and a certified root count)" if counted else " (closed-loop poles)"
         return DelayMargin(tau=math.inf, omega=None, phase_margin=None, certified=counted,
-                           certificate=what + how, **common)  # fmt: skip
+                           certificate=text + how, **common)  # fmt: skip
     first = crossovers[0]
     certified, below = False, first.tau * (1.0 - CERTIFY_OFFSET)
     if retarded:
@@ -477,8 +551,8 @@ def delay_margin(loop: object, *, name: str = "loop") -> DelayMargin:
         except NotConvergedError:
             certified = False
     certificate = (
-        f"stable at tau = 0; every gain crossover from the exact polynomial |D(j omega)|^2 = |N(j omega)|^2 "
-        f"({len(crossovers)} found); the first root on the axis is j {first.omega:.10g} at tau = {first.tau:.10g}; "
+        f"stable at tau = 0; {what} ({len(crossovers)} found); the first root on the axis is "
+        f"j {first.omega:.10g} at tau = {first.tau:.10g}; "
         + (
             f"certified root count 0 right of the axis at tau = {below:.10g}"
             if certified
@@ -491,23 +565,58 @@ def delay_margin(loop: object, *, name: str = "loop") -> DelayMargin:
 
 
 # ===================================================================== quasi-polynomials
-def _mimo_terms(loop: Any, name: str) -> TwoDelayQuasiPolynomial:
-    """det(sI - A + z BC) = g1(s) + g2(s) z + g4(s) z^2 for a 2 x 2 (or 1 x 1) strictly proper loop."""
-    A, B, C, D = (np.asarray(m, dtype=np.float64) for m in (loop.A, loop.B, loop.C, loop.D))
-    if loop.ninputs != loop.noutputs or loop.ninputs > 2:
+def _is_mimo(loop: object) -> bool:
+    module = type(loop).__module__ or ""
+    return module.startswith("control") and getattr(loop, "ninputs", 1) * getattr(loop, "noutputs", 1) > 1
+
+
+def _as_state_space(loop: Any, name: str) -> Any:
+    control = _control_module(name, loop)
+    _check_continuous(loop, name)
+    if loop.ninputs != loop.noutputs:
         raise LoopError(
-            f"{name} has {loop.noutputs} outputs and {loop.ninputs} inputs; the closed loop "
-            "det(I + L e^{-tau s}) fits eq. genfactor for square loops of at most 2 x 2"
+            f"{name} has {loop.noutputs} outputs and {loop.ninputs} inputs; closing u = -y(t - tau) needs a square loop"
+        )
+    if isinstance(loop, control.TransferFunction):
+        try:
+            return control.ss(loop)
+        except Exception as exc:  # python-control needs slycot to realize a MIMO transfer function
+            raise LoopError(
+                f"{name}: python-control could not realize this MIMO TransferFunction as a StateSpace "
+                f"({type(exc).__name__}); pass a StateSpace"
+            ) from exc
+    if not isinstance(loop, control.StateSpace):
+        raise LoopError(f"{name} is a python-control {type(loop).__name__}; a MIMO loop must be a StateSpace or TransferFunction")
+    return loop
+
+
+def _mimo_characteristic(loop: Any, name: str) -> QuasiPolynomial:
+    """det(sI - A + z BC), the delayed feedback u(t) = -y(t - tau) of x' = A x + B u, y = C x."""
+    A, B, C, D = (np.asarray(m, dtype=np.float64) for m in (loop.A, loop.B, loop.C, loop.D))
+    if loop.ninputs != loop.noutputs:
+        raise LoopError(
+            f"{name} has {loop.noutputs} outputs and {loop.ninputs} inputs; closing u = -y(t - tau) needs a square loop"
         )
     if np.any(D != 0.0):
-        raise LoopError(f"{name} has a direct feedthrough D != 0: a MIMO loop must be strictly proper here")
-    M = B @ C
-    # det(sI - A + z M) has degree <= rank(M) <= 2 in z: interpolate at three roots of unity
-    zs = np.exp(2j * math.pi * np.arange(3) / 3)
-    polys = np.array([np.poly(A - z * M)[::-1] for z in zs])  # rows: z, columns: powers of s
-    coeffs = np.linalg.solve(np.vander(zs, 3, increasing=True), polys)  # rows: powers of z
-    g = [_trim(np.where(np.abs(c.real) > 1e-13 * np.abs(coeffs).max(), c.real, 0.0)) for c in coeffs]
-    return TwoDelayQuasiPolynomial(g[0], g[1], [], g[2])
+        raise LoopError(
+            f"{name} has a direct feedthrough D != 0: a MIMO loop must be strictly proper here "
+            "(with D the delayed loop is of neutral type)"
+        )
+    return QuasiPolynomial.from_matrices(A, -B @ C)
+
+
+def _mimo_terms(loop: Any, name: str, *, max_power: int) -> TwoDelayQuasiPolynomial:
+    """det(sI - A + z BC) = g1 + g2 z + g4 z^2 as eq. genfactor (z = e^{-tau1 s})."""
+    q = _mimo_characteristic(loop, name)
+    top = max(k for (k,) in q.terms)
+    if top > max_power:
+        raise LoopError(
+            f"{name}: det(I + L e^{{-tau s}}) has a term e^{{-{top} tau s}} (rank of BC = {top}); "
+            "eq. genfactor and the delay margin here take loops whose BC has rank at most 2 "
+            "(use loop_characteristic for the general quasi-polynomial)"
+        )
+    empty = np.zeros(0)
+    return TwoDelayQuasiPolynomial(q.terms[(0,)], q.terms.get((1,), empty), empty, q.terms.get((2,), empty))
 
 
 def loop_quasi_polynomial(
@@ -551,13 +660,8 @@ def loop_quasi_polynomial(
     [[1.0, 0.5, 1.0], [-0.5], [0.0, -0.25]]
     """
     if loop2 is None:
-        module = type(loop1).__module__ or ""
-        if module.startswith("control") and getattr(loop1, "ninputs", 1) * getattr(loop1, "noutputs", 1) > 1:
-            control = _control_module(name, loop1)
-            if not isinstance(loop1, control.StateSpace):
-                loop1 = control.ss(loop1)
-            _check_continuous(loop1, name)
-            return _mimo_terms(loop1, name)
+        if _is_mimo(loop1):
+            return _mimo_terms(_as_state_space(loop1, name), name, max_power=2)
         num, den = loop_polynomials(loop1, name=name)
         _check_strictly_proper(num, den, name)
         return TwoDelayQuasiPolynomial(den, num)
@@ -577,3 +681,70 @@ def _check_strictly_proper(num: NDArray[np.float64], den: NDArray[np.float64], n
             f"{den.size - 1}): the quasi-polynomial would be of neutral or advanced type, which "
             "crossing_map and rightmost_root do not treat"
         )
+
+
+def loop_characteristic(*loops: object, name: str = "loop") -> QuasiPolynomial:
+    """The characteristic quasi-polynomial of 1 + L1 e^{-tau1 s} + ... + Lm e^{-taum s}, any m.
+
+    For the root finders of :mod:`delayform.analysis.roots`
+    (``rightmost_root(q, tau1, ..., taum)``, ``count_roots_right_of``,
+    ``roots_in``), which take a :class:`~delayform.QuasiPolynomial` with any
+    number of delays.
+
+    * SISO loops L_k = N_k / D_k: the principal term is the product of the
+      denominators (one denominator when all share it), the term of delay k
+      is N_k times the other denominators.
+    * One square strictly proper MIMO ``StateSpace`` (or ``TransferFunction``)
+      loop, any size: det(sI - A + e^{-tau1 s} BC), with powers of
+      e^{-tau1 s} up to the rank of BC.
+
+    Parameters
+    ----------
+    *loops
+        One or more loop gains, as accepted by :func:`loop_polynomials`, or
+        one MIMO loop.
+    name
+        How error messages call the loops.
+
+    Returns
+    -------
+    QuasiPolynomial
+        Terms keyed by delay multiples, one delay per loop.
+
+    Raises
+    ------
+    LoopError
+        For no loop, a MIMO loop among several, a loop that is not strictly
+        proper, and as :func:`loop_polynomials`.
+
+    Examples
+    --------
+    >>> q = loop_characteristic(([1.0], [1.0, 1.0]), ([0.5], [1.0, 1.0]))  # shared plant 1 / (s + 1)
+    >>> {k: c.real.tolist() for k, c in q.terms.items()}
+    {(0, 0): [1.0, 1.0], (1, 0): [1.0], (0, 1): [0.5]}
+    """
+    if not loops:
+        raise LoopError("give at least one loop gain")
+    if any(_is_mimo(loop) for loop in loops):
+        if len(loops) > 1:
+            raise LoopError(f"{name}: a MIMO loop is taken alone (one delay); got {len(loops)} loops")
+        return _mimo_characteristic(_as_state_space(loops[0], name), name)
+    pairs = [loop_polynomials(loop, name=f"{name} {k + 1}") for k, loop in enumerate(loops)]
+    for k, (num, den) in enumerate(pairs):
+        _check_strictly_proper(num, den, f"{name} {k + 1}")
+    m = len(pairs)
+    unit = [tuple(int(j == k) for j in range(m)) for k in range(m)]
+    first = pairs[0][1] / pairs[0][1][-1]
+    if all(den.size == first.size and np.allclose(den / den[-1], first, rtol=1e-14, atol=0.0) for _, den in pairs):
+        # one plant: one denominator, each numerator rescaled to it
+        return QuasiPolynomial({(0,) * m: first, **{unit[k]: num / den[-1] for k, (num, den) in enumerate(pairs)}})
+    terms: dict[tuple[int, ...], NDArray[np.float64]] = {(0,) * m: np.ones(1)}
+    for _, den in pairs:
+        terms[(0,) * m] = npoly.polymul(terms[(0,) * m], den)
+    for k, (num, _) in enumerate(pairs):
+        others = np.ones(1)
+        for j, (_, den) in enumerate(pairs):
+            if j != k:
+                others = npoly.polymul(others, den)
+        terms[unit[k]] = npoly.polymul(num, others)
+    return QuasiPolynomial(terms)
