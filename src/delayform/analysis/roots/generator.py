@@ -176,6 +176,8 @@ def _require_resolvable(region: tuple[float, float, float, float], hmax: float) 
 
 def _root_scale(prob: _Problem) -> float:
     """Radius of the delay-free roots plus the delayed gains: scale of the rightmost roots."""
+    if prob.scale > 0.0:
+        return prob.scale
     total = prob.A + sum(b for b, _, _ in prob.delayed)
     return float(max(1.0, np.max(np.abs(np.linalg.eigvals(total))), np.linalg.norm(prob.A, 2)))
 

@@ -56,6 +56,8 @@ class _Problem:
     delayed: tuple[tuple[NDArray[np.complex128], int, int], ...]
     mirror: bool = False
     deflate_zero: bool = False
+    #: scale of the rightmost roots when known (0: from A and the delayed matrices, generator._root_scale)
+    scale: float = 0.0
 
     @property
     def degree(self) -> int:
@@ -76,7 +78,7 @@ def _problem_of_qp(qp: TwoDelayQuasiPolynomial) -> _Problem:
     qp.require_retarded()
     terms = qp.terms()
     A, delayed = _companion(terms)
-    return _Problem(terms=terms, A=A, delayed=delayed)
+    return _Problem(terms=terms, A=A, delayed=delayed, scale=_polynomial_scale(terms))
 
 
 def _problem_of_quasi(qp: QuasiPolynomial, taus: tuple[float, ...]) -> _Problem:
@@ -104,7 +106,25 @@ def _problem_of_quasi(qp: QuasiPolynomial, taus: tuple[float, ...]) -> _Problem:
     terms: _Terms = tuple((np.trim_zeros(c, "b") if np.any(c) else c[:1], h, 0) for c, h in rows)  # type: ignore[misc]
     terms = tuple(term for term in terms if term is terms[0] or np.any(term[0]))
     A, delayed = _companion(terms)
-    return _Problem(terms=terms, A=A, delayed=delayed)
+    return _Problem(terms=terms, A=A, delayed=delayed, scale=_polynomial_scale(terms))
+
+
+def _polynomial_scale(terms: _Terms) -> float:
+    """Radius of the roots of the principal and of the delay-free polynomial (at least 1).
+
+    The scale of the rightmost roots, for the discretization's first degree
+    (a companion matrix's norm is the size of the coefficients, far larger);
+    a degree too low for a problem only costs a rejected certificate and a
+    finer discretization.
+    """
+    free = np.zeros(terms[0][0].size, dtype=np.complex128)
+    for c, _, _ in terms:
+        free[: c.size] += c
+    radius = 1.0
+    for c in (terms[0][0], free):
+        if c.size > 1 and c[-1] != 0.0:
+            radius = max(radius, float(np.abs(np.roots(c[::-1])).max()))
+    return radius
 
 
 #: (t1, t2) at which a problem of :func:`_problem_of_quasi` is evaluated

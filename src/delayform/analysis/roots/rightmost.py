@@ -103,7 +103,9 @@ def _pick_rightmost(prob: _Problem, roots: NDArray[np.complex128]) -> complex:
     top = roots[np.argmax(roots.real)]
     # of a conjugate pair (or the mirror image), report the member with Im >= 0
     if prob.mirror or prob.is_real or np.all([np.all(c.imag == 0) for c, _, _ in prob.terms]):
-        top = complex(top.real, abs(top.imag))
+        # a real root's Newton iterate may keep an imaginary part far below rounding (1e-49)
+        imag = 0.0 if abs(top.imag) <= 1e-15 * (1.0 + abs(top.real)) else abs(top.imag)
+        top = complex(top.real, imag)
     return complex(top)
 
 

@@ -56,7 +56,7 @@ Maehly's correction and excluded from dominant roots (its other roots count).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import lru_cache
 
 import numpy as np
@@ -300,7 +300,7 @@ def roots_in(
     call = _call(qp, delays_and_region, ("region",), "roots_in")
     prob, t1, t2 = call.prob, call.t1, call.t2
     region = asked = _check_region(call.rest[0])
-    base = prob if not prob.deflate_zero else _Problem(prob.terms, prob.A, prob.delayed, prob.mirror)
+    base = prob if not prob.deflate_zero else replace(prob, deflate_zero=False)
     x0, x1, y0, y1 = region
     hmax = _max_delay(base, t1, t2)
     radius = max(abs(complex(x, y)) for x in (x0, x1) for y in (y0, y1))
@@ -418,7 +418,7 @@ def count_roots_right_of(
     call = _call(qp, delays_and_c, ("c",), "count_roots_right_of")
     prob, t1, t2 = call.prob, call.t1, call.t2
     c = _check_abscissa(call.rest[0])
-    base = _Problem(prob.terms, prob.A, prob.delayed, prob.mirror)
+    base = replace(prob, deflate_zero=False)
     n = _count_right_single(base, t1, t2, c)
     if n is None:
         raise NotConvergedError(f"a root lies on (or within rounding of) the line Re s = {c:g} at {call.where}")
@@ -467,9 +467,26 @@ def rightmost_root(qp: QuasiPolynomial | TwoDelayQuasiPolynomial | Characteristi
     return _rightmost(call.prob, t1, t2, where=call.where)
 
 
+def _polynomial_seeds(prob: _Problem) -> NDArray[np.complex128]:
+    """Roots of the principal and of the delay-free polynomial (no term delayed, every term undelayed)."""
+    free = np.zeros(prob.terms[0][0].size, dtype=np.complex128)
+    for c, _, _ in prob.terms:
+        free[: c.size] += c
+    seeds = [np.roots(c[::-1]) for c in (prob.terms[0][0], free) if c.size > 1 and c[-1] != 0.0]
+    out = np.concatenate(seeds) if seeds else np.zeros(1, dtype=np.complex128)
+    out = out.real + 1j * np.abs(out.imag)  # a real root's rounding below the axis would be dropped
+    return out + 1e-3 * (1.0 + np.abs(out)) * (out == 0.0)  # Newton cannot leave an exact 0 of q'
+
+
 def _rightmost(prob: _Problem, t1: float, t2: float, *, where: str | None = None) -> complex:
     _check_reach(prob, t1, t2)
     a1, a2 = np.array([t1]), np.array([t2])
+    if prob.scale > 0.0:
+        # roots far right of the others see e^{-h s} small: the polynomials' roots seed them without
+        # any discretization (long delays, roots of the principal term); the certificate decides
+        root, certified, _ = _certify(prob, a1, a2, _polynomial_seeds(prob)[None, :])
+        if certified[0]:
+            return _pick_rightmost(prob, root)
     # fast path: the map's low-degree seeds; the certificate decides, else the robust path
     root, certified, _ = _certify(prob, a1, a2, _igd_seeds(prob, a1, a2, scale=1.0, k=_BATCH_SEEDS))
     if certified[0]:
