@@ -107,6 +107,9 @@ _EXPORTS: dict[str, str] = {
     "loop_quasi_polynomial": "loops",
     "loop_polynomials": "loops",
     "loop_characteristic": "loops",
+    "design_loop_gains": "design.loop_gains",
+    "LoopGainDesign": "design.loop_gains",
+    "pd_loop_quasi_polynomial": "design.loop_gains",
     # example scenarios shipped in the wheel (issue 23)
     "example_path": "packaged",
     "example_names": "packaged",

@@ -630,3 +630,18 @@ def plot_delay_margin(result: Any, ax: Axes | None = None) -> Axes:
     ax.set_title(f"delay margin {result.tau:.4g} s")
     ax.legend(loc="best", fontsize="small")
     return ax
+
+
+def plot_loop_gains(design: Any, ax: Axes | None = None) -> Axes:
+    """The rightmost root's real part over the gain grid of a loop gain design, 0-contour and the design."""
+    ax = _axes(ax)
+    mesh = ax.pcolormesh(design.P_values, design.D_values, design.grid_abscissa, shading="nearest", cmap="coolwarm")
+    ax.figure.colorbar(mesh, ax=ax, label="Re of the rightmost root (1/s)")
+    if design.grid_abscissa.min() < 0.0 < design.grid_abscissa.max():
+        ax.contour(design.P_values, design.D_values, design.grid_abscissa, levels=[0.0], colors="k", linewidths=1.0)
+    ax.plot([design.P], [design.D], "k*", ms=12, label=f"P = {design.P:.3g}, D = {design.D:.3g}")
+    ax.set_xlabel("P")
+    ax.set_ylabel("D")
+    ax.set_title(f"(tau1, tau2) = ({design.tau1:g}, {design.tau2:g}) s")
+    ax.legend(loc="best", fontsize="small")
+    return ax
