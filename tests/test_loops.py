@@ -160,6 +160,17 @@ def test_bad_loops_raise_one_clear_error(loop: object, words: str) -> None:
     assert isinstance(info.value, ValueError)
 
 
+class DelayLTI(control.TransferFunction):
+    """Stands in for python-control's proposed DelayLTI (PR #1148): a loop carrying internal delays."""
+
+    tau = (0.5,)
+
+
+def test_loop_with_its_own_delays_is_refused() -> None:
+    with pytest.raises(LoopError, match="carries time delays of its own"):
+        delay_margin(DelayLTI([1.0], [1.0, 1.0]))
+
+
 @pytest.mark.parametrize("loop", [control.tf([1.0], [1.0, -1.0]), control.tf([1.0], [1.0, -2.0, 0.0])])
 def test_loop_unstable_without_delay_is_refused(loop: control.TransferFunction) -> None:
     with pytest.raises(UnstableLoopError, match="not stable without delay"):

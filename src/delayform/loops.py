@@ -179,13 +179,12 @@ def loop_polynomials(loop: object, *, name: str = "loop") -> tuple[NDArray[np.fl
     if isinstance(loop, tuple) and len(loop) == 2:
         num, den = _from_pair(loop, name)
     else:
-        module = type(loop).__module__ or ""
-        if not module.startswith("control"):
+        control = _control_module(name, loop)
+        if not isinstance(loop, (control.TransferFunction, control.StateSpace, control.FrequencyResponseData)):
             raise LoopError(
                 f"{name} must be a python-control TransferFunction or StateSpace, or a pair "
                 f"(num, den), got {type(loop).__name__}"
             )
-        control = _control_module(name, loop)
         if type(loop).__name__ == "DelayLTI" or hasattr(loop, "tau") or hasattr(loop, "delays"):
             raise LoopError(
                 f"{name} carries time delays of its own ({type(loop).__name__}), which cannot be read "
