@@ -289,3 +289,8 @@ def test_one_delay_characteristic_changes_stability_at_the_margin() -> None:
     q = loop_characteristic(loop)
     assert df.count_roots_right_of(q, tau * (1 - 1e-3), 0.0) == 0
     assert df.count_roots_right_of(q, tau * (1 + 1e-3), 0.0) == 2
+
+
+def test_zero_loop_has_no_crossover() -> None:
+    m = delay_margin(([0.0], [1.0, 2.0]))
+    assert m.tau == math.inf and m.certified

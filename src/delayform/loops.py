@@ -323,6 +323,8 @@ def _first_delay(z: complex, w: float) -> tuple[float, float]:
 
 def _siso_crossings(g1: NDArray[np.complex128], g2: NDArray[np.complex128]) -> list[tuple[float, float]]:
     """g1 + g2 z: |z| = 1 where |g1(j omega)|^2 = |g2(j omega)|^2, the gain crossovers of L = g2 / g1."""
+    if g2.size == 0:  # L = 0: the delay never enters
+        return []
     p = npoly.polysub(npoly.polymul(_in_omega(g1), _in_omega(g1, -1.0)), npoly.polymul(_in_omega(g2), _in_omega(g2, -1.0)))
     out = []
     for w0 in _positive_real_roots(p):
