@@ -289,3 +289,17 @@ def test_three_delays_agree_with_the_two_delay_form() -> None:
     shifted = TwoDelayQuasiPolynomial(g.g1 + np.array([0.3, 0, 0]), g.g2, g.g3, g.g4, g.g5, g.g6)
     assert abs(rightmost_root(q3, 0.7, 1.1, 0.0) - rightmost_root(shifted, 0.7, 1.1)) < 1e-10
     assert abs(rightmost_root(QuasiPolynomial.from_two_delay(g), 0.7, 1.1) - rightmost_root(g, 0.7, 1.1)) < 1e-10
+
+
+def test_map_at_long_delays_agrees_with_single_points() -> None:
+    """The dominant-root map inherits the lifted reach (delays of 50-60 s at the paper's gains)."""
+    from delayform.analysis.roots.dominant import dominant_root_map
+
+    axis = [50.0, 60.0]
+    m = dominant_root_map(paper_six(), 1.0, 0.5, axis, axis)
+    for i, t1 in enumerate(axis):
+        for j, t2 in enumerate(axis):
+            assert abs(m.roots[i, j] - dominant_root(paper_six(), 1.0, 0.5, t1, t2).root) < 1e-9
+    # and no factor has a root right of it (a count on a line the map did not choose)
+    for f in factors(paper_six(), 1.0, 0.5):
+        assert count_roots_right_of(f, 60.0, 60.0, m.roots[1, 1].real + 1e-6) == 0

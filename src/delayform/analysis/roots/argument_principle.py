@@ -177,6 +177,16 @@ def _cauchy_radius(
     def p(r: NDArray[np.float64]) -> NDArray[np.float64]:
         return lead * r**n - (low * r[..., None] ** powers).sum(axis=-1)
 
+    if shape == () and n > 0:
+        # one line (the single-point paths): the positive root from the companion eigenvalues,
+        # kept only where the polynomial is checked positive just above it (else bisection)
+        z = np.roots(np.concatenate([[lead], -low[::-1]]))
+        real = z.real[(np.abs(z.imag) <= 1e-9 * (1.0 + np.abs(z))) & (z.real > 0.0)]
+        if real.size:
+            guess = np.asarray(float(real.max()) * (1.0 + 1e-9) + 1e-12)
+            if p(guess) > 0.0:
+                return guess
+
     for _ in range(60):
         mid = 0.5 * (lo + hi)
         pos = p(mid) > 0.0

@@ -29,6 +29,8 @@ candidate of multiplicity m >= 2 by the test of :func:`_loose_multiplicity`):
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -38,6 +40,8 @@ from delayform.analysis.roots.problem import _cluster, _multiplicity, _nth_deriv
 #: |q^(j)| below this fraction of its terms' moduli counts as "zero" for a multiplicity candidate
 _LOOSE = 1e-3
 _NEWTON_STEPS = 40
+#: samples spent on one square's count: a square that needs more is not the right one
+_COUNT_BUDGET = 20_000
 
 
 def _loose_multiplicity(prob: _Problem, z: complex, t1: float, t2: float, cap: int) -> int:
@@ -109,8 +113,15 @@ def distinct_roots(
         scale = 1.0 + abs(z)
         near = keep & (np.abs(roots - z) <= 0.5 * scale * eps ** (1.0 / (2 * m)))
         w = 1.5 * float(np.abs(roots[near] - z).max(initial=0.0)) + 4.0 * scale * eps ** (1.0 / m)
+        # on the square's edges |q| ~ |q^(m)| w^m / m! must stand well above q's rounding error
+        arr = np.array([z], dtype=np.complex128)
+        _, mag0 = _nth_derivative(prob.terms, arr, t1, t2, 0)
+        qm, _ = _nth_derivative(prob.terms, arr, t1, t2, m)
+        if abs(qm[0]) > 0.0:
+            w = max(w, (1e4 * eps * float(mag0[0]) * math.factorial(m) / abs(qm[0])) ** (1.0 / m))
         for _ in range(3):  # a root on the square's edge: a slightly larger square
-            n = _region_count(prob, t1, t2, (z.real - w, z.real + w, z.imag - w, z.imag + w))
+            n = _region_count(prob, t1, t2, (z.real - w, z.real + w, z.imag - w, z.imag + w),
+                              budget=_COUNT_BUDGET)  # fmt: skip
             if n is not None:
                 break
             w *= 1.3
