@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 OUT ?= out/paper
 
-.PHONY: demo test install install-test browser bench clean
+.PHONY: demo test install install-test browser bench clean docs wheel
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -39,6 +39,17 @@ demo: install
 
 test: install-test browser
 	$(BIN)/python -m pytest -q src tests
+
+# The documentation site (Sphinx + numpydoc + MyST-NB, docs/conf.py says why): warnings are errors,
+# the tutorials in docs/tutorials/ are executed; tests/test_site.py runs the same build.
+DOCS_OUT ?= out/docs
+docs: install-test
+	$(BIN)/python -m sphinx -b html -W --keep-going -q docs $(DOCS_OUT)
+	@echo "docs: $(DOCS_OUT)/index.html"
+
+# A wheel and sdist in dist/ (tests/test_wheel.py installs the wheel into a bare venv)
+wheel: install-test
+	$(BIN)/python -m build --outdir dist .
 
 bench: install
 	$(BIN)/python -m pip install --quiet -e ".[bench]"

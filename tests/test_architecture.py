@@ -24,12 +24,15 @@ STAGES: dict[str, int] = {
     "resources": 0,  # a leaf: memory and time budget guard
     "_files": 0,  # a leaf: complete-or-absent output files
     "plots": 0,  # a leaf: draws results by their attributes, imports only the file helper _files
+    "_display": 0,  # a leaf: Jupyter's _repr_png_ mixin, imports no delayform module
+    "packaged": 0,  # a leaf: paths of the shipped example scenarios
     "topology": 1,
     "characteristic": 2,
     "quasipolynomial": 2,  # after characteristic (converts its TwoDelayQuasiPolynomial)
     "formation": 2,
     "analysis": 3,
     "design": 4,
+    "loops": 4,  # python-control loops: builds quasi-polynomials, counts their roots (issue 23)
     "simulation": 5,
     "deploy": 5,  # robot profiles, the on-robot controller, MCAP recordings: after simulation, beside it
     "sweeps": 6,

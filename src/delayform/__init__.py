@@ -135,6 +135,19 @@ _EXPORTS: dict[str, str] = {
     "neutral_roots_in": "analysis.neutral",
     "neutral_rightmost_root": "analysis.neutral",
     "neutral_count_right_of": "analysis.neutral",
+    # python-control loops: exact delay margins, loop quasi-polynomials (issue 23)
+    "delay_margin": "loops",
+    "DelayMargin": "loops",
+    "Crossover": "loops",
+    "loop_quasi_polynomial": "loops",
+    "loop_polynomials": "loops",
+    "loop_characteristic": "loops",
+    "design_loop_gains": "design.loop_gains",
+    "LoopGainDesign": "design.loop_gains",
+    "pd_loop_quasi_polynomial": "design.loop_gains",
+    # example scenarios shipped in the wheel (issue 23)
+    "example_path": "packaged",
+    "example_names": "packaged",
 }
 
 __all__ = sorted(_EXPORTS) + ["errors", "__version__"]

@@ -26,6 +26,8 @@ The tree::
     |   +-- RobotProfileError              an unknown robot profile, or one the formation cannot meet
     |   +-- ControllerInputError           the on-robot controller: a bad state or message
     |   +-- RecordingError                 an MCAP recording that cannot be written there
+    |   +-- LoopError                      a feedback loop (python-control object) outside what is analysed
+    |       +-- UnstableLoopError          a loop unstable at tau = 0 asked for a delay margin
     +-- NotConvergedError (RuntimeError)   carries the partial result
     +-- EssentialSpectrumError (RuntimeError)  neutral: no root right of the essential spectrum
 """
@@ -56,6 +58,8 @@ __all__ = [
     "ControllerInputError",
     "RecordingError",
     "EssentialSpectrumError",
+    "LoopError",
+    "UnstableLoopError",
 ]
 
 
@@ -186,3 +190,15 @@ class EssentialSpectrumError(DelayformError, RuntimeError):
         super().__init__(message)
         self.abscissa = abscissa
         self.line = line
+class LoopError(InputError):
+    """A feedback loop that :mod:`delayform.loops` cannot turn into a quasi-polynomial.
+
+    Raised for an object that is not a linear continuous-time system, a
+    discrete-time loop or one carrying a delay of its own, an improper loop,
+    a biproper loop with |L(j inf)| >= 1 (neutral type, no delay margin), and
+    a MIMO loop where a SISO one is needed; the message says which.
+    """
+
+
+class UnstableLoopError(LoopError):
+    """A loop whose closed loop 1 + L(s) is not stable without delay, asked for a delay margin."""

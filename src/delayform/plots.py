@@ -597,3 +597,58 @@ def safe_delay_chart(
     title = f"Safe for every team with spectrum in: {smap.spectrum.label}"
     ax.set_title(title if not smap.never_safe else title + " (none)", fontsize="small")
     return ax
+
+
+# === section: delay margins of python-control loops (issue 23) ===
+def plot_delay_margin(result: Any, ax: Axes | None = None) -> Axes:
+    """Nyquist plot of a :class:`~delayform.loops.DelayMargin`'s loop, unit circle and crossovers.
+
+    The loci are the eigenvalues mu = -1/z of L(j omega), z the roots of
+    g1 + g2 z + g4 z^2 (for a SISO loop, mu = L(j omega) itself), clipped
+    radially at |mu| = 4 so that a loop with an integrator stays readable;
+    each crossover is marked at mu = -e^{j PM} with its first delay.
+    """
+    import numpy.polynomial.polynomial as npoly
+
+    ax = _axes(ax)
+    qp = result.quasi_polynomial
+    top = max([c.omega for c in result.crossovers] + [1.0]) * 100.0
+    w = np.geomspace(1e-5 * top, top, 2000)
+    g1, g2 = npoly.polyval(1j * w, qp.g1), npoly.polyval(1j * w, qp.g2)
+    if qp.g4.size == 0:
+        loci = [g2 / g1]
+    else:
+        g4 = npoly.polyval(1j * w, qp.g4)
+        root = np.sqrt(g2 * g2 - 4 * g4 * g1)
+        loci = [-2 * g4 / (-g2 + root), -2 * g4 / (-g2 - root)]  # -1/z for both roots z
+    for k, mu in enumerate(loci):
+        mu = np.where(np.abs(mu) > 4.0, mu / np.abs(mu) * 4.0, mu)
+        ax.plot(mu.real, mu.imag, ".", ms=1.5, color=f"C{k}", label="loci of L(j omega), omega > 0" if k == 0 else None)
+    t = np.linspace(0.0, 2 * np.pi, 200)
+    ax.plot(np.cos(t), np.sin(t), color="0.6", lw=0.8, label="|L| = 1")
+    ax.plot([-1.0], [0.0], "k+", ms=10)
+    for c in result.crossovers:
+        mark = -np.exp(1j * c.phase_margin)
+        ax.plot([mark.real], [mark.imag], "o", color="C3")
+        ax.annotate(f"tau={c.tau:.3g}", (mark.real, mark.imag), textcoords="offset points", xytext=(5, 5))
+    ax.set_aspect("equal")
+    ax.set_xlabel("Re L")
+    ax.set_ylabel("Im L")
+    ax.set_title(f"delay margin {result.tau:.4g} s")
+    ax.legend(loc="best", fontsize="small")
+    return ax
+
+
+def plot_loop_gains(design: Any, ax: Axes | None = None) -> Axes:
+    """The rightmost root's real part over the gain grid of a loop gain design, 0-contour and the design."""
+    ax = _axes(ax)
+    mesh = ax.pcolormesh(design.P_values, design.D_values, design.grid_abscissa, shading="nearest", cmap="coolwarm")
+    ax.figure.colorbar(mesh, ax=ax, label="Re of the rightmost root (1/s)")
+    if design.grid_abscissa.min() < 0.0 < design.grid_abscissa.max():
+        ax.contour(design.P_values, design.D_values, design.grid_abscissa, levels=[0.0], colors="k", linewidths=1.0)
+    ax.plot([design.P], [design.D], "k*", ms=12, label=f"P = {design.P:.3g}, D = {design.D:.3g}")
+    ax.set_xlabel("P")
+    ax.set_ylabel("D")
+    ax.set_title(f"(tau1, tau2) = ({design.tau1:g}, {design.tau2:g}) s")
+    ax.legend(loc="best", fontsize="small")
+    return ax

@@ -55,6 +55,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from delayform._display import FigureRepr  # Jupyter shows the figure (issue 23)
 from delayform._validation import check_delay
 from delayform.analysis.roots.problem import _problem_of_factor
 from delayform.analysis.roots.single import _check_reach
@@ -95,7 +96,7 @@ _BYTES_PER_ROOT = 320.0
 # results
 # =====================================================================
 @dataclass(frozen=True, eq=False)
-class GainPlaneMap:
+class GainPlaneMap(FigureRepr):
     """The spectral abscissa over a grid of gains (P, D) at fixed delays (or a box's worst case).
 
     Attributes
@@ -160,7 +161,7 @@ class GainPlaneMap:
 
 
 @dataclass(frozen=True, eq=False)
-class GainDesign:
+class GainDesign(FigureRepr):
     """Gains chosen by :func:`design_gains`, with the root they reach and how it was certified.
 
     Attributes

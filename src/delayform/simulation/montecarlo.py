@@ -30,6 +30,7 @@ from typing import Any, Protocol
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from delayform._display import FigureRepr  # Jupyter shows the figure (issue 23)
 from delayform.errors import SimulationInputError
 from delayform.resources import require
 from delayform.formation import check_formation
@@ -282,7 +283,7 @@ _METRICS = ("settling_time", "final_error", "peak_command_1", "peak_command_2")
 
 
 @dataclass(frozen=True, eq=False)
-class MonteCarloResult:
+class MonteCarloResult(FigureRepr):
     """Distribution of the outcome of a formation over N seeded runs.
 
     Attributes

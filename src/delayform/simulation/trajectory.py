@@ -11,6 +11,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from delayform._files import atomic_path, save_npz
+from delayform._display import FigureRepr  # Jupyter shows the figure (issue 23)
 from delayform.simulation.commands import RobotCommands
 from delayform.simulation.robots import RobotLimits
 
@@ -29,7 +30,7 @@ DIVERGING_GROWTH = 10.0
 
 
 @dataclass(frozen=True, eq=False)
-class Trajectory:
+class Trajectory(FigureRepr):
     """A simulated run of eq. formation: the motion, its metrics and its status.
 
     Attributes
@@ -83,6 +84,8 @@ class Trajectory:
         Time (s) at which integration stopped because the state passed 1e8
         times its initial size (status ``"stopped"``), else None.
     """
+
+    _figure_method = "plot_traces"  # the robots' paths in the plane: what a notebook wants to see
 
     times: _Array
     positions: _Array

@@ -105,6 +105,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from delayform._display import FigureRepr  # Jupyter shows the figure (issue 23)
 from delayform._validation import check_delay_array, check_positive
 # the curves and the count live in one module per concept; names other modules and
 # tests import from here stay importable from here
@@ -169,7 +170,7 @@ CURVE_TOLERANCE = 1e-9
 
 
 @dataclass(frozen=True, eq=False)
-class StabilityMap:
+class StabilityMap(FigureRepr):
     """The exact stability map of CTCR in the window [0, tau1_max] x [0, tau2_max].
 
     Attributes

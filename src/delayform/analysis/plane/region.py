@@ -59,6 +59,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from delayform._display import FigureRepr  # Jupyter shows the figure (issue 23)
 from delayform._validation import check_complex_array, check_delay, check_gains
 from delayform.analysis.plane.spectrum_bounds import SpectrumBound, spectrum_bound
 from delayform.analysis.plane.boundary_curve import ab_terms, omega_limit
@@ -235,7 +236,7 @@ def _monotone_runs(th: NDArray[np.float64]) -> list[tuple[int, int]]:
 
 # ===================================================================== the result
 @dataclass(frozen=True, eq=False)
-class LambdaRegion:
+class LambdaRegion(FigureRepr):
     """The stable region of the eigenvalue plane at fixed gains and delays.
 
     An eigenvalue lam of C is stable when every root of

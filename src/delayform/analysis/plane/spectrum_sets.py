@@ -66,6 +66,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from delayform._display import FigureRepr  # Jupyter shows the figure (issue 23)
 from delayform._validation import check_delay_array, check_gains, check_positive
 from delayform.analysis.plane.boundary_curve import omega_limit
 from delayform.analysis.ctcr.stability_map import StabilityMap, _lam_factor, crossing_map
@@ -389,7 +390,7 @@ def _certified_scan(
 
 # ===================================================================== the result
 @dataclass(frozen=True, eq=False)
-class SafeDelayMap:
+class SafeDelayMap(FigureRepr):
     """Delay pairs at which every team whose spectrum lies in a set is stable.
 
     Attributes

@@ -1,0 +1,95 @@
+"""The wheel installs into a bare virtual environment and every command runs from it (issue 23).
+
+Slow: it builds the wheel, makes a venv without the project, installs the
+wheel (dependencies from the configured index or pip's cache) and runs each
+``delayform`` command on a shipped example, the explorer included (its page,
+script and Plotly served from the installed package).
+"""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+import urllib.request
+import zipfile
+from pathlib import Path
+
+import pytest
+
+import delayform
+from delayform.cli import cli
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _run(args: list[str], *, timeout: float = 600, cwd: Path | None = None) -> str:
+    done = subprocess.run(args, capture_output=True, text=True, timeout=timeout, cwd=cwd, check=False)
+    assert done.returncode == 0, f"{' '.join(args)}\n{done.stdout[-2000:]}\n{done.stderr[-3000:]}"
+    return done.stdout
+
+
+#: a quick real run of every command (``paper`` is the whole paper, ~40 s: its --help only here;
+#: tests/test_cli.py runs it from the source tree)
+def _invocations(example: str, out: str) -> dict[str, list[str]]:
+    return {
+        "factors": [example],
+        "chart": [example, "--out", out, "--tau1-max", "2", "--tau2-max", "2"],
+        "roots": [example, "--out", out],
+        "map": [example, "--out", out, "--size", "5,5"],
+        "schedule": [example, "--out", out],
+        "gains": [example, "--out", out, "--grid", "5"],
+        "simulate": [example, "--out", out, "--duration", "5", "--dt", "0.05"],
+        "report": [example, "--out", out],
+        "region": [example, "--out", out],
+        "safe-delays": [example, "--out", out, "--tau1-max", "2", "--tau2-max", "2"],
+        "montecarlo": [example, "--out", out, "--runs", "2", "--duration", "5"],
+        "sweep": [example, "--out", out, "--tau1-values", "0.2:0.4:2", "--tau2-values", "0.2:0.4:2",
+                  "--runs", "1", "--duration", "5"],  # fmt: skip
+        "paper": ["--help"],
+    }
+
+
+def _check_explorer(exe: Path, out: Path) -> None:
+    with subprocess.Popen([str(exe), "explore", "--port", "0", "--no-browser", "--out", str(out)],
+                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True) as proc:  # fmt: skip
+        try:
+            line = proc.stdout.readline() if proc.stdout else ""
+            url = re.search(r"http://[0-9.]+:\d+/", line)
+            assert url, f"explorer did not start: {line!r}"
+            for path in ("", "static/explorer.js", "static/explorer.css", "static/plotly.min.js"):
+                with urllib.request.urlopen(url.group(0) + path, timeout=30) as response:
+                    assert response.status == 200 and len(response.read()) > 100, path
+        finally:
+            proc.terminate()
+            proc.wait(timeout=30)
+
+
+@pytest.mark.slow
+def test_wheel_installs_in_a_bare_venv_and_runs_every_command(tmp_path: Path) -> None:
+    dist = tmp_path / "dist"
+    _run([sys.executable, "-m", "build", "--wheel", "--outdir", str(dist), str(ROOT)], timeout=600)
+    (wheel,) = dist.glob("delayform-*.whl")
+    assert wheel.name.startswith(f"delayform-{delayform.__version__}-")
+    names = set(zipfile.ZipFile(wheel).namelist())
+    shipped = {"delayform/py.typed"} | {f"delayform/app/static/{p.name}" for p in (ROOT / "src/delayform/app/static").iterdir()}
+    shipped |= {f"delayform/examples/{p.name}" for p in (ROOT / "examples").glob("*.toml")}
+    assert shipped <= names, f"missing from the wheel: {sorted(shipped - names)}"
+
+    env = tmp_path / "venv"
+    _run([sys.executable, "-m", "venv", str(env)])
+    python, exe = env / "bin" / "python", env / "bin" / "delayform"
+    _run([str(python), "-m", "pip", "install", "--quiet", str(wheel)], timeout=1200)
+    version, example = _run(
+        [str(python), "-c", "import delayform; print(delayform.__version__); print(delayform.example_path('ring12'))"],
+        cwd=tmp_path,
+    ).split()
+    assert version == delayform.__version__ and str(env) in example  # from the installed package, not the checkout
+
+    out = tmp_path / "out"
+    calls = _invocations(example, str(out))
+    assert set(calls) | {"explore"} == set(cli.commands), "a command is not exercised from the wheel"
+    for command, args in calls.items():
+        _run([str(exe), command, *args], cwd=tmp_path)
+    assert _run([str(exe), "--version"]).strip().endswith(delayform.__version__)
+    _check_explorer(exe, out)
