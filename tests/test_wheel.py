@@ -46,6 +46,10 @@ def _invocations(example: str, out: str) -> dict[str, list[str]]:
         "montecarlo": [example, "--out", out, "--runs", "2", "--duration", "5"],
         "sweep": [example, "--out", out, "--tau1-values", "0.2:0.4:2", "--tau2-values", "0.2:0.4:2",
                   "--runs", "1", "--duration", "5"],  # fmt: skip
+        "links": [example],
+        "box": [example, "--tau1-box", "0.1,0.2", "--tau2-box", "0.1,0.2"],
+        "jitter": [example],
+        "check": [example.replace("ring12", "create3_hexagon")],  # a design that fits: exit 0
         "paper": ["--help"],
     }
 

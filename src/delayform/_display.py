@@ -27,6 +27,6 @@ class FigureRepr:
         fig = Figure(figsize=self._figure_size)
         FigureCanvasAgg(fig)
         getattr(self, self._figure_method)(ax=fig.add_subplot())
-        buffer = io.BytesIO()
-        fig.savefig(buffer, format="png", dpi=90, bbox_inches="tight")
-        return buffer.getvalue()
+        data = io.BytesIO()  # in memory: no file, so no complete-or-absent writer (_files) needed
+        fig.savefig(data, format="png", dpi=90, bbox_inches="tight")
+        return data.getvalue()
