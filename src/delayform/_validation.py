@@ -32,6 +32,18 @@ def _real_scalar(name: str, value: object, error: type[InputError]) -> float:
 GAIN_RANGE = (1e-6, 1e6)
 
 
+#: largest length (m) or speed (m/s) accepted for positions, formations and initial speeds: at
+#: 1e6 m a float64 still resolves 1e-10 m, while far larger values (1e150) overflow the squared
+#: distances of the error metrics and make a stable run look diverged at t = 0
+MAX_MAGNITUDE = 1e6
+
+
+def check_magnitude(name: str, arr: NDArray[np.float64], error: type[InputError] = InputError, unit: str = "m") -> None:
+    """Raise ``error`` when an entry of a finite array exceeds :data:`MAX_MAGNITUDE` in size."""
+    if arr.size and float(np.abs(arr).max()) > MAX_MAGNITUDE:
+        raise error(f"{name} must be at most {MAX_MAGNITUDE:g} {unit} in size, got {float(np.abs(arr).max()):g}")
+
+
 def check_gain(name: str, value: object) -> float:
     """Return a control gain (P or D of eq. protocol) as float, or raise GainError.
 

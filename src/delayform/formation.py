@@ -30,7 +30,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from numpy.typing import ArrayLike, NDArray
 
-from delayform._validation import check_delay, check_gain, check_positive
+from delayform._validation import check_delay, check_gain, check_magnitude, check_positive
 from delayform.errors import FormationError
 from delayform.topology import DENSE_LIMIT, Topology
 
@@ -243,6 +243,7 @@ def check_formation(formation: ArrayLike | str, n: int) -> NDArray[np.float64]:
         raise FormationError(f"formation has {arr.shape[0]} agents, the topology has {n}")
     if not np.all(np.isfinite(arr)):
         raise FormationError("formation positions must be finite")
+    check_magnitude("formation positions", arr, FormationError)
     return arr
 
 

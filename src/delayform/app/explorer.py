@@ -762,7 +762,7 @@ class Explorer:
         self._run_step(tau1, tau2, duration)  # refuse an oversized run before any drawing
         from matplotlib.figure import Figure  # only downloads draw with matplotlib
 
-        from delayform.plots import plot_trajectory_traces, plot_trajectory_xy, stability_chart
+        from delayform.plots import plot_trajectory_traces, plot_trajectory_xy, savefig_noting_glyphs, stability_chart
 
         chart = self.chart(P, D, tau1_max, tau2_max, 10)
         run = self.animation(P, D, tau1, tau2, duration, 2, limits, network, loss, jitter)
@@ -790,7 +790,7 @@ class Explorer:
             for name, fig in figures.items():
                 for fmt in ("png", "svg"):
                     data = io.BytesIO()
-                    fig.savefig(data, format=fmt, dpi=150, bbox_inches="tight")
+                    savefig_noting_glyphs(fig, data, where=f"{name}.{fmt}", format=fmt, dpi=150, bbox_inches="tight")
                     zf.writestr(f"{name}.{fmt}", data.getvalue())
             zf.writestr("point.json", json.dumps(point.as_json() | roots.as_json(), indent=2))
             zf.writestr("scenario.toml", scenario_toml(s))
