@@ -98,6 +98,17 @@ _EXPORTS: dict[str, str] = {
     "Explorer": "app",
     "ExplorerLimits": "app",
     "scenario_toml": "app",
+    # issue 24: every name docs/api.md shows in bold is importable from here
+    "box_is_stable": "design.gains",
+    "gain_crossing_curves": "design.gains",
+    "SerialExecutor": "simulation.montecarlo",
+    "write_report": "report",
+    **{name: "errors" for name in (
+        "DelayformError", "InputError", "TopologyError", "NoSpanningTreeError", "GainError", "DelayError",
+        "NoStableDelaysError", "NoStableGainsError", "QuasiPolynomialError", "NeutralQuasiPolynomialError",
+        "FormationError", "SimulationInputError", "NetworkError", "ClusterError", "ScenarioError",
+        "ResourceLimitError", "NotConvergedError",
+    )},  # fmt: skip
 }
 
 __all__ = sorted(_EXPORTS) + ["errors", "__version__"]

@@ -105,3 +105,259 @@ def check_complex_array(name: str, value: ArrayLike) -> NDArray[np.complex128]:
     if not np.all(np.isfinite(arr)):
         raise InputError(f"{name} must be finite")
     return arr
+
+
+# ============================================================ the checking layer of the public API
+# One decorator, :func:`validated`, on every public function and class (``delayform.__all__``):
+# before the body runs, each argument the caller gave is compared with the parameter's
+# annotation, and a mismatch raises a delayform.errors exception in one line naming the
+# function, the parameter, what it takes and what it got. Values (ranges, shapes) stay the
+# business of each function; this layer makes sure that no wrong *type* reaches numpy,
+# SciPy or Dask, whose own errors (TypeError, AttributeError) would name none of ours.
+
+import functools  # noqa: E402
+import inspect  # noqa: E402
+import os  # noqa: E402
+import types  # noqa: E402
+import typing  # noqa: E402
+from collections.abc import Callable as _CallableABC  # noqa: E402
+from collections.abc import Mapping as _MappingABC  # noqa: E402
+from collections.abc import Sequence as _SequenceABC  # noqa: E402
+from typing import Any, TypeVar  # noqa: E402
+
+from delayform.errors import TopologyError  # noqa: E402
+
+_F = TypeVar("_F")
+
+#: a parameter's name -> the error its mismatch raises (else the decorator's own error)
+_ERROR_BY_NAME: dict[str, type[InputError]] = {
+    "P": GainError, "D": GainError, "P_bounds": GainError, "D_bounds": GainError,
+    "tau1": DelayError, "tau2": DelayError, "tau_min": DelayError, "tau_max": DelayError,
+    "tau1_max": DelayError, "tau2_max": DelayError, "topology": TopologyError,
+}  # fmt: skip
+
+#: a check: True when the value fits, with what the parameter takes (for the message)
+_Check = tuple[_CallableABC[[object], bool], str]
+
+
+def _is_real(v: object) -> bool:
+    return not isinstance(v, (bool, np.bool_)) and isinstance(v, (numbers.Real, np.floating, np.integer))
+
+
+def _scalar_check(tp: type) -> _Check | None:
+    """Checks of the plain types; None for a class checked with isinstance."""
+    if tp is float:
+        # NaN is never a meaningful argument of this library: it would poison every comparison
+        return (lambda v: _is_real(v) and not (isinstance(v, float) and math.isnan(v))), "a finite real number"
+    if tp is int:
+        return (lambda v: not isinstance(v, (bool, np.bool_)) and isinstance(v, (numbers.Integral, np.integer))), "an integer"
+    if tp is complex:
+        return (lambda v: not isinstance(v, (bool, np.bool_)) and isinstance(v, numbers.Number)
+                and not (isinstance(v, (float, complex)) and v != v)), "a number"  # fmt: skip
+    if tp is bool:
+        return (lambda v: isinstance(v, (bool, np.bool_))), "True or False"
+    if tp is str:
+        return (lambda v: isinstance(v, str)), "a string"
+    if tp is type(None):
+        return (lambda v: v is None), "None"
+    if tp is os.PathLike or (isinstance(tp, type) and issubclass(tp, os.PathLike)):
+        return (lambda v: isinstance(v, os.PathLike)), "a path"
+    return None
+
+
+def _numeric_array(v: object) -> bool:
+    """ArrayLike as this library uses it: numbers, of any shape numpy can hold."""
+    if isinstance(v, np.ndarray):
+        return v.dtype.kind in "biufc"
+    if isinstance(v, (str, bytes, bytearray)) or v is None:
+        return False
+    try:
+        arr = np.asarray(v)
+    except (TypeError, ValueError, OverflowError):  # ragged lists, objects numpy refuses
+        return False
+    return arr.dtype.kind in "biufc"
+
+
+def _sequence(v: object) -> bool:
+    return (isinstance(v, (_SequenceABC, np.ndarray)) and not isinstance(v, (str, bytes, bytearray)))
+
+
+#: the members of numpy's ArrayLike union
+_ARRAY_LIKE = set(typing.get_args(ArrayLike))
+
+
+def _check_of(tp: object) -> _Check | None:
+    """The check of an annotation; None when it cannot be checked (the function checks it)."""
+    if tp is Any or tp is object or isinstance(tp, TypeVar):
+        return None
+    if tp is None:
+        tp = type(None)
+    if tp is ArrayLike or tp is NDArray:
+        return _numeric_array, "numbers (an array)"
+    origin, args = typing.get_origin(tp), typing.get_args(tp)
+    if origin is typing.Union or origin is types.UnionType:
+        if _ARRAY_LIKE <= set(args):  # ArrayLike is itself a Union: `ArrayLike | str` flattens
+            rest = [a for a in args if a not in _ARRAY_LIKE]
+            checks = [_numeric_array] + [c[0] for c in map(_check_of, rest) if c is not None]
+            if len(checks) != 1 + len(rest):
+                return None
+            return (lambda v: any(c(v) for c in checks)), " or ".join(["numbers (an array)"] + [_check_of(a)[1] for a in rest])  # type: ignore[index]
+        parts = [_check_of(a) for a in args]
+        if any(p is None for p in parts):
+            return None
+        fns = [p[0] for p in parts]  # type: ignore[index]
+        return (lambda v: any(f(v) for f in fns)), " or ".join(p[1] for p in parts)  # type: ignore[index]
+    if origin is typing.Literal:
+        return (lambda v: any(type(v) is type(a) and v == a for a in args)), "one of " + ", ".join(map(repr, args))
+    if origin is np.ndarray:  # NDArray[...]: numbers the function converts
+        return _numeric_array, "numbers (an array)"
+    if origin is tuple:
+        if len(args) == 2 and args[1] is Ellipsis:
+            inner = _check_of(args[0])
+            fn = inner[0] if inner else (lambda v: True)
+            return (lambda v: _sequence(v) and all(fn(x) for x in v)), f"a tuple of {inner[1] if inner else 'values'}"
+        inners = [_check_of(a) for a in args]
+        fns2 = [c[0] if c else (lambda v: True) for c in inners]
+        what = f"a tuple of {len(args)} ({', '.join(c[1] if c else 'any' for c in inners)})"
+        return (lambda v: _sequence(v) and len(v) == len(fns2) and all(f(x) for f, x in zip(fns2, v))), what  # type: ignore[arg-type]
+    if origin in (list, _SequenceABC, typing.Sequence):
+        inner = _check_of(args[0]) if args else None
+        fn3 = inner[0] if inner else (lambda v: True)
+        return (lambda v: _sequence(v) and all(fn3(x) for x in v)), f"a sequence of {inner[1] if inner else 'values'}"
+    if origin in (dict, _MappingABC, typing.Mapping):
+        return (lambda v: isinstance(v, _MappingABC)), "a mapping"
+    if origin is _CallableABC or tp is _CallableABC:
+        return callable, "a function"
+    if origin is not None:
+        return None  # other generics (Iterator, ...): the function checks them
+    plain = _scalar_check(tp) if isinstance(tp, type) else None
+    if plain is not None:
+        return plain
+    if isinstance(tp, type):
+        if getattr(tp, "_is_protocol", False):
+            return None  # a Protocol: duck-typed
+        return (lambda v: isinstance(v, tp)), f"a {tp.__name__}"
+    return None
+
+
+def _split_union(text: str) -> list[str]:
+    """``"ArrayLike | str"`` -> ``["ArrayLike", "str"]``, split only outside brackets."""
+    parts, depth, start = [], 0, 0
+    for i, ch in enumerate(text):
+        depth += ch in "[(" and 1 or (-1 if ch in "])" else 0)
+        if ch == "|" and depth == 0:
+            parts.append(text[start:i].strip())
+            start = i + 1
+    return [*parts, text[start:].strip()]
+
+
+def _annotation_check(text: object, namespace: dict[str, Any]) -> _Check | None:
+    """The check of a (string) annotation; None when it names what is not importable here.
+
+    A string is split at its top-level ``|`` before evaluation: numpy's
+    ArrayLike is itself a Union (with ``str`` in it), and ``ArrayLike | str``
+    evaluated whole would flatten into members no longer recognisable.
+    """
+    if not isinstance(text, str):
+        return _check_of(text)
+    checks = []
+    for part in _split_union(text):
+        try:
+            tp = eval(part, namespace)  # noqa: S307 - the library's own annotations, not user text
+        except Exception:  # a name imported only for type checkers: left to the function
+            return None
+        check = _check_of(tp)
+        if check is None:
+            return None
+        checks.append(check)
+    if len(checks) == 1:
+        return checks[0]
+    fns = [c[0] for c in checks]
+    return (lambda v: any(f(v) for f in fns)), " or ".join(c[1] for c in checks)
+
+
+def _short(value: object) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _compile(func: _CallableABC[..., Any], skip_first: bool) -> tuple[list[str], dict[str, _Check]]:
+    """Parameter names in order, and the check of each checkable one."""
+    sig = inspect.signature(func)
+    namespace = {**vars(typing), "np": np, "ArrayLike": ArrayLike, "NDArray": NDArray, **func.__globals__}
+    names: list[str] = []
+    checks: dict[str, _Check] = {}
+    for i, (name, param) in enumerate(sig.parameters.items()):
+        if skip_first and i == 0:
+            continue
+        if param.kind in (param.VAR_POSITIONAL, param.VAR_KEYWORD):
+            continue
+        if param.kind != param.KEYWORD_ONLY:
+            names.append(name)
+        if param.annotation is param.empty:
+            continue
+        check = _annotation_check(param.annotation, namespace)
+        if check is not None:
+            checks[name] = check
+    return names, checks
+
+
+def validated(error: type[InputError] = InputError) -> _CallableABC[[_F], _F]:
+    """Check the argument types of a public function or class against its annotations.
+
+    Parameters
+    ----------
+    error
+        The delayform.errors class raised for a mismatch, except for the
+        gains (:class:`GainError`), delays (:class:`DelayError`) and the
+        topology (:class:`TopologyError`), named by their parameter.
+
+    Each argument given is checked once, before the body runs; defaults are
+    not. A class gets the check on its ``__init__`` (a dataclass's fields).
+
+    >>> @validated()
+    ... def half(x: float) -> float:
+    ...     return x / 2
+    >>> half("1")
+    Traceback (most recent call last):
+    ...
+    delayform.errors.InputError: half: x must be a finite real number, got '1'
+    """
+
+    def decorate(obj: _F) -> _F:
+        is_class = isinstance(obj, type)
+        target: _CallableABC[..., Any] = obj.__init__ if is_class else obj  # type: ignore[misc]
+        where = obj.__name__  # type: ignore[attr-defined]
+        compiled: list[tuple[list[str], dict[str, _Check]]] = []
+
+        def check(args: tuple[Any, ...], kwargs: dict[str, Any]) -> None:
+            if not compiled:  # annotations are resolved at the first call: the imports are done by then
+                compiled.append(_compile(target, skip_first=is_class))
+            names, checks = compiled[0]
+            for name, value in (*zip(names, args), *kwargs.items()):
+                entry = checks.get(name)
+                if entry is not None and not entry[0](value):
+                    raise _ERROR_BY_NAME.get(name, error)(f"{where}: {name} must be {entry[1]}, got {_short(value)}")
+
+        if is_class and not hasattr(target, "__globals__"):  # object.__init__: takes no arguments
+            obj.__delayform_checked__ = True  # type: ignore[attr-defined]
+            return obj
+        if is_class:
+            @functools.wraps(target)
+            def init(self: Any, *args: Any, **kwargs: Any) -> None:
+                check(args, kwargs)
+                target(self, *args, **kwargs)
+
+            obj.__init__ = init  # type: ignore[misc]
+            obj.__delayform_checked__ = True  # type: ignore[attr-defined]
+            return obj
+
+        @functools.wraps(target)
+        def wrapper(*args: Any, **kwargs: Any) -> Any:
+            check(args, kwargs)
+            return target(*args, **kwargs)
+
+        wrapper.__delayform_checked__ = True  # type: ignore[attr-defined]
+        return wrapper  # type: ignore[return-value]
+
+    return decorate

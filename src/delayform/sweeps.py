@@ -41,6 +41,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from delayform._validation import validated
 from delayform.errors import ClusterError, SimulationInputError
 from delayform.formation import named_formation
 from delayform.resources import require
@@ -117,6 +118,7 @@ class DaskExecutor:
         return self.client.gather(futures)
 
 
+@validated()
 @contextmanager
 def executor_for(*, workers: int | None = None, scheduler: str | None = None, timeout: float = 10.0) -> Iterator[Executor]:
     """Where runs go: this process, a local Dask cluster, or an existing one (module doc).
@@ -248,6 +250,7 @@ def rich_progress(title: str) -> Iterator[Progress]:
 
 
 # ------------------------------------------------------------------ result
+@validated()
 @dataclass(frozen=True, eq=False)
 class SweepResult:
     """Monte Carlo results at every point of a sweep.
@@ -329,6 +332,7 @@ def _fmt(value: float) -> str:
 
 
 # ------------------------------------------------------------------ sweeps
+@validated()
 def sweep(
     setup: Setup,
     changes: Sequence[Mapping[str, Any]],
@@ -437,6 +441,7 @@ def _guard_total(nbytes: float, seconds: float, tasks: int, workers: int) -> Non
             nbytes=nbytes * max(1, min(workers, tasks)), seconds=seconds / max(workers, 1))  # fmt: skip
 
 
+@validated()
 def delay_sweep(
     setup: Setup, tau1_values: Sequence[float], tau2_values: Sequence[float], *, runs: int, seed: int = 0,
     workers: int | None = None, scheduler: str | None = None, progress: bool | Progress = False,
@@ -456,6 +461,7 @@ def delay_sweep(
                  runs=runs, seed=seed, workers=workers, scheduler=scheduler, progress=progress)  # fmt: skip
 
 
+@validated()
 def gain_sweep(
     setup: Setup, P_values: Sequence[float], D_values: Sequence[float], *, runs: int, seed: int = 0,
     workers: int | None = None, scheduler: str | None = None, progress: bool | Progress = False,
@@ -482,6 +488,7 @@ def _grid(setup: Setup, fields: tuple[str, str], first: Sequence[float], second:
     return sweep(setup, changes, labels=[label.format(*p) for p in pairs], parameter=parameter, values=pairs, **options)
 
 
+@validated()
 def topology_sweep(
     setup: Setup, topologies: Sequence[Topology], *, shape: str, spacing: float = 1.0, runs: int, seed: int = 0,
     workers: int | None = None, scheduler: str | None = None, progress: bool | Progress = False,
@@ -507,6 +514,7 @@ def topology_sweep(
                  workers=workers, scheduler=scheduler, progress=progress)  # fmt: skip
 
 
+@validated()
 def network_sweep(
     setup: Setup, networks: Sequence[Network | None], labels: Sequence[str], *, runs: int, seed: int = 0,
     workers: int | None = None, scheduler: str | None = None, progress: bool | Progress = False,

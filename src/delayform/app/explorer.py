@@ -42,6 +42,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from delayform._validation import validated
 from delayform.analysis.ctcr.stability_map import StabilityMap, stability_map
 from delayform.analysis.roots.team_roots import factor_roots_in
 from delayform.analysis.roots.dominant import DominantRoot, dominant_root, roots_in
@@ -301,6 +302,7 @@ class Animation:
 
 
 # ==================================================================== explorer
+@validated()
 class Explorer:
     """The explorer's computations for one scenario, with caches and work limits.
 

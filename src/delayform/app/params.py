@@ -29,6 +29,7 @@ import re
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
+from delayform._validation import validated
 from delayform.errors import InputError
 
 __all__ = ["Param", "ExplorerLimits", "parse_query"]
@@ -44,6 +45,7 @@ _TRUE = ("1", "true", "on", "yes")
 _FALSE = ("0", "false", "off", "no")
 
 
+@validated()
 @dataclass(frozen=True)
 class ExplorerLimits:
     """The most work one request to the explorer may cause.

@@ -7,6 +7,8 @@ from typing import Any
 
 import numpy as np
 
+from delayform._validation import validated
+from delayform.errors import ScenarioError
 from delayform.scenario._reader import _check_sizes, _Reader
 from delayform.simulation.network import (
     Network,
@@ -156,6 +158,7 @@ class ScheduleSpec:
     tau_max: tuple[float, float]
 
 
+@validated(ScenarioError)
 @dataclass(frozen=True, eq=False)
 class Scenario:
     """A validated scenario: everything a ``delayform`` subcommand needs.

@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from delayform._validation import validated
 from delayform.errors import InputError, NetworkError, ScenarioError
 from delayform.scenario._reader import _Reader
 from delayform.scenario.model import (
@@ -332,6 +333,7 @@ def parse_scenario(data: Mapping[str, Any], *, source: str = "<scenario>", defau
 _MAX_FILE_BYTES = 16 * 2**20
 
 
+@validated(ScenarioError)
 def load_scenario(path: str | Path) -> Scenario:
     """Read and validate a TOML scenario file.
 

@@ -15,6 +15,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from delayform._validation import validated
+from delayform.errors import SimulationInputError
 from delayform.simulation.robots import RobotLimits, wheel_speeds
 
 __all__ = ["RobotCommands", "LimitExceedance"]
@@ -85,6 +87,7 @@ class LimitExceedance:
         )
 
 
+@validated(SimulationInputError)
 @dataclass(frozen=True, eq=False)
 class RobotCommands:
     """Per-robot time series of the commands of eq. transform2, actual and ideal.

@@ -30,6 +30,7 @@ from typing import Any, Protocol
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from delayform._validation import validated
 from delayform.errors import SimulationInputError
 from delayform.resources import require
 from delayform.formation import check_formation
@@ -206,6 +207,7 @@ class Executor(Protocol):
         ...
 
 
+@validated()
 class SerialExecutor:
     """Runs every task in this process, one after another."""
 
@@ -233,6 +235,7 @@ class SerialExecutor:
 _METRICS = ("settling_time", "final_error", "peak_command_1", "peak_command_2")
 
 
+@validated()
 @dataclass(frozen=True, eq=False)
 class MonteCarloResult:
     """Distribution of the outcome of a formation over N seeded runs.
@@ -425,6 +428,7 @@ def guard(setup: Setup, runs: int, workers: int = 1) -> None:
             nbytes=nbytes * at_once, seconds=seconds / max(workers, 1))  # fmt: skip
 
 
+@validated()
 def make_setup(
     topology: Topology,
     P: float,
@@ -530,6 +534,7 @@ def collect(setup: Setup, runs: int, seed: int, outcomes: Sequence[RunOutcome]) 
     )  # fmt: skip
 
 
+@validated()
 def monte_carlo(
     topology: Topology,
     P: float,

@@ -82,6 +82,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from delayform._validation import validated
 from delayform.errors import NetworkError
 
 __all__ = [
@@ -141,6 +142,7 @@ def _matrix(name: str, value: ArrayLike | None, *, probability: bool = False) ->
 
 
 # ------------------------------------------------------------ the model
+@validated(NetworkError)
 @dataclass(frozen=True, eq=False)
 class LinkDelays:
     """Constant delays that differ from link to link.
@@ -178,6 +180,7 @@ class LinkDelays:
         return self.tau1 is None and self.tau2 is None and self.spread == 0.0
 
 
+@validated(NetworkError)
 @dataclass(frozen=True)
 class Jitter:
     """Bounded random jitter: each packet's delay is the link's delay plus ``U(-bound, bound)``.
@@ -203,6 +206,7 @@ class Jitter:
         return self.bound1 == 0.0 and self.bound2 == 0.0
 
 
+@validated(NetworkError)
 @dataclass(frozen=True)
 class SmoothVariation:
     """Delays that vary smoothly: ``d(t) = d_link + amplitude sin(2 pi t / period + phase_link)``.
@@ -241,6 +245,7 @@ class SmoothVariation:
         return self.amplitude1 == 0.0 and self.amplitude2 == 0.0
 
 
+@validated(NetworkError)
 @dataclass(frozen=True, eq=False)
 class BernoulliLoss:
     """Independent packet loss: each packet is lost with ``probability``.
@@ -271,6 +276,7 @@ class BernoulliLoss:
         return float(np.mean(self.probability))
 
 
+@validated(NetworkError)
 @dataclass(frozen=True)
 class GilbertElliott:
     """Bursty loss: a two-state Markov chain per stream (Gilbert-Elliott channel).
@@ -320,6 +326,7 @@ class GilbertElliott:
         return self.loss_rate == 0.0 and self.loss_good == 0.0
 
 
+@validated(NetworkError)
 @dataclass(frozen=True)
 class Sampling:
     """Sampled transmission: every agent sends its state ``rate`` times per second (zero-order hold).
@@ -340,6 +347,7 @@ class Sampling:
         object.__setattr__(self, "rate", rate)
 
 
+@validated(NetworkError)
 @dataclass(frozen=True)
 class MeasurementNoise:
     """Additive Gaussian noise on what is sent: standard deviations per coordinate.
@@ -365,6 +373,7 @@ class MeasurementNoise:
         return self.position == 0.0 and self.velocity == 0.0
 
 
+@validated(NetworkError)
 @dataclass(frozen=True, eq=False)
 class Network:
     """An imperfect communication network for :func:`~delayform.simulation.simulate` (module doc).

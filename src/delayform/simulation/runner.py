@@ -48,7 +48,7 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from delayform._validation import check_delay, check_gains, check_magnitude, check_positive
+from delayform._validation import check_delay, check_gains, check_magnitude, check_positive, validated
 from delayform.errors import SimulationInputError
 from delayform.formation import (
     centroid_weights,
@@ -190,6 +190,7 @@ def estimate_resources(
 
 
 # ------------------------------------------------------------------- core
+@validated(SimulationInputError)
 def simulate(
     topology: Topology,
     P: float,
@@ -401,6 +402,7 @@ def _trajectory(
 
 
 # ------------------------------------------------------------ paper demo
+@validated(SimulationInputError)
 def paper_simulations(
     *, seed: int = 0, duration: float = 150.0, dt: float = 0.01, spacing: float = 2.0,
     limits: RobotLimits | None = None,

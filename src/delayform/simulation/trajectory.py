@@ -10,6 +10,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from delayform._validation import validated
+from delayform.errors import SimulationInputError
 from delayform.simulation.commands import RobotCommands
 from delayform.simulation.robots import RobotLimits
 
@@ -27,6 +29,7 @@ STATUSES = ("settled", "not settled", "diverging", "stopped")
 DIVERGING_GROWTH = 10.0
 
 
+@validated(SimulationInputError)
 @dataclass(frozen=True, eq=False)
 class Trajectory:
     """A simulated run of eq. formation: the motion, its metrics and its status.

@@ -105,7 +105,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from delayform._validation import check_delay_array, check_positive
+from delayform._validation import check_delay_array, check_positive, validated
 # the curves and the count live in one module per concept; names other modules and
 # tests import from here stay importable from here
 from delayform.analysis.ctcr.count import (  # noqa: F401
@@ -166,6 +166,7 @@ PAPER_POINTS: dict[str, tuple[float, float]] = {
 CURVE_TOLERANCE = 1e-9
 
 
+@validated()
 @dataclass(frozen=True, eq=False)
 class StabilityMap:
     """The exact stability map of CTCR in the window [0, tau1_max] x [0, tau2_max].
@@ -367,6 +368,7 @@ def _guard_window(qps: list[TwoDelayQuasiPolynomial], t1: float, t2: float) -> N
 
 
 # ===================================================================== public entry points
+@validated()
 def crossing_map(qp: TwoDelayQuasiPolynomial, tau1_max: float, tau2_max: float) -> StabilityMap:
     """The CTCR stability map of one retarded quasi-polynomial of eq. genfactor.
 
@@ -412,6 +414,7 @@ def crossing_map(qp: TwoDelayQuasiPolynomial, tau1_max: float, tau2_max: float) 
     return _assemble([(qp, 1, parts)], t1, t2)
 
 
+@validated()
 def stability_map(topology: Topology, P: float, D: float, tau1_max: float, tau2_max: float) -> StabilityMap:
     """The exact CTCR stability map of the formation protocol (eq. protocolss).
 

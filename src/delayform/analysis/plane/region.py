@@ -59,7 +59,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from delayform._validation import check_complex_array, check_delay, check_gains
+from delayform._validation import check_complex_array, check_delay, check_gains, validated
 from delayform.analysis.plane.spectrum_bounds import SpectrumBound, spectrum_bound
 from delayform.analysis.plane.boundary_curve import ab_terms, omega_limit
 from delayform.analysis.plane.spectrum_sets import SafeDelayMap, SpectrumSet, parse_spectrum, safe_delays
@@ -235,6 +235,7 @@ def _monotone_runs(th: NDArray[np.float64]) -> list[tuple[int, int]]:
 
 
 # ===================================================================== the result
+@validated()
 @dataclass(frozen=True, eq=False)
 class LambdaRegion:
     """The stable region of the eigenvalue plane at fixed gains and delays.
@@ -392,6 +393,7 @@ class LambdaRegion:
         return lambda_region_plot(self, ax=ax, eigenvalues=eig, radius=radius)
 
 
+@validated()
 def lambda_region(P: float, D: float, tau1: float, tau2: float) -> LambdaRegion:
     """The stable region of the eigenvalue plane of eq. factorized at fixed gains and delays.
 

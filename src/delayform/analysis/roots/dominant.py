@@ -37,7 +37,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from delayform._validation import check_delay, check_gains
+from delayform._validation import check_delay, check_gains, validated
 from delayform.analysis.roots.family.solve import family_grid, family_rightmost
 from delayform.analysis.roots.problem import MAX_DEGREE, RESIDUAL_TOL, _Problem, _problem_of_factor, _problem_of_qp
 from delayform.analysis.roots.single import (  # noqa: F401 - the roots of one quasi-polynomial, re-exported
@@ -81,6 +81,7 @@ SETTLING_FACTOR = math.log(50.0)
 # =====================================================================
 # public: dominant root of the formation, maps, scheduling
 # =====================================================================
+@validated()
 @dataclass(frozen=True)
 class DominantRoot:
     """The dominant (rightmost) characteristic root of the formation at one delay pair.
@@ -210,6 +211,7 @@ def _factors_of(topology: Topology, P: float, D: float) -> tuple[CharacteristicF
     return factors(topology, P, D)
 
 
+@validated()
 def dominant_root(topology: Topology, P: float, D: float, tau1: float, tau2: float) -> DominantRoot:
     """The dominant root of the formation and its time constant.
 
@@ -255,6 +257,7 @@ def dominant_root(topology: Topology, P: float, D: float, tau1: float, tau2: flo
                         beside_drift=beside)  # fmt: skip
 
 
+@validated()
 @dataclass(frozen=True, eq=False)
 class DominantRootMap:
     """Dominant roots over a grid of delays (paper Figs. dominant and contour).
@@ -336,6 +339,7 @@ def _grid_axis(name: str, values: ArrayLike) -> NDArray[np.float64]:
     return arr
 
 
+@validated()
 def dominant_root_map(
     topology: Topology,
     P: float,

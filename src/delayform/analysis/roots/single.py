@@ -61,7 +61,7 @@ from functools import lru_cache
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from delayform._validation import check_delay
+from delayform._validation import check_delay, validated
 from delayform.analysis.roots.family.solve import family_reach_scales, family_rightmost
 from delayform.analysis.roots.generator import (
     _eigenvalues_at,
@@ -179,6 +179,7 @@ def _with_mirror(prob: _Problem, roots: NDArray[np.complex128]) -> NDArray[np.co
     return np.concatenate([roots, np.conj(roots)])
 
 
+@validated()
 def roots_in(
     qp: TwoDelayQuasiPolynomial | CharacteristicFactor, tau1: float, tau2: float, region: Region
 ) -> NDArray[np.complex128]:
@@ -308,6 +309,7 @@ def _in_region(roots: NDArray[np.complex128], region: Region) -> NDArray[np.comp
     return out[np.lexsort((-out.imag, -out.real))]
 
 
+@validated()
 def count_roots_right_of(
     qp: TwoDelayQuasiPolynomial | CharacteristicFactor, tau1: float, tau2: float, c: float
 ) -> int:
@@ -353,6 +355,7 @@ def count_roots_right_of(
     return n
 
 
+@validated()
 def rightmost_root(
     qp: TwoDelayQuasiPolynomial | CharacteristicFactor, tau1: float, tau2: float
 ) -> complex:
