@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import numbers
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -75,12 +76,20 @@ def check_delay(name: str, value: object) -> float:
     return out
 
 
+def _numbers(name: str, value: ArrayLike, dtype: type, what: str, error: type[InputError]) -> NDArray[Any]:
+    """``np.asarray(value, dtype)`` for numbers only: numpy would also parse the string "0.5"."""
+    try:
+        raw = np.asarray(value)
+        if raw.dtype.kind not in "biufc":
+            raise TypeError(raw.dtype)
+        return np.asarray(raw, dtype=dtype)
+    except (TypeError, ValueError) as exc:
+        raise error(f"{name} must be {what}, got {type(value).__name__}") from exc
+
+
 def check_delay_array(name: str, value: ArrayLike) -> NDArray[np.float64]:
     """Return delays as a float64 array, or raise DelayError."""
-    try:
-        arr = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise DelayError(f"{name} must be a real number or an array of them") from exc
+    arr = _numbers(name, value, np.float64, "a real number or an array of them", DelayError)
     if not np.all(np.isfinite(arr)):
         raise DelayError(f"{name} must be finite")
     if np.any(arr < 0.0):
@@ -98,10 +107,7 @@ def check_positive(name: str, value: object, error: type[InputError] = InputErro
 
 def check_complex_array(name: str, value: ArrayLike) -> NDArray[np.complex128]:
     """Return finite complex values as a complex128 array, or raise InputError."""
-    try:
-        arr = np.asarray(value, dtype=np.complex128)
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"{name} must be complex numbers") from exc
+    arr = _numbers(name, value, np.complex128, "complex numbers", InputError)
     if not np.all(np.isfinite(arr)):
         raise InputError(f"{name} must be finite")
     return arr
@@ -123,7 +129,7 @@ import typing  # noqa: E402
 from collections.abc import Callable as _CallableABC  # noqa: E402
 from collections.abc import Mapping as _MappingABC  # noqa: E402
 from collections.abc import Sequence as _SequenceABC  # noqa: E402
-from typing import Any, TypeVar  # noqa: E402
+from typing import TypeVar  # noqa: E402
 
 from delayform.errors import TopologyError  # noqa: E402
 
@@ -234,8 +240,8 @@ def _check_of(tp: object) -> _Check | None:
     if plain is not None:
         return plain
     if isinstance(tp, type):
-        if getattr(tp, "_is_protocol", False):
-            return None  # a Protocol: duck-typed
+        if getattr(tp, "_is_protocol", False) and not getattr(tp, "_is_runtime_protocol", False):
+            return None  # a Protocol without runtime_checkable: duck-typed, left to the function
         return (lambda v: isinstance(v, tp)), f"a {tp.__name__}"
     return None
 

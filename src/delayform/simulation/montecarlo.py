@@ -25,7 +25,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
-from typing import Any, Protocol
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -199,6 +199,7 @@ def simulate_run(task: tuple[Setup, int, tuple[int, int]]) -> RunOutcome:
 
 
 # --------------------------------------------------------------- executors
+@runtime_checkable  # so that monte_carlo(executor="dask") is refused up front (delayform._validation)
 class Executor(Protocol):
     """Runs tasks somewhere and returns their results in the order of the tasks."""
 
