@@ -94,6 +94,9 @@ def main(argv: list[str] | None = None) -> None:
 
 
 def _main(argv: list[str] | None) -> None:
+    # no file name or number holds a NUL; the operating system would refuse it with a raw ValueError
+    if any("\x00" in a for a in (sys.argv[1:] if argv is None else argv)):
+        _fail("an argument contains a NUL character (\\x00)")
     try:
         code = cli.main(args=argv, prog_name="delayform", standalone_mode=False)
     except _NO_ARGS_IS_HELP as exc:  # plain `delayform`: show the help

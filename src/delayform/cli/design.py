@@ -42,10 +42,8 @@ def schedule_command(scenario: Path | None, tau_min: tuple[float, float] | None,
 
     sc = _scenario(scenario, **overrides)
     lo = tau_min or sc.schedule.tau_min
-    if tau_max is None:  # the default upper bound follows the lower one given
-        hi = (max(sc.schedule.tau_max[0], lo[0]), max(sc.schedule.tau_max[1], lo[1]))
-    else:
-        hi = tau_max
+    # the default upper bound follows the lower one given (ScheduleSpec.starting_at)
+    hi = tau_max or sc.schedule.starting_at(lo).tau_max
     if hi[0] < lo[0] or hi[1] < lo[1]:
         where = "--tau-min" if tau_min is not None else "schedule.tau_min"
         raise click.BadParameter(f"expected bounds >= {where} = {lo[0]:g},{lo[1]:g}", param_hint="--tau-max")

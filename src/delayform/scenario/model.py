@@ -157,6 +157,17 @@ class ScheduleSpec:
     tau_min: tuple[float, float]
     tau_max: tuple[float, float]
 
+    def starting_at(self, tau_min: tuple[float, float]) -> ScheduleSpec:
+        """The bounds from new hardware delays, the upper bound following them.
+
+        The box keeps its size when the new lower bound moves past the old
+        upper one (``schedule --tau-min 9,9`` on the paper's [0.3, 8] x [0.2, 8]
+        searches [9, 16.7] x [9, 16.8]); it never shrinks below the old upper bound.
+        """
+        hi = tuple(max(old_hi, lo + (old_hi - old_lo))
+                   for lo, old_lo, old_hi in zip(tau_min, self.tau_min, self.tau_max, strict=True))  # fmt: skip
+        return ScheduleSpec(tau_min=tau_min, tau_max=(hi[0], hi[1]))
+
 
 @validated(ScenarioError)
 @dataclass(frozen=True, eq=False)
@@ -270,9 +281,7 @@ class Scenario:
         )
         if tau1 is not None or tau2 is not None:
             # the hardware delays are the operating ones: schedule from what the user gave
-            lo = (new.tau1, new.tau2)
-            hi = (max(new.schedule.tau_max[0], lo[0]), max(new.schedule.tau_max[1], lo[1]))
-            new = replace(new, schedule=ScheduleSpec(tau_min=lo, tau_max=hi))
+            new = replace(new, schedule=new.schedule.starting_at((new.tau1, new.tau2)))
         if formation is not None:
             shape = reader.shape("formation.shape", formation)
             new = replace(new, formation=FormationSpec(shape=shape, spacing=self.formation.spacing))

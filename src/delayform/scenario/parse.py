@@ -214,9 +214,10 @@ DEFAULT_WINDOW = 8.0
 
 def _chart(reader: _Reader, data: Mapping[str, Any], tau: tuple[float, float]) -> ChartSpec:
     reader.keys(data, "chart", ("tau1_max", "tau2_max", "points"))
-    # defaults follow the values given: a window always contains the operating delays
-    tau1_max = reader.positive("chart.tau1_max", data.get("tau1_max", max(DEFAULT_WINDOW, tau[0])))
-    tau2_max = reader.positive("chart.tau2_max", data.get("tau2_max", max(DEFAULT_WINDOW, tau[1])))
+    # defaults follow the values given: the window holds the operating delays with room around
+    # them (half as much again), so that the chart shows the point and the schedule a box
+    tau1_max = reader.positive("chart.tau1_max", data.get("tau1_max", max(DEFAULT_WINDOW, 1.5 * tau[0])))
+    tau2_max = reader.positive("chart.tau2_max", data.get("tau2_max", max(DEFAULT_WINDOW, 1.5 * tau[1])))
     points_value = data.get("points", {})
     if not isinstance(points_value, Mapping):
         raise reader.error("chart.points", "a table label = [tau1, tau2]", points_value)
