@@ -25,6 +25,8 @@ from hypothesis import strategies as st
 from delayform.cli import cli, main
 from delayform.cli._common import DelayValues, FloatTuple, LabelledPoint, OutDir
 from test_cli import assert_no_warning_text
+from test_hardening import BASE
+from test_hardening import cli as _run
 
 #: options left out, each with the reason
 SKIP_OPTIONS = {
@@ -149,29 +151,6 @@ def test_command_refuses_wrong_values(name: str, tmp_path: Path, monkeypatch: py
 
 
 # ================================================================ the issue's examples (items 1, 6, 8)
-BASE = """\
-[topology]
-name = "paper_six"
-[gains]
-P = 1.0
-D = 0.5
-[delays]
-tau1 = 0.3
-tau2 = 0.2
-[formation]
-shape = "hexagon"
-"""
-
-
-def _run(capsys: pytest.CaptureFixture[str], *args: str) -> tuple[int, str, str]:
-    with pytest.raises(SystemExit) as info:
-        main(list(args))
-    out, err = capsys.readouterr()
-    assert "Traceback" not in err
-    assert_no_warning_text(err)
-    return int(info.value.code or 0), out, err
-
-
 def test_only_delays_given_every_command_reads_the_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """[delays] tau1 = tau2 = 10 and no [schedule]: the schedule's defaults follow the delays."""
     from delayform.scenario import load_scenario
