@@ -216,6 +216,9 @@ def test_resource_message_says_raise_the_step_in_words_that_agree() -> None:
         ("[robot]\nlimits = false\nmax_speed = -5\n", "robot.max_speed"),
         ("[robot]\nlimits = false\nmax_speed = 0\n", "robot.max_speed"),
         ("[initial]\nspeed = 1e300\n", "initial.speed"),
+        # neighbours: the same bound on angles and on the network's noise
+        ("[initial]\nheadings = [1e300, 0, 0, 0, 0, 0]\n", "initial.headings[0]"),
+        ("[network]\nnoise = [1e300, 0.0]\n", "noise.position"),
     ],
 )
 def test_values_accepted_that_should_not_be(tmp_path: Path, capsys: pytest.CaptureFixture[str], change: str,
@@ -263,3 +266,10 @@ def test_missing_glyphs_in_the_library_are_one_warning(tmp_path: Path) -> None:
     with pytest.warns(MissingGlyphWarning) as record:
         save_figure(fig, tmp_path / "f")
     assert len(record) == 1 and "漢字" in str(record[0].message) and "Ω" not in str(record[0].message)
+
+
+def test_a_huge_step_count_is_said_in_a_few_digits(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = tmp_path / "tiny_step.toml"
+    path.write_text(BASE + "[simulation]\ndt = 1e-300\n")
+    code, _, err = _run(capsys, "simulate", str(path), "--out", str(tmp_path / "o"))
+    assert code == 2 and "1e+302 steps" in err and len(err) < 400, err

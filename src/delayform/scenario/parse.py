@@ -204,7 +204,7 @@ def _initial(reader: _Reader, data: Mapping[str, Any], n: int) -> InitialSpec:
             raise reader.error("initial.headings", f"an array of {n} angles (radians)", value)
         if len(value) != n:
             raise reader.error("initial.headings", f"{n} angles, one per agent", found=f"{len(value)} angles")
-        headings = tuple(reader.number(f"initial.headings[{i}]", h) for i, h in enumerate(value))
+        headings = tuple(reader.length(f"initial.headings[{i}]", h, unit="radians") for i, h in enumerate(value))
     return InitialSpec(seed=seed, speed=speed, positions=positions, headings=headings)
 
 

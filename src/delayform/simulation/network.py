@@ -82,7 +82,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from delayform._validation import validated
+from delayform._validation import check_magnitude, validated
 from delayform.errors import NetworkError
 
 __all__ = [
@@ -364,8 +364,11 @@ class MeasurementNoise:
     velocity: float = 0.0
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "position", _non_negative("noise.position", self.position))
-        object.__setattr__(self, "velocity", _non_negative("noise.velocity", self.velocity))
+        for name, unit in (("position", "m"), ("velocity", "m/s")):
+            value = _non_negative(f"noise.{name}", getattr(self, name))
+            # a deviation beyond the largest position or speed the simulator takes means nothing
+            check_magnitude(f"noise.{name}", np.array([value]), NetworkError, unit)
+            object.__setattr__(self, name, value)
 
     @property
     def is_off(self) -> bool:

@@ -114,8 +114,9 @@ def _check_array(name: str, value: ArrayLike, shape: tuple[int, ...]) -> _Array:
         raise SimulationInputError(f"{name} must have shape {shape}, got {arr.shape}")
     if not np.all(np.isfinite(arr)):
         raise SimulationInputError(f"{name} must be finite")
-    if name != "initial_headings":  # angles wrap; lengths and speeds must stay in range
-        check_magnitude(name, arr, SimulationInputError, "m" if name == "initial_positions" else "m/s")
+    # lengths and speeds; angles too (at 1e6 rad a float64 still resolves 1e-10 rad, at 1e300 nothing)
+    unit = {"initial_positions": "m", "initial_headings": "rad"}.get(name, "m/s")
+    check_magnitude(name, arr, SimulationInputError, unit)
     return arr
 
 
@@ -326,7 +327,9 @@ def simulate(
     nbytes, seconds, linear = estimate_resources(
         n, steps, save_every, eff1, eff2, dt, limited=limits is not None, nnz=topology.C_sparse.nnz
     )
-    require(what=f"this simulation ({steps:,} steps of {n:,} agents)", nbytes=nbytes, seconds=seconds,
+    # a step count past 1e12 said in full would be a line of digits
+    count = f"{steps:,}" if steps < 10**12 else f"{float(steps):.3g}"
+    require(what=f"this simulation ({count} steps of {n:,} agents)", nbytes=nbytes, seconds=seconds,
             setting="the duration (--duration), the number of agents, or the number of steps (a longer step dt, --dt, or a larger save_every)")  # fmt: skip
 
     C = topology.C_sparse.toarray() if n <= _DENSE_AGENTS else topology.C_sparse
