@@ -131,7 +131,7 @@ from collections.abc import Mapping as _MappingABC  # noqa: E402
 from collections.abc import Sequence as _SequenceABC  # noqa: E402
 from typing import TypeVar  # noqa: E402
 
-from delayform.errors import TopologyError  # noqa: E402
+from delayform.errors import QuasiPolynomialError, TopologyError  # noqa: E402
 
 _F = TypeVar("_F")
 
@@ -139,7 +139,7 @@ _F = TypeVar("_F")
 _ERROR_BY_NAME: dict[str, type[InputError]] = {
     "P": GainError, "D": GainError, "P_bounds": GainError, "D_bounds": GainError,
     "tau1": DelayError, "tau2": DelayError, "tau_min": DelayError, "tau_max": DelayError,
-    "tau1_max": DelayError, "tau2_max": DelayError, "topology": TopologyError,
+    "tau1_max": DelayError, "tau2_max": DelayError, "topology": TopologyError, "qp": QuasiPolynomialError,
 }  # fmt: skip
 
 #: a check: True when the value fits, with what the parameter takes (for the message)
@@ -154,12 +154,13 @@ def _scalar_check(tp: type) -> _Check | None:
     """Checks of the plain types; None for a class checked with isinstance."""
     if tp is float:
         # NaN is never a meaningful argument of this library: it would poison every comparison
-        return (lambda v: _is_real(v) and not (isinstance(v, float) and math.isnan(v))), "a finite real number"
+        return (lambda v: v == v if type(v) is float else (_is_real(v) and not (isinstance(v, float) and math.isnan(v)))), "a finite real number"
     if tp is int:
         return (lambda v: not isinstance(v, (bool, np.bool_)) and isinstance(v, (numbers.Integral, np.integer))), "an integer"
     if tp is complex:
-        return (lambda v: not isinstance(v, (bool, np.bool_)) and isinstance(v, numbers.Number)
-                and not (isinstance(v, (float, complex)) and v != v)), "a number"  # fmt: skip
+        return (lambda v: v == v if type(v) in (float, complex) else (
+            not isinstance(v, (bool, np.bool_)) and isinstance(v, numbers.Number)
+            and not (isinstance(v, (float, complex, np.inexact)) and v != v))), "a number"  # fmt: skip
     if tp is bool:
         return (lambda v: isinstance(v, (bool, np.bool_))), "True or False"
     if tp is str:
@@ -257,7 +258,33 @@ def _split_union(text: str) -> list[str]:
     return [*parts, text[start:].strip()]
 
 
-def _annotation_check(text: object, namespace: dict[str, Any]) -> _Check | None:
+def _sure_types(tp: object) -> set[type]:
+    """Exact types that always pass the check of ``tp``: a set lookup instead of the check (speed)."""
+    if tp is None or tp is type(None):
+        return {type(None)}
+    if tp is float or tp is complex:
+        return {int, np.int64}  # floats may be NaN: checked
+    if tp is int:
+        return {int, np.int64}
+    if tp in (bool, str):
+        return {tp, np.bool_} if tp is bool else {str}  # type: ignore[return-value]
+    if isinstance(tp, type) and typing.get_origin(tp) is None and not getattr(tp, "_is_protocol", False):
+        return {tp}
+    return set()
+
+
+def _annotation_check(text: object, namespace: dict[str, Any]) -> tuple[_Check, frozenset[type]] | None:
+    check = _annotation_check_of(text, namespace)
+    if check is None:
+        return None
+    sure: set[type] = set()
+    if isinstance(text, str):
+        for part in _split_union(text):
+            sure |= _sure_types(eval(part, namespace))  # noqa: S307 - evaluated once already
+    return check, frozenset(sure)
+
+
+def _annotation_check_of(text: object, namespace: dict[str, Any]) -> _Check | None:
     """The check of a (string) annotation; None when it names what is not importable here.
 
     A string is split at its top-level ``|`` before evaluation: numpy's
@@ -287,12 +314,12 @@ def _short(value: object) -> str:
     return text if len(text) <= 60 else text[:57] + "..."
 
 
-def _compile(func: _CallableABC[..., Any], skip_first: bool) -> tuple[list[str], dict[str, _Check]]:
+def _compile(func: _CallableABC[..., Any], skip_first: bool) -> tuple[list[str], dict[str, tuple[_Check, frozenset[type]]]]:
     """Parameter names in order, and the check of each checkable one."""
     sig = inspect.signature(func)
     namespace = {**vars(typing), "np": np, "ArrayLike": ArrayLike, "NDArray": NDArray, **func.__globals__}
     names: list[str] = []
-    checks: dict[str, _Check] = {}
+    checks: dict[str, tuple[_Check, frozenset[type]]] = {}
     for i, (name, param) in enumerate(sig.parameters.items()):
         if skip_first and i == 0:
             continue
@@ -334,16 +361,23 @@ def validated(error: type[InputError] = InputError) -> _CallableABC[[_F], _F]:
         is_class = isinstance(obj, type)
         target: _CallableABC[..., Any] = obj.__init__ if is_class else obj  # type: ignore[misc]
         where = obj.__name__  # type: ignore[attr-defined]
-        compiled: list[tuple[list[str], dict[str, _Check]]] = []
+        compiled: list[tuple[list[str], dict[str, tuple[_Check, frozenset[type]]]]] = []
 
         def check(args: tuple[Any, ...], kwargs: dict[str, Any]) -> None:
             if not compiled:  # annotations are resolved at the first call: the imports are done by then
                 compiled.append(_compile(target, skip_first=is_class))
             names, checks = compiled[0]
-            for name, value in (*zip(names, args), *kwargs.items()):
+            for name, value in zip(names, args):
                 entry = checks.get(name)
-                if entry is not None and not entry[0](value):
-                    raise _ERROR_BY_NAME.get(name, error)(f"{where}: {name} must be {entry[1]}, got {_short(value)}")
+                if entry is not None and type(value) not in entry[1] and not entry[0][0](value):
+                    fail(name, entry[0][1], value)
+            for name, value in kwargs.items():
+                entry = checks.get(name)
+                if entry is not None and type(value) not in entry[1] and not entry[0][0](value):
+                    fail(name, entry[0][1], value)
+
+        def fail(name: str, what: str, value: object) -> None:
+            raise _ERROR_BY_NAME.get(name, error)(f"{where}: {name} must be {what}, got {_short(value)}")
 
         if is_class and not hasattr(target, "__globals__"):  # object.__init__: takes no arguments
             obj.__delayform_checked__ = True  # type: ignore[attr-defined]
