@@ -193,6 +193,11 @@ def _sequence(v: object) -> bool:
 _ARRAY_LIKE = set(typing.get_args(ArrayLike))
 
 
+#: a float inside a container: NaN allowed (data, not an argument)
+_REAL_OR_NAN: _Check = (_is_real, "a real number")
+_COUNTS = {2: "two", 3: "three", 4: "four", 5: "five", 6: "six"}
+
+
 def _check_of(tp: object) -> _Check | None:
     """The check of an annotation; None when it cannot be checked (the function checks it)."""
     if tp is Any or tp is object or isinstance(tp, TypeVar):
@@ -223,9 +228,14 @@ def _check_of(tp: object) -> _Check | None:
             inner = _check_of(args[0])
             fn = inner[0] if inner else (lambda v: True)
             return (lambda v: _sequence(v) and all(fn(x) for x in v)), f"a tuple of {inner[1] if inner else 'values'}"
-        inners = [_check_of(a) for a in args]
+        # inside a tuple, a float may be NaN: a result's "no estimate" (SpectrumBound.estimates)
+        inners = [(_REAL_OR_NAN if a is float else _check_of(a)) for a in args]
         fns2 = [c[0] if c else (lambda v: True) for c in inners]
-        what = f"a tuple of {len(args)} ({', '.join(c[1] if c else 'any' for c in inners)})"
+        kinds = {c[1] if c else "any" for c in inners}
+        if kinds == {"a real number"} and len(args) in _COUNTS:
+            what = f"a tuple of {_COUNTS[len(args)]} finite real numbers"
+        else:
+            what = f"a tuple of {len(args)} ({', '.join(c[1] if c else 'any' for c in inners)})"
         return (lambda v: _sequence(v) and len(v) == len(fns2) and all(f(x) for f, x in zip(fns2, v))), what  # type: ignore[arg-type]
     if origin in (list, _SequenceABC, typing.Sequence):
         inner = _check_of(args[0]) if args else None
