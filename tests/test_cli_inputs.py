@@ -273,3 +273,21 @@ def test_a_huge_step_count_is_said_in_a_few_digits(tmp_path: Path, capsys: pytes
     path.write_text(BASE + "[simulation]\ndt = 1e-300\n")
     code, _, err = _run(capsys, "simulate", str(path), "--out", str(tmp_path / "o"))
     assert code == 2 and "1e+302 steps" in err and len(err) < 400, err
+
+
+def test_a_default_step_follows_short_delays(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The step the user did not give must not refuse a short delay the user did give."""
+    import json
+
+    from delayform.errors import ScenarioError
+    from delayform.scenario import load_scenario
+
+    path = tmp_path / "short.toml"
+    path.write_text(BASE.replace("tau1 = 0.3", "tau1 = 0.005"))
+    assert load_scenario(path).simulation.dt == 0.005
+    given = tmp_path / "given.toml"
+    given.write_text(BASE.replace("tau1 = 0.3", "tau1 = 0.005") + "[simulation]\ndt = 0.01\n")
+    with pytest.raises(ScenarioError, match="simulation.dt"):  # a step the user gave is checked, not changed
+        load_scenario(given)
+    code, out, err = _run(capsys, "simulate", "--tau1", "0.004", "--duration", "2", "--json", "--out", str(tmp_path / "o"))
+    assert code == 0 and json.loads(out)["dt"] == 0.004, err

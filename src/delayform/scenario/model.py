@@ -112,6 +112,22 @@ class SimulationSpec:
     model: str = "unicycle"
     duration: float = 100.0
     dt: float = 0.01
+    #: whether the file gave the step; a default step follows the delays (:func:`default_step`)
+    dt_given: bool = field(default=True, compare=False)
+
+
+#: the step used when the file gives none (s)
+DEFAULT_STEP = 0.01
+
+
+def default_step(tau1: float, tau2: float) -> float:
+    """The default step: 0.01 s, or the shortest non-zero delay when that is shorter.
+
+    The simulator reads delayed states on its grid, so a non-zero delay needs at
+    least one step; a step the user did not give must not be what refuses a
+    short delay the user did give.
+    """
+    return min([DEFAULT_STEP] + [t for t in (tau1, tau2) if t > 0.0])
 
 
 @dataclass(frozen=True)
@@ -282,6 +298,9 @@ class Scenario:
         if tau1 is not None or tau2 is not None:
             # the hardware delays are the operating ones: schedule from what the user gave
             new = replace(new, schedule=new.schedule.starting_at((new.tau1, new.tau2)))
+            if not new.simulation.dt_given:  # a default step follows the new delays too
+                step = min(default_step(new.tau1, new.tau2), new.simulation.duration / 2)
+                new = replace(new, simulation=replace(new.simulation, dt=step))
         if formation is not None:
             shape = reader.shape("formation.shape", formation)
             new = replace(new, formation=FormationSpec(shape=shape, spacing=self.formation.spacing))

@@ -25,6 +25,7 @@ from delayform.scenario.model import (
     ScheduleSpec,
     SimulationSpec,
     TopologySpec,
+    default_step,
 )
 from delayform.simulation.network import (
     BernoulliLoss,
@@ -150,15 +151,16 @@ def _formation(reader: _Reader, data: Mapping[str, Any], n: int) -> FormationSpe
     return FormationSpec(shape=shape, spacing=spacing)
 
 
-def _simulation(reader: _Reader, data: Mapping[str, Any]) -> SimulationSpec:
+def _simulation(reader: _Reader, data: Mapping[str, Any], tau: tuple[float, float]) -> SimulationSpec:
     reader.keys(data, "simulation", ("model", "duration", "dt"))
     default = SimulationSpec()
     model = reader.string("simulation.model", data.get("model", default.model), MODELS)
     duration = reader.positive("simulation.duration", data.get("duration", default.duration))
-    dt = reader.positive("simulation.dt", data.get("dt", default.dt))
+    # a default step follows the delays given (default_step); one given is checked against them
+    dt = reader.positive("simulation.dt", data["dt"]) if "dt" in data else min(default_step(*tau), duration / 2)
     if dt >= duration:
         raise reader.error("simulation.dt", f"a step smaller than simulation.duration = {duration:g}", dt)
-    return SimulationSpec(model=model, duration=duration, dt=dt)
+    return SimulationSpec(model=model, duration=duration, dt=dt, dt_given="dt" in data)
 
 
 _ROBOT_KEYS = (
@@ -315,7 +317,7 @@ def parse_scenario(data: Mapping[str, Any], *, source: str = "<scenario>", defau
     tau2 = reader.non_negative("delays.tau2", delays["tau2"])
 
     formation = _formation(reader, reader.table(data, "formation", required=True), n)
-    simulation = _simulation(reader, reader.table(data, "simulation", required=False) or {})
+    simulation = _simulation(reader, reader.table(data, "simulation", required=False) or {}, (tau1, tau2))
     _check_step(reader, simulation.dt, tau1, tau2)
     initial = _initial(reader, reader.table(data, "initial", required=False) or {}, n)
     robot = _robot(reader, reader.table(data, "robot", required=False), simulation.model)
@@ -373,7 +375,9 @@ def load_scenario(path: str | Path) -> Scenario:
 
 def paper_scenario() -> Scenario:
     """The paper's example (:data:`PAPER_TOML`), the default of every subcommand."""
-    return parse_scenario(tomllib.loads(PAPER_TOML), source="<paper>", default_name="paper")
+    scenario = parse_scenario(tomllib.loads(PAPER_TOML), source="<paper>", default_name="paper")
+    # nothing of it was given by the user: its step, too, follows delays given on the command line
+    return replace(scenario, simulation=replace(scenario.simulation, dt_given=False))
 
 
 # ------------------------------------------------------------ [network]
