@@ -221,3 +221,14 @@ def test_valid_calls_still_work_through_the_layer() -> None:
     assert bool(region.is_stable(0.5)) and region.is_stable([0.5, 1.0]).shape == (2,)
     assert delayform.ring(np.int64(4)).n == 4
     assert delayform.schedule_delays(delayform.paper_six(), 1.0, 0.5, tau_min=[0.3, 0.2], tau_max=[0.6, 0.4]).tau1 >= 0.3
+
+
+def test_every_import_from_delayform_in_the_docs_works() -> None:
+    """``from delayform import X`` in README.md, docs/ and examples/ names only what delayform exports."""
+    files = [ROOT / "README.md", *(ROOT / "docs").glob("*.md"), *(ROOT / "examples").rglob("*.py")]
+    names = set()
+    for path in files:
+        for match in re.finditer(r"from delayform import ([A-Za-z_][\w, ]*)", path.read_text(encoding="utf-8")):
+            names |= {n.strip() for n in match.group(1).split(",") if n.strip()}
+    assert names, "no imports found: the pattern is stale"
+    assert not [n for n in names if not hasattr(delayform, n)], sorted(n for n in names if not hasattr(delayform, n))
