@@ -291,3 +291,19 @@ def test_a_default_step_follows_short_delays(tmp_path: Path, capsys: pytest.Capt
         load_scenario(given)
     code, out, err = _run(capsys, "simulate", "--tau1", "0.004", "--duration", "2", "--json", "--out", str(tmp_path / "o"))
     assert code == 0 and json.loads(out)["dt"] == 0.004, err
+
+
+def test_text_the_terminal_cannot_encode_is_escaped(tmp_path: Path) -> None:
+    """A CJK label on a latin-1 terminal: escaped on stdout and stderr, exit 0, no traceback."""
+    import os
+    import subprocess
+    import sys
+
+    from test_cli import PACKAGE_ROOT
+
+    env = {**os.environ, "PYTHONIOENCODING": "latin-1", "MPLBACKEND": "Agg", "PYTHONPATH": PACKAGE_ROOT}
+    proc = subprocess.run([sys.executable, "-m", "delayform", "chart", "--point", "漢字=0.3,0.2", "--out", str(tmp_path)],
+                          capture_output=True, env=env, timeout=300)  # fmt: skip
+    err = proc.stderr.decode("latin-1")
+    assert proc.returncode == 0 and "Traceback" not in err, err
+    assert "\\u6f22\\u5b57" in proc.stdout.decode("latin-1") and err.startswith("delayform: note: ")

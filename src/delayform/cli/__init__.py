@@ -86,6 +86,11 @@ def main(argv: list[str] | None = None) -> None:
     argv
         The arguments after the program name; None reads ``sys.argv``.
     """
+    # a label the terminal's encoding cannot show (CJK on a latin-1 terminal) is escaped, not a crash
+    for stream in (sys.stdout, sys.stderr):
+        reconfigure = getattr(stream, "reconfigure", None)
+        if reconfigure is not None:
+            reconfigure(errors="backslashreplace")
     with warnings.catch_warnings():
         warnings.showwarning = _one_line_warning
         # a note for the user, not an error, even where warnings are errors (a test run)
