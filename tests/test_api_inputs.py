@@ -232,3 +232,36 @@ def test_every_import_from_delayform_in_the_docs_works() -> None:
             names |= {n.strip() for n in match.group(1).split(",") if n.strip()}
     assert names, "no imports found: the pattern is stale"
     assert not [n for n in names if not hasattr(delayform, n)], sorted(n for n in names if not hasattr(delayform, n))
+
+
+# ================================================================ neighbours: the methods of results
+@pytest.fixture(scope="module")
+def results() -> dict[str, Any]:
+    t = delayform.paper_six()
+    return {
+        "map": delayform.stability_map(t, 1.0, 0.5, 2.0, 2.0),
+        "safe": delayform.safe_delays(1.0, 0.5, 2.0, 2.0),
+        "traj": delayform.simulate(t, 1.0, 0.5, 0.3, 0.2, "hexagon", duration=1.0, dt=0.01),
+        "region": delayform.lambda_region(1.0, 0.5, 0.3, 0.2),
+    }
+
+
+@pytest.mark.parametrize(
+    "call",
+    [
+        lambda r: delayform.Topology.from_edges([(0, 1), (1, 0)], "x"),
+        lambda r: r["map"].stable_fraction("a"),  # one argument too many
+        lambda r: r["safe"].grid("x"),
+        lambda r: r["traj"].to_csv(3),
+        lambda r: r["traj"].to_npz(None),
+        lambda r: r["traj"].save_gif(3),
+        lambda r: r["region"].boundary("x"),
+        lambda r: r["region"].is_stable(object()),
+    ],
+)
+def test_methods_of_results_refuse_wrong_arguments(results: dict[str, Any], call: Any, tmp_path: Path,
+                                                   monkeypatch: pytest.MonkeyPatch) -> None:  # fmt: skip
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(InputError):
+        call(results)
+    assert not any(tmp_path.iterdir())

@@ -345,7 +345,7 @@ def _compile(func: _CallableABC[..., Any], skip_first: bool) -> tuple[list[str],
     return names, checks
 
 
-def validated(error: type[InputError] = InputError) -> _CallableABC[[_F], _F]:
+def validated(error: type[InputError] = InputError, *, methods: bool = True) -> _CallableABC[[_F], _F]:
     """Check the argument types of a public function or class against its annotations.
 
     Parameters
@@ -354,9 +354,14 @@ def validated(error: type[InputError] = InputError) -> _CallableABC[[_F], _F]:
         The delayform.errors class raised for a mismatch, except for the
         gains (:class:`GainError`), delays (:class:`DelayError`) and the
         topology (:class:`TopologyError`), named by their parameter.
+    methods
+        Whether a class's public methods are checked too (False where the
+        methods check their arguments themselves in the user's terms, e.g.
+        ``Scenario.with_changes`` naming scenario keys).
 
     Each argument given is checked once, before the body runs; defaults are
-    not. A class gets the check on its ``__init__`` (a dataclass's fields).
+    not. A class gets the check on its ``__init__`` (a dataclass's fields)
+    and on its public methods and class methods.
 
     >>> @validated()
     ... def half(x: float) -> float:
@@ -368,46 +373,65 @@ def validated(error: type[InputError] = InputError) -> _CallableABC[[_F], _F]:
     """
 
     def decorate(obj: _F) -> _F:
-        is_class = isinstance(obj, type)
-        target: _CallableABC[..., Any] = obj.__init__ if is_class else obj  # type: ignore[misc]
-        where = obj.__name__  # type: ignore[attr-defined]
-        compiled: list[tuple[list[str], dict[str, tuple[_Check, frozenset[type]]]]] = []
-
-        def check(args: tuple[Any, ...], kwargs: dict[str, Any]) -> None:
-            if not compiled:  # annotations are resolved at the first call: the imports are done by then
-                compiled.append(_compile(target, skip_first=is_class))
-            names, checks = compiled[0]
-            for name, value in zip(names, args):
-                entry = checks.get(name)
-                if entry is not None and type(value) not in entry[1] and not entry[0][0](value):
-                    fail(name, entry[0][1], value)
-            for name, value in kwargs.items():
-                entry = checks.get(name)
-                if entry is not None and type(value) not in entry[1] and not entry[0][0](value):
-                    fail(name, entry[0][1], value)
-
-        def fail(name: str, what: str, value: object) -> None:
-            raise _ERROR_BY_NAME.get(name, error)(f"{where}: {name} must be {what}, got {_short(value)}")
-
-        if is_class and not hasattr(target, "__globals__"):  # object.__init__: takes no arguments
-            obj.__delayform_checked__ = True  # type: ignore[attr-defined]
-            return obj
-        if is_class:
-            @functools.wraps(target)
-            def init(self: Any, *args: Any, **kwargs: Any) -> None:
-                check(args, kwargs)
-                target(self, *args, **kwargs)
-
-            obj.__init__ = init  # type: ignore[misc]
-            obj.__delayform_checked__ = True  # type: ignore[attr-defined]
-            return obj
-
-        @functools.wraps(target)
-        def wrapper(*args: Any, **kwargs: Any) -> Any:
-            check(args, kwargs)
-            return target(*args, **kwargs)
-
-        wrapper.__delayform_checked__ = True  # type: ignore[attr-defined]
-        return wrapper  # type: ignore[return-value]
+        if not isinstance(obj, type):
+            return _wrap(obj, obj.__name__, error, skip_first=False)  # type: ignore[attr-defined,return-value]
+        init = obj.__init__  # type: ignore[misc]
+        if hasattr(init, "__globals__"):  # not object.__init__, which takes no arguments
+            obj.__init__ = _wrap(init, obj.__name__, error, skip_first=True)  # type: ignore[misc]
+        # the public methods too (what users call on results: .to_csv(path), .grid(resolution));
+        # properties and underscored names are left alone
+        for name, attr in list(vars(obj).items()) if methods else ():
+            if name.startswith("_"):
+                continue
+            if isinstance(attr, classmethod):
+                wrapped = _wrap(attr.__func__, f"{obj.__name__}.{name}", error, skip_first=True)
+                setattr(obj, name, classmethod(wrapped))
+            elif inspect.isfunction(attr):
+                setattr(obj, name, _wrap(attr, f"{obj.__name__}.{name}", error, skip_first=True))
+        obj.__delayform_checked__ = True  # type: ignore[attr-defined]
+        return obj
 
     return decorate
+
+
+def _wrap(target: _CallableABC[..., Any], where: str, error: type[InputError], *, skip_first: bool) -> Any:
+    """``target`` with its arguments checked first (``skip_first``: self or cls is not checked)."""
+    compiled: list[tuple[list[str], dict[str, tuple[_Check, frozenset[type]]], bool]] = []
+
+    def fail(name: str, what: str, value: object) -> None:
+        raise _ERROR_BY_NAME.get(name, error)(f"{where}: {name} must be {what}, got {_short(value)}")
+
+    def check(args: tuple[Any, ...], kwargs: dict[str, Any]) -> None:
+        if not compiled:  # annotations are resolved at the first call: the imports are done by then
+            names0, checks0 = _compile(target, skip_first=skip_first)
+            params = inspect.signature(target).parameters.values()
+            open_ended = any(p.kind in (p.VAR_POSITIONAL, p.VAR_KEYWORD) for p in params)
+            compiled.append((names0, checks0, open_ended))
+        names, checks, open_ended = compiled[0]
+        if not open_ended and len(args) > len(names):  # Python's TypeError would name no error of ours
+            raise error(f"{where} takes {len(names)} positional argument(s), got {len(args)}")
+        for name, value in zip(names, args):
+            entry = checks.get(name)
+            if entry is not None and type(value) not in entry[1] and not entry[0][0](value):
+                fail(name, entry[0][1], value)
+        for name, value in kwargs.items():
+            entry = checks.get(name)
+            if entry is not None and type(value) not in entry[1] and not entry[0][0](value):
+                fail(name, entry[0][1], value)
+
+    if skip_first:
+        @functools.wraps(target)
+        def method(self: Any, *args: Any, **kwargs: Any) -> Any:
+            check(args, kwargs)
+            return target(self, *args, **kwargs)
+
+        method.__delayform_checked__ = True  # type: ignore[attr-defined]
+        return method
+
+    @functools.wraps(target)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        check(args, kwargs)
+        return target(*args, **kwargs)
+
+    wrapper.__delayform_checked__ = True  # type: ignore[attr-defined]
+    return wrapper
