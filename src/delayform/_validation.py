@@ -205,7 +205,7 @@ def _check_of(tp: object) -> _Check | None:
     if tp is None:
         tp = type(None)
     if tp is ArrayLike or tp is NDArray:
-        return _numeric_array, "numbers (an array)"
+        return _numeric_array, "numeric values (an array)"
     origin, args = typing.get_origin(tp), typing.get_args(tp)
     if origin is typing.Union or origin is types.UnionType:
         if _ARRAY_LIKE <= set(args):  # ArrayLike is itself a Union: `ArrayLike | str` flattens
@@ -213,7 +213,7 @@ def _check_of(tp: object) -> _Check | None:
             checks = [_numeric_array] + [c[0] for c in map(_check_of, rest) if c is not None]
             if len(checks) != 1 + len(rest):
                 return None
-            return (lambda v: any(c(v) for c in checks)), " or ".join(["numbers (an array)"] + [_check_of(a)[1] for a in rest])  # type: ignore[index]
+            return (lambda v: any(c(v) for c in checks)), " or ".join(["numeric values (an array)"] + [_check_of(a)[1] for a in rest])  # type: ignore[index]
         parts = [_check_of(a) for a in args]
         if any(p is None for p in parts):
             return None
@@ -222,7 +222,7 @@ def _check_of(tp: object) -> _Check | None:
     if origin is typing.Literal:
         return (lambda v: any(type(v) is type(a) and v == a for a in args)), "one of " + ", ".join(map(repr, args))
     if origin is np.ndarray:  # NDArray[...]: numbers the function converts
-        return _numeric_array, "numbers (an array)"
+        return _numeric_array, "numeric values (an array)"
     if origin is tuple:
         if len(args) == 2 and args[1] is Ellipsis:
             inner = _check_of(args[0])
