@@ -148,6 +148,17 @@ _EXPORTS: dict[str, str] = {
     # example scenarios shipped in the wheel (issue 23)
     "example_path": "packaged",
     "example_names": "packaged",
+    # issue 24: every name docs/api.md shows in bold is importable from here
+    "box_is_stable": "design.gains",
+    "gain_crossing_curves": "design.gains",
+    "SerialExecutor": "simulation.montecarlo",
+    "write_report": "report",
+    **{name: "errors" for name in (
+        "DelayformError", "InputError", "TopologyError", "NoSpanningTreeError", "GainError", "DelayError",
+        "NoStableDelaysError", "NoStableGainsError", "QuasiPolynomialError", "NeutralQuasiPolynomialError",
+        "FormationError", "SimulationInputError", "NetworkError", "ClusterError", "ScenarioError",
+        "ResourceLimitError", "NotConvergedError",
+    )},  # fmt: skip
 }
 
 __all__ = sorted(_EXPORTS) + ["errors", "__version__"]

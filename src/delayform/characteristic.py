@@ -33,7 +33,7 @@ import numpy as np
 import numpy.polynomial.polynomial as npoly
 from numpy.typing import ArrayLike, NDArray
 
-from delayform._validation import check_complex_array, check_delay_array, check_gains
+from delayform._validation import check_complex_array, check_delay_array, check_gains, validated
 from delayform.errors import NeutralQuasiPolynomialError, QuasiPolynomialError
 from delayform.topology import EigenvalueGroup, Topology
 
@@ -80,6 +80,7 @@ def _degree(c: NDArray[np.complex128]) -> int:
     return c.size - 1
 
 
+@validated(QuasiPolynomialError)
 @dataclass(frozen=True, eq=False)
 class TwoDelayQuasiPolynomial:
     """A two-delay quasi-polynomial of eq. genfactor.
@@ -311,6 +312,7 @@ def _fmt(v: complex, scale: float = 1.0) -> str:
     return f"({text})" if " " in text else text
 
 
+@validated(QuasiPolynomialError)
 @dataclass(frozen=True, eq=False)
 class CharacteristicFactor:
     """One factor of eq. factorized: the factor of an eigenvalue group of C.
@@ -403,6 +405,7 @@ class CharacteristicFactor:
         return f"lam = {value}: order {self.order}{mult}, {role}"
 
 
+@validated(QuasiPolynomialError)
 def factors(topology: Topology, P: float, D: float) -> tuple[CharacteristicFactor, ...]:
     """The factors of the characteristic equation, one per eigenvalue group (eq. factorized).
 
@@ -479,6 +482,7 @@ def characteristic_matrix(
     return M.reshape(s_arr.shape + (2 * n, 2 * n))
 
 
+@validated(QuasiPolynomialError)
 def full_characteristic(
     topology: Topology, P: float, D: float, s: ArrayLike, tau1: float, tau2: float
 ) -> NDArray[np.complex128]:

@@ -30,7 +30,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from numpy.typing import ArrayLike, NDArray
 
-from delayform._validation import check_delay, check_gain, check_positive
+from delayform._validation import check_delay, check_gain, check_magnitude, check_positive, validated
 from delayform.errors import FormationError
 from delayform.topology import DENSE_LIMIT, Topology
 
@@ -60,6 +60,7 @@ def _count(n: object) -> int:
     return int(n)
 
 
+@validated(FormationError)
 def polygon(n: int, *, spacing: float = 1.0) -> NDArray[np.float64]:
     """Regular polygon with n vertices, neighbouring vertices ``spacing`` apart, centred at 0.
 
@@ -79,6 +80,7 @@ def polygon(n: int, *, spacing: float = 1.0) -> NDArray[np.float64]:
     return radius * np.column_stack([np.cos(angle), np.sin(angle)])
 
 
+@validated(FormationError)
 def hexagon(n: int = 6, *, spacing: float = 1.0) -> NDArray[np.float64]:
     """The hexagon of the demo: six agents on a regular hexagon (n must be 6).
 
@@ -101,6 +103,7 @@ def hexagon(n: int = 6, *, spacing: float = 1.0) -> NDArray[np.float64]:
     return polygon(6, spacing=spacing)
 
 
+@validated(FormationError)
 def line(n: int, *, spacing: float = 1.0) -> NDArray[np.float64]:
     """Agents on the x axis, ``spacing`` apart, centred at 0."""
     n = _count(n)
@@ -109,6 +112,7 @@ def line(n: int, *, spacing: float = 1.0) -> NDArray[np.float64]:
     return np.column_stack([x, np.zeros(n)])
 
 
+@validated(FormationError)
 def block(n: int, *, spacing: float = 1.0) -> NDArray[np.float64]:
     """A block formation: agents row by row, ceil(sqrt(n)) to a row, centred at 0.
 
@@ -143,6 +147,7 @@ def block(n: int, *, spacing: float = 1.0) -> NDArray[np.float64]:
 grid = block
 
 
+@validated(FormationError)
 def v_shape(n: int, *, spacing: float = 1.0, angle: float = np.pi / 6) -> NDArray[np.float64]:
     """A V (flock) opening to -x: leader at the tip, the others alternating on two arms.
 
@@ -189,6 +194,7 @@ def canonical_shape(name: str) -> str:
     return SHAPE_ALIASES.get(name.lower(), name)
 
 
+@validated(FormationError)
 def named_formation(name: str, n: int, *, spacing: float = 1.0) -> NDArray[np.float64]:
     """The named shape (one of :data:`SHAPES`) for n agents.
 
@@ -243,10 +249,12 @@ def check_formation(formation: ArrayLike | str, n: int) -> NDArray[np.float64]:
         raise FormationError(f"formation has {arr.shape[0]} agents, the topology has {n}")
     if not np.all(np.isfinite(arr)):
         raise FormationError("formation positions must be finite")
+    check_magnitude("formation positions", arr, FormationError)
     return arr
 
 
 # ----------------------------------------------------------------- forcing
+@validated(FormationError)
 def formation_forcing(topology: Topology, P: float, desired: ArrayLike | str) -> NDArray[np.float64]:
     """The forcing term F of eq. formation that holds the team in the desired shape.
 
@@ -424,6 +432,7 @@ def final_centroid(
     return c0 + d0 * (1.0 + D * tau2) / (P * tau1)
 
 
+@validated(FormationError)
 def predicted_final_positions(
     topology: Topology,
     P: float,

@@ -11,6 +11,9 @@ way; ``tests/test_architecture.py`` checks it).
 
 from __future__ import annotations
 
+import re
+import warnings
+
 import matplotlib.pyplot as plt
 from matplotlib.axes import Axes
 
@@ -107,12 +110,51 @@ def stability_chart(
 _MANY_CURVES = 150
 
 
+class MissingGlyphWarning(UserWarning):
+    """A label has characters the figure font cannot draw; they show as empty boxes.
+
+    One warning per saved figure, listing the characters, instead of one
+    matplotlib "Glyph ... missing" warning per character and format (the
+    command line prints it as one line).
+    """
+
+
+#: matplotlib's message for a character its fonts lack: "Glyph 28450 (...) missing from font(s) DejaVu Sans."
+_GLYPH_MISSING = re.compile(r"Glyph (\d+) .*missing from font")
+
+
+def savefig_noting_glyphs(fig: Figure, target: object, *, where: str, **kwargs: object) -> None:
+    """``fig.savefig(target, **kwargs)``, the missing-glyph warnings gathered into one.
+
+    The default font, DejaVu Sans (shipped with matplotlib), covers Latin,
+    Greek, Cyrillic and most symbols; other scripts (CJK, emoji) are not in any
+    font matplotlib ships, so the text is kept and the user is told once.
+    Other warnings pass through unchanged.
+    """
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        fig.savefig(target, **kwargs)  # type: ignore[arg-type]
+    missing: list[str] = []
+    for w in caught:
+        match = _GLYPH_MISSING.search(str(w.message))
+        if match:
+            missing.append(chr(int(match.group(1))))
+        else:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    if missing:
+        chars = "".join(dict.fromkeys(missing))
+        warnings.warn(MissingGlyphWarning(
+            f"the figure font (DejaVu Sans) has no glyph for {chars!r}; in {where} they are drawn as empty boxes"
+        ), stacklevel=3)  # fmt: skip
+
+
 def save_figure(
     fig_or_ax: Figure | Axes, path_stem: str | Path, *, formats: Sequence[str] = ("png", "svg"), dpi: int = 150
 ) -> list[Path]:
     """Save a figure (or the figure of an axes) as ``path_stem.<fmt>`` for each format.
 
     Parent directories are created. Returns the written paths, in ``formats`` order.
+    Characters of a label the font lacks give one :class:`MissingGlyphWarning`.
     """
     fig = fig_or_ax if isinstance(fig_or_ax, Figure) else fig_or_ax.figure
     stem = Path(path_stem)
@@ -121,7 +163,13 @@ def save_figure(
     for fmt in formats:
         path = stem.with_name(f"{stem.name}.{fmt}")
         with atomic_path(path) as tmp:
-            fig.savefig(tmp, format=fmt, dpi=dpi, bbox_inches="tight")
+            # one format is enough to find the missing glyphs: the others would repeat them
+            if fmt == formats[0]:
+                savefig_noting_glyphs(fig, tmp, where=f"{stem.name}.*", format=fmt, dpi=dpi, bbox_inches="tight")
+            else:
+                with warnings.catch_warnings():
+                    warnings.filterwarnings("ignore", message="Glyph .* missing from font")
+                    fig.savefig(tmp, format=fmt, dpi=dpi, bbox_inches="tight")
         paths.append(path)
     return paths
 

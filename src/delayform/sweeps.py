@@ -41,6 +41,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from delayform._validation import validated
 from delayform.errors import ClusterError, SimulationInputError
 from delayform.formation import named_formation
 from delayform.resources import require
@@ -283,6 +284,7 @@ def _receive(sock: Any, n: int) -> bytes:
     return b"".join(chunks)
 
 
+@validated()
 @contextmanager
 def executor_for(*, workers: int | None = None, scheduler: str | None = None,
                  timeout: float = CONNECT_TIMEOUT) -> Iterator[Executor]:  # fmt: skip
@@ -405,6 +407,7 @@ def rich_progress(title: str) -> Iterator[Progress]:
 
 
 # ------------------------------------------------------------------ result
+@validated()
 @dataclass(frozen=True, eq=False)
 class SweepResult:
     """Monte Carlo results at every point of a sweep.
@@ -487,6 +490,7 @@ def _fmt(value: float) -> str:
 
 
 # ------------------------------------------------------------------ sweeps
+@validated()
 def sweep(
     setup: Setup,
     changes: Sequence[Mapping[str, Any]],
@@ -601,6 +605,7 @@ def _guard_total(nbytes: float, seconds: float, tasks: int, workers: int) -> Non
             nbytes=nbytes * max(1, min(workers, tasks)), seconds=seconds / max(workers, 1))  # fmt: skip
 
 
+@validated()
 def delay_sweep(
     setup: Setup, tau1_values: Sequence[float], tau2_values: Sequence[float], *, runs: int, seed: int = 0,
     workers: int | None = None, scheduler: str | None = None, progress: bool | Progress = False,
@@ -620,6 +625,7 @@ def delay_sweep(
                  runs=runs, seed=seed, workers=workers, scheduler=scheduler, progress=progress)  # fmt: skip
 
 
+@validated()
 def gain_sweep(
     setup: Setup, P_values: Sequence[float], D_values: Sequence[float], *, runs: int, seed: int = 0,
     workers: int | None = None, scheduler: str | None = None, progress: bool | Progress = False,
@@ -646,6 +652,7 @@ def _grid(setup: Setup, fields: tuple[str, str], first: Sequence[float], second:
     return sweep(setup, changes, labels=[label.format(*p) for p in pairs], parameter=parameter, values=pairs, **options)
 
 
+@validated()
 def topology_sweep(
     setup: Setup, topologies: Sequence[Topology], *, shape: str, spacing: float = 1.0, runs: int, seed: int = 0,
     workers: int | None = None, scheduler: str | None = None, progress: bool | Progress = False,
@@ -671,6 +678,7 @@ def topology_sweep(
                  workers=workers, scheduler=scheduler, progress=progress)  # fmt: skip
 
 
+@validated()
 def network_sweep(
     setup: Setup, networks: Sequence[Network | None], labels: Sequence[str], *, runs: int, seed: int = 0,
     workers: int | None = None, scheduler: str | None = None, progress: bool | Progress = False,

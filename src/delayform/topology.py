@@ -27,6 +27,7 @@ import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 from scipy.sparse import csgraph
 
+from delayform._validation import validated
 from delayform.errors import NoSpanningTreeError, TopologyError
 
 __all__ = [
@@ -52,6 +53,7 @@ DENSE_LIMIT = 1000
 EIGENVALUE_CLUSTER_TOL = 1e-5
 
 
+@validated(TopologyError)
 @dataclass(frozen=True)
 class EigenvalueGroup:
     """One distinct eigenvalue of C, or one complex-conjugate pair.
@@ -91,6 +93,7 @@ def _as_label_tuple(labels: Sequence[Hashable] | None, n: int) -> tuple[Hashable
     return out
 
 
+@validated(TopologyError)
 @dataclass(frozen=True, eq=False)
 class Topology:
     """A directed communication topology of n agents (eq. protocol).
@@ -416,6 +419,7 @@ def _group_eigenvalues(vals: NDArray[np.complex128]) -> tuple[EigenvalueGroup, .
 
 
 # ---------------------------------------------------------------- builders
+@validated(TopologyError)
 def paper_six() -> Topology:
     """The six-agent topology of the paper's Fig. topol.
 
@@ -437,6 +441,7 @@ def _check_count(n: object, minimum: int, what: str) -> int:
     return int(n)
 
 
+@validated(TopologyError)
 def ring(n: int) -> Topology:
     """Directed cycle: agent i receives from agent i-1 (mod n)."""
     n = _check_count(n, 2, "ring")
@@ -452,6 +457,7 @@ def _require_edges(count: float, what: str) -> None:
             nbytes=100.0 * count)  # fmt: skip
 
 
+@validated(TopologyError)
 def complete(n: int) -> Topology:
     """Every agent receives from every other; C has eigenvalues 1 and -1/(n-1)."""
     n = _check_count(n, 2, "complete")
@@ -460,6 +466,7 @@ def complete(n: int) -> Topology:
     return Topology.from_adjacency(A, name=f"complete({n})")
 
 
+@validated(TopologyError)
 def star(n: int) -> Topology:
     """Hub 0 linked both ways with each of the leaves 1..n-1."""
     n = _check_count(n, 2, "star")
@@ -468,6 +475,7 @@ def star(n: int) -> Topology:
     return Topology.from_edges(edges, n, name=f"star({n})")
 
 
+@validated(TopologyError)
 def random_digraph(n: int, p: float, seed: int | np.random.Generator | None = None) -> Topology:
     """Random digraph with a spanning tree: a directed ring plus each other edge with probability p.
 
@@ -512,6 +520,7 @@ def random_digraph(n: int, p: float, seed: int | np.random.Generator | None = No
     return Topology.from_adjacency(mat, name=f"random_digraph({n}, {float(p):g})")
 
 
+@validated(TopologyError)
 def grid(rows: int, cols: int) -> Topology:
     """Undirected 2-D grid graph: agent ``r * cols + c`` linked both ways with its 4 lattice neighbours.
 

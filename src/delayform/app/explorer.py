@@ -43,6 +43,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from delayform._files import atomic_path
+from delayform._validation import validated
 from delayform.analysis.ctcr.stability_map import StabilityMap, stability_map
 from delayform.analysis.network import JitterMargin, jitter_margin
 from delayform.analysis.roots.team_roots import factor_roots_in
@@ -333,6 +334,7 @@ class Animation:
 
 
 # ==================================================================== explorer
+@validated()
 class Explorer:
     """The explorer's computations for one scenario, with caches and work limits.
 
@@ -847,7 +849,7 @@ class Explorer:
         self._run_step(tau1, tau2, duration)  # refuse an oversized run before any drawing
         from matplotlib.figure import Figure  # only downloads draw with matplotlib
 
-        from delayform.plots import plot_trajectory_traces, plot_trajectory_xy, stability_chart
+        from delayform.plots import plot_trajectory_traces, plot_trajectory_xy, savefig_noting_glyphs, stability_chart
 
         chart = self.chart(P, D, tau1_max, tau2_max, 10)
         run = self.animation(P, D, tau1, tau2, duration, 2, limits, network, loss, jitter)
@@ -875,7 +877,7 @@ class Explorer:
             for name, fig in figures.items():
                 for fmt in ("png", "svg"):
                     data = io.BytesIO()
-                    fig.savefig(data, format=fmt, dpi=150, bbox_inches="tight")
+                    savefig_noting_glyphs(fig, data, where=f"{name}.{fmt}", format=fmt, dpi=150, bbox_inches="tight")
                     zf.writestr(f"{name}.{fmt}", data.getvalue())
             zf.writestr("point.json", json.dumps(point.as_json() | roots.as_json(), indent=2))
             zf.writestr("scenario.toml", scenario_toml(s))

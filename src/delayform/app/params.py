@@ -27,8 +27,9 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
+from delayform._validation import validated
 from delayform.errors import InputError
 
 __all__ = ["Param", "ExplorerLimits", "parse_query"]
@@ -44,6 +45,7 @@ _TRUE = ("1", "true", "on", "yes")
 _FALSE = ("0", "false", "off", "no")
 
 
+@validated()
 @dataclass(frozen=True)
 class ExplorerLimits:
     """The most work one request to the explorer may cause.
@@ -79,6 +81,13 @@ class ExplorerLimits:
     max_frames: int = 600
     max_agents: int = 100
     max_delay_bandwidth: float = 30.0
+
+    def __post_init__(self) -> None:
+        # a limit of zero or less would refuse every request; infinite, none would be refused
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if not (math.isfinite(value) and value > 0):
+                raise InputError(f"ExplorerLimits: {f.name} must be finite and positive, got {value!r}")
 
 
 @dataclass(frozen=True)

@@ -22,6 +22,7 @@ from __future__ import annotations
 from collections.abc import Iterable
 from dataclasses import fields
 
+from delayform._validation import validated
 from delayform.scenario import TOPOLOGY_NAMES, Scenario
 
 __all__ = ["scenario_toml"]
@@ -105,6 +106,7 @@ def _network_lines(s: Scenario) -> list[str]:
     return out
 
 
+@validated()
 def scenario_toml(scenario: Scenario) -> str:
     """The scenario as the text of a TOML scenario file.
 

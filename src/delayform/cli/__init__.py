@@ -13,7 +13,9 @@ no traceback reaches the user for an input error.
 
 from __future__ import annotations
 
+import re
 import sys
+import warnings
 from typing import Any
 
 import click
@@ -31,6 +33,52 @@ __all__ = ["cli", "main"]
 _NO_ARGS_IS_HELP: Any = getattr(click.exceptions, "NoArgsIsHelpError", ())
 
 
+#: an option quoted in a message, with the separator before it (", --dt" or " --dt")
+_QUOTED_OPTION = re.compile(r"(,\s*|\s+)?(--[a-z][a-z0-9-]*)")
+
+
+def command_options(argv: list[str] | None) -> set[str] | None:
+    """The option names of the subcommand ``argv`` invokes; None when it names no command."""
+    args = sys.argv[1:] if argv is None else argv
+    name = next((a for a in args if not a.startswith("-")), None)
+    command = cli.commands.get(name) if name is not None else None
+    if command is None:
+        return None
+    return {opt for param in command.params for opt in (*param.opts, *param.secondary_opts)} | {"--help"}
+
+
+def own_options(message: str, argv: list[str] | None) -> str:
+    """A library message with the options the invoked command does not have left out.
+
+    The library names the options that change a setting once for every command
+    (``the window (chart.tau1_max, --tau1-max)``); ``region`` has no
+    ``--tau1-max``, so its message must not advise it. Parentheses left empty
+    are dropped with it.
+    """
+    own = command_options(argv)
+    if own is None:
+        return message
+
+    def keep(match: re.Match[str]) -> str:
+        return match.group(0) if match.group(2) in own else ""
+
+    text = _QUOTED_OPTION.sub(keep, message)
+    text = re.sub(r"\(\s*,\s*", "(", text)
+    return re.sub(r"\s*\(\s*\)", "", text)
+
+
+def _one_line_warning(message: Warning | str, category: type[Warning], filename: str, lineno: int,
+                      file: Any = None, line: str | None = None) -> None:  # fmt: skip
+    """delayform's own warnings (e.g. a label the figure font cannot draw) as one line on stderr."""
+    if category.__module__.startswith("delayform"):
+        click.echo(f"delayform: note: {message}", err=True)
+    else:
+        _show_warning(message, category, filename, lineno, file, line)
+
+
+_show_warning = warnings.showwarning
+
+
 def main(argv: list[str] | None = None) -> None:
     """Entry point of the console script: one line and exit code 2 for every input error.
 
@@ -39,6 +87,22 @@ def main(argv: list[str] | None = None) -> None:
     argv
         The arguments after the program name; None reads ``sys.argv``.
     """
+    # a label the terminal's encoding cannot show (CJK on a latin-1 terminal) is escaped, not a crash
+    for stream in (sys.stdout, sys.stderr):
+        reconfigure = getattr(stream, "reconfigure", None)
+        if reconfigure is not None:
+            reconfigure(errors="backslashreplace")
+    with warnings.catch_warnings():
+        warnings.showwarning = _one_line_warning
+        # a note for the user, not an error, even where warnings are errors (a test run)
+        warnings.filterwarnings("always", message="the figure font")
+        _main(argv)
+
+
+def _main(argv: list[str] | None) -> None:
+    # no file name or number holds a NUL; the operating system would refuse it with a raw ValueError
+    if any("\x00" in a for a in (sys.argv[1:] if argv is None else argv)):
+        _fail("an argument contains a NUL character (\\x00)")
     try:
         code = cli.main(args=argv, prog_name="delayform", standalone_mode=False)
     except _NO_ARGS_IS_HELP as exc:  # plain `delayform`: show the help
@@ -59,9 +123,9 @@ def main(argv: list[str] | None = None) -> None:
         click.echo("delayform: interrupted; files being written were discarded, earlier outputs are intact", err=True)
         sys.exit(130)
     except InputError as exc:
-        _fail(str(exc).replace("\n", " "))
+        _fail(own_options(str(exc).replace("\n", " "), argv))
     except DelayformError as exc:  # a computation that did not succeed: not the user's input
-        _fail(str(exc).replace("\n", " "), code=1)
+        _fail(own_options(str(exc).replace("\n", " "), argv), code=1)
     except OSError as exc:  # e.g. an output file name taken by a folder, a full disk
         where = f" {exc.filename}" if exc.filename else ""
         _fail(f"cannot read or write{where}: {exc.strerror or exc}")

@@ -42,9 +42,11 @@ def schedule_command(scenario: Path | None, tau_min: tuple[float, float] | None,
 
     sc = _scenario(scenario, **overrides)
     lo = tau_min or sc.schedule.tau_min
-    hi = tau_max or sc.schedule.tau_max
+    # the default upper bound follows the lower one given (ScheduleSpec.starting_at)
+    hi = tau_max or sc.schedule.starting_at(lo).tau_max
     if hi[0] < lo[0] or hi[1] < lo[1]:
-        raise click.BadParameter(f"expected bounds >= tau_min = {lo[0]:g},{lo[1]:g}", param_hint="--tau-max")
+        where = "--tau-min" if tau_min is not None else "schedule.tau_min"
+        raise click.BadParameter(f"expected bounds >= {where} = {lo[0]:g},{lo[1]:g}", param_hint="--tau-max")
     sc = replace(sc, schedule=ScheduleSpec(tau_min=lo, tau_max=hi))
     directory = _out_dir(out, sc)
     _emit(schedule_section(sc, directory), directory, as_json=as_json)

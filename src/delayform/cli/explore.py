@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from delayform.cli._common import _scenario, cli
+from delayform.cli._common import OutDir, _out_dir, _safe_name, _scenario, cli
 
 #: the explorer's default port (any free one with --port 0)
 DEFAULT_PORT = 8765
@@ -19,7 +19,7 @@ DEFAULT_PORT = 8765
 @click.option("--host", default="127.0.0.1", show_default=True,
               help="Only 127.0.0.1 (or localhost) is accepted: the explorer is for this machine only.")
 @click.option("--no-browser", is_flag=True, help="Do not open a browser; just print the address.")
-@click.option("--out", type=click.Path(file_okay=False, path_type=Path),
+@click.option("--out", type=OutDir(),
               help="Folder for downloads, the only place it writes [default: out/<scenario name>/explore].")
 def explore_command(scenario: Path | None, port: int, host: str, no_browser: bool, out: Path | None) -> None:
     """Open a local web page to explore the scenario's team (the paper's by default).
@@ -36,7 +36,10 @@ def explore_command(scenario: Path | None, port: int, host: str, no_browser: boo
 
     check_host(host)  # refuse before reading anything
     sc = _scenario(scenario, topology_name=None, n=None, P=None, D=None, tau1=None, tau2=None)
-    explorer = Explorer(sc, out_dir=out if out is not None else Path("out") / sc.name / "explore")
+    # proven writable before the page is served (a download must not be the first to find out);
+    # the scenario's name becomes one harmless path component, as for every other command
+    folder = _out_dir(out if out is not None else Path("out") / _safe_name(sc.name) / "explore", sc)
+    explorer = Explorer(sc, out_dir=folder)
 
     def ready(url: str) -> None:
         click.echo(f"delayform explorer: {url} (Ctrl-C stops it); downloads go to {explorer.out_dir}")

@@ -56,7 +56,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from delayform._display import FigureRepr  # Jupyter shows the figure (issue 23)
-from delayform._validation import check_delay
+from delayform._validation import check_delay, validated
 from delayform.analysis.roots.problem import _problem_of_factor
 from delayform.analysis.roots.single import _check_reach
 from delayform.analysis.roots.dominant import SETTLING_FACTOR, dominant_root, dominant_root_map
@@ -95,6 +95,7 @@ _BYTES_PER_ROOT = 320.0
 # =====================================================================
 # results
 # =====================================================================
+@validated()
 @dataclass(frozen=True, eq=False)
 class GainPlaneMap(FigureRepr):
     """The spectral abscissa over a grid of gains (P, D) at fixed delays (or a box's worst case).
@@ -160,6 +161,7 @@ class GainPlaneMap(FigureRepr):
         return plot_gain_plane(self, ax=ax, points=points)
 
 
+@validated()
 @dataclass(frozen=True, eq=False)
 class GainDesign(FigureRepr):
     """Gains chosen by :func:`design_gains`, with the root they reach and how it was certified.
@@ -414,6 +416,7 @@ def _count(name: str, value: object, minimum: int) -> int:
     return int(value)
 
 
+@validated()
 def box_is_stable(smap: StabilityMap, tau1_box: tuple[float, float], tau2_box: tuple[float, float]) -> bool:
     """True when the exact CTCR map shows the whole delay box stable.
 
@@ -472,6 +475,7 @@ def _polyline_meets_box(x: _Arr, y: _Arr, box: tuple[float, float, float, float]
 # =====================================================================
 # the exact stability boundary in the gain plane (D-decomposition)
 # =====================================================================
+@validated()
 def gain_crossing_curves(
     topology: Topology, tau1: float, tau2: float, *, P_bounds: tuple[float, float],
     D_bounds: tuple[float, float], samples: int = 4000,
@@ -595,6 +599,7 @@ def _worst_in_box(
     return float(t[0]), float(t[1])
 
 
+@validated()
 def design_gains(
     topology: Topology,
     tau1: float | tuple[float, float],

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from delayform._validation import check_delay
+from delayform._validation import check_delay, validated
 from delayform.analysis.roots.generator import _igd_seeds
 from delayform.analysis.roots.problem import _cluster, _polish, _Problem, _problem_of_factor
 from delayform.analysis.roots.rightmost import _BATCH_SEEDS, _solve_rightmost
@@ -31,6 +31,7 @@ from delayform.topology import Topology
 __all__ = ["DelaySchedule", "schedule_delays"]
 
 
+@validated()
 @dataclass(frozen=True)
 class DelaySchedule:
     """Delays chosen by delay scheduling (paper Section "Simulation", Fig. contour).
@@ -78,6 +79,7 @@ def _delay_pair(name: str, value: object) -> tuple[float, float]:
     return check_delay(f"{name}[0]", a), check_delay(f"{name}[1]", b)
 
 
+@validated()
 def schedule_delays(
     topology: Topology,
     P: float,

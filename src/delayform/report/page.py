@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from delayform._files import write_text
+from delayform._validation import validated
 from delayform.errors import ScenarioError
 from delayform.scenario import Scenario
 from delayform.report.analysis import (
@@ -187,6 +188,7 @@ def _table_html(rows: Iterable[tuple[str, str]]) -> str:
     return f"<table>{body}</table>" if body else ""
 
 
+@validated()
 def write_report(
     sections: Sequence[Section], out: Path, *, title: str, intro: str, scenario: Scenario, seconds: float | None = None
 ) -> Path:

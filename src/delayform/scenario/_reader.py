@@ -66,6 +66,15 @@ class _Reader:
             raise self.error(key, "a finite number", value)
         return out
 
+    def length(self, key: str, value: object, *, unit: str = "metres") -> float:
+        """A coordinate or speed no larger than MAX_MAGNITUDE in size (see delayform._validation)."""
+        from delayform._validation import MAX_MAGNITUDE
+
+        out = self.number(key, value)
+        if abs(out) > MAX_MAGNITUDE:
+            raise self.error(key, f"a value of at most {MAX_MAGNITUDE:g} in size ({unit})", value)
+        return out
+
     def gain(self, key: str, value: object) -> float:
         from delayform._validation import GAIN_RANGE
 
@@ -100,7 +109,7 @@ class _Reader:
         for i, row in enumerate(value):
             if not isinstance(row, list) or len(row) != 2:
                 raise self.error(f"{key}[{i}]", "a pair [x, y]", row)
-            out.append((self.number(f"{key}[{i}][0]", row[0]), self.number(f"{key}[{i}][1]", row[1])))
+            out.append((self.length(f"{key}[{i}][0]", row[0]), self.length(f"{key}[{i}][1]", row[1])))
         if n is not None and len(out) != n:
             raise self.error(key, f"{n} rows, one per agent", found=f"{len(out)} rows")
         return tuple(out)

@@ -7,6 +7,8 @@ from typing import Any
 
 import numpy as np
 
+from delayform._validation import validated
+from delayform.errors import ScenarioError
 from delayform.scenario._reader import _check_sizes, _Reader
 from delayform.simulation.network import (
     Network,
@@ -110,6 +112,22 @@ class SimulationSpec:
     model: str = "unicycle"
     duration: float = 100.0
     dt: float = 0.01
+    #: whether the file gave the step; a default step follows the delays (:func:`default_step`)
+    dt_given: bool = field(default=True, compare=False)
+
+
+#: the step used when the file gives none (s)
+DEFAULT_STEP = 0.01
+
+
+def default_step(tau1: float, tau2: float) -> float:
+    """The default step: 0.01 s, or the shortest non-zero delay when that is shorter.
+
+    The simulator reads delayed states on its grid, so a non-zero delay needs at
+    least one step; a step the user did not give must not be what refuses a
+    short delay the user did give.
+    """
+    return min([DEFAULT_STEP] + [t for t in (tau1, tau2) if t > 0.0])
 
 
 @dataclass(frozen=True)
@@ -155,7 +173,19 @@ class ScheduleSpec:
     tau_min: tuple[float, float]
     tau_max: tuple[float, float]
 
+    def starting_at(self, tau_min: tuple[float, float]) -> ScheduleSpec:
+        """The bounds from new hardware delays, the upper bound following them.
 
+        The box keeps its size when the new lower bound moves past the old
+        upper one (``schedule --tau-min 9,9`` on the paper's [0.3, 8] x [0.2, 8]
+        searches [9, 16.7] x [9, 16.8]); it never shrinks below the old upper bound.
+        """
+        hi = tuple(max(old_hi, lo + (old_hi - old_lo))
+                   for lo, old_lo, old_hi in zip(tau_min, self.tau_min, self.tau_max, strict=True))  # fmt: skip
+        return ScheduleSpec(tau_min=tau_min, tau_max=(hi[0], hi[1]))
+
+
+@validated(ScenarioError, methods=False)  # with_changes checks overrides like the file, naming its keys
 @dataclass(frozen=True, eq=False)
 class Scenario:
     """A validated scenario: everything a ``delayform`` subcommand needs.
@@ -272,9 +302,10 @@ class Scenario:
         )
         if tau1 is not None or tau2 is not None:
             # the hardware delays are the operating ones: schedule from what the user gave
-            lo = (new.tau1, new.tau2)
-            hi = (max(new.schedule.tau_max[0], lo[0]), max(new.schedule.tau_max[1], lo[1]))
-            new = replace(new, schedule=ScheduleSpec(tau_min=lo, tau_max=hi))
+            new = replace(new, schedule=new.schedule.starting_at((new.tau1, new.tau2)))
+            if not new.simulation.dt_given:  # a default step follows the new delays too
+                step = min(default_step(new.tau1, new.tau2), new.simulation.duration / 2)
+                new = replace(new, simulation=replace(new.simulation, dt=step))
         if formation is not None:
             shape = reader.shape("formation.shape", formation)
             new = replace(new, formation=FormationSpec(shape=shape, spacing=self.formation.spacing))

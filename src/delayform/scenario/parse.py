@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from delayform._validation import validated
 from delayform.deploy.profiles import PROFILES, robot_profile
 from delayform.errors import InputError, NetworkError, RobotProfileError, ScenarioError
 from delayform.scenario._reader import _Reader
@@ -25,6 +26,7 @@ from delayform.scenario.model import (
     ScheduleSpec,
     SimulationSpec,
     TopologySpec,
+    default_step,
 )
 from delayform.simulation.network import (
     BernoulliLoss,
@@ -142,9 +144,7 @@ def _formation(reader: _Reader, data: Mapping[str, Any], n: int) -> FormationSpe
     from delayform.formation import named_formation
 
     shape = reader.shape("formation.shape", data["shape"])
-    spacing = reader.positive("formation.spacing", data.get("spacing", 1.0))
-    if spacing > 1e6:  # metres: beyond this the positions lose their precision in a simulation
-        raise reader.error("formation.spacing", "a spacing of at most 1e6 (metres)", spacing)
+    spacing = reader.length("formation.spacing", reader.positive("formation.spacing", data.get("spacing", 1.0)))
     try:
         named_formation(shape, n, spacing=spacing)  # e.g. a hexagon needs six agents
     except InputError as exc:
@@ -152,15 +152,16 @@ def _formation(reader: _Reader, data: Mapping[str, Any], n: int) -> FormationSpe
     return FormationSpec(shape=shape, spacing=spacing)
 
 
-def _simulation(reader: _Reader, data: Mapping[str, Any]) -> SimulationSpec:
+def _simulation(reader: _Reader, data: Mapping[str, Any], tau: tuple[float, float]) -> SimulationSpec:
     reader.keys(data, "simulation", ("model", "duration", "dt"))
     default = SimulationSpec()
     model = reader.string("simulation.model", data.get("model", default.model), MODELS)
     duration = reader.positive("simulation.duration", data.get("duration", default.duration))
-    dt = reader.positive("simulation.dt", data.get("dt", default.dt))
+    # a default step follows the delays given (default_step); one given is checked against them
+    dt = reader.positive("simulation.dt", data["dt"]) if "dt" in data else min(default_step(*tau), duration / 2)
     if dt >= duration:
         raise reader.error("simulation.dt", f"a step smaller than simulation.duration = {duration:g}", dt)
-    return SimulationSpec(model=model, duration=duration, dt=dt)
+    return SimulationSpec(model=model, duration=duration, dt=dt, dt_given="dt" in data)
 
 
 _ROBOT_KEYS = (
@@ -191,19 +192,25 @@ def _robot(reader: _Reader, data: Mapping[str, Any] | None, model: str) -> tuple
         except RobotProfileError as exc:
             raise ScenarioError(f"{reader.source}: robot.profile: {exc}") from None
         base, name = profile.limits, profile.name
+    # checked even with limits = false: a table kept for later must not hide a wrong value
+    values = {key: reader.positive(f"robot.{key}", data[key]) for key in _ROBOT_KEYS if key in data}
+    try:
+        robot = replace(base, **values)
+    except InputError as exc:  # RobotLimits' own consistency checks (e.g. slow_speed < max_speed)
+        raise ScenarioError(f"{reader.source}: robot: {exc}") from None
     if not enabled:
         return None, name
     if model != "unicycle":
         raise reader.error("robot.limits", "false for simulation.model = 'double_integrator' (limits apply to robots)",
                            enabled)  # fmt: skip
-    values = {key: reader.positive(f"robot.{key}", data[key]) for key in _ROBOT_KEYS if key in data}
-    return replace(base, **values), name
+    return robot, name
 
 
 def _initial(reader: _Reader, data: Mapping[str, Any], n: int) -> InitialSpec:
     reader.keys(data, "initial", ("seed", "speed", "positions", "headings"))
     seed = reader.integer("initial.seed", data.get("seed", 0), minimum=0)
     speed = reader.positive("initial.speed", data.get("speed", 1e-3))
+    reader.length("initial.speed", speed, unit="m/s")
     positions = None
     if "positions" in data:
         positions = reader.points("initial.positions", data["positions"], n)
@@ -214,14 +221,20 @@ def _initial(reader: _Reader, data: Mapping[str, Any], n: int) -> InitialSpec:
             raise reader.error("initial.headings", f"an array of {n} angles (radians)", value)
         if len(value) != n:
             raise reader.error("initial.headings", f"{n} angles, one per agent", found=f"{len(value)} angles")
-        headings = tuple(reader.number(f"initial.headings[{i}]", h) for i, h in enumerate(value))
+        headings = tuple(reader.length(f"initial.headings[{i}]", h, unit="radians") for i, h in enumerate(value))
     return InitialSpec(seed=seed, speed=speed, positions=positions, headings=headings)
 
 
-def _chart(reader: _Reader, data: Mapping[str, Any]) -> ChartSpec:
+#: the chart window's default edge (s), widened to the operating delays when they lie beyond it
+DEFAULT_WINDOW = 8.0
+
+
+def _chart(reader: _Reader, data: Mapping[str, Any], tau: tuple[float, float]) -> ChartSpec:
     reader.keys(data, "chart", ("tau1_max", "tau2_max", "points"))
-    tau1_max = reader.positive("chart.tau1_max", data.get("tau1_max", 8.0))
-    tau2_max = reader.positive("chart.tau2_max", data.get("tau2_max", 8.0))
+    # defaults follow the values given: the window holds the operating delays with room around
+    # them (half as much again), so that the chart shows the point and the schedule a box
+    tau1_max = reader.positive("chart.tau1_max", data.get("tau1_max", max(DEFAULT_WINDOW, 1.5 * tau[0])))
+    tau2_max = reader.positive("chart.tau2_max", data.get("tau2_max", max(DEFAULT_WINDOW, 1.5 * tau[1])))
     points_value = data.get("points", {})
     if not isinstance(points_value, Mapping):
         raise reader.error("chart.points", "a table label = [tau1, tau2]", points_value)
@@ -257,7 +270,9 @@ def _schedule(
 ) -> ScheduleSpec:
     reader.keys(data, "schedule", ("tau_min", "tau_max"))
     tau_min = reader.pair("schedule.tau_min", data.get("tau_min", list(tau)))
-    tau_max = reader.pair("schedule.tau_max", data.get("tau_max", [chart.tau1_max, chart.tau2_max]))
+    # the default upper bound follows the lower one the user gave (or the delays)
+    default_max = [max(chart.tau1_max, tau_min[0]), max(chart.tau2_max, tau_min[1])]
+    tau_max = reader.pair("schedule.tau_max", data.get("tau_max", default_max))
     if tau_max[0] < tau_min[0] or tau_max[1] < tau_min[1]:
         raise reader.error("schedule.tau_max", f"bounds >= schedule.tau_min = {list(tau_min)}", list(tau_max))
     return ScheduleSpec(tau_min=tau_min, tau_max=tau_max)
@@ -317,11 +332,11 @@ def parse_scenario(data: Mapping[str, Any], *, source: str = "<scenario>", defau
     tau2 = reader.non_negative("delays.tau2", delays["tau2"])
 
     formation = _formation(reader, reader.table(data, "formation", required=True), n)
-    simulation = _simulation(reader, reader.table(data, "simulation", required=False) or {})
+    simulation = _simulation(reader, reader.table(data, "simulation", required=False) or {}, (tau1, tau2))
     _check_step(reader, simulation.dt, tau1, tau2)
     initial = _initial(reader, reader.table(data, "initial", required=False) or {}, n)
     robot, profile_name = _robot(reader, reader.table(data, "robot", required=False), simulation.model)
-    chart = _chart(reader, reader.table(data, "chart", required=False) or {})
+    chart = _chart(reader, reader.table(data, "chart", required=False) or {}, (tau1, tau2))
     grid = _map(reader, reader.table(data, "map", required=False) or {}, chart)
     schedule = _schedule(reader, reader.table(data, "schedule", required=False) or {}, (tau1, tau2), chart)
     return Scenario(
@@ -336,6 +351,7 @@ def parse_scenario(data: Mapping[str, Any], *, source: str = "<scenario>", defau
 _MAX_FILE_BYTES = 16 * 2**20
 
 
+@validated(ScenarioError)
 def load_scenario(path: str | Path) -> Scenario:
     """Read and validate a TOML scenario file.
 
@@ -360,7 +376,7 @@ def load_scenario(path: str | Path) -> Scenario:
         if path.exists() and path.stat().st_size > _MAX_FILE_BYTES:
             raise ScenarioError(f"{source}: {path.stat().st_size} bytes, too large for a scenario file "
                                 f"(at most {_MAX_FILE_BYTES // 2**20} MiB)")  # fmt: skip
-        text = path.read_text(encoding="utf-8")
+        text = path.read_text(encoding="utf-8-sig")  # a byte-order mark (Windows editors) is not TOML
     except OSError as exc:
         raise ScenarioError(f"{source}: cannot read scenario file ({exc.strerror or exc})") from None
     except UnicodeDecodeError:
@@ -374,7 +390,9 @@ def load_scenario(path: str | Path) -> Scenario:
 
 def paper_scenario() -> Scenario:
     """The paper's example (:data:`PAPER_TOML`), the default of every subcommand."""
-    return parse_scenario(tomllib.loads(PAPER_TOML), source="<paper>", default_name="paper")
+    scenario = parse_scenario(tomllib.loads(PAPER_TOML), source="<paper>", default_name="paper")
+    # nothing of it was given by the user: its step, too, follows delays given on the command line
+    return replace(scenario, simulation=replace(scenario.simulation, dt_given=False))
 
 
 # ------------------------------------------------------------ [network]

@@ -16,6 +16,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from delayform._files import atomic_path, save_npz
+from delayform._validation import validated
+from delayform.errors import SimulationInputError
 from delayform.simulation.robots import RobotLimits, wheel_speeds
 
 __all__ = ["RobotCommands", "LimitExceedance"]
@@ -86,6 +88,7 @@ class LimitExceedance:
         )
 
 
+@validated(SimulationInputError)
 @dataclass(frozen=True, eq=False)
 class RobotCommands:
     """Per-robot time series of the commands of eq. transform2, actual and ideal.

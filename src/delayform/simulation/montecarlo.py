@@ -25,12 +25,13 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
-from typing import Any, Protocol
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from delayform._display import FigureRepr  # Jupyter shows the figure (issue 23)
+from delayform._validation import validated
 from delayform.errors import SimulationInputError
 from delayform.resources import require
 from delayform.formation import check_formation
@@ -247,6 +248,7 @@ def simulate_run(task: tuple[Setup, int, tuple[int, int]]) -> RunOutcome:
 
 
 # --------------------------------------------------------------- executors
+@runtime_checkable  # so that monte_carlo(executor="dask") is refused up front (delayform._validation)
 class Executor(Protocol):
     """Runs tasks somewhere and returns their results in the order of the tasks."""
 
@@ -255,6 +257,7 @@ class Executor(Protocol):
         ...
 
 
+@validated()
 class SerialExecutor:
     """Runs every task in this process, one after another."""
 
@@ -282,6 +285,7 @@ class SerialExecutor:
 _METRICS = ("settling_time", "final_error", "peak_command_1", "peak_command_2")
 
 
+@validated()
 @dataclass(frozen=True, eq=False)
 class MonteCarloResult(FigureRepr):
     """Distribution of the outcome of a formation over N seeded runs.
@@ -475,6 +479,7 @@ def guard(setup: Setup, runs: int, workers: int = 1) -> None:
             nbytes=nbytes * at_once, seconds=seconds / max(workers, 1))  # fmt: skip
 
 
+@validated()
 def make_setup(
     topology: Topology,
     P: float,
@@ -580,6 +585,7 @@ def collect(setup: Setup, runs: int, seed: int, outcomes: Sequence[RunOutcome]) 
     )  # fmt: skip
 
 
+@validated()
 def monte_carlo(
     topology: Topology,
     P: float,

@@ -82,6 +82,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from delayform._validation import check_magnitude, validated
 from delayform.errors import NetworkError
 
 __all__ = [
@@ -173,6 +174,7 @@ def check_link_matrix(name: str, matrix: NDArray[np.float64], n: int) -> None:
 
 
 # ------------------------------------------------------------ the model
+@validated(NetworkError)
 @dataclass(frozen=True, eq=False)
 class LinkDelays:
     """Constant delays that differ from link to link.
@@ -210,6 +212,7 @@ class LinkDelays:
         return self.tau1 is None and self.tau2 is None and self.spread == 0.0
 
 
+@validated(NetworkError)
 @dataclass(frozen=True)
 class Jitter:
     """Bounded random jitter: each packet's delay is the link's delay plus ``U(-bound, bound)``.
@@ -235,6 +238,7 @@ class Jitter:
         return self.bound1 == 0.0 and self.bound2 == 0.0
 
 
+@validated(NetworkError)
 @dataclass(frozen=True)
 class SmoothVariation:
     """Delays that vary smoothly: ``d(t) = d_link + amplitude sin(2 pi t / period + phase_link)``.
@@ -273,6 +277,7 @@ class SmoothVariation:
         return self.amplitude1 == 0.0 and self.amplitude2 == 0.0
 
 
+@validated(NetworkError)
 @dataclass(frozen=True, eq=False)
 class BernoulliLoss:
     """Independent packet loss: each packet is lost with ``probability``.
@@ -328,6 +333,7 @@ class BernoulliLoss:
         return float(p[links].mean()) if links.any() else 0.0
 
 
+@validated(NetworkError)
 @dataclass(frozen=True)
 class GilbertElliott:
     """Bursty loss: a two-state Markov chain per stream (Gilbert-Elliott channel).
@@ -381,6 +387,7 @@ class GilbertElliott:
         return self.loss_rate == 0.0 and self.loss_good == 0.0
 
 
+@validated(NetworkError)
 @dataclass(frozen=True)
 class Sampling:
     """Sampled transmission: every agent sends its state ``rate`` times per second (zero-order hold).
@@ -401,6 +408,7 @@ class Sampling:
         object.__setattr__(self, "rate", rate)
 
 
+@validated(NetworkError)
 @dataclass(frozen=True)
 class MeasurementNoise:
     """Additive Gaussian noise on what is sent: standard deviations per coordinate.
@@ -417,8 +425,11 @@ class MeasurementNoise:
     velocity: float = 0.0
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "position", _non_negative("noise.position", self.position))
-        object.__setattr__(self, "velocity", _non_negative("noise.velocity", self.velocity))
+        for name, unit in (("position", "m"), ("velocity", "m/s")):
+            value = _non_negative(f"noise.{name}", getattr(self, name))
+            # a deviation beyond the largest position or speed the simulator takes means nothing
+            check_magnitude(f"noise.{name}", np.array([value]), NetworkError, unit)
+            object.__setattr__(self, name, value)
 
     @property
     def is_off(self) -> bool:
@@ -426,6 +437,7 @@ class MeasurementNoise:
         return self.position == 0.0 and self.velocity == 0.0
 
 
+@validated(NetworkError)
 @dataclass(frozen=True, eq=False)
 class Network:
     """An imperfect communication network for :func:`~delayform.simulation.simulate` (module doc).

@@ -39,6 +39,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 from numpy.typing import NDArray
 
+from delayform._validation import validated
 from delayform.errors import SimulationInputError
 
 __all__ = ["RobotLimits", "IROBOT_CREATE", "REST_SPEED", "ideal_commands", "wheel_speeds"]
@@ -50,6 +51,7 @@ _Array = NDArray[np.float64]
 REST_SPEED = 1e-3
 
 
+@validated(SimulationInputError)
 @dataclass(frozen=True)
 class RobotLimits:
     """A differential-drive robot: its geometry and the limits of its actuators.

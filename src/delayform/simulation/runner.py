@@ -48,7 +48,7 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from delayform._validation import check_delay, check_gains, check_positive
+from delayform._validation import check_delay, check_gains, check_magnitude, check_positive, validated
 from delayform.errors import SimulationInputError
 from delayform.formation import (
     centroid_weights,
@@ -114,7 +114,19 @@ def _check_array(name: str, value: ArrayLike, shape: tuple[int, ...]) -> _Array:
         raise SimulationInputError(f"{name} must have shape {shape}, got {arr.shape}")
     if not np.all(np.isfinite(arr)):
         raise SimulationInputError(f"{name} must be finite")
+    # lengths and speeds; angles too (at 1e6 rad a float64 still resolves 1e-10 rad, at 1e300 nothing)
+    unit = {"initial_positions": "m", "initial_headings": "rad"}.get(name, "m/s")
+    check_magnitude(name, arr, SimulationInputError, unit)
     return arr
+
+
+def _rng(seed: object) -> np.random.Generator:
+    """``numpy.random.default_rng(seed)`` for a seed numpy takes, else SimulationInputError."""
+    if isinstance(seed, np.random.Generator):
+        return seed
+    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0):
+        raise SimulationInputError(f"seed must be a non-negative integer, a numpy Generator or None, got {seed!r}")
+    return np.random.default_rng(seed)
 
 
 def _initial_state(
@@ -130,7 +142,7 @@ def _initial_state(
     (the density of the paper's six robots in a 10 x 10 square), headings
     uniform in ``[-pi, pi)``.
     """
-    rng = np.random.default_rng(seed)
+    rng = _rng(seed)
     half = 5.0 * max(1.0, math.sqrt(n / 6.0))
     if initial_positions is None:
         x0 = rng.uniform(-half, half, size=(n, 2))
@@ -179,6 +191,7 @@ def estimate_resources(
 
 
 # ------------------------------------------------------------------- core
+@validated(SimulationInputError)
 def simulate(
     topology: Topology,
     P: float,
@@ -314,8 +327,10 @@ def simulate(
     nbytes, seconds, linear = estimate_resources(
         n, steps, save_every, eff1, eff2, dt, limited=limits is not None, nnz=topology.C_sparse.nnz
     )
-    require(what=f"this simulation ({steps:,} steps of {n:,} agents)", nbytes=nbytes, seconds=seconds,
-            setting="duration (--duration), the step dt (raise --dt), the number of agents or save_every")  # fmt: skip
+    # a step count past 1e12 said in full would be a line of digits
+    count = f"{steps:,}" if steps < 10**12 else f"{float(steps):.3g}"
+    require(what=f"this simulation ({count} steps of {n:,} agents)", nbytes=nbytes, seconds=seconds,
+            setting="the duration (--duration), the number of agents, or the number of steps (a longer step dt, --dt, or a larger save_every)")  # fmt: skip
 
     C = topology.C_sparse.toarray() if n <= _DENSE_AGENTS else topology.C_sparse
     F = formation_forcing(topology, P, desired)
@@ -390,6 +405,7 @@ def _trajectory(
 
 
 # ------------------------------------------------------------ paper demo
+@validated(SimulationInputError)
 def paper_simulations(
     *, seed: int = 0, duration: float = 150.0, dt: float = 0.01, spacing: float = 2.0,
     limits: RobotLimits | None = None,

@@ -12,6 +12,8 @@ from numpy.typing import NDArray
 
 from delayform._files import atomic_path, save_npz
 from delayform._display import FigureRepr  # Jupyter shows the figure (issue 23)
+from delayform._validation import validated
+from delayform.errors import SimulationInputError
 from delayform.simulation.commands import RobotCommands
 from delayform.simulation.robots import RobotLimits
 
@@ -29,6 +31,7 @@ STATUSES = ("settled", "not settled", "diverging", "stopped")
 DIVERGING_GROWTH = 10.0
 
 
+@validated(SimulationInputError)
 @dataclass(frozen=True, eq=False)
 class Trajectory(FigureRepr):
     """A simulated run of eq. formation: the motion, its metrics and its status.

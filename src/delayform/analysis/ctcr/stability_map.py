@@ -106,7 +106,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from delayform._display import FigureRepr  # Jupyter shows the figure (issue 23)
-from delayform._validation import check_delay_array, check_positive
+from delayform._validation import check_delay_array, check_positive, validated
 # the curves and the count live in one module per concept; names other modules and
 # tests import from here stay importable from here
 from delayform.analysis.ctcr.count import (  # noqa: F401
@@ -169,6 +169,7 @@ PAPER_POINTS: dict[str, tuple[float, float]] = {
 CURVE_TOLERANCE = 1e-9
 
 
+@validated()
 @dataclass(frozen=True, eq=False)
 class StabilityMap(FigureRepr):
     """The exact stability map of CTCR in the window [0, tau1_max] x [0, tau2_max].
@@ -370,6 +371,7 @@ def _guard_window(qps: list[TwoDelayQuasiPolynomial], t1: float, t2: float) -> N
 
 
 # ===================================================================== public entry points
+@validated()
 def crossing_map(qp: TwoDelayQuasiPolynomial | QuasiPolynomial, tau1_max: float, tau2_max: float) -> StabilityMap:
     """The CTCR stability map of one retarded two-delay quasi-polynomial.
 
@@ -424,6 +426,7 @@ def crossing_map(qp: TwoDelayQuasiPolynomial | QuasiPolynomial, tau1_max: float,
     return _assemble([(qp, 1, parts)], t1, t2)
 
 
+@validated()
 def stability_map(topology: Topology, P: float, D: float, tau1_max: float, tau2_max: float) -> StabilityMap:
     """The exact CTCR stability map of the formation protocol (eq. protocolss).
 

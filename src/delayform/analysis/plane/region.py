@@ -60,7 +60,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from delayform._display import FigureRepr  # Jupyter shows the figure (issue 23)
-from delayform._validation import check_complex_array, check_delay, check_gains
+from delayform._validation import check_complex_array, check_delay, check_gains, validated
 from delayform.analysis.plane.spectrum_bounds import SpectrumBound, spectrum_bound
 from delayform.analysis.plane.boundary_curve import ab_terms, omega_limit
 from delayform.analysis.plane.spectrum_sets import SafeDelayMap, SpectrumSet, parse_spectrum, safe_delays
@@ -93,8 +93,9 @@ _LOGRHO_STEP = 0.25
 _CHORD_TOL = 1e-3
 _MAX_ROUNDS = 40
 _NEWTON_STEPS = 40
-#: Most samples of the boundary curve (the phase turns about omega_max * max(tau) radians).
-MAX_SAMPLES = 2_000_000
+#: Most samples of the boundary curve (the phase turns about omega_max * max(tau) radians); at
+#: this many the adaptive sampling takes seconds, past it minutes (2.7 million: 47 s, shared machine)
+MAX_SAMPLES = 1_000_000
 
 
 # ===================================================================== the curve L(j omega)
@@ -235,6 +236,7 @@ def _monotone_runs(th: NDArray[np.float64]) -> list[tuple[int, int]]:
 
 
 # ===================================================================== the result
+@validated()
 @dataclass(frozen=True, eq=False)
 class LambdaRegion(FigureRepr):
     """The stable region of the eigenvalue plane at fixed gains and delays.
@@ -261,7 +263,9 @@ class LambdaRegion(FigureRepr):
 
     def _curve(self, radius: float) -> _Curve:
         r = max(2.0, float(radius))
-        need = 2.0 * omega_limit(self.P, self.D, r) * max(self.tau1, self.tau2) / _PHASE_STEP
+        # the adaptive samples come out about 1.5 times the phase turn over the step (measured:
+        # 2.72 million for tau = 1e5, radius 2), so the estimate is 3 turns per step, not 2
+        need = 3.0 * omega_limit(self.P, self.D, r) * max(self.tau1, self.tau2) / _PHASE_STEP
         if need > MAX_SAMPLES:
             raise ResourceLimitError(
                 f"the eigenvalue plane at delays ({self.tau1:g}, {self.tau2:g}) with |lam| up to {r:g} would need about "
@@ -390,6 +394,7 @@ class LambdaRegion(FigureRepr):
         return lambda_region_plot(self, ax=ax, eigenvalues=eig, radius=radius)
 
 
+@validated()
 def lambda_region(P: float, D: float, tau1: float, tau2: float) -> LambdaRegion:
     """The stable region of the eigenvalue plane of eq. factorized at fixed gains and delays.
 

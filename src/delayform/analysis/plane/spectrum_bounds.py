@@ -51,6 +51,7 @@ import scipy.sparse as sp
 from numpy.typing import NDArray
 from scipy.sparse import csgraph
 
+from delayform._validation import validated
 from delayform.analysis.plane.spectrum_sets import ANY, UNDIRECTED, SpectrumSet
 from delayform.errors import InputError
 from delayform.resources import memory_limit
@@ -87,6 +88,7 @@ def factor_memory_estimate(A: sp.csr_array) -> int:
     return 2 * 8 * profile  # L and the pivots' bookkeeping, float64
 
 
+@validated()
 @dataclass(frozen=True)
 class SpectrumBound:
     """A set holding every eigenvalue of a team's C, and how it was obtained.
@@ -180,6 +182,7 @@ def _near(S: sp.csc_array, sigma: float, deflate: NDArray[np.float64] | None) ->
     return lam, float(np.linalg.norm(S @ x - lam * x))
 
 
+@validated()
 def spectrum_bound(topology: Topology) -> SpectrumBound:
     """A certified set holding every eigenvalue of C, without computing all of them.
 

@@ -67,7 +67,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from delayform._display import FigureRepr  # Jupyter shows the figure (issue 23)
-from delayform._validation import check_delay_array, check_gains, check_positive
+from delayform._validation import check_delay_array, check_gains, check_positive, validated
 from delayform.analysis.plane.boundary_curve import omega_limit
 from delayform.analysis.ctcr.stability_map import StabilityMap, _lam_factor, crossing_map
 from delayform.analysis.plane.envelope import envelope_of_family, tangency_parabola
@@ -93,6 +93,7 @@ _W_EPS = 1e-4
 
 
 # ===================================================================== spectrum sets
+@validated()
 @dataclass(frozen=True)
 class SpectrumSet:
     """A closed set of the eigenvalue plane: a real interval or a disc.
@@ -389,6 +390,7 @@ def _certified_scan(
 
 
 # ===================================================================== the result
+@validated()
 @dataclass(frozen=True, eq=False)
 class SafeDelayMap(FigureRepr):
     """Delay pairs at which every team whose spectrum lies in a set is stable.
@@ -568,6 +570,7 @@ class SafeDelayMap(FigureRepr):
         return safe_delay_chart(self, ax=ax, points=points)
 
 
+@validated()
 def safe_delays(
     P: float, D: float, tau1_max: float, tau2_max: float, *, spectrum: object = "undirected"
 ) -> SafeDelayMap:

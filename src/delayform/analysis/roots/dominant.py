@@ -37,8 +37,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from delayform._validation import check_delay, check_gains
 from delayform.analysis.network.per_link import LinkDominantRoot, link_dominant_root
+from delayform._validation import check_delay, check_gains, validated
 from delayform.analysis.roots.family.solve import family_grid, family_rightmost
 from delayform.analysis.roots.problem import MAX_DEGREE, RESIDUAL_TOL, _Problem, _problem_of_factor, _problem_of_qp
 from delayform.analysis.roots.single import (  # noqa: F401 - the roots of one quasi-polynomial, re-exported
@@ -82,6 +82,7 @@ SETTLING_FACTOR = math.log(50.0)
 # =====================================================================
 # public: dominant root of the formation, maps, scheduling
 # =====================================================================
+@validated()
 @dataclass(frozen=True)
 class DominantRoot:
     """The dominant (rightmost) characteristic root of the formation at one delay pair.
@@ -211,6 +212,7 @@ def _factors_of(topology: Topology, P: float, D: float) -> tuple[CharacteristicF
     return factors(topology, P, D)
 
 
+@validated()
 def dominant_root(
     topology: Topology, P: float, D: float, tau1: float | ArrayLike, tau2: float | ArrayLike
 ) -> DominantRoot | LinkDominantRoot:
@@ -266,6 +268,7 @@ def dominant_root(
                         beside_drift=beside)  # fmt: skip
 
 
+@validated()
 @dataclass(frozen=True, eq=False)
 class DominantRootMap:
     """Dominant roots over a grid of delays (paper Figs. dominant and contour).
@@ -347,6 +350,7 @@ def _grid_axis(name: str, values: ArrayLike) -> NDArray[np.float64]:
     return arr
 
 
+@validated()
 def dominant_root_map(
     topology: Topology,
     P: float,

@@ -62,7 +62,7 @@ from functools import lru_cache
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from delayform._validation import check_delay
+from delayform._validation import check_delay, validated
 from delayform.analysis.roots.family.solve import family_reach_scales, family_rightmost
 from delayform.analysis.roots.generator import (
     _eigenvalues_at,
@@ -290,6 +290,7 @@ def _with_mirror(prob: _Problem, roots: NDArray[np.complex128]) -> NDArray[np.co
     return np.concatenate([roots, np.conj(roots)])
 
 
+@validated()
 def roots_in(
     qp: QuasiPolynomial | TwoDelayQuasiPolynomial | CharacteristicFactor, *delays_and_region: object
 ) -> NDArray[np.complex128]:
@@ -425,6 +426,7 @@ def _in_region(roots: NDArray[np.complex128], region: Region) -> NDArray[np.comp
     return out[np.lexsort((-out.imag, -out.real))]
 
 
+@validated()
 def count_roots_right_of(
     qp: QuasiPolynomial | TwoDelayQuasiPolynomial | CharacteristicFactor, *delays_and_c: object
 ) -> int:
@@ -476,6 +478,7 @@ def count_roots_right_of(
     return n
 
 
+@validated()
 def rightmost_root(qp: QuasiPolynomial | TwoDelayQuasiPolynomial | CharacteristicFactor, *delays: float) -> complex:
     """The rightmost characteristic root (for a factor, the centroid's zero excluded).
 

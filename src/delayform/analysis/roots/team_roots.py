@@ -32,7 +32,7 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from delayform._validation import check_delay
+from delayform._validation import check_delay, validated
 from delayform.analysis.roots.family.solve import family_reach_scales
 from delayform.analysis.roots.family.polish import _polish_rows, _q
 from delayform.analysis.roots.family.rows import _lams, _Rows
@@ -50,6 +50,7 @@ __all__ = ["factor_roots_in"]
 _CHUNK = 128
 
 
+@validated()
 def factor_roots_in(
     topology: Topology,
     P: float,
