@@ -396,7 +396,7 @@ def validated(error: type[InputError] = InputError, *, methods: bool = True) -> 
 
 def _wrap(target: _CallableABC[..., Any], where: str, error: type[InputError], *, skip_first: bool) -> Any:
     """``target`` with its arguments checked first (``skip_first``: self or cls is not checked)."""
-    compiled: list[tuple[list[str], dict[str, tuple[_Check, frozenset[type]]], bool]] = []
+    compiled: list[tuple[list[str], dict[str, tuple[_Check, frozenset[type]]], bool, tuple[tuple[int, str], ...]]] = []
 
     def fail(name: str, what: str, value: object) -> None:
         raise _ERROR_BY_NAME.get(name, error)(f"{where}: {name} must be {what}, got {_short(value)}")
@@ -406,10 +406,17 @@ def _wrap(target: _CallableABC[..., Any], where: str, error: type[InputError], *
             names0, checks0 = _compile(target, skip_first=skip_first)
             params = inspect.signature(target).parameters.values()
             open_ended = any(p.kind in (p.VAR_POSITIONAL, p.VAR_KEYWORD) for p in params)
-            compiled.append((names0, checks0, open_ended))
-        names, checks, open_ended = compiled[0]
+            # (position, name) of each required parameter; position -1 for a keyword-only one
+            required0 = tuple((names0.index(p.name) if p.name in names0 else -1, p.name) for p in params
+                              if p.default is p.empty and p.kind not in (p.VAR_POSITIONAL, p.VAR_KEYWORD)
+                              and not (skip_first and p.name == next(iter(inspect.signature(target).parameters))))
+            compiled.append((names0, checks0, open_ended, required0))
+        names, checks, open_ended, required = compiled[0]
         if not open_ended and len(args) > len(names):  # Python's TypeError would name no error of ours
             raise error(f"{where} takes {len(names)} positional argument(s), got {len(args)}")
+        for position, name in required:  # likewise for a missing argument
+            if not (0 <= position < len(args)) and name not in kwargs:
+                raise _ERROR_BY_NAME.get(name, error)(f"{where}: {name} is required and was not given")
         for name, value in zip(names, args):
             entry = checks.get(name)
             if entry is not None and type(value) not in entry[1] and not entry[0][0](value):

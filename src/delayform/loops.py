@@ -62,6 +62,7 @@ from numpy.typing import NDArray
 from delayform._display import FigureRepr
 from delayform.analysis.roots import count_roots_right_of
 from delayform.characteristic import TwoDelayQuasiPolynomial
+from delayform._validation import validated
 from delayform.errors import LoopError, NotConvergedError, UnstableLoopError
 from delayform.quasipolynomial import QuasiPolynomial
 
@@ -147,6 +148,7 @@ def _state_space_siso(loop: Any) -> tuple[NDArray[np.float64], NDArray[np.float6
     return _trim(num), _trim(den)
 
 
+@validated(LoopError)
 def loop_polynomials(loop: object, *, name: str = "loop") -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Numerator and denominator of a SISO loop gain, in increasing powers of s.
 
@@ -225,6 +227,7 @@ def _check_proper(num: NDArray[np.float64], den: NDArray[np.float64], name: str)
 
 
 # ===================================================================== crossovers
+@validated(LoopError)
 @dataclass(frozen=True)
 class Crossover:
     """One gain crossover |L(j omega)| = 1 and the delays at which it puts a root on the axis.
@@ -394,6 +397,7 @@ def _crossovers(qp: TwoDelayQuasiPolynomial) -> tuple[Crossover, ...]:
 
 
 # ===================================================================== the margin
+@validated(LoopError)
 @dataclass(frozen=True, eq=False)
 class DelayMargin(FigureRepr):
     """The exact delay margin of 1 + L(s) e^{-tau s} and how it was certified.
@@ -490,6 +494,7 @@ def _require_stable_at_zero(
     return True
 
 
+@validated(LoopError)
 def delay_margin(loop: object, *, name: str = "loop") -> DelayMargin:
     """The exact delay margin of the loop 1 + L(s) e^{-tau s} (module docstring).
 
@@ -620,6 +625,7 @@ def _mimo_terms(loop: Any, name: str, *, max_power: int) -> TwoDelayQuasiPolynom
     return TwoDelayQuasiPolynomial(q.terms[(0,)], q.terms.get((1,), empty), empty, q.terms.get((2,), empty))
 
 
+@validated(LoopError)
 def loop_quasi_polynomial(
     loop1: object, loop2: object | None = None, *, name: str = "loop"
 ) -> TwoDelayQuasiPolynomial:
@@ -684,6 +690,7 @@ def _check_strictly_proper(num: NDArray[np.float64], den: NDArray[np.float64], n
         )
 
 
+@validated(LoopError)
 def loop_characteristic(*loops: object, name: str = "loop") -> QuasiPolynomial:
     """The characteristic quasi-polynomial of 1 + L1 e^{-tau1 s} + ... + Lm e^{-taum s}, any m.
 

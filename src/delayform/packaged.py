@@ -11,6 +11,7 @@ from __future__ import annotations
 from importlib.resources import files
 from pathlib import Path
 
+from delayform._validation import validated
 from delayform.errors import InputError
 
 __all__ = ["example_names", "example_path"]
@@ -20,6 +21,7 @@ def _folder() -> Path:
     return Path(str(files("delayform") / "examples"))
 
 
+@validated()
 def example_names() -> tuple[str, ...]:
     """The names of the shipped example scenarios, sorted (``"paper"``, ``"ring12"``, ...).
 
@@ -29,6 +31,7 @@ def example_names() -> tuple[str, ...]:
     return tuple(sorted(p.stem for p in _folder().glob("*.toml")))
 
 
+@validated()
 def example_path(name: str) -> Path:
     """The path of a shipped example scenario file.
 

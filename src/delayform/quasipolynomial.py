@@ -44,7 +44,7 @@ import numpy as np
 import numpy.polynomial.polynomial as npoly
 from numpy.typing import ArrayLike, NDArray
 
-from delayform._validation import check_complex_array, check_delay_array
+from delayform._validation import check_complex_array, check_delay_array, validated
 from delayform.characteristic import (
     DELAY_MULTIPLES,
     CharacteristicFactor,
@@ -106,6 +106,7 @@ def _horner(c: NDArray[np.complex128], s: NDArray[np.complex128]) -> NDArray[np.
     return out
 
 
+@validated(QuasiPolynomialError)
 @dataclass(frozen=True, eq=False, init=False)
 class QuasiPolynomial:
     """A quasi-polynomial in any number of delays (module docstring).

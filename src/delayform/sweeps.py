@@ -129,6 +129,7 @@ CONNECT_TIMEOUT = 5.0
 _MAX_GREETING = 1 << 20
 
 
+@validated(ClusterError)
 def usable_cores() -> int:
     """Number of CPU cores this process may run on (its affinity mask where the OS has one)."""
     import os
@@ -139,6 +140,7 @@ def usable_cores() -> int:
         return max(1, os.cpu_count() or 1)
 
 
+@validated(ClusterError)
 def check_workers(workers: object) -> int:
     """A local cluster's worker count, checked against this machine before any process starts.
 
@@ -166,6 +168,7 @@ def check_workers(workers: object) -> int:
     return workers
 
 
+@validated(ClusterError)
 def parse_scheduler(address: object) -> tuple[str, str, int]:
     """``(scheme, host, port)`` of a Dask scheduler address, checked before anything connects.
 
@@ -212,6 +215,7 @@ def parse_scheduler(address: object) -> tuple[str, str, int]:
     return parts.scheme, parts.hostname, port
 
 
+@validated(ClusterError)
 def check_scheduler(address: object, timeout: float = CONNECT_TIMEOUT) -> str:
     """Prove, within ``timeout`` seconds, that a Dask scheduler answers at ``address``; return the address.
 

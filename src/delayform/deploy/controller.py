@@ -47,7 +47,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike
 
-from delayform._validation import check_delay, check_gains
+from delayform._validation import check_delay, check_gains, validated
 from delayform.deploy.profiles import RobotProfile
 from delayform.errors import ControllerInputError
 from delayform.formation import check_formation, formation_forcing
@@ -131,6 +131,9 @@ class _Inbox:
             del lst[:keep_from]
 
 
+# methods=False: tick and receive run on the robot every period (a 50 us budget, docs/benchmarks.md)
+# and check their own values; the layer checks the construction, done once
+@validated(ControllerInputError, methods=False)
 class FormationController:
     """One robot's formation controller: neighbour messages and own state in, (v, omega) and wheel speeds out.
 

@@ -24,6 +24,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
 
+from delayform._validation import validated
 from delayform.errors import RobotProfileError
 from delayform.simulation.robots import IROBOT_CREATE, RobotLimits
 
@@ -55,6 +56,7 @@ class Arena:
                 f"y in [{self.y_min:g}, {self.y_max:g}]")  # fmt: skip
 
 
+@validated(RobotProfileError)
 @dataclass(frozen=True)
 class RobotProfile:
     """A real robot: its limits with their sources, its control period and its arena.
@@ -214,6 +216,7 @@ def profile_names() -> tuple[str, ...]:
     return tuple(PROFILES)
 
 
+@validated(RobotProfileError)
 def robot_profile(name: str | RobotProfile) -> RobotProfile:
     """The profile called ``name`` (case and ``-`` / ``_`` do not matter).
 

@@ -42,6 +42,7 @@ from typing import Any
 import numpy as np
 
 from delayform._files import atomic_path
+from delayform._validation import validated
 from delayform.errors import RecordingError
 from delayform.simulation.trajectory import Trajectory
 
@@ -93,6 +94,7 @@ def _stamps_ns(times: np.ndarray) -> list[int]:
     return [int(v) for v in np.rint(np.asarray(times) * 1e9).astype(np.int64)]
 
 
+@validated(RecordingError)
 def write_mcap(trajectory: Trajectory, path: str | Path, *, compression: str = "zstd") -> Path:
     """Write a robots' run as an MCAP file of ROS 2 messages (module doc: topics and encodings).
 

@@ -31,7 +31,7 @@ from numpy.typing import NDArray
 from scipy.optimize import minimize
 
 from delayform._display import FigureRepr
-from delayform._validation import check_delay, check_positive
+from delayform._validation import check_delay, check_positive, validated
 from delayform.analysis.roots import count_roots_right_of, rightmost_root
 from delayform.characteristic import TwoDelayQuasiPolynomial
 from delayform.errors import GainError, LoopError, NoStableGainsError, NotConvergedError
@@ -59,6 +59,7 @@ def _qp(num: NDArray[np.float64], den: NDArray[np.float64], P: float, D: float) 
     return TwoDelayQuasiPolynomial(den, P * num, D * np.concatenate([[0.0], num]))
 
 
+@validated(LoopError)
 def pd_loop_quasi_polynomial(plant: object, P: float, D: float) -> TwoDelayQuasiPolynomial:
     """D(s) + P N(s) e^{-tau1 s} + D s N(s) e^{-tau2 s} for the plant N / D (module docstring).
 
@@ -113,6 +114,7 @@ def _bounds(name: str, bounds: object) -> tuple[float, float]:
     return lo, hi
 
 
+@validated(LoopError)
 @dataclass(frozen=True, eq=False)
 class LoopGainDesign(FigureRepr):
     """Gains P, D for a plant under delayed PD feedback, and the evidence.
@@ -160,6 +162,7 @@ class LoopGainDesign(FigureRepr):
         return plot_loop_gains(self, ax=ax)
 
 
+@validated(LoopError)
 def design_loop_gains(
     plant: object,
     tau1: float,

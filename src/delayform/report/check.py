@@ -44,8 +44,10 @@ from typing import Any
 
 import numpy as np
 
+from delayform._validation import validated
 from delayform.deploy.fit import formation_fit
 from delayform.deploy.profiles import RobotProfile, robot_profile
+from delayform.errors import RobotProfileError
 from delayform.scenario import Scenario
 
 __all__ = ["Verdict", "RobotCheck", "robot_check"]
@@ -81,6 +83,7 @@ class Verdict:
         return {True: "fits", False: "does not fit", None: "n/a"}[self.fits]
 
 
+@validated(RobotProfileError)
 @dataclass(frozen=True, eq=False)
 class RobotCheck:
     """The verdicts of :func:`robot_check`, the page that prints them and the run they come from.
@@ -160,6 +163,7 @@ class RobotCheck:
         return ax
 
 
+@validated(RobotProfileError)
 def robot_check(scenario: Scenario, robot: str | RobotProfile) -> RobotCheck:
     """Whether the scenario's design fits a real robot (module doc: the five questions).
 

@@ -61,6 +61,7 @@ _Array = NDArray[np.float64]
 #: Called with (runs done, runs in all) as runs finish.
 Progress = Callable[[int, int], None]
 
+@validated(SimulationInputError)
 def run_quantile(values: ArrayLike, q: ArrayLike) -> _Array:
     """Quantiles of run metrics where a run that never settled counts as +inf.
 

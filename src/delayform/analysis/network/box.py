@@ -52,6 +52,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from delayform.analysis.network.links import LinkTeam, link_team
 from delayform.analysis.network.per_link import dominant_of_team
+from delayform._validation import validated
 from delayform.errors import DelayError, NotConvergedError
 from delayform.topology import Topology
 
@@ -64,6 +65,7 @@ __all__ = ["RobustStability", "robust_stability"]
 MAX_SAMPLES = 100_000
 
 
+@validated()
 @dataclass(frozen=True, eq=False)
 class RobustStability:
     """Whether every constant per-link assignment in a box of delays is stable.
@@ -254,6 +256,7 @@ def _ends(name: str, value: object) -> tuple[ArrayLike, ArrayLike]:
     return lo, hi
 
 
+@validated()
 def robust_stability(
     topology: Topology,
     P: float,

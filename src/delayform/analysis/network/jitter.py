@@ -55,6 +55,7 @@ from numpy.typing import ArrayLike, NDArray
 from delayform.analysis.network.box import DelayBox
 from delayform.analysis.network.links import LinkTeam, link_team
 from delayform.analysis.network.per_link import dominant_of_team
+from delayform._validation import validated
 from delayform.errors import DelayError, NotConvergedError
 from delayform.topology import Topology
 
@@ -69,6 +70,7 @@ _TIGHT = 1.01
 _MAX_SAMPLES = 50_000
 
 
+@validated()
 @dataclass(frozen=True, eq=False)
 class JitterMargin:
     """The certified jitter margin at one (per-link) delay point.
@@ -278,6 +280,7 @@ def margin_of_team(team: LinkTeam) -> JitterMargin:
     return JitterMargin(_delta_of_gain(bound, tau_max), bound, wpk, scaled, nominal.root)
 
 
+@validated()
 def jitter_margin(topology: Topology, P: float, D: float, tau1: ArrayLike, tau2: ArrayLike) -> JitterMargin:
     """The certified jitter margin at nominal delays (scalars or per-link N x N arrays).
 
@@ -304,6 +307,7 @@ def jitter_margin(topology: Topology, P: float, D: float, tau1: ArrayLike, tau2:
     return margin_of_team(link_team(topology, P, D, tau1, tau2))
 
 
+@validated()
 @dataclass(frozen=True, eq=False)
 class JitterMarginMap:
     """Certified jitter margins over a grid of (equal) nominal delays.
@@ -333,6 +337,7 @@ class JitterMarginMap:
         return ax
 
 
+@validated()
 def jitter_margin_map(
     topology: Topology, P: float, D: float, tau1_values: ArrayLike, tau2_values: ArrayLike
 ) -> JitterMarginMap:

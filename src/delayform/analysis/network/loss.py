@@ -39,6 +39,7 @@ import scipy.sparse.linalg as spla
 from numpy.typing import ArrayLike, NDArray
 
 from delayform.analysis.network.links import LinkTeam, link_team
+from delayform._validation import validated
 from delayform.errors import DelayError, InputError
 from delayform.topology import Topology
 
@@ -128,6 +129,7 @@ def _lift(team: LinkTeam, h: float, m1: NDArray[np.int64], m2: NDArray[np.int64]
     return _Lifted(Aq, c, r, q * (1.0 - q), cons, ix, b1, b2, hx, hv, team.cols)
 
 
+@validated()
 @dataclass(frozen=True, eq=False)
 class MeanSquareStability:
     """Mean-square stability of the sampled team under independent packet loss (exact).
@@ -225,6 +227,7 @@ def _lags(name: str, taus: NDArray[np.float64], h: float) -> NDArray[np.int64]:
     return m.astype(np.int64)
 
 
+@validated()
 def mean_square_stability(
     topology: Topology, P: float, D: float, tau1: ArrayLike, tau2: ArrayLike, *, rate: float, loss: ArrayLike
 ) -> MeanSquareStability:

@@ -33,6 +33,7 @@ from numpy.typing import ArrayLike, NDArray
 from delayform.analysis.network.count import count_right_of, root_radius
 from delayform.analysis.network.discretization import generator_seeds
 from delayform.analysis.network.links import LinkTeam, link_team
+from delayform._validation import validated
 from delayform.errors import NotConvergedError
 from delayform.topology import Topology
 
@@ -47,6 +48,7 @@ _STEP_TOL = 1e-13
 _KERNEL_TOL = 1e-7
 
 
+@validated()
 @dataclass(frozen=True, eq=False)
 class LinkDominantRoot:
     """The certified dominant root of a team with per-link delays.
@@ -221,6 +223,7 @@ def _degree(team: LinkTeam, radius: float, attempt: int = 1) -> int:
     return int(np.clip(math.ceil((0.8 + 0.7 * attempt) * team.max_delay * radius) + 8, 8, 160))
 
 
+@validated()
 def link_dominant_root(topology: Topology, P: float, D: float, tau1: ArrayLike, tau2: ArrayLike) -> LinkDominantRoot:
     """The certified dominant root of the team with per-link delays (det of the N x N matrix).
 

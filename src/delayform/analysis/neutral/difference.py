@@ -54,6 +54,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from delayform.characteristic import TwoDelayQuasiPolynomial
+from delayform._validation import validated
 from delayform.errors import DelayError, QuasiPolynomialError
 from delayform.quasipolynomial import QuasiPolynomial
 
@@ -85,6 +86,7 @@ def as_general(qp: QuasiPolynomial | TwoDelayQuasiPolynomial) -> QuasiPolynomial
     )
 
 
+@validated(QuasiPolynomialError)
 @dataclass(frozen=True)
 class DifferenceOperator:
     """``D(z) = 1 + sum_k c_k z^k``, the difference equation of a neutral quasi-polynomial.
@@ -194,6 +196,7 @@ class DifferenceOperator:
         return None
 
 
+@validated(QuasiPolynomialError)
 def difference_operator(qp: QuasiPolynomial | TwoDelayQuasiPolynomial) -> DifferenceOperator:
     """The difference operator of a quasi-polynomial (D = 1 when it is retarded).
 

@@ -44,7 +44,8 @@ from delayform.analysis.neutral.difference import (
 from delayform.analysis.roots.argument_principle import _region_count
 from delayform.analysis.roots.problem import _evaluate, _Problem
 from delayform.characteristic import TwoDelayQuasiPolynomial
-from delayform.errors import EssentialSpectrumError, InputError, NotConvergedError
+from delayform._validation import validated
+from delayform.errors import EssentialSpectrumError, InputError, NotConvergedError, QuasiPolynomialError
 from delayform.quasipolynomial import QuasiPolynomial
 
 if TYPE_CHECKING:
@@ -178,6 +179,7 @@ def _roots_in(qp: QuasiPolynomial, taus: tuple[float, ...], region: tuple[float,
     return sorted(out, key=lambda r: (-r[0].real, -r[0].imag))
 
 
+@validated(QuasiPolynomialError)
 def neutral_roots_in(
     qp: QuasiPolynomial | TwoDelayQuasiPolynomial, *taus: float, region: tuple[float, float, float, float]
 ) -> tuple[NDArray[np.complex128], NDArray[np.int64]]:
@@ -245,6 +247,7 @@ def _search_box(qp: QuasiPolynomial, D: DifferenceOperator, taus: tuple[float, .
     return (sigma0, omega * 1.0001 + 1.0, -omega * 1.0001 - 0.9871, omega * 1.0001 + 1.0123)
 
 
+@validated(QuasiPolynomialError)
 def neutral_rightmost_root(qp: QuasiPolynomial | TwoDelayQuasiPolynomial, *taus: float) -> complex:
     """The rightmost root of a neutral quasi-polynomial, when it lies right of the essential spectrum.
 
@@ -298,6 +301,7 @@ def neutral_rightmost_root(qp: QuasiPolynomial | TwoDelayQuasiPolynomial, *taus:
     )
 
 
+@validated(QuasiPolynomialError)
 def neutral_count_right_of(qp: QuasiPolynomial | TwoDelayQuasiPolynomial, *taus: float, c: float) -> int:
     """Certified number of roots with Re s > c, for c right of the essential spectrum (multiplicity counted).
 
@@ -337,6 +341,7 @@ def neutral_count_right_of(qp: QuasiPolynomial | TwoDelayQuasiPolynomial, *taus:
     return n
 
 
+@validated(QuasiPolynomialError)
 @dataclass(frozen=True)
 class NeutralSpectrum:
     """What is known of a quasi-polynomial's spectrum through its difference operator.
@@ -386,6 +391,7 @@ class NeutralSpectrum:
         return ax
 
 
+@validated(QuasiPolynomialError)
 def neutral_spectrum(qp: QuasiPolynomial | TwoDelayQuasiPolynomial, *taus: float) -> NeutralSpectrum:
     """Detect neutrality, the essential abscissa, strong stability and the rightmost root.
 

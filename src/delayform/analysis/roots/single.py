@@ -238,6 +238,7 @@ def _box_reach(prob: _Problem) -> float:
     return (_largest_degree(prob) - 10) / (1.2 * _root_scale(prob) * widest)
 
 
+@validated()
 def delay_reach(fs: tuple[CharacteristicFactor, ...]) -> float:
     """The delays the dominant-root finder handles for these factors: every pair in [0, X]^2, X returned.
 
