@@ -33,6 +33,11 @@ SKIP = {
     "__version__": "a string",
     "IROBOT_CREATE": "a RobotLimits value, not a callable",
     "PAPER_POINTS": "a dict of delay pairs, not a callable",
+    "PROFILES": "a read-only mapping of RobotProfile values, not a callable",
+    # a NamedTuple built for every message on the robot (100 Hz x neighbours, next to the tick's
+    # 50 us budget); FormationController.receive refuses a wrong one with ControllerInputError
+    # (test_neighbour_message_of_wrong_types_is_refused_on_receipt below)
+    "NeighbourMessage": "a NamedTuple on the controller's hot path, checked by FormationController.receive",
 }
 
 
@@ -265,3 +270,22 @@ def test_methods_of_results_refuse_wrong_arguments(results: dict[str, Any], call
     with pytest.raises(InputError):
         call(results)
     assert not any(tmp_path.iterdir())
+
+
+# ================================================================ the controller's hot path
+@pytest.mark.parametrize(
+    "call",
+    [
+        lambda c: c.receive(delayform.NeighbourMessage(object(), 0.0, 0.0, 0.0, 0.0, 0.0)),  # type: ignore[arg-type]
+        lambda c: c.receive(delayform.NeighbourMessage(2, "0", 0.0, 0.0, 0.0, 0.0)),  # type: ignore[arg-type]
+        lambda c: c.receive(delayform.NeighbourMessage({}, 0.0, 0.0, 0.0, 0.0, 0.0)),  # type: ignore[arg-type]
+        lambda c: c.receive(object()),  # type: ignore[arg-type]
+        lambda c: c.tick(0.0, "x", 0.0, 0.0, 0.0),  # type: ignore[arg-type]
+        lambda c: c.speed_command(None, "0.1"),  # type: ignore[arg-type]
+    ],
+)
+def test_neighbour_message_of_wrong_types_is_refused_on_receipt(call: Any) -> None:
+    # NeighbourMessage and the tick are not wrapped by the checking layer (hot path): they refuse here
+    ctrl = delayform.FormationController.from_design(delayform.paper_six(), 1.0, 0.5, 0.3, 0.2, "hexagon", robot=1)
+    with pytest.raises(InputError):
+        call(ctrl)

@@ -64,6 +64,10 @@ STAMP_TOLERANCE = 1e-9
 _PRUNE = 256
 
 
+def _is_number(value: object) -> bool:
+    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
+
+
 class NeighbourMessage(NamedTuple):
     """What a neighbour sends: who, when (its clock, s), its position (m) and Cartesian velocity (m/s)."""
 
@@ -276,10 +280,18 @@ class FormationController:
         ControllerInputError
             For a stamp or value that is not a finite number.
         """
-        inbox = self._inbox.get(message.sender)
-        if inbox is None:
-            return
-        if not all(map(math.isfinite, message[1:])):
+        # a try costs nothing on the way through (Python 3.11): NeighbourMessage is a plain
+        # NamedTuple, not checked on construction, so a wrong field surfaces here as one of ours
+        try:
+            inbox = self._inbox.get(message.sender)
+            if inbox is None:  # a robot this one does not hear; but a sender that is no number is a bug
+                if isinstance(message.sender, bool) or not isinstance(message.sender, (int, np.integer)):
+                    raise TypeError(message.sender)
+                return
+            finite = all(map(math.isfinite, message[1:]))
+        except (AttributeError, TypeError, IndexError) as exc:
+            raise ControllerInputError(f"message must be a NeighbourMessage of numbers, got {message!r}"[:200]) from exc
+        if not finite:
             raise ControllerInputError(f"message of robot {message.sender} has a value that is not finite: {message}")
         inbox.add(message)
 
@@ -310,7 +322,11 @@ class FormationController:
         ControllerInputError
             For a state that is not finite, or a neighbour not heard from yet.
         """
-        if not (math.isfinite(t) and math.isfinite(x) and math.isfinite(y) and math.isfinite(theta) and math.isfinite(v)):
+        try:  # free when it does not raise: the tick's budget is 50 us
+            finite = math.isfinite(t) and math.isfinite(x) and math.isfinite(y) and math.isfinite(theta) and math.isfinite(v)
+        except TypeError as exc:
+            raise ControllerInputError(f"the state must be real numbers: t={t!r}, x={x!r}, y={y!r}, theta={theta!r}, v={v!r}") from exc
+        if not finite:
             raise ControllerInputError(f"the state at t = {t!r} must be finite: x={x!r}, y={y!r}, theta={theta!r}, v={v!r}")
         c, s = math.cos(theta), math.sin(theta)
         # sum_k C_ik x_k(t - tau1) and sum_k C_ik xdot_k(t - tau2), from the playout buffer
@@ -403,7 +419,7 @@ class FormationController:
         period
             The control period (s).
         """
-        if not (math.isfinite(period) and period > 0):
+        if not (_is_number(period) and math.isfinite(period) and period > 0):
             raise ControllerInputError(f"period must be finite and positive, got {period!r}")
         target = command.speed + command.acceleration * period
         if self.limits is None:
