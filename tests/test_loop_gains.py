@@ -61,7 +61,7 @@ def test_double_integrator_without_delay_matches_the_closed_form() -> None:
     [
         (dict(plant=control.tf([1.0], [1.0, 1.0])), LoopError, "relative degree 1"),
         (dict(P_bounds=(2.0, 1.0)), GainError, "0 < low < high"),
-        (dict(D_bounds="big"), GainError, "pair"),
+        (dict(D_bounds="big"), GainError, "D_bounds must be a tuple of two"),  # the checking layer names it
         (dict(grid=2), GainError, "grid"),
         (dict(tau1=-1.0), df.errors.DelayError, "tau1"),
     ],

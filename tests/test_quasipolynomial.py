@@ -59,7 +59,7 @@ def test_evaluate_broadcasts():
     ("terms", "match"),
     [
         ({}, "non-empty mapping"),
-        ([1, 2], "non-empty mapping"),
+        ([1, 2], "terms must be a mapping"),  # the checking layer refuses it first
         ({(1,): [1.0]}, "principal term"),
         ({(0,): [0.0]}, "principal term"),
         ({(0,): [1.0], (0, 1): [1.0]}, "same number of delays"),

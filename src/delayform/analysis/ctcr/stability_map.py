@@ -138,7 +138,7 @@ from delayform.analysis.ctcr.curves import (  # noqa: F401
     _tendency,
     _ZeroLine,
 )
-from delayform.analysis.ctcr.general import as_traced
+from delayform.analysis.ctcr.general import TermsQP, as_traced
 from delayform.characteristic import TwoDelayQuasiPolynomial, factors
 from delayform.quasipolynomial import QuasiPolynomial
 from delayform.resources import require
@@ -185,14 +185,15 @@ class StabilityMap(FigureRepr):
     traced
         The quasi-polynomials whose imaginary roots were traced for omega > 0
         (a complex one also as its conjugate; a fourth-order factor as the
-        three-term factors of lam and conj(lam)).
+        three-term factors of lam and conj(lam)); a :class:`TermsQP` for a
+        quasi-polynomial given by its terms (general or neutral, :func:`crossing_map`).
     """
 
     curves: tuple[CrossingCurve, ...]
     tau1_max: float
     tau2_max: float
     delay_free_count: int
-    traced: tuple[TwoDelayQuasiPolynomial, ...] = field(repr=False)
+    traced: tuple[TwoDelayQuasiPolynomial | TermsQP, ...] = field(repr=False)
     _start1: int = field(repr=False)
     _axis2: tuple[NDArray[np.float64], NDArray[np.float64]] = field(repr=False)
     _axis1: tuple[NDArray[np.float64], NDArray[np.float64]] = field(repr=False)
