@@ -289,3 +289,21 @@ def test_neighbour_message_of_wrong_types_is_refused_on_receipt(call: Any) -> No
     ctrl = delayform.FormationController.from_design(delayform.paper_six(), 1.0, 0.5, 0.3, 0.2, "hexagon", robot=1)
     with pytest.raises(InputError):
         call(ctrl)
+
+
+# ================================================================ the layer itself
+def test_a_missing_argument_is_one_of_ours() -> None:
+    # Python's own TypeError ("missing 1 required positional argument") names no error of ours
+    with pytest.raises(InputError, match="tau2 is required"):
+        delayform.lambda_region(1.0, 0.5, 0.3)  # type: ignore[call-arg]
+    with pytest.raises(InputError, match="rate is required"):
+        delayform.mean_square_stability(delayform.paper_six(), 1.0, 0.5, 0.3, 0.2, loss=0.1)  # type: ignore[call-arg]
+
+
+def test_a_not_computed_field_takes_nan_but_no_other_non_number() -> None:
+    # JitterMargin.peak_frequency is NaN at an unstable point (FloatOrNaN), never a string
+    assert math.isnan(delayform.JitterMargin(0.0, math.inf, math.nan, False, 0j).peak_frequency)
+    with pytest.raises(InputError, match="peak_frequency"):
+        delayform.JitterMargin(0.0, math.inf, "x", False, 0j)  # type: ignore[arg-type]
+    with pytest.raises(InputError, match="delta"):
+        delayform.JitterMargin(math.nan, math.inf, 1.0, False, 0j)

@@ -58,7 +58,7 @@ def test_per_link_box_ends():
 
 
 @pytest.mark.parametrize(
-    "box1, match", [((1.1, 0.9), "lo > hi"), ((-0.1, 0.2), "non-negative"), ((0.1,), "pair"), ((np.ones((2, 2)), 1.0), "6 x 6")]
+    "box1, match", [((1.1, 0.9), "lo > hi"), ((-0.1, 0.2), "non-negative"), ((0.1,), "tau1 must be a tuple of 2"), ((np.ones((2, 2)), 1.0), "6 x 6")]
 )
 def test_bad_boxes_are_named(box1, match):
     with pytest.raises(DelayError, match=match):

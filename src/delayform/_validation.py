@@ -197,6 +197,10 @@ _ARRAY_LIKE = set(typing.get_args(ArrayLike))
 _REAL_OR_NAN: _Check = (_is_real, "a real number")
 _COUNTS = {2: "two", 3: "three", 4: "four", 5: "five", 6: "six"}
 
+#: the annotation of a float field of a result that is NaN where it was not computed (the peak
+#: frequency of an unstable point): the layer takes NaN there and still refuses what is no number
+FloatOrNaN = typing.Annotated[float, "NaN where not computed"]
+
 
 def _check_of(tp: object) -> _Check | None:
     """The check of an annotation; None when it cannot be checked (the function checks it)."""
@@ -207,6 +211,8 @@ def _check_of(tp: object) -> _Check | None:
     if tp is ArrayLike or tp is NDArray:
         return _numeric_array, "numeric values (an array)"
     origin, args = typing.get_origin(tp), typing.get_args(tp)
+    if origin is typing.Annotated:
+        return _REAL_OR_NAN if tp is FloatOrNaN else _check_of(args[0])
     if origin is typing.Union or origin is types.UnionType:
         if _ARRAY_LIKE <= set(args):  # ArrayLike is itself a Union: `ArrayLike | str` flattens
             rest = [a for a in args if a not in _ARRAY_LIKE]

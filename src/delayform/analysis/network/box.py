@@ -45,14 +45,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from delayform.analysis.network.links import LinkTeam, link_team
 from delayform.analysis.network.per_link import dominant_of_team
-from delayform._validation import validated
+from delayform._validation import FloatOrNaN, validated
 from delayform.errors import DelayError, NotConvergedError
 from delayform.topology import Topology
 
@@ -84,7 +84,8 @@ class RobustStability:
     margin
         1 - max over frequency of the Perron bound (> 0 when certified).
     worst_frequency
-        The frequency (rad/s) where the Perron bound is largest.
+        The frequency (rad/s) where the Perron bound is largest; NaN where
+        the centre is unstable (no bound is computed).
     witness
         An unstable assignment found (per-link arrays tau1, tau2), or None.
     witness_root
@@ -93,13 +94,13 @@ class RobustStability:
         How many assignments were checked exactly.
     """
 
-    status: str
+    status: Literal["certified", "unstable", "undecided"]
     method: str
     reason: str
     tau1: tuple[NDArray[np.float64], NDArray[np.float64]]
     tau2: tuple[NDArray[np.float64], NDArray[np.float64]]
     margin: float
-    worst_frequency: float
+    worst_frequency: FloatOrNaN
     witness: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
     witness_root: complex | None = None
     checked: int = 0

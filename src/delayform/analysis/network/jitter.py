@@ -55,7 +55,7 @@ from numpy.typing import ArrayLike, NDArray
 from delayform.analysis.network.box import DelayBox
 from delayform.analysis.network.links import LinkTeam, link_team
 from delayform.analysis.network.per_link import dominant_of_team
-from delayform._validation import validated
+from delayform._validation import FloatOrNaN, validated
 from delayform.errors import DelayError, NotConvergedError
 from delayform.topology import Topology
 
@@ -83,7 +83,8 @@ class JitterMargin:
     gain
         Certified upper bound of ||S G S^{-1}||_inf (inf where unstable).
     peak_frequency
-        Where the sampled gain is largest (rad/s).
+        Where the sampled gain is largest (rad/s); NaN where the nominal
+        point is unstable (no gain is sampled there).
     scaled
         True when the Perron scaling lowered the bound.
     nominal_root
@@ -94,7 +95,7 @@ class JitterMargin:
 
     delta: float
     gain: float
-    peak_frequency: float
+    peak_frequency: FloatOrNaN
     scaled: bool
     nominal_root: complex
     method: str = "small gain, Kao-Lincoln delay-difference bound, constant diagonal scaling"
