@@ -49,6 +49,7 @@ from delayform.deploy.fit import formation_fit
 from delayform.deploy.profiles import RobotProfile, robot_profile
 from delayform.errors import RobotProfileError
 from delayform.scenario import Scenario
+from delayform.simulation.trajectory import Trajectory  # loaded by the scenario already
 
 __all__ = ["Verdict", "RobotCheck", "robot_check"]
 
@@ -103,7 +104,7 @@ class RobotCheck:
     scenario: Scenario
     profile: RobotProfile
     verdicts: tuple[Verdict, ...]
-    trajectory: Any
+    trajectory: Trajectory
 
     @property
     def fits(self) -> bool:
