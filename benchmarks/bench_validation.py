@@ -29,6 +29,7 @@ import numpy as np
 from delayform.analysis.ctcr.stability_map import stability_map
 from delayform.analysis.plane.region import LambdaRegion, lambda_region
 from delayform.characteristic import CharacteristicFactor, TwoDelayQuasiPolynomial, factors
+from delayform.quasipolynomial import QuasiPolynomial
 from delayform.topology import EigenvalueGroup, paper_six, ring
 
 
@@ -56,6 +57,7 @@ def _bare_init(cls: type, *args: object) -> Callable[[], object]:
 def main() -> None:
     group = EigenvalueGroup(0.5 + 0j, 1, False, False)
     g = np.array([1.0, 0.5, 1.0])
+    qp = QuasiPolynomial({(0, 0): [1.0, 0.5, 1.0], (1, 0): [-0.5], (0, 1): [0.0, -0.25]})
     rows = []
     per_call = [
         ("EigenvalueGroup(lam, 1, False, False)", lambda: EigenvalueGroup(0.5 + 0j, 1, False, False),
@@ -65,6 +67,9 @@ def main() -> None:
         ("TwoDelayQuasiPolynomial(g1, g2)", lambda: TwoDelayQuasiPolynomial(g, g), _bare_init(TwoDelayQuasiPolynomial, g, g)),
         ("lambda_region(P, D, tau1, tau2)", lambda: lambda_region(1.0, 0.5, 0.3, 0.2),
          lambda: lambda_region.__wrapped__(1.0, 0.5, 0.3, 0.2)),  # type: ignore[attr-defined]
+        # a method the root finders call per Newton step (checked since the validate-new branch)
+        ("QuasiPolynomial.evaluate(s, tau1, tau2)", lambda: qp.evaluate(0.3 + 1j, 0.3, 0.2),
+         lambda: QuasiPolynomial.evaluate.__wrapped__(qp, 0.3 + 1j, 0.3, 0.2)),  # type: ignore[attr-defined]
     ]  # fmt: skip
     assert isinstance(lambda_region(1.0, 0.5, 0.3, 0.2), LambdaRegion)
     for label, checked, bare in per_call:
