@@ -41,7 +41,10 @@ from numpy.typing import NDArray
 
 from delayform.errors import SimulationInputError
 
-__all__ = ["RobotLimits", "IROBOT_CREATE", "REST_SPEED", "ideal_commands", "wheel_speeds"]
+__all__ = ["Robot", "RobotLimits", "IROBOT_CREATE", "REST_SPEED", "MODELS", "ideal_commands", "wheel_speeds"]
+
+#: agent models accepted by :func:`delayform.simulation.simulate`
+MODELS = ("double_integrator", "unicycle")
 
 _Array = NDArray[np.float64]
 
@@ -130,6 +133,86 @@ class RobotLimits:
 #: The maximum acceleration, 0.5 m/s^2, is NOT documented by iRobot: an
 #: assumed value for a small indoor robot.
 IROBOT_CREATE = RobotLimits()
+
+
+@dataclass(frozen=True)
+class Robot:
+    """What belongs to the robot in a simulation, gathered as :class:`Network` gathers the network.
+
+    Attributes
+    ----------
+    model
+        ``"unicycle"`` (differential-drive robot, eq. transform2) or
+        ``"double_integrator"`` (point agents, ``x'' = u``).
+    limits
+        Actuator limits (:class:`RobotLimits`); None for ideal robots.
+    radius
+        Radius (m) of the disc containing the body, for contacts. None
+        (default): ``limits.radius``, else the Create's 0.17 m for robots
+        and 0 (points, no contacts) for double integrators.
+
+    Examples
+    --------
+    >>> Robot().body_radius, Robot(model="double_integrator").body_radius
+    (0.17, 0.0)
+    """
+
+    model: str = "unicycle"
+    limits: RobotLimits | None = None
+    radius: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.model not in MODELS:
+            raise SimulationInputError(f"unknown model {self.model!r}; choose one of {', '.join(MODELS)}")
+        if self.limits is not None and not isinstance(self.limits, RobotLimits):
+            raise SimulationInputError(f"limits must be a RobotLimits or None, got {type(self.limits).__name__}")
+        if self.limits is not None and self.model != "unicycle":
+            raise SimulationInputError("limits apply to robots: use model='unicycle'")
+        if self.radius is not None:
+            r = self.radius
+            if isinstance(r, bool) or not isinstance(r, (int, float, np.floating, np.integer)):
+                raise SimulationInputError(f"radius must be a number (m), got {r!r}")
+            if not (math.isfinite(r) and r >= 0):
+                raise SimulationInputError(f"radius must be finite and non-negative (m), got {r!r}")
+            object.__setattr__(self, "radius", float(r))
+
+    @property
+    def body_radius(self) -> float:
+        """The radius (m) used for contacts (see :attr:`radius`)."""
+        if self.radius is not None:
+            return self.radius
+        if self.limits is not None:
+            return self.limits.radius
+        return IROBOT_CREATE.radius if self.model == "unicycle" else 0.0
+
+    def check_slots(self, desired: _Array) -> None:
+        """Refuse a formation whose slots are closer than two body radii (the bodies would overlap).
+
+        Parameters
+        ----------
+        desired
+            ``(n, 2)`` desired positions.
+
+        Raises
+        ------
+        SimulationInputError
+            Naming the closest two slots.
+        """
+        r = self.body_radius
+        n = desired.shape[0]
+        if r == 0.0 or n < 2:
+            return
+        from scipy.spatial import cKDTree
+
+        dist, idx = cKDTree(desired).query(desired, k=2)
+        i = int(np.argmin(dist[:, 1]))
+        if dist[i, 1] < 2.0 * r * (1.0 - 1e-9):  # touching slots are allowed
+            a, b = sorted((i, int(idx[i, 1])))
+            raise SimulationInputError(
+                f"formation slots {a + 1} and {b + 1} are {dist[i, 1]:.3g} m apart, closer than two robot "
+                f"radii ({2.0 * r:.3g} m): the bodies would overlap in formation; spread the formation "
+                f"or give a smaller radius"
+            )
 
 
 def wheel_speeds(v: _Array, omega: _Array, robot: RobotLimits) -> tuple[_Array, _Array]:

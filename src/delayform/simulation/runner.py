@@ -71,25 +71,25 @@ from delayform.simulation.network import Network
 from delayform.simulation.reception import integrate_network
 from delayform.simulation.robots import (
     IROBOT_CREATE,
+    MODELS,
     REST_SPEED,
     DoubleIntegrator,
     LimitedUnicycle,
+    Robot,
     RobotLimits,
     ideal_commands,
 )
+from delayform.simulation.bodies import closest_approach
 from delayform.simulation.trajectory import (
     Trajectory,
+    contact_warning,
     formation_error,
-    min_distance,
     run_status,
     settling_time,
 )
 from delayform.topology import Topology, paper_six
 
 __all__ = ["MODELS", "simulate", "paper_simulations", "estimate_resources"]
-
-#: agent models accepted by :func:`simulate`
-MODELS = ("double_integrator", "unicycle")
 
 #: teams up to this size multiply by a dense C and use the blocked linear path
 _DENSE_AGENTS = 64
@@ -187,7 +187,8 @@ def simulate(
     tau2: float,
     formation: ArrayLike | str,
     *,
-    model: str = "unicycle",
+    robot: Robot | None = None,
+    model: str | None = None,
     limits: RobotLimits | None = None,
     initial_positions: ArrayLike | None = None,
     initial_headings: ArrayLike | None = None,
@@ -212,13 +213,18 @@ def simulate(
         Non-negative delays (s); a non-zero delay must be at least ``dt``.
     formation
         ``(n, 2)`` desired positions or a shape name (:data:`delayform.formation.SHAPES`).
+    robot
+        What belongs to the robot (:class:`~delayform.simulation.robots.Robot`:
+        model, limits, body radius). None: ``Robot(model, limits)`` from the
+        two shortcuts below (give either ``robot`` or the shortcuts).
     model
-        ``"unicycle"`` (differential-drive robot, eq. transform2) or ``"double_integrator"``.
+        Shortcut for ``Robot.model``: ``"unicycle"`` (differential-drive robot,
+        eq. transform2; the default) or ``"double_integrator"``.
     limits
-        Actuator limits of the robots (:class:`RobotLimits`, e.g.
-        :data:`IROBOT_CREATE`): the saturated unicycle is integrated. None
-        (default): ideal robots, whose wheel speeds are reported for the
-        geometry of :data:`IROBOT_CREATE`.
+        Shortcut for ``Robot.limits``: actuator limits of the robots
+        (:class:`RobotLimits`, e.g. :data:`IROBOT_CREATE`): the saturated
+        unicycle is integrated. None (default): ideal robots, whose wheel
+        speeds are reported for the geometry of :data:`IROBOT_CREATE`.
     initial_positions
         ``(n, 2)``; default: uniform random (see ``_initial_state``) from ``seed``.
     initial_headings
@@ -252,13 +258,16 @@ def simulate(
     Returns
     -------
     Trajectory
-        With ``status`` and ``warnings`` saying whether the run settled,
-        and the robots' ``commands``.
+        With ``status`` and ``warnings`` saying whether the run settled and
+        whether bodies touched (``min_distance``, ``contacts``:
+        :func:`~delayform.simulation.bodies.closest_approach`), and the
+        robots' ``commands``.
 
     Raises
     ------
     GainError, DelayError, FormationError, SimulationInputError, NoSpanningTreeError
-        For bad gains, delays, formation, step, duration, model, limits or initial state.
+        For bad gains, delays, formation, step, duration, model, limits or initial state,
+        and for formation slots closer than two body radii.
     ResourceLimitError
         When the run would need more memory or time than the machine has.
 
@@ -276,16 +285,12 @@ def simulate(
     dt = check_positive("dt", dt, SimulationInputError)
     duration = check_positive("duration", duration, SimulationInputError)
     rest_speed = check_positive("rest_speed", rest_speed, SimulationInputError)
-    if model not in MODELS:
-        raise SimulationInputError(f"unknown model {model!r}; choose one of {', '.join(MODELS)}")
+    robot = _robot(robot, model, limits)
+    model, limits = robot.model, robot.limits
     if network is not None and not isinstance(network, Network):
         raise SimulationInputError(f"network must be a Network, got {type(network).__name__}")
     if network is not None and network.is_ideal:
         network = None  # the paper's network: exactly the ordinary integrators
-    if limits is not None and not isinstance(limits, RobotLimits):
-        raise SimulationInputError(f"limits must be a RobotLimits or None, got {type(limits).__name__}")
-    if limits is not None and model != "unicycle":
-        raise SimulationInputError("limits apply to robots: use model='unicycle'")
     for name, tau in (("tau1", tau1), ("tau2", tau2)):
         if 0.0 < tau < dt * (1.0 - 1e-9):
             raise SimulationInputError(
@@ -293,6 +298,7 @@ def simulate(
             )
     n = topology.n
     desired = check_formation(formation, n)
+    robot.check_slots(desired)
     x0, th0, speed0 = _initial_state(n, initial_positions, initial_headings, initial_speed, seed)
     if model == "unicycle" and limits is None and np.any(speed0 == 0.0):
         raise SimulationInputError(
@@ -334,14 +340,24 @@ def simulate(
             run = integrate(DoubleIntegrator(x0, v0), C, F, P, D, eff1, eff2, dt, steps, save_every, progress)
     if progress is not None:
         progress(steps, steps)
-    return _trajectory(topology, desired, model, limits, P, D, tau1, tau2, dt, duration, th0, run, rest_speed)
+    return _trajectory(topology, desired, robot, P, D, tau1, tau2, dt, duration, th0, run, rest_speed)
+
+
+def _robot(robot: Robot | None, model: str | None, limits: RobotLimits | None) -> Robot:
+    """The robot of a run: ``robot``, or one built from the ``model`` and ``limits`` shortcuts."""
+    if robot is None:
+        return Robot(model="unicycle" if model is None else model, limits=limits)
+    if not isinstance(robot, Robot):
+        raise SimulationInputError(f"robot must be a Robot, got {type(robot).__name__}")
+    if model is not None or limits is not None:
+        raise SimulationInputError("give the model and limits either in robot or as keywords, not both")
+    return robot
 
 
 def _trajectory(
     topology: Topology,
     desired: _Array,
-    model: str,
-    limits: RobotLimits | None,
+    robot: Robot,
     P: float,
     D: float,
     tau1: float,
@@ -352,6 +368,7 @@ def _trajectory(
     run: Samples,
     rest_speed: float,
 ) -> Trajectory:
+    model, limits = robot.model, robot.limits
     times, pos, vel, acc = run.times, run.positions, run.velocities, run.accelerations
     commands = None
     if model == "double_integrator":
@@ -378,13 +395,17 @@ def _trajectory(
         found = commands.exceedances()
         if found and status != "settled":
             warnings += ("the actuator limits were active: " + "; ".join(e.sentence for e in found),)
+    approach = closest_approach(times, pos, vel, 2.0 * robot.body_radius)
+    if approach.contacts:
+        warnings += (contact_warning(approach.contacts),)
     return Trajectory(
         times=times, positions=pos, velocities=vel, headings=head, speeds=spd, inputs=inp,
         desired=desired, model=model, P=P, D=D, tau1=tau1, tau2=tau2, dt=dt,
         stated_order=2 if limits is not None else stated_order(tau1, tau2, dt),
         formation_error=error, settling_time=settled,
         final_centroid=centroid_weights(topology) @ pos[-1],
-        min_distance=min_distance(pos), commands=commands, limits=limits,
+        min_distance=approach.min_distance, closest_at=approach.at, radius=robot.body_radius,
+        contacts=approach.contacts, commands=commands, limits=limits,
         status=status, warnings=warnings, labels=topology.labels,
     )  # fmt: skip
 

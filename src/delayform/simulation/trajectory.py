@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from delayform.simulation.bodies import Contact
 from delayform.simulation.commands import RobotCommands
 from delayform.simulation.robots import RobotLimits
 
@@ -65,7 +66,17 @@ class Trajectory:
     final_centroid
         Weighted centroid ``w^T x`` (eq. factor1) at the last time.
     min_distance
-        Smallest distance between any two robots over the saved times.
+        Smallest centre-to-centre distance of two robots over the run, exact
+        for the interpolated motion between saved samples too
+        (:func:`~delayform.simulation.bodies.closest_approach`).
+    closest_at
+        When it happened (s).
+    radius
+        The robots' body radius (m) used for contacts; 0 for point agents.
+    contacts
+        Each time two bodies overlapped (:class:`~delayform.simulation.bodies.Contact`:
+        which pair, when, how long, how close); a run with contacts says so
+        in :attr:`warnings`.
     commands
         The robots' commands (:class:`RobotCommands`); None for double integrators.
     limits
@@ -98,6 +109,9 @@ class Trajectory:
     settling_time: float
     final_centroid: _Array
     min_distance: float
+    closest_at: float = math.nan
+    radius: float = 0.0
+    contacts: tuple[Contact, ...] = ()
     commands: RobotCommands | None = None
     limits: RobotLimits | None = None
     status: str = "settled"
@@ -108,6 +122,11 @@ class Trajectory:
     def n(self) -> int:
         """Number of agents."""
         return int(self.positions.shape[1])
+
+    @property
+    def collided(self) -> bool:
+        """Whether two robots' bodies overlapped during the run (see :attr:`contacts`)."""
+        return bool(self.contacts)
 
     @property
     def final_positions(self) -> _Array:
@@ -222,22 +241,14 @@ def settling_time(times: _Array, error: _Array, scale: float) -> float:
     return float(times[last + 1]) if last + 1 < times.size else math.inf
 
 
-def min_distance(positions: _Array) -> float:
-    """Smallest distance between two robots over all samples, without an n x n matrix for large n."""
-    T, n, _ = positions.shape
-    if n < 2:
-        return math.inf
-    if n <= 64:
-        i, j = np.triu_indices(n, k=1)
-        diff = positions[:, i] - positions[:, j]
-        return float(np.sqrt(np.min(diff[..., 0] ** 2 + diff[..., 1] ** 2)))
-    from scipy.spatial import cKDTree
-
-    best = math.inf
-    for frame in positions:
-        d, _ = cKDTree(frame).query(frame, k=2)
-        best = min(best, float(d[:, 1].min()))
-    return best
+def contact_warning(contacts: tuple[Contact, ...], labels: tuple[Any, ...] = ()) -> str:
+    """The sentence of a run whose robots touched: how many contacts, the deepest one."""
+    deepest = max(contacts, key=lambda c: c.depth)
+    pairs = len({c.agents for c in contacts})
+    return (
+        f"the robots collided: {len(contacts)} contact(s) between {pairs} pair(s) of robots; the deepest: "
+        + deepest.sentence(labels)
+    )
 
 
 def run_status(
