@@ -139,3 +139,23 @@ def test_overlapping_slots_are_refused_before_simulating():
         simulate(paper_six(), 1.0, 0.5, 0.3, 0.2, "hexagon", robot=Robot(radius=1.5), duration=1e9, dt=1e-6)
     with pytest.raises(SimulationInputError, match="not both"):
         simulate(paper_six(), 1.0, 0.5, 0.3, 0.2, "hexagon", robot=Robot(), model="unicycle", duration=1.0, dt=0.1)
+
+
+# ------------------------------------------------------------ command line
+def test_cli_says_plainly_that_robots_collided_and_refuses_overlapping_bodies(tmp_path):
+    import json
+
+    from test_cli import assert_one_line_error, run
+
+    proc = run("simulate", "--duration", "30", "--dt", "0.05", "--no-csv", "--json", "--out", str(tmp_path / "a"),
+               cwd=tmp_path)  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr.startswith("delayform: note: the robots collided:"), proc.stderr
+    summary = json.loads(proc.stdout)
+    assert summary["radius"] == 0.17 and summary["contacts"]
+    assert summary["min_distance"] < 0.34
+    proc = run("simulate", "--radius", "5", "--duration", "1", "--out", str(tmp_path / "b"), cwd=tmp_path)
+    assert_one_line_error(proc, "slots", "radii")
+    assert not (tmp_path / "b").exists()
+    proc = run("simulate", "--radius", "-1", "--duration", "1", "--out", str(tmp_path / "c"), cwd=tmp_path)
+    assert proc.returncode == 2 and "radius" in proc.stderr and not (tmp_path / "c").exists()

@@ -98,6 +98,11 @@ _EXPORTS: dict[str, str] = {
     "Explorer": "app",
     "ExplorerLimits": "app",
     "scenario_toml": "app",
+    # robots with bodies (issue 21)
+    "Robot": "simulation",
+    "Contact": "simulation",
+    "Approach": "simulation",
+    "closest_approach": "simulation",
 }
 
 __all__ = sorted(_EXPORTS) + ["errors", "__version__"]

@@ -51,7 +51,7 @@ from delayform.app.scenario_toml import scenario_toml
 from delayform.characteristic import factors
 from delayform.errors import InputError, NotConvergedError
 from delayform.scenario import Scenario
-from delayform.simulation import IROBOT_CREATE, RobotLimits, Trajectory, simulate
+from delayform.simulation import IROBOT_CREATE, Robot, RobotLimits, Trajectory, simulate
 from delayform.simulation.network import BernoulliLoss, Jitter, Network
 
 __all__ = ["Explorer", "PointReport", "RootsReport", "ChartData", "Animation", "crossing_frequency_bound"]
@@ -291,6 +291,8 @@ class Animation:
             "settling_time": None if math.isinf(tr.settling_time) else tr.settling_time,
             "final_error": float(tr.formation_error[k[-1]]),
             "min_distance": tr.min_distance if self.diverged_at is None else None,
+            "radius": tr.radius,
+            "contacts": [[c.agents[0], c.agents[1], c.start, c.end, c.closest] for c in tr.contacts],
             "diverged_at": self.diverged_at,
             "status": tr.status,
             "warnings": list(tr.warnings),
@@ -642,8 +644,8 @@ class Explorer:
         def run() -> tuple[Trajectory, int]:
             with np.errstate(over="ignore", invalid="ignore"):  # an unstable run may overflow; cut below
                 tr = simulate(
-                    s.topology, P, D, tau1, tau2, s.desired_positions(), model=s.simulation.model, limits=robot,
-                    network=net,
+                    s.topology, P, D, tau1, tau2, s.desired_positions(),
+                    robot=Robot(model=s.simulation.model, limits=robot, radius=s.radius), network=net,
                     initial_positions=s.initial_positions(), initial_headings=s.initial_headings(),
                     initial_speed=s.initial.speed, seed=s.initial.seed, duration=duration, dt=dt,
                 )  # fmt: skip

@@ -181,6 +181,13 @@ def _robot(robot: Any, use_limits: bool | None, given: dict[str, float], model: 
     return robot
 
 
+def radius_option(func: F) -> F:
+    """``--radius``: the robots' body radius for contacts (the scenario's ``[robot] radius``)."""
+    return click.option("--radius", type=NON_NEGATIVE,
+                        help="Body radius of each robot (m), for contacts [default: robot.radius, else 0.17 m "
+                             "(the iRobot Create) for robots and 0 (points) for double integrators].")(func)  # fmt: skip
+
+
 def _team_options() -> list[Callable[[F], F]]:
     return [
         click.argument("scenario", required=False, type=click.Path(path_type=Path)),

@@ -19,6 +19,7 @@ from delayform.cli._common import (
     _simulation_spec,
     cli,
     limit_options,
+    radius_option,
     scenario_options,
 )
 
@@ -29,20 +30,23 @@ from delayform.cli._common import (
 @click.option("--duration", type=POSITIVE, help="Simulated time in seconds [default: simulation.duration].")
 @click.option("--dt", type=POSITIVE, help="Time step in seconds [default: simulation.dt].")
 @limit_options
+@radius_option
 @click.option("--csv/--no-csv", "csv", default=None,
               help="Also write the trajectory and commands as CSV [default: only when under 20 MiB; NPZ always].")
 @click.option("--gif/--no-gif", default=False, show_default=True, help="Also write an animated GIF.")
 def simulate_command(scenario: Path | None, model: str | None, duration: float | None, dt: float | None,
-                     seed: int | None, use_limits: bool | None, csv: bool | None, gif: bool, out: Path | None,
-                     as_json: bool, **overrides: Any) -> None:  # fmt: skip
+                     seed: int | None, use_limits: bool | None, radius: float | None, csv: bool | None, gif: bool,
+                     out: Path | None, as_json: bool, **overrides: Any) -> None:  # fmt: skip
     """Simulate the team at the scenario's delays into its formation.
 
     Writes x and y versus time (sim_operating_traces.png/.svg), the paths in
     the plane (sim_operating_xy.png/.svg), the robots' commands with their
     limits (sim_operating_commands.png/.svg, .npz), the trajectory as NPZ,
     CSV files when small or with --csv, and with --gif an animation;
-    reports settling time, final formation error, closest approach and any
-    command beyond a limit. A run that diverges is noted on stderr.
+    reports settling time, final formation error, closest approach (exact
+    between saved steps), contacts between the robots' bodies (--radius) and
+    any command beyond a limit. A run that diverges or whose robots collide
+    is noted on stderr.
     """
     from delayform.report import simulation_section
 
@@ -50,12 +54,14 @@ def simulate_command(scenario: Path | None, model: str | None, duration: float |
     sc = _scenario(scenario, seed=seed, **overrides)
     sim = _simulation_spec(sc, model=model, duration=duration, dt=dt)
     robot = _robot(sc.robot, use_limits, given, sim.model)
-    sc = replace(sc, simulation=sim, robot=robot,
+    sc = replace(sc, simulation=sim, robot=robot, radius=sc.radius if radius is None else radius,
                  initial=replace(sc.initial, seed=sc.initial.seed if seed is None else seed))  # fmt: skip
+    sc.robot_spec.check_slots(sc.desired_positions())  # bodies that overlap in formation: before writing
     directory = _out_dir(out, sc)
     with _inner_progress(f"simulate {sim.model}, {sim.duration:g} s (steps)") as callback:
         section = simulation_section(sc, directory, gif=gif, csv=csv, progress=callback)
     _emit(section, directory, as_json=as_json)
-    if section.summary["status"] in ("diverging", "stopped"):
-        for warning in section.summary["warnings"]:
+    for warning in section.summary["warnings"]:
+        # a run that diverged, or whose robots collided, is said plainly
+        if section.summary["status"] in ("diverging", "stopped") or warning.startswith("the robots collided"):
             click.echo(f"delayform: note: {warning}", err=True)

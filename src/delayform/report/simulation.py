@@ -68,10 +68,11 @@ def simulation_section(
     tau1 = scenario.tau1 if tau1 is None else tau1
     tau2 = scenario.tau2 if tau2 is None else tau2
     sim = scenario.simulation
-    limits = scenario.robot if sim.model == "unicycle" else None
+    robot = scenario.robot_spec
+    limits = robot.limits
     traj = simulate(
         scenario.topology, scenario.P, scenario.D, tau1, tau2, scenario.desired_positions(),
-        model=sim.model, limits=limits, initial_positions=scenario.initial_positions(),
+        robot=robot, initial_positions=scenario.initial_positions(),
         initial_headings=scenario.initial_headings(), initial_speed=scenario.initial.speed,
         seed=scenario.initial.seed, duration=sim.duration, dt=sim.dt, progress=progress,
     )  # fmt: skip
@@ -126,6 +127,13 @@ def simulation_section(
         "initial_error": float(traj.formation_error[0]),
         "final_error": float(traj.formation_error[-1]),
         "min_distance": float(traj.min_distance),
+        "closest_at": float(traj.closest_at),
+        "radius": float(traj.radius),
+        "contacts": [
+            {"agents": [c.agents[0] + 1, c.agents[1] + 1], "start": c.start, "end": c.end,
+             "closest": c.closest, "closest_at": c.closest_at}
+            for c in traj.contacts
+        ],
         "final_centroid": np.asarray(traj.final_centroid),
         "robot_limits": None if limits is None else limits.describe(),
         "limits_exceeded": limits_text,
@@ -142,8 +150,11 @@ def simulation_section(
         ("model", sim.model + ("" if commands is None else (", with limits" if commands.limited else ", ideal robots"))),
         ("settling time (2 %)", settled_text),
         ("final formation error", f"{_fmt(summary['final_error'])} m"),
-        ("closest approach of two agents", f"{_fmt(summary['min_distance'])} m"),
+        ("closest approach of two agents", f"{_fmt(summary['min_distance'])} m at t = {_fmt(traj.closest_at)} s"),
     ]
+    if traj.radius > 0:
+        table.append(("contacts (bodies " + f"{2 * traj.radius:g} m across)",
+                      f"{len(traj.contacts)}: collided" if traj.collided else "none"))  # fmt: skip
     if commands is not None:
         table.append(("beyond the limits" if commands.limited else "beyond an iRobot Create's limits", limits_text))
     table += [("warning", w) for w in traj.warnings]

@@ -11,7 +11,7 @@ from delayform.scenario._reader import _check_sizes, _Reader
 from delayform.simulation.network import (
     Network,
 )
-from delayform.simulation.robots import RobotLimits
+from delayform.simulation.robots import Robot, RobotLimits
 from delayform.topology import Topology
 
 TOPOLOGY_NAMES = ("paper_six", "ring", "complete", "star", "random_digraph")
@@ -174,6 +174,9 @@ class Scenario:
         The optional tables, with their defaults filled in.
     robot
         Actuator limits of the robots (the ``[robot]`` table), or None for ideal robots.
+    radius
+        ``[robot] radius`` (m), the bodies' size for contacts, or None for the
+        default of :class:`~delayform.simulation.robots.Robot`.
     network
         The ``[network]`` table as a :class:`~delayform.simulation.network.Network`, or None.
     topology_spec
@@ -199,6 +202,13 @@ class Scenario:
     source: str = "<scenario>"
     robot: RobotLimits | None = None
     network: Network | None = None
+    radius: float | None = None
+
+    @property
+    def robot_spec(self) -> Robot:
+        """The ``[robot]`` table (and ``simulation.model``) as one :class:`~delayform.simulation.robots.Robot`."""
+        limits = self.robot if self.simulation.model == "unicycle" else None  # limits apply to robots only
+        return Robot(model=self.simulation.model, limits=limits, radius=self.radius)
 
     def summary(self) -> dict[str, Any]:
         """The scenario as plain JSON-ready values, for summaries and report tables."""

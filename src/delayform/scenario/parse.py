@@ -181,8 +181,17 @@ def _robot(reader: _Reader, data: Mapping[str, Any] | None, model: str) -> Robot
     if model != "unicycle":
         raise reader.error("robot.limits", "false for simulation.model = 'double_integrator' (limits apply to robots)",
                            enabled)  # fmt: skip
-    values = {key: reader.positive(f"robot.{key}", data[key]) for key in _ROBOT_KEYS if key in data}
+    values = {key: reader.positive(f"robot.{key}", data[key]) for key in _ROBOT_KEYS if key in data and key != "radius"}
+    if data.get("radius"):  # a zero radius (point robots) is not a limit: it stays the Robot's
+        values["radius"] = reader.positive("robot.radius", data["radius"])
     return replace(IROBOT_CREATE, **values)
+
+
+def _body_radius(reader: _Reader, data: Mapping[str, Any] | None) -> float | None:
+    """``[robot] radius`` (m) whether or not limits apply: the bodies' size for contacts; None if absent."""
+    if data is None or "radius" not in data:
+        return None
+    return reader.non_negative("robot.radius", data["radius"])
 
 
 def _initial(reader: _Reader, data: Mapping[str, Any], n: int) -> InitialSpec:
@@ -306,13 +315,14 @@ def parse_scenario(data: Mapping[str, Any], *, source: str = "<scenario>", defau
     _check_step(reader, simulation.dt, tau1, tau2)
     initial = _initial(reader, reader.table(data, "initial", required=False) or {}, n)
     robot = _robot(reader, reader.table(data, "robot", required=False), simulation.model)
+    radius = _body_radius(reader, reader.table(data, "robot", required=False))
     chart = _chart(reader, reader.table(data, "chart", required=False) or {})
     grid = _map(reader, reader.table(data, "map", required=False) or {}, chart)
     schedule = _schedule(reader, reader.table(data, "schedule", required=False) or {}, (tau1, tau2), chart)
     return Scenario(
         name=name, description=description, topology=topology, P=P, D=D, tau1=tau1, tau2=tau2,
         formation=formation, simulation=simulation, initial=initial, chart=chart, map=grid,
-        schedule=schedule, topology_spec=spec, source=source, robot=robot,
+        schedule=schedule, topology_spec=spec, source=source, robot=robot, radius=radius,
         network=parse_network_table(reader, reader.table(data, "network", required=False), n),
     )  # fmt: skip
 

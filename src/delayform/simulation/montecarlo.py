@@ -35,7 +35,8 @@ from delayform.resources import require
 from delayform.formation import check_formation
 from delayform.simulation.network import Network
 from delayform.simulation.reception import network_memory
-from delayform.simulation.runner import MODELS, simulate
+from delayform.simulation.robots import MODELS, Robot
+from delayform.simulation.runner import simulate
 from delayform.topology import Topology
 
 __all__ = [
@@ -93,6 +94,9 @@ class Setup:
     limits
         Actuator limits of the robots (:class:`~delayform.simulation.robots.RobotLimits`),
         or None for ideal ones: the saturated unicycle driven by what each robot hears.
+    radius
+        Body radius (m) for contacts; None: the default of
+        :class:`~delayform.simulation.robots.Robot` (0 for double integrators).
     """
 
     topology: Topology
@@ -109,6 +113,12 @@ class Setup:
     initial_headings: _Array | None = None
     initial_speed: float = 1e-3
     limits: Any = None
+    radius: float | None = None
+
+    @property
+    def robot(self) -> Robot:
+        """The robot of every run (model, limits, body radius)."""
+        return Robot(model=self.model, limits=self.limits, radius=self.radius)
 
     def with_changes(self, **changes: Any) -> Setup:
         """A copy with some fields replaced (sweeps).
@@ -127,6 +137,7 @@ class Setup:
             "tau1": self.tau1, "tau2": self.tau2, "model": self.model,
             "network": "ideal" if self.network is None else self.network.describe(),
             "robots": "ideal" if self.limits is None else self.limits.describe(),
+            "radius": self.robot.body_radius,
             "duration": self.duration, "dt": self.dt,
         }  # fmt: skip
 
@@ -143,6 +154,8 @@ class RunOutcome:
     error_times: _Array
     errors: _Array
     status: str = "settled"
+    min_distance: float = math.inf
+    contacts: int = 0
 
 
 def run_seeds(seed: int, runs: int) -> list[tuple[int, int]]:
@@ -176,9 +189,9 @@ def simulate_run(task: tuple[Setup, int, tuple[int, int]]) -> RunOutcome:
     network = None if setup.network is None else setup.network.with_seed(network_seed)
     traj = simulate(
         setup.topology, setup.P, setup.D, setup.tau1, setup.tau2, setup.formation,
-        model=setup.model, initial_positions=setup.initial_positions,
+        robot=setup.robot, initial_positions=setup.initial_positions,
         initial_headings=setup.initial_headings, initial_speed=setup.initial_speed,
-        seed=initial_seed, duration=setup.duration, dt=setup.dt, network=network, limits=setup.limits,
+        seed=initial_seed, duration=setup.duration, dt=setup.dt, network=network,
     )  # fmt: skip
     if setup.model == "unicycle":
         peaks = (float(np.abs(traj.inputs[..., 0]).max()), float(np.abs(traj.inputs[..., 1]).max()))
@@ -194,6 +207,8 @@ def simulate_run(task: tuple[Setup, int, tuple[int, int]]) -> RunOutcome:
         error_times=traj.times[keep],
         errors=traj.formation_error[keep],
         status=traj.status,
+        min_distance=float(traj.min_distance),
+        contacts=len(traj.contacts),
     )
 
 
@@ -230,7 +245,7 @@ class SerialExecutor:
 
 
 # ------------------------------------------------------------------ result
-_METRICS = ("settling_time", "final_error", "peak_command_1", "peak_command_2")
+_METRICS = ("settling_time", "final_error", "peak_command_1", "peak_command_2", "min_distance")
 
 
 @dataclass(frozen=True, eq=False)
@@ -260,6 +275,11 @@ class MonteCarloResult:
     statuses
         ``(runs,)`` status of each run (:data:`delayform.simulation.STATUSES`:
         settled, not settled, diverging, stopped).
+    min_distances
+        ``(runs,)`` closest approach of two robots in each run (m, exact
+        between saved steps: :func:`~delayform.simulation.bodies.closest_approach`).
+    contact_counts
+        ``(runs,)`` number of contacts (bodies closer than two radii) in each run.
     """
 
     setup: Setup
@@ -273,6 +293,13 @@ class MonteCarloResult:
     peak_commands: _Array
     command_names: tuple[str, str] = field(default=("|u|", ""))
     statuses: tuple[str, ...] = ()
+    min_distances: _Array = field(default_factory=lambda: np.zeros(0))
+    contact_counts: NDArray[np.int_] = field(default_factory=lambda: np.zeros(0, dtype=int))
+
+    @property
+    def contact_probability(self) -> float:
+        """Fraction of runs in which two robots' bodies touched (0 for point agents)."""
+        return float(np.mean(self.contact_counts > 0)) if self.contact_counts.size else 0.0
 
     @property
     def settled_fraction(self) -> float:
@@ -300,6 +327,7 @@ class MonteCarloResult:
         values = {
             "settling_time": self.settling_times, "final_error": self.final_errors,
             "peak_command_1": self.peak_commands[:, 0], "peak_command_2": self.peak_commands[:, 1],
+            "min_distance": self.min_distances,
         }  # fmt: skip
         if name not in values:
             raise SimulationInputError(f"unknown metric {name!r}; choose one of {', '.join(_METRICS)}")
@@ -313,7 +341,8 @@ class MonteCarloResult:
         """
         out: dict[str, Any] = {"runs": self.runs, "seed": self.seed, "settled_fraction": self.settled_fraction,
                                "setup": self.setup.describe(), "command_names": list(self.command_names),
-                               "statuses": {k: self.statuses.count(k) for k in sorted(set(self.statuses))}}  # fmt: skip
+                               "statuses": {k: self.statuses.count(k) for k in sorted(set(self.statuses))},
+                               "contact_probability": self.contact_probability}  # fmt: skip
         for name in _METRICS:
             if name == "peak_command_2" and not self.command_names[1]:
                 continue
@@ -346,7 +375,11 @@ class MonteCarloResult:
             ("settling time: median [5 %, 95 %]", cell(s["settling_time"], " s")),
             ("final formation error", cell(s["final_error"], " m")),
             (f"peak {self.command_names[0]}", cell(s["peak_command_1"], "")),
+            ("closest approach of two robots", cell(s["min_distance"], " m")),
         ]
+        if s["setup"]["radius"] > 0:
+            rows.append((f"runs with contacts (bodies {2 * s['setup']['radius']:g} m across)",
+                         f"{100 * self.contact_probability:.0f} %"))  # fmt: skip
         if self.command_names[1]:
             rows.append((f"peak {self.command_names[1]}", cell(s["peak_command_2"], "")))
         return tuple(rows)
@@ -366,12 +399,12 @@ class MonteCarloResult:
         return plot_error_bands(self.times, self.quantiles(q), tuple(q), ax=ax, title=self.setup.describe()["network"])
 
     def plot_histograms(self, axes: Any = None) -> Any:
-        """Histograms of settling time, final error and peak command; returns the axes.
+        """Histograms of settling time, final error, peak command and closest approach; returns the axes.
 
         Parameters
         ----------
         axes
-            Three axes to draw on; None makes a figure.
+            Four axes to draw on; None makes a figure.
         """
         from delayform.plots import plot_histograms
 
@@ -379,6 +412,7 @@ class MonteCarloResult:
             ("settling time (s)", self.settling_times),
             ("final formation error (m)", self.final_errors),
             (f"peak {self.command_names[0]}", self.peak_commands[:, 0]),
+            ("closest approach of two robots (m)", self.min_distances),
         ]
         return plot_histograms(panels, axes=axes)
 
@@ -441,6 +475,7 @@ def make_setup(
     initial_headings: ArrayLike | None = None,
     initial_speed: float = 1e-3,
     limits: Any = None,
+    radius: float | None = None,
 ) -> Setup:
     """The checked scenario-like inputs of a Monte Carlo or of a sweep's base point.
 
@@ -460,6 +495,8 @@ def make_setup(
         Initial speed (the paper's 1e-3).
     limits
         Actuator limits of the robots, or None for ideal ones.
+    radius
+        Body radius (m) for contacts; None: the :class:`~delayform.simulation.robots.Robot` default.
 
     Raises
     ------
@@ -473,7 +510,7 @@ def make_setup(
         model=model, network=network, duration=duration, dt=dt,
         initial_positions=None if initial_positions is None else np.asarray(initial_positions, dtype=np.float64),
         initial_headings=None if initial_headings is None else np.asarray(initial_headings, dtype=np.float64),
-        initial_speed=initial_speed, limits=limits,
+        initial_speed=initial_speed, limits=limits, radius=radius,
     )  # fmt: skip
     return checked(setup)
 
@@ -527,6 +564,8 @@ def collect(setup: Setup, runs: int, seed: int, outcomes: Sequence[RunOutcome]) 
         peak_commands=np.array([o.peak_commands for o in ordered]),
         command_names=names,
         statuses=tuple(o.status for o in ordered),
+        min_distances=np.array([o.min_distance for o in ordered]),
+        contact_counts=np.array([o.contacts for o in ordered], dtype=int),
     )  # fmt: skip
 
 
@@ -548,6 +587,7 @@ def monte_carlo(
     initial_headings: ArrayLike | None = None,
     initial_speed: float = 1e-3,
     limits: Any = None,
+    radius: float | None = None,
     executor: Executor | None = None,
     progress: Progress | None = None,
 ) -> MonteCarloResult:
@@ -577,6 +617,9 @@ def monte_carlo(
     limits
         Actuator limits of the robots (:class:`~delayform.simulation.robots.RobotLimits`),
         or None for ideal ones: the saturated unicycle driven by what each robot hears.
+    radius
+        Body radius (m) for contacts (``contact_probability``); None: the
+        :class:`~delayform.simulation.robots.Robot` default (0 for double integrators).
     executor
         Where the runs go (:class:`SerialExecutor` by default; see
         :func:`delayform.sweeps.executor` for Dask); its ``workers``
@@ -608,7 +651,7 @@ def monte_carlo(
     setup = make_setup(
         topology, P, D, tau1, tau2, formation, model=model, network=network, duration=duration, dt=dt,
         initial_positions=initial_positions, initial_headings=initial_headings, initial_speed=initial_speed,
-        limits=limits,
+        limits=limits, radius=radius,
     )  # fmt: skip
     guard(setup, runs, int(getattr(executor, "workers", 1)))
     tasks = [(setup, r, s) for r, s in enumerate(run_seeds(seed, runs))]
