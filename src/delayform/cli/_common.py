@@ -182,7 +182,10 @@ def _robot(robot: Any, use_limits: bool | None, given: dict[str, float], model: 
 
 
 def radius_option(func: F) -> F:
-    """``--radius``: the robots' body radius for contacts (the scenario's ``[robot] radius``)."""
+    """``--radius`` (the scenario's ``[robot] radius``) and ``--assignment`` (``[simulation] assignment``)."""
+    func = click.option("--assignment", type=click.Choice(("given", "optimal")),
+                        help="Which robot takes which slot: given (robot i, slot i) or optimal (least total squared "
+                             "distance to the predicted final positions) [default: simulation.assignment].")(func)  # fmt: skip
     return click.option("--radius", type=NON_NEGATIVE,
                         help="Body radius of each robot (m), for contacts [default: robot.radius, else 0.17 m "
                              "(the iRobot Create) for robots and 0 (points) for double integrators].")(func)  # fmt: skip
@@ -261,13 +264,14 @@ def _scenario(
     return scenario.with_changes(topology=topology, P=P, D=D, tau1=tau1, tau2=tau2, formation=formation_name)
 
 
-def _simulation_spec(scenario: Scenario, *, model: str | None, duration: float | None, dt: float | None) -> Any:
-    """The scenario's ``[simulation]`` table with ``--model``, ``--duration`` and ``--dt`` applied."""
+def _simulation_spec(scenario: Scenario, *, model: str | None, duration: float | None, dt: float | None,
+                     assignment: str | None = None) -> Any:  # fmt: skip
+    """The scenario's ``[simulation]`` table with ``--model``, ``--duration``, ``--dt`` and ``--assignment`` applied."""
     from delayform.scenario import SimulationSpec
 
     sim = scenario.simulation
     spec = SimulationSpec(model=model or sim.model, duration=sim.duration if duration is None else duration,
-                          dt=sim.dt if dt is None else dt)  # fmt: skip
+                          dt=sim.dt if dt is None else dt, assignment=assignment or sim.assignment)  # fmt: skip
     if spec.dt >= spec.duration:
         raise click.BadParameter(f"the step must be smaller than the duration {spec.duration:g}", param_hint="--dt")
     return spec

@@ -83,7 +83,7 @@ def montecarlo_command(scenario: Path | None, runs: int, seed: int | None, worke
                        model: str | None, duration: float | None, dt: float | None, loss: float | None,
                        burst: tuple[float, float] | None, jitter: tuple[float, float] | None, rate: float | None,
                        noise: tuple[float, float] | None, spread: float | None, use_limits: bool | None,
-                       radius: float | None, out: Path | None, as_json: bool, **overrides: Any) -> None:  # fmt: skip
+                       radius: float | None, assignment: str | None, out: Path | None, as_json: bool, **overrides: Any) -> None:  # fmt: skip
     """Monte Carlo of the scenario over an imperfect network: N seeded runs.
 
     The network comes from the scenario's [network] table and the options
@@ -108,7 +108,7 @@ def montecarlo_command(scenario: Path | None, runs: int, seed: int | None, worke
     given = _limits_given(overrides)
     sc = _scenario(scenario, seed=seed, **overrides)
     seed = 0 if seed is None else seed
-    sim = _simulation_spec(sc, model=model, duration=duration, dt=dt)
+    sim = _simulation_spec(sc, model=model, duration=duration, dt=dt, assignment=assignment)
     network = _network(sc.network, loss=loss, burst=burst, jitter=jitter, rate=rate, noise=noise, spread=spread)
     sc = replace(sc, simulation=sim, network=network, robot=_robot(sc.robot, use_limits, given, sim.model),
                  radius=sc.radius if radius is None else radius)

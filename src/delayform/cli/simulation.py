@@ -35,7 +35,8 @@ from delayform.cli._common import (
               help="Also write the trajectory and commands as CSV [default: only when under 20 MiB; NPZ always].")
 @click.option("--gif/--no-gif", default=False, show_default=True, help="Also write an animated GIF.")
 def simulate_command(scenario: Path | None, model: str | None, duration: float | None, dt: float | None,
-                     seed: int | None, use_limits: bool | None, radius: float | None, csv: bool | None, gif: bool,
+                     seed: int | None, use_limits: bool | None, radius: float | None, assignment: str | None,
+                     csv: bool | None, gif: bool,
                      out: Path | None, as_json: bool, **overrides: Any) -> None:  # fmt: skip
     """Simulate the team at the scenario's delays into its formation.
 
@@ -52,7 +53,7 @@ def simulate_command(scenario: Path | None, model: str | None, duration: float |
 
     given = _limits_given(overrides)
     sc = _scenario(scenario, seed=seed, **overrides)
-    sim = _simulation_spec(sc, model=model, duration=duration, dt=dt)
+    sim = _simulation_spec(sc, model=model, duration=duration, dt=dt, assignment=assignment)
     robot = _robot(sc.robot, use_limits, given, sim.model)
     sc = replace(sc, simulation=sim, robot=robot, radius=sc.radius if radius is None else radius,
                  initial=replace(sc.initial, seed=sc.initial.seed if seed is None else seed))  # fmt: skip

@@ -75,6 +75,7 @@ def simulation_section(
         robot=robot, initial_positions=scenario.initial_positions(),
         initial_headings=scenario.initial_headings(), initial_speed=scenario.initial.speed,
         seed=scenario.initial.seed, duration=sim.duration, dt=sim.dt, progress=progress,
+        assignment=sim.assignment,
     )  # fmt: skip
     stem = f"sim_{label}"
     files: list[str] = []
@@ -129,6 +130,8 @@ def simulation_section(
         "min_distance": float(traj.min_distance),
         "closest_at": float(traj.closest_at),
         "radius": float(traj.radius),
+        "assignment": sim.assignment,
+        "slots": [int(k) + 1 for k in traj.slots] if traj.slots is not None else None,
         "contacts": [
             {"agents": [c.agents[0] + 1, c.agents[1] + 1], "start": c.start, "end": c.end,
              "closest": c.closest, "closest_at": c.closest_at}
@@ -152,6 +155,9 @@ def simulation_section(
         ("final formation error", f"{_fmt(summary['final_error'])} m"),
         ("closest approach of two agents", f"{_fmt(summary['min_distance'])} m at t = {_fmt(traj.closest_at)} s"),
     ]
+    if sim.assignment != "given" and traj.slots is not None:
+        table.append(("slots (robot: slot)", f"{sim.assignment}: " + ", ".join(
+            f"{i + 1}: {k + 1}" for i, k in enumerate(traj.slots))))  # fmt: skip
     if traj.radius > 0:
         table.append(("contacts (bodies " + f"{2 * traj.radius:g} m across)",
                       f"{len(traj.contacts)}: collided" if traj.collided else "none"))  # fmt: skip

@@ -110,6 +110,8 @@ class SimulationSpec:
     model: str = "unicycle"
     duration: float = 100.0
     dt: float = 0.01
+    #: which robot takes which slot (delayform.simulation.assignment.ASSIGNMENTS)
+    assignment: str = "given"
 
 
 @dataclass(frozen=True)

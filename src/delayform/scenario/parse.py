@@ -35,6 +35,7 @@ from delayform.simulation.network import (
     Sampling,
     SmoothVariation,
 )
+from delayform.simulation.assignment import ASSIGNMENTS
 from delayform.simulation.robots import IROBOT_CREATE, RobotLimits
 from delayform.topology import Topology, complete, paper_six, random_digraph, ring, star
 
@@ -152,14 +153,15 @@ def _formation(reader: _Reader, data: Mapping[str, Any], n: int) -> FormationSpe
 
 
 def _simulation(reader: _Reader, data: Mapping[str, Any]) -> SimulationSpec:
-    reader.keys(data, "simulation", ("model", "duration", "dt"))
+    reader.keys(data, "simulation", ("model", "duration", "dt", "assignment"))
     default = SimulationSpec()
     model = reader.string("simulation.model", data.get("model", default.model), MODELS)
     duration = reader.positive("simulation.duration", data.get("duration", default.duration))
     dt = reader.positive("simulation.dt", data.get("dt", default.dt))
     if dt >= duration:
         raise reader.error("simulation.dt", f"a step smaller than simulation.duration = {duration:g}", dt)
-    return SimulationSpec(model=model, duration=duration, dt=dt)
+    assignment = reader.string("simulation.assignment", data.get("assignment", default.assignment), ASSIGNMENTS)
+    return SimulationSpec(model=model, duration=duration, dt=dt, assignment=assignment)
 
 
 _ROBOT_KEYS = (

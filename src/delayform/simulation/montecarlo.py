@@ -97,6 +97,8 @@ class Setup:
     radius
         Body radius (m) for contacts; None: the default of
         :class:`~delayform.simulation.robots.Robot` (0 for double integrators).
+    assignment
+        Which robot takes which slot, per run (``simulate(..., assignment=...)``).
     """
 
     topology: Topology
@@ -114,6 +116,7 @@ class Setup:
     initial_speed: float = 1e-3
     limits: Any = None
     radius: float | None = None
+    assignment: str = "given"
 
     @property
     def robot(self) -> Robot:
@@ -191,7 +194,7 @@ def simulate_run(task: tuple[Setup, int, tuple[int, int]]) -> RunOutcome:
         setup.topology, setup.P, setup.D, setup.tau1, setup.tau2, setup.formation,
         robot=setup.robot, initial_positions=setup.initial_positions,
         initial_headings=setup.initial_headings, initial_speed=setup.initial_speed,
-        seed=initial_seed, duration=setup.duration, dt=setup.dt, network=network,
+        seed=initial_seed, duration=setup.duration, dt=setup.dt, network=network, assignment=setup.assignment,
     )  # fmt: skip
     if setup.model == "unicycle":
         peaks = (float(np.abs(traj.inputs[..., 0]).max()), float(np.abs(traj.inputs[..., 1]).max()))
@@ -476,6 +479,7 @@ def make_setup(
     initial_speed: float = 1e-3,
     limits: Any = None,
     radius: float | None = None,
+    assignment: str = "given",
 ) -> Setup:
     """The checked scenario-like inputs of a Monte Carlo or of a sweep's base point.
 
@@ -497,6 +501,8 @@ def make_setup(
         Actuator limits of the robots, or None for ideal ones.
     radius
         Body radius (m) for contacts; None: the :class:`~delayform.simulation.robots.Robot` default.
+    assignment
+        ``"given"`` or ``"optimal"`` slots (``simulate(..., assignment=...)``).
 
     Raises
     ------
@@ -510,7 +516,7 @@ def make_setup(
         model=model, network=network, duration=duration, dt=dt,
         initial_positions=None if initial_positions is None else np.asarray(initial_positions, dtype=np.float64),
         initial_headings=None if initial_headings is None else np.asarray(initial_headings, dtype=np.float64),
-        initial_speed=initial_speed, limits=limits, radius=radius,
+        initial_speed=initial_speed, limits=limits, radius=radius, assignment=assignment,
     )  # fmt: skip
     return checked(setup)
 
@@ -588,6 +594,7 @@ def monte_carlo(
     initial_speed: float = 1e-3,
     limits: Any = None,
     radius: float | None = None,
+    assignment: str = "given",
     executor: Executor | None = None,
     progress: Progress | None = None,
 ) -> MonteCarloResult:
@@ -620,6 +627,8 @@ def monte_carlo(
     radius
         Body radius (m) for contacts (``contact_probability``); None: the
         :class:`~delayform.simulation.robots.Robot` default (0 for double integrators).
+    assignment
+        ``"given"`` or ``"optimal"`` slots in every run (``simulate(..., assignment=...)``).
     executor
         Where the runs go (:class:`SerialExecutor` by default; see
         :func:`delayform.sweeps.executor` for Dask); its ``workers``
@@ -651,7 +660,7 @@ def monte_carlo(
     setup = make_setup(
         topology, P, D, tau1, tau2, formation, model=model, network=network, duration=duration, dt=dt,
         initial_positions=initial_positions, initial_headings=initial_headings, initial_speed=initial_speed,
-        limits=limits, radius=radius,
+        limits=limits, radius=radius, assignment=assignment,
     )  # fmt: skip
     guard(setup, runs, int(getattr(executor, "workers", 1)))
     tasks = [(setup, r, s) for r, s in enumerate(run_seeds(seed, runs))]

@@ -43,6 +43,7 @@ cleanly; its :attr:`Trajectory.status` says so.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -79,6 +80,7 @@ from delayform.simulation.robots import (
     RobotLimits,
     ideal_commands,
 )
+from delayform.simulation.assignment import assign_slots, check_assignment
 from delayform.simulation.bodies import closest_approach
 from delayform.simulation.trajectory import (
     Trajectory,
@@ -200,6 +202,7 @@ def simulate(
     save_every: int | None = None,
     progress: Progress | None = None,
     network: Network | None = None,
+    assignment: str = "given",
 ) -> Trajectory:
     """Simulate n agents under eq. formation with delays tau1 (positions) and tau2 (velocities).
 
@@ -254,6 +257,13 @@ def simulate(
         double integrator (ideal robots are rebuilt from it), or with
         ``limits`` the saturated unicycle driven by what each robot hears.
         None or the ideal network: the paths above, unchanged.
+    assignment
+        ``"given"`` (default): robot i takes slot i of ``formation``.
+        ``"optimal"``: the slots that minimise the total squared distance from
+        each robot's start to its predicted final position
+        (:func:`~delayform.simulation.assignment.assign_slots`; exact for
+        balanced teams, certified or bounded otherwise). It relabels the
+        slots only: the stability analysis is unchanged (docs/theory.md).
 
     Returns
     -------
@@ -299,6 +309,7 @@ def simulate(
     n = topology.n
     desired = check_formation(formation, n)
     robot.check_slots(desired)
+    check_assignment(assignment)
     x0, th0, speed0 = _initial_state(n, initial_positions, initial_headings, initial_speed, seed)
     if model == "unicycle" and limits is None and np.any(speed0 == 0.0):
         raise SimulationInputError(
@@ -310,6 +321,10 @@ def simulate(
             f"initial_speed {np.abs(speed0).max():g} m/s exceeds the robots' speed limit {limits.speed_cap:g} m/s"
         )
     v0 = speed0[:, None] * np.column_stack([np.cos(th0), np.sin(th0)])
+    slots = np.arange(n)
+    if assignment == "optimal":
+        slots = assign_slots(topology, P, D, tau1, tau2, desired, x0, v0).slots
+        desired = desired[slots]
     steps = max(1, math.ceil(duration / dt - 1e-9))
     if save_every is None:
         save_every = max(1, math.ceil((steps + 1) * n / _SAVE_BUDGET))
@@ -340,7 +355,8 @@ def simulate(
             run = integrate(DoubleIntegrator(x0, v0), C, F, P, D, eff1, eff2, dt, steps, save_every, progress)
     if progress is not None:
         progress(steps, steps)
-    return _trajectory(topology, desired, robot, P, D, tau1, tau2, dt, duration, th0, run, rest_speed)
+    traj = _trajectory(topology, desired, robot, P, D, tau1, tau2, dt, duration, th0, run, rest_speed)
+    return dataclasses.replace(traj, slots=slots)
 
 
 def _robot(robot: Robot | None, model: str | None, limits: RobotLimits | None) -> Robot:

@@ -77,6 +77,9 @@ class Trajectory:
         Each time two bodies overlapped (:class:`~delayform.simulation.bodies.Contact`:
         which pair, when, how long, how close); a run with contacts says so
         in :attr:`warnings`.
+    slots
+        ``(n,)``: the slot of ``formation`` robot i took (``simulate(...,
+        assignment=...)``); ``desired`` is already in this order.
     commands
         The robots' commands (:class:`RobotCommands`); None for double integrators.
     limits
@@ -112,6 +115,7 @@ class Trajectory:
     closest_at: float = math.nan
     radius: float = 0.0
     contacts: tuple[Contact, ...] = ()
+    slots: NDArray[np.intp] | None = None
     commands: RobotCommands | None = None
     limits: RobotLimits | None = None
     status: str = "settled"
