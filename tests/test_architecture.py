@@ -25,6 +25,7 @@ STAGES: dict[str, int] = {
     "plots": 0,  # a leaf: draws results by their attributes, imports no delayform module
     "topology": 1,
     "characteristic": 2,
+    "quasipolynomial": 2,  # after characteristic (converts its TwoDelayQuasiPolynomial)
     "formation": 2,
     "analysis": 3,
     "design": 4,

@@ -33,6 +33,8 @@ _EXPORTS: dict[str, str] = {
     "CharacteristicFactor": "characteristic",
     "factors": "characteristic",
     "full_characteristic": "characteristic",
+    # any number of delays (issue 19)
+    "QuasiPolynomial": "quasipolynomial",
     # CTCR
     "stability_map": "analysis.ctcr",
     "crossing_map": "analysis.ctcr",

@@ -69,8 +69,7 @@ def _coefficients(name: str, value: ArrayLike) -> NDArray[np.complex128]:
         raise QuasiPolynomialError(f"{name} must be a 1-D coefficient sequence, got shape {arr.shape}")
     if not np.all(np.isfinite(arr)):
         raise QuasiPolynomialError(
-            f"the coefficients of {name} are not all finite numbers (infinite or NaN); "
-            "if they come from gains, choose P and D of moderate size"
+            f"the coefficients of {name} are not all finite numbers (infinite or NaN)"
         )
     nonzero = np.flatnonzero(arr)
     return arr[: nonzero[-1] + 1] if nonzero.size else np.zeros(0, dtype=np.complex128)

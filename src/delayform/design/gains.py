@@ -640,7 +640,8 @@ def design_gains(
     NoStableGainsError
         When no gains in the bounds make the team converge (at every delay pair of the box).
     DelayError
-        Also for delays too long for the certified root finder at the largest gains.
+        Also for delays whose certified roots at the largest gains would need a
+        discretization beyond the machine's memory or time budget.
     GainError, InputError
         For bad bounds, delays, grid or starts.
     ResourceLimitError

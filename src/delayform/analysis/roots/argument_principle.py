@@ -9,13 +9,16 @@ certifying line in a gap left of the rightmost known root.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+import math
 from typing import Any
 
 import numpy as np
+import numpy.polynomial.polynomial as npoly
 from numpy.typing import NDArray
 
 from delayform.analysis.roots.problem import (
     Region,
+    _nth_derivative,
     _abs_poly,
     _abs_poly_der,
     _evaluate,
@@ -70,11 +73,62 @@ def _segment_winding(
         re_min = np.minimum(s[:-1].real, s[1:].real)
         L = _lipschitz(terms, rho, re_min, t1, t2) * length * np.diff(t)
         bad = np.minimum(absq[:-1], absq[1:]) <= 0.5 * L
+        if bad.any():  # near a multiple root q' is small too: the Taylor test certifies where L cannot
+            idx = np.flatnonzero(bad)
+            bad[idx] = ~_taylor_passes(terms, s[idx], absq[idx], rho[idx], re_min[idx],
+                                       length * np.diff(t)[idx], t1, t2)  # fmt: skip
         if not bad.any():
             return float(np.angle(q[1:] / q[:-1]).sum()), int(t.size)
         mids = 0.5 * (t[:-1] + t[1:])[bad]
         t = np.sort(np.concatenate([t, mids]))
     return None
+
+
+def _taylor_order(terms: _Terms) -> int:
+    """1 + the largest multiplicity a root of q can have, capped at 12.
+
+    A quasi-polynomial with terms of degrees d_k has no root of multiplicity
+    above sum_k (d_k + 1) - 1 (Polya and Szego, *Problems and Theorems in
+    Analysis I*, Part Three, Problem 206.2).
+    """
+    return min(sum(int(c.size) for c, _, _ in terms) - 1, 11) + 1
+
+
+def _taylor_passes(
+    terms: _Terms, a: NDArray[np.complex128], absq: NDArray[np.float64], rho: NDArray[np.float64],
+    re_min: NDArray[np.float64], delta: NDArray[np.float64], t1: float, t2: float,
+) -> NDArray[np.bool_]:
+    """True where q has no zero within ``delta`` of ``a`` by Taylor's theorem of order K.
+
+    ``|q(a + u) - q(a)| <= sum_{j<K} |q^(j)(a)| |u|^j / j! + M_K |u|^K / K!``
+    with ``M_K`` a bound of ``|q^(K)|`` over ``|s| <= rho``, ``Re s >= re_min``
+    (moduli of the coefficients); below ``|q(a)|`` the values on the segment
+    stay in the open disk of radius ``|q(a)|`` about ``q(a)``, which excludes
+    0, so the segment's arg increment is the principal one. Where q' nearly
+    vanishes (a multiple root close by) this needs far fewer samples than the
+    Lipschitz test. Each |q^(j)(a)|, and q(a) itself, is padded by its
+    rounding error (64 eps of its terms' moduli, |s| floored at 1).
+    """
+    K = _taylor_order(terms)
+    # q(a) itself carries rounding (large terms cancelling near a root): only its certain part counts
+    _, mag0 = _nth_derivative(terms, a, t1, t2, 0)
+    bound = 64 * np.finfo(float).eps * mag0
+    fact = 1.0
+    for j in range(1, K):
+        fact *= j
+        val, mag = _nth_derivative(terms, a, t1, t2, j)
+        bound += (np.abs(val) + 64 * np.finfo(float).eps * mag) * delta**j / fact
+    fact *= K
+    M = np.zeros(a.shape)
+    for c, ka, kb in terms:
+        h = ka * t1 + kb * t2
+        with np.errstate(over="ignore"):
+            w = np.exp(-h * re_min)
+        absc = np.abs(c).astype(np.complex128)
+        for j in range(min(K, c.size - 1) + 1):
+            M += math.comb(K, j) * h ** (K - j) * w * _abs_poly(npoly.polyder(absc, j) if j else absc, rho)
+    with np.errstate(over="ignore", invalid="ignore"):
+        return bound + M * delta**K / fact < absq
 
 
 def _region_count(
@@ -122,6 +176,16 @@ def _cauchy_radius(
 
     def p(r: NDArray[np.float64]) -> NDArray[np.float64]:
         return lead * r**n - (low * r[..., None] ** powers).sum(axis=-1)
+
+    if shape == () and n > 0:
+        # one line (the single-point paths): the positive root from the companion eigenvalues,
+        # kept only where the polynomial is checked positive just above it (else bisection)
+        z = np.roots(np.concatenate([[lead], -low[::-1]]))
+        real = z.real[(np.abs(z.imag) <= 1e-9 * (1.0 + np.abs(z))) & (z.real > 0.0)]
+        if real.size:
+            guess = np.asarray(float(real.max()) * (1.0 + 1e-9) + 1e-12)
+            if p(guess) > 0.0:
+                return guess
 
     for _ in range(60):
         mid = 0.5 * (lo + hi)
@@ -278,7 +342,7 @@ def _count_right_batch(
     return np.where(good, np.round(count), np.nan)
 
 
-def _choose_line(reals: Sequence[float], top: float) -> float:
+def _choose_line(reals: Sequence[float], top: float, offset: float = _LINE_OFFSET) -> float:
     """A line Re s = c in a gap left of ``top`` (reals: known root real parts, descending).
 
     Roots whose real parts are within 1e-3 of each other stay on the same
@@ -288,14 +352,16 @@ def _choose_line(reals: Sequence[float], top: float) -> float:
     the real part of the rightmost root wanted (the deflated zero of eq.
     factor1 may lie right of it and is then simply counted). Plain Python: it
     runs on a handful of numbers per factor, where NumPy's per-call cost dominates.
+    ``offset`` replaces :data:`_LINE_OFFSET` (the robust path's long delays:
+    e^{-h c} must stay moderate, so the line keeps within about 1/h of the roots).
     """
     n = len(reals)
     k0 = next((k for k in range(n) if reals[k] <= top), 0)
     for k in range(k0, min(n - 1, k0 + 8)):
         gap = reals[k] - reals[k + 1]
         if gap > 1e-3 * (1.0 + abs(reals[k])):
-            return float(reals[k] - min(0.5 * gap, _LINE_OFFSET))
-    return float(reals[min(n - 1, k0 + 8)] - _LINE_OFFSET)
+            return float(reals[k] - min(0.5 * gap, offset))
+    return float(reals[min(n - 1, k0 + 8)] - offset)
 
 
 def _known_reals(

@@ -378,8 +378,8 @@ def dominant_root_map(
     ResourceLimitError
         When the grid would need more memory or time than the machine allows.
     DelayError
-        When the grid's delays are too long for the root finder (about 30 s
-        for gains of order 1).
+        When the grid's delays need a discretization beyond the machine's
+        memory or time budget (there is no fixed reach since issue 19).
 
     Examples
     --------

@@ -15,7 +15,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from delayform.analysis.roots.problem import _TINY_DELAY, MAX_DEGREE, _Problem
-from delayform.errors import ResourceLimitError
+from delayform.errors import DelayError, ResourceLimitError
+from delayform.resources import format_bytes, format_seconds, memory_limit, time_budget
 
 #: Delay pairs per batched eigenvalue call (bounds memory).
 _CHUNK = 2048
@@ -107,6 +108,45 @@ def _initial_degree(hmax: float, radius: float) -> int:
     return int(min(MAX_DEGREE, max(12, math.ceil(1.2 * radius * hmax + 10))))
 
 
+def _needed_degree(hmax: float, radius: float) -> int:
+    """:func:`_initial_degree` without its cap: the degree that resolves |s| <= radius over hmax."""
+    need = 1.2 * radius * hmax + 10
+    return int(max(12, math.ceil(min(need, 1e12))))  # 1e12: far beyond any budget, still an int
+
+
+def _degree_cap(prob: _Problem, hmax: float) -> int:
+    """Largest degree the robust rightmost-root path raises the discretization to.
+
+    :data:`MAX_DEGREE` when the delay is short, else room for two doublings
+    above the degree the root scale needs: the long-delay path, whose cost
+    (dense eigenvalues of a d(N + 1) matrix, N proportional to delay times
+    root scale) grows with the cube of the delay; :func:`_require_degree`
+    refuses, before any work, a size beyond the machine's budget.
+    """
+    return max(MAX_DEGREE, 4 * _needed_degree(hmax, _root_scale(prob)))
+
+
+def _require_degree(prob: _Problem, N: int, hmax: float) -> None:
+    """Refuse, in one line, a discretization of degree N beyond the machine's memory or time budget.
+
+    Raises DelayError (the delays are what to change): dense nonsymmetric
+    eigenvalues cost about 25 n^3 flops (at ~1 GFlop/s on a shared core)
+    and ~4 n^2 complex words for n = d (N + 1).
+    """
+    size = float(prob.d * (N + 1))
+    nbytes, seconds = 64.0 * size * size, 2.5e-8 * size**3
+    limit, budget = memory_limit(), time_budget()
+    if nbytes <= limit and seconds <= budget:
+        return
+    need = (f"about {format_bytes(nbytes)} of memory (limit {format_bytes(limit)})" if not nbytes <= limit
+            else f"about {format_seconds(seconds)} (time budget {format_seconds(budget)})")  # fmt: skip
+    raise DelayError(
+        f"delays up to {hmax:.4g} s are too long for the certified root finder on this machine: its "
+        f"discretization of degree {N} (a {size:.0f} x {size:.0f} eigenvalue problem) would need {need}; "
+        "choose shorter delays (the stability chart has no such limit)"
+    )
+
+
 def _require_resolvable(region: tuple[float, float, float, float], hmax: float) -> None:
     """Refuse, in one line, a rectangle reaching too far from the origin to list its roots at delay hmax.
 
@@ -136,6 +176,8 @@ def _require_resolvable(region: tuple[float, float, float, float], hmax: float) 
 
 def _root_scale(prob: _Problem) -> float:
     """Radius of the delay-free roots plus the delayed gains: scale of the rightmost roots."""
+    if prob.scale > 0.0:
+        return prob.scale
     total = prob.A + sum(b for b, _, _ in prob.delayed)
     return float(max(1.0, np.max(np.abs(np.linalg.eigvals(total))), np.linalg.norm(prob.A, 2)))
 

@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 
 from delayform.characteristic import CharacteristicFactor, TwoDelayQuasiPolynomial
 from delayform.errors import InputError
+from delayform.quasipolynomial import QuasiPolynomial
 
 #: Acceptance threshold of the relative residual of a polished root.
 RESIDUAL_TOL = 1e-10
@@ -55,6 +56,8 @@ class _Problem:
     delayed: tuple[tuple[NDArray[np.complex128], int, int], ...]
     mirror: bool = False
     deflate_zero: bool = False
+    #: scale of the rightmost roots when known (0: from A and the delayed matrices, generator._root_scale)
+    scale: float = 0.0
 
     @property
     def degree(self) -> int:
@@ -71,26 +74,95 @@ class _Problem:
 
 
 def _problem_of_qp(qp: TwoDelayQuasiPolynomial) -> _Problem:
-    """Companion-form DDE of a retarded quasi-polynomial (eq. genfactor).
-
-    With x = (y, y', ..., y^(N-1)) and g1 made monic, the last row carries
-    -g1's lower coefficients (undelayed) and -g_k (delayed by h_k); the
-    characteristic function det(sI - A - sum B_k e^{-h_k s}) is q / lead(g1).
-    """
+    """Companion-form DDE of a retarded quasi-polynomial (eq. genfactor), balanced (:func:`_companion`)."""
     qp.require_retarded()
     terms = qp.terms()
+    A, delayed = _companion(terms)
+    return _Problem(terms=terms, A=A, delayed=delayed, scale=_polynomial_scale(terms))
+
+
+def _problem_of_quasi(qp: QuasiPolynomial, taus: tuple[float, ...]) -> _Problem:
+    """The problem of a :class:`QuasiPolynomial` at fixed delays, on the two-delay machinery.
+
+    At fixed delays each term is p_k(s) e^{-h_k s} with h_k = k . tau; terms
+    of equal h_k are summed (commensurate delays, or a zero delay merging
+    into the principal term). The solvers evaluate ``a t1 + b t2`` as each
+    term's delay: here ``a = h_k``, ``b = 0`` and they are called with
+    ``t1 = 1``, ``t2 = 0`` (:data:`UNIT_DELAYS`).
+    """
+    qp.require_retarded()
+    merged: dict[float, NDArray[np.complex128]] = {}
+    for k, c in qp.terms.items():
+        h = float(sum(kk * t for kk, t in zip(k, taus, strict=True)))
+        acc = merged.setdefault(h, np.zeros(qp.degree + 1, dtype=np.complex128))
+        acc[: c.size] += c
+    principal = merged.pop(0.0)
+    if principal[-1] == 0.0:
+        raise InputError(
+            "at these delays the undelayed terms cancel in the highest power of s; "
+            "the quasi-polynomial is then of another degree or type (give other delays)"
+        )
+    rows = [(principal, 0.0)] + sorted(((c, h) for h, c in merged.items()), key=lambda ch: ch[1])
+    terms: _Terms = tuple((np.trim_zeros(c, "b") if np.any(c) else c[:1], h, 0) for c, h in rows)  # type: ignore[misc]
+    terms = tuple(term for term in terms if term is terms[0] or np.any(term[0]))
+    A, delayed = _companion(terms)
+    return _Problem(terms=terms, A=A, delayed=delayed, scale=_polynomial_scale(terms))
+
+
+def _polynomial_scale(terms: _Terms) -> float:
+    """Radius of the roots of the principal and of the delay-free polynomial (at least 1).
+
+    The scale of the rightmost roots, for the discretization's first degree
+    (a companion matrix's norm is the size of the coefficients, far larger);
+    a degree too low for a problem only costs a rejected certificate and a
+    finer discretization.
+    """
+    free = np.zeros(terms[0][0].size, dtype=np.complex128)
+    for c, _, _ in terms:
+        free[: c.size] += c
+    radius = 1.0
+    for c in (terms[0][0], free):
+        if c.size > 1 and c[-1] != 0.0:
+            radius = max(radius, float(np.abs(np.roots(c[::-1])).max()))
+    return radius
+
+
+#: (t1, t2) at which a problem of :func:`_problem_of_quasi` is evaluated
+UNIT_DELAYS = (1.0, 0.0)
+
+
+def _companion(terms: _Terms) -> tuple[NDArray[np.complex128], tuple[tuple[NDArray[np.complex128], Any, Any], ...]]:
+    """A DDE realization x' = A x + sum B_k x(t - h_k) of a retarded quasi-polynomial, balanced.
+
+    With x_i = y^(i) / rho^i (i = 0..N-1) and the principal polynomial made
+    monic, A has rho on its superdiagonal and the last rows carry the scaled
+    coefficients ``-c_i rho^(i - N + 1) / lead``; det(sI - A - sum B_k e^{-h_k s})
+    is q / lead (a diagonal similarity of the plain companion form). ``rho``
+    is Fujiwara's bound of the roots of ``|lead| r^N = sum_i (|g1_i| + sum_k |g_k,i|) r^i``
+    (those with Re s >= 0 lie within it), so the entries,
+    hence the discretization's root scale, are of the size of the roots
+    instead of the size of the coefficients.
+    """
     g1 = terms[0][0]
     n = g1.size - 1
     lead = g1[-1]
+    low = np.abs(g1[:n]).astype(float)
+    for c, _, _ in terms[1:]:
+        low[: c.size] += np.abs(c)
+    rho = 1.0
+    if n and low.any():
+        # Fujiwara's bound 2 max_i (low_i / |lead|)^(1 / (N - i)) of those roots: a closed form
+        rho = max(2.0 * float(np.max((low / abs(lead)) ** (1.0 / (n - np.arange(n))))), 1e-300)
+    powers = rho ** (np.arange(n) - n + 1.0)
     A = np.zeros((n, n), dtype=np.complex128)
-    A[np.arange(n - 1), np.arange(1, n)] = 1.0
-    A[-1, :] = -g1[:n] / lead
+    A[np.arange(n - 1), np.arange(1, n)] = rho
+    A[-1, :] = -g1[:n] * powers / lead
     delayed = []
     for c, a, b in terms[1:]:
         B = np.zeros((n, n), dtype=np.complex128)
-        B[-1, : c.size] = -c / lead
+        B[-1, : c.size] = -c * powers[: c.size] / lead
         delayed.append((B, a, b))
-    return _Problem(terms=terms, A=A, delayed=tuple(delayed))
+    return A, tuple(delayed)
 
 
 def _problem_of_factor(factor: CharacteristicFactor) -> _Problem:
@@ -341,7 +413,14 @@ def _abs_poly(c: NDArray[np.complex128], rho: NDArray[np.float64]) -> NDArray[np
 def _abs_poly_der(c: NDArray[np.complex128], rho: NDArray[np.float64]) -> NDArray[np.float64]:
     if c.size < 2:
         return np.zeros(np.shape(rho))
-    return _abs_poly(npoly.polyder(np.abs(c).astype(np.complex128)), rho)
+    return _abs_poly(_abs_derivative(c.tobytes(), c.size), rho)
+
+
+@lru_cache(maxsize=256)
+def _abs_derivative(key: bytes, size: int) -> NDArray[np.complex128]:
+    """Coefficients of the derivative of sum_i |c_i| s^i (cached: the certificates ask every round)."""
+    c = np.frombuffer(key, dtype=np.complex128, count=size)
+    return npoly.polyder(np.abs(c).astype(np.complex128))
 
 
 

@@ -8,18 +8,22 @@ import numpy as np
 from numpy.typing import NDArray
 
 from delayform.analysis.roots.generator import (
+    _degree_cap,
     _eigenvalues_at,
-    _initial_degree,
     _max_delay,
+    _needed_degree,
+    _require_degree,
     _root_scale,
 )
-from delayform.analysis.roots.problem import MAX_DEGREE, _cluster, _multiplicity, _polish, _Problem
+from delayform.analysis.roots.multiple import distinct_roots
+from delayform.analysis.roots.problem import _polish, _Problem
 from delayform.analysis.roots.argument_principle import (
     _batch_lines,
     _choose_line,
     _count_right_batch,
     _count_right_single,
     _known_reals,
+    _LINE_OFFSET,
 )
 from delayform.errors import NotConvergedError
 
@@ -49,35 +53,44 @@ class _SolveResult:
     degree: int
 
 
-def _solve_rightmost(prob: _Problem, t1: float, t2: float) -> _SolveResult:
-    """All roots right of a certified line, for one delay pair (the robust path)."""
+def _solve_rightmost(prob: _Problem, t1: float, t2: float, *, where: str | None = None) -> _SolveResult:
+    """All roots right of a certified line, for one delay pair (the robust path).
+
+    The discretization's degree starts where the root scale needs it and
+    doubles up to :func:`_degree_cap` (no fixed reach: long delays get the
+    degree they need, within the machine's budget). ``where`` names the
+    delays in messages (default ``(tau1, tau2) = (t1, t2)``).
+    """
+    where = where or f"(tau1, tau2) = ({t1:g}, {t2:g})"
     hmax = _max_delay(prob, t1, t2)
     a1, a2 = np.asarray(t1), np.asarray(t2)
-    N = _initial_degree(hmax, _root_scale(prob))
+    N = min(_needed_degree(hmax, _root_scale(prob)), _degree_cap(prob, hmax))
+    cap = _degree_cap(prob, hmax)
+    _require_degree(prob, N, hmax)
     partial: NDArray[np.complex128] = np.zeros(0, dtype=np.complex128)
     while True:
         eig = _eigenvalues_at(prob, N, hmax, float(t1), float(t2))
         if prob.deflate_zero:
             eig = np.delete(eig, np.argmin(np.abs(eig)))
         roots, ok = _polish(prob, eig, a1, a2)
-        roots = _cluster(roots[ok])
-        mult = _multiplicity(prob, roots, t1, t2)
+        roots, mult = distinct_roots(prob, roots[ok], float(t1), float(t2))
         partial = roots
         if roots.size:
             reals, m = _known_reals(prob, roots, mult)
-            c = _choose_line(reals, float(roots.real.max()))
+            c = _choose_line(reals, float(roots.real.max()), min(_LINE_OFFSET, 2.0 / max(hmax, 1e-300)))
             expected = int(m[reals > c].sum())
             if _count_right_single(prob, t1, t2, c) == expected:
                 keep = roots.real > c
                 return _SolveResult(roots[keep], mult[keep], c, N)
-        if hmax == 0.0 or N >= MAX_DEGREE:
+        if hmax == 0.0 or N >= cap:
             raise NotConvergedError(
                 f"could not make sure that no characteristic root lies right of the rightmost one found "
-                f"at (tau1, tau2) = ({t1:g}, {t2:g}); roots there are too many or too close together, "
+                f"at {where}; roots there are too many or too close together, "
                 "try slightly different delays",
                 partial=partial,
             )
-        N = min(MAX_DEGREE, 2 * N)
+        N = min(cap, 2 * N)
+        _require_degree(prob, N, hmax)
 
 
 
@@ -90,7 +103,9 @@ def _pick_rightmost(prob: _Problem, roots: NDArray[np.complex128]) -> complex:
     top = roots[np.argmax(roots.real)]
     # of a conjugate pair (or the mirror image), report the member with Im >= 0
     if prob.mirror or prob.is_real or np.all([np.all(c.imag == 0) for c, _, _ in prob.terms]):
-        top = complex(top.real, abs(top.imag))
+        # a real root's Newton iterate may keep an imaginary part far below rounding (1e-49)
+        imag = 0.0 if abs(top.imag) <= 1e-15 * (1.0 + abs(top.real)) else abs(top.imag)
+        top = complex(top.real, imag)
     return complex(top)
 
 

@@ -56,6 +56,7 @@ Maehly's correction and excluded from dominant roots (its other roots count).
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, replace
 from functools import lru_cache
 
 import numpy as np
@@ -68,6 +69,8 @@ from delayform.analysis.roots.generator import (
     _igd_seeds,
     _initial_degree,
     _max_delay,
+    _needed_degree,
+    _require_degree,
     _require_resolvable,
     _root_scale,
 )
@@ -76,24 +79,29 @@ from delayform.analysis.roots.problem import (
     RESIDUAL_TOL,
     Region,
     _cluster,
+    _abs_poly,
     _evaluate,
     _mirror_problem,
     _multiplicity,
     _polish,
     _Problem,
+    UNIT_DELAYS,
     _problem,
     _problem_of_factor,
+    _problem_of_quasi,
 )
 from delayform.analysis.roots.rightmost import _BATCH_SEEDS, _certify, _pick_rightmost, _solve_rightmost
 from delayform.analysis.roots.argument_principle import _count_right_single, _region_count
+from delayform.analysis.roots.multiple import distinct_roots
 from delayform.characteristic import CharacteristicFactor, TwoDelayQuasiPolynomial
-from delayform.errors import DelayError, InputError, NotConvergedError
+from delayform.errors import InputError, NotConvergedError
+from delayform.quasipolynomial import QuasiPolynomial
 
 __all__ = ["RESIDUAL_TOL", "roots_in", "rightmost_root", "count_roots_right_of", "relative_residual"]
 
 
 def relative_residual(
-    qp: TwoDelayQuasiPolynomial, s: ArrayLike, tau1: ArrayLike, tau2: ArrayLike
+    qp: QuasiPolynomial | TwoDelayQuasiPolynomial, s: ArrayLike, *delays: ArrayLike
 ) -> NDArray[np.float64]:
     """|q(s)| over the sum of the moduli of its monomial terms (a backward error).
 
@@ -103,34 +111,46 @@ def relative_residual(
     Parameters
     ----------
     qp
-        A quasi-polynomial of eq. genfactor.
+        A :class:`~delayform.quasipolynomial.QuasiPolynomial` or a
+        quasi-polynomial of eq. genfactor.
     s
         Complex point(s) at which q is evaluated.
-    tau1, tau2
-        Delays (s) on positions and on velocities; broadcast with ``s``.
-        Not validated.
+    *delays
+        The delays ``tau1, ..., taum`` (``tau1, tau2`` on positions and on
+        velocities for eq. genfactor); broadcast with ``s``. Not validated
+        for eq. genfactor.
 
     Returns
     -------
     ndarray of float
         ``|q(s)| / sum_k sum_i |g_k,i| |s|^i |e^{-h_k s}|`` in the broadcast
-        shape of s, tau1 and tau2.
+        shape of s and the delays.
 
     >>> q = TwoDelayQuasiPolynomial([-1.0, 1.0])
     >>> float(relative_residual(q, 1.0, 0.0, 0.0))
     0.0
     """
     s_arr = np.asarray(s, dtype=np.complex128)
+    if isinstance(qp, QuasiPolynomial):
+        q = qp.evaluate(s_arr, *delays)
+        mag = np.zeros(q.shape)
+        for k, c in qp.terms.items():
+            hk = sum((kk * np.asarray(t, dtype=float) for kk, t in zip(k, delays, strict=True) if kk),
+                     start=np.zeros(()))  # fmt: skip
+            mag = mag + _abs_poly(c, np.abs(s_arr)) * np.exp(-hk * s_arr.real)
+        return np.abs(q) / mag
+    if len(delays) != 2:
+        raise InputError(f"relative_residual(qp, s, tau1, tau2): got {len(delays)} delay(s)")
     q, _, mag = _evaluate(
-        qp.terms(), s_arr, np.asarray(tau1, dtype=float), np.asarray(tau2, dtype=float)
+        qp.terms(), s_arr, np.asarray(delays[0], dtype=float), np.asarray(delays[1], dtype=float)
     )
     return np.abs(q) / mag
 
 
 # =====================================================================
-#: largest (delay x root scale) the rightmost-root path certifies reliably (measured on the
-#: paper's factors: 30 s works, 60 s does not; the scale there is about 1.2)
-_MAX_REACH = 40.0
+#: below this (delay x root scale) the discretization needs no more than MAX_DEGREE and no
+#: budget check is made (measured on the paper's factors: about 30 s at scale 1.2)
+_SHORT_REACH = 40.0
 
 
 @lru_cache(maxsize=16)
@@ -139,22 +159,66 @@ def _largest_reach_scale(fs: tuple[CharacteristicFactor, ...]) -> float:
 
 
 def _family_reach(fs: tuple[CharacteristicFactor, ...], t1: float, t2: float) -> None:
-    """:func:`_check_reach` of every factor at once (the checks of the per-factor path, in its order)."""
-    if max(t1, t2) * _largest_reach_scale(fs) > _MAX_REACH:
+    """:func:`_check_reach` of every factor at once (skipped for short delays, the common case)."""
+    if max(t1, t2) * _largest_reach_scale(fs) > _SHORT_REACH:
         for f in sorted(fs, key=lambda f: f.is_centroid):
             _check_reach(_problem_of_factor(f), t1, t2)
 
 
 def _check_reach(prob: _Problem, t1: float, t2: float) -> None:
-    """Refuse, in one line, delays too long for the certified root finder (not for CTCR charts)."""
-    h = max([a * t1 + b * t2 for _, a, b in prob.delayed] + [0.0])
-    scale = _root_scale(prob)
-    if h * scale > _MAX_REACH:
-        raise DelayError(
-            f"a delay of {h:.4g} s is too long for the dominant-root finder with these gains (it handles "
-            f"delays up to about {_MAX_REACH / scale:.3g} s); choose shorter delays (the stability chart has no such limit)"
-        )
+    """Refuse, in one line, delays whose discretization exceeds the machine's memory or time budget.
 
+    There is no fixed reach: the robust path raises the discretization's
+    degree with the delay (:func:`~delayform.analysis.roots.generator._degree_cap`),
+    and only a problem too large for the machine is refused
+    (:class:`~delayform.errors.ResourceLimitError`).
+    """
+    h = max([a * t1 + b * t2 for _, a, b in prob.delayed] + [0.0])
+    N = _needed_degree(h, _root_scale(prob))
+    if N > MAX_DEGREE:
+        _require_degree(prob, N, h)
+
+
+# =====================================================================
+# the arguments: a quasi-polynomial (or factor), its delays, and what follows them
+# =====================================================================
+@dataclass(frozen=True)
+class _Call:
+    """A root function's arguments, checked: the problem, where the solvers evaluate it, and the rest."""
+
+    prob: _Problem
+    t1: float
+    t2: float
+    where: str
+    rest: tuple[object, ...]
+
+
+def _call(qp: object, args: tuple[object, ...], after: tuple[str, ...], func: str) -> _Call:
+    """Split ``args`` into the delays and the ``after`` arguments, and build the problem.
+
+    A :class:`~delayform.quasipolynomial.QuasiPolynomial` takes its m delays
+    (``tau1, ..., taum``); a TwoDelayQuasiPolynomial or a factor takes
+    ``tau1, tau2``. Messages name what the user gave.
+    """
+    if isinstance(qp, QuasiPolynomial):
+        m = qp.n_delays
+        names = tuple(f"tau{i + 1}" for i in range(m))
+    elif isinstance(qp, (TwoDelayQuasiPolynomial, CharacteristicFactor)):
+        m, names = 2, ("tau1", "tau2")
+    else:
+        raise InputError(
+            f"{func} expects a QuasiPolynomial, TwoDelayQuasiPolynomial or CharacteristicFactor, "
+            f"got {type(qp).__name__}"
+        )
+    if len(args) != m + len(after):
+        wanted = ", ".join(("qp",) + names + after)
+        raise InputError(f"{func}({wanted}): got {len(args)} argument(s) after qp, expected {m + len(after)}")
+    taus = tuple(check_delay(name, v) for name, v in zip(names, args[:m], strict=True))
+    where = f"({', '.join(names)}) = ({', '.join(f'{v:g}' for v in taus)})"
+    if isinstance(qp, QuasiPolynomial):
+        t1, t2 = UNIT_DELAYS
+        return _Call(_problem_of_quasi(qp, taus), t1, t2, where, args[m:])
+    return _Call(_problem(qp), taus[0], taus[1], where, args[m:])
 
 
 # =====================================================================
@@ -172,6 +236,12 @@ def _check_region(region: object) -> Region:
     return vals  # type: ignore[return-value]
 
 
+def _check_abscissa(c: object) -> float:
+    if isinstance(c, bool) or not isinstance(c, (int, float, np.integer, np.floating)) or not math.isfinite(c):
+        raise InputError(f"c must be a finite real number (the line Re s = c), got {c!r}")
+    return float(c)
+
+
 def _with_mirror(prob: _Problem, roots: NDArray[np.complex128]) -> NDArray[np.complex128]:
     """Roots of q_lam and their conjugates, the roots of q_conj(lam) (a pair factor)."""
     if not prob.mirror:
@@ -180,26 +250,29 @@ def _with_mirror(prob: _Problem, roots: NDArray[np.complex128]) -> NDArray[np.co
 
 
 def roots_in(
-    qp: TwoDelayQuasiPolynomial | CharacteristicFactor, tau1: float, tau2: float, region: Region
+    qp: QuasiPolynomial | TwoDelayQuasiPolynomial | CharacteristicFactor, *delays_and_region: object
 ) -> NDArray[np.complex128]:
     """All characteristic roots in a rectangle of the complex plane.
 
     Parameters
     ----------
     qp
-        A retarded quasi-polynomial of eq. genfactor, or a factor of
-        eq. factorized (for the centroid factor eq. factor1 the persistent
-        root 0 is *included*: this is the plain root set of q).
-    tau1, tau2
-        Non-negative delays.
-    region
-        (re_min, re_max, im_min, im_max).
+        A retarded :class:`~delayform.quasipolynomial.QuasiPolynomial`, a
+        quasi-polynomial of eq. genfactor, or a factor of eq. factorized
+        (for the centroid factor eq. factor1 the persistent root 0 is
+        *included*: this is the plain root set of q).
+    *delays_and_region
+        The delays ``tau1, ..., taum`` (m = ``qp.n_delays``; two for the
+        paper's forms), non-negative, then the rectangle
+        ``region = (re_min, re_max, im_min, im_max)``.
 
     Returns
     -------
     ndarray of complex
         The roots in the rectangle, a multiple root repeated by its
-        multiplicity (as numpy.roots does), sorted by decreasing real part,
+        multiplicity (as numpy.roots does; its copies are one point,
+        accurate to about eps^(1/m) for multiplicity m, see
+        :mod:`~delayform.analysis.roots.multiple`), sorted by decreasing real part,
         each with relative residual <= RESIDUAL_TOL (:func:`relative_residual`).
         The count, with multiplicity, is certified by the argument principle
         on the rectangle's boundary.
@@ -224,10 +297,10 @@ def roots_in(
     >>> roots_in(q, 0.0, 0.0, (-3, 0, -1, 1)).real.round(12)
     array([-1., -2.])
     """
-    region = asked = _check_region(region)
-    t1, t2 = check_delay("tau1", tau1), check_delay("tau2", tau2)
-    prob = _problem(qp)
-    base = prob if not prob.deflate_zero else _Problem(prob.terms, prob.A, prob.delayed, prob.mirror)
+    call = _call(qp, delays_and_region, ("region",), "roots_in")
+    prob, t1, t2 = call.prob, call.t1, call.t2
+    region = asked = _check_region(call.rest[0])
+    base = prob if not prob.deflate_zero else replace(prob, deflate_zero=False)
     x0, x1, y0, y1 = region
     hmax = _max_delay(base, t1, t2)
     radius = max(abs(complex(x, y)) for x in (x0, x1) for y in (y0, y1))
@@ -262,8 +335,7 @@ def roots_in(
             roots, mult = _roots_beside_zero(prob, base, eig, t1, t2)
         else:
             polished, ok = _polish(base, eig, a1, a2)
-            roots = _cluster(polished[ok])
-            mult = _multiplicity(base, roots, t1, t2)
+            roots, mult = distinct_roots(base, polished[ok], t1, t2)
         rx0, rx1, ry0, ry1 = count_regions[0]
         inside = (roots.real > rx0) & (roots.real < rx1) & (roots.imag > ry0) & (roots.imag < ry1)
         found = np.repeat(roots[inside], np.maximum(mult[inside], 1))
@@ -272,7 +344,7 @@ def roots_in(
         if hmax == 0.0 or N >= MAX_DEGREE:
             raise NotConvergedError(
                 f"found {found.size} of the {expected} characteristic roots in the rectangle {asked} "
-                f"at (tau1, tau2) = ({t1:g}, {t2:g}); choose a smaller rectangle",
+                f"at {call.where}; choose a smaller rectangle",
                 partial=_in_region(_with_mirror(base, found), region),
             )
         N = min(MAX_DEGREE, 2 * N)
@@ -309,7 +381,7 @@ def _in_region(roots: NDArray[np.complex128], region: Region) -> NDArray[np.comp
 
 
 def count_roots_right_of(
-    qp: TwoDelayQuasiPolynomial | CharacteristicFactor, tau1: float, tau2: float, c: float
+    qp: QuasiPolynomial | TwoDelayQuasiPolynomial | CharacteristicFactor, *delays_and_c: object
 ) -> int:
     """Certified number of roots with Re s > c (multiplicity counted, persistent zero included).
 
@@ -319,14 +391,15 @@ def count_roots_right_of(
     Parameters
     ----------
     qp
-        A retarded quasi-polynomial of eq. genfactor or a factor of
-        eq. factorized (a conjugate-pair factor counts the roots of lam and
-        of conj(lam)). The centroid factor's persistent root s = 0
-        (eq. factor1) is not deflated here: it counts when ``c < 0``.
-    tau1, tau2
-        Non-negative delays (s) on positions and on velocities.
-    c
-        Abscissa of the vertical line Re s = c; any real number.
+        A retarded :class:`~delayform.quasipolynomial.QuasiPolynomial`, a
+        quasi-polynomial of eq. genfactor or a factor of eq. factorized (a
+        conjugate-pair factor counts the roots of lam and of conj(lam)). The
+        centroid factor's persistent root s = 0 (eq. factor1) is not
+        deflated here: it counts when ``c < 0``.
+    *delays_and_c
+        The delays ``tau1, ..., taum`` (two, on positions and on velocities,
+        for the paper's forms), non-negative, then ``c``, the abscissa of
+        the vertical line Re s = c (any real number).
 
     Returns
     -------
@@ -342,31 +415,34 @@ def count_roots_right_of(
     NotConvergedError
         When a root lies on (or within rounding of) the line.
     """
-    t1, t2 = check_delay("tau1", tau1), check_delay("tau2", tau2)
-    prob = _problem(qp)
-    base = _Problem(prob.terms, prob.A, prob.delayed, prob.mirror)
-    n = _count_right_single(base, t1, t2, float(c))
+    call = _call(qp, delays_and_c, ("c",), "count_roots_right_of")
+    prob, t1, t2 = call.prob, call.t1, call.t2
+    c = _check_abscissa(call.rest[0])
+    base = replace(prob, deflate_zero=False)
+    n = _count_right_single(base, t1, t2, c)
     if n is None:
-        raise NotConvergedError(f"a root lies on (or within rounding of) the line Re s = {c:g}")
+        raise NotConvergedError(f"a root lies on (or within rounding of) the line Re s = {c:g} at {call.where}")
     if base.mirror:
-        n += _count_right_single(_mirror_problem(base), t1, t2, float(c)) or 0
+        n += _count_right_single(_mirror_problem(base), t1, t2, c) or 0
     return n
 
 
-def rightmost_root(
-    qp: TwoDelayQuasiPolynomial | CharacteristicFactor, tau1: float, tau2: float
-) -> complex:
+def rightmost_root(qp: QuasiPolynomial | TwoDelayQuasiPolynomial | CharacteristicFactor, *delays: float) -> complex:
     """The rightmost characteristic root (for a factor, the centroid's zero excluded).
 
     Parameters
     ----------
     qp
-        A retarded quasi-polynomial of eq. genfactor or a factor of
-        eq. factorized. For the centroid factor (eq. factor1) the persistent
-        root s = 0 is deflated; its other roots count (a second root at 0,
-        as at tau1 = 0, is returned).
-    tau1, tau2
-        Non-negative delays.
+        A retarded :class:`~delayform.quasipolynomial.QuasiPolynomial`, a
+        quasi-polynomial of eq. genfactor or a factor of eq. factorized. For
+        the centroid factor (eq. factor1) the persistent root s = 0 is
+        deflated; its other roots count (a second root at 0, as at
+        tau1 = 0, is returned).
+    *delays
+        The delays ``tau1, ..., taum`` (two for the paper's forms), non-negative.
+        There is no limit on their length: long delays get a finer
+        discretization (module docstring), refused only beyond the
+        machine's memory or time budget (ResourceLimitError).
 
     Returns
     -------
@@ -383,19 +459,37 @@ def rightmost_root(
     >>> round(s.real, 6), round(s.imag, 6)
     (-0.605021, 1.788188)
     """
-    t1, t2 = check_delay("tau1", tau1), check_delay("tau2", tau2)
+    call = _call(qp, delays, (), "rightmost_root")
+    t1, t2 = call.t1, call.t2
     if isinstance(qp, CharacteristicFactor):  # a factor of eq. factorized: the vectorized family path
         _family_reach((qp,), t1, t2)
         return complex(family_rightmost((qp,), float(qp.P), float(qp.D), t1, t2)[0])
-    return _rightmost(_problem(qp), t1, t2)
+    return _rightmost(call.prob, t1, t2, where=call.where)
 
 
-def _rightmost(prob: _Problem, t1: float, t2: float) -> complex:
+def _polynomial_seeds(prob: _Problem) -> NDArray[np.complex128]:
+    """Roots of the principal and of the delay-free polynomial (no term delayed, every term undelayed)."""
+    free = np.zeros(prob.terms[0][0].size, dtype=np.complex128)
+    for c, _, _ in prob.terms:
+        free[: c.size] += c
+    seeds = [np.roots(c[::-1]) for c in (prob.terms[0][0], free) if c.size > 1 and c[-1] != 0.0]
+    out = np.concatenate(seeds) if seeds else np.zeros(1, dtype=np.complex128)
+    out = out.real + 1j * np.abs(out.imag)  # a real root's rounding below the axis would be dropped
+    return out + 1e-3 * (1.0 + np.abs(out)) * (out == 0.0)  # Newton cannot leave an exact 0 of q'
+
+
+def _rightmost(prob: _Problem, t1: float, t2: float, *, where: str | None = None) -> complex:
     _check_reach(prob, t1, t2)
     a1, a2 = np.array([t1]), np.array([t2])
+    if prob.scale > 0.0:
+        # roots far right of the others see e^{-h s} small: the polynomials' roots seed them without
+        # any discretization (long delays, roots of the principal term); the certificate decides
+        root, certified, _ = _certify(prob, a1, a2, _polynomial_seeds(prob)[None, :])
+        if certified[0]:
+            return _pick_rightmost(prob, root)
     # fast path: the map's low-degree seeds; the certificate decides, else the robust path
     root, certified, _ = _certify(prob, a1, a2, _igd_seeds(prob, a1, a2, scale=1.0, k=_BATCH_SEEDS))
     if certified[0]:
         return _pick_rightmost(prob, root)
-    res = _solve_rightmost(prob, t1, t2)
+    res = _solve_rightmost(prob, t1, t2, where=where)
     return _pick_rightmost(prob, res.roots)
