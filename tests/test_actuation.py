@@ -1,0 +1,101 @@
+"""Actuation delay (issue 21, item 4): each robot applies u(t - tau_a).
+
+The roots are checked against an independent method: the Chebyshev
+discretization of the infinitesimal generator of the *full* 2N-state delayed
+system (written in tests/test_general_roots.py, not the package's companion
+realization), x' = v, v' = -P x(t - ta) - D v(t - ta) + P C x(t - t1 - ta) + D C v(t - t2 - ta),
+its eigenvalues polished by Newton's method on det M(s).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from test_general_roots import _generator_roots, _newton_det
+
+from delayform.analysis.roots.actuated import actuated_factor
+from delayform.analysis.roots.dominant import dominant_root
+from delayform.errors import DelayError
+from delayform.topology import Topology, paper_six
+
+
+def _full_system(top: Topology, P: float, D: float, t1: float, t2: float, ta: float):
+    C = top.C_sparse.toarray()
+    n = C.shape[0]
+    Z, I = np.zeros((n, n)), np.eye(n)
+    A0 = np.block([[Z, I], [Z, Z]])
+    delayed = [
+        (np.block([[Z, Z], [-P * I, -D * I]]), ta),
+        (np.block([[Z, Z], [P * C, Z]]), t1 + ta),
+        (np.block([[Z, Z], [Z, D * C]]), t2 + ta),
+    ]
+    return A0, delayed
+
+
+def _reference_rightmost(top: Topology, P: float, D: float, t1: float, t2: float, ta: float) -> complex:
+    """Rightmost root of the full delayed system but the persistent zero: discretized, then Newton on det."""
+    A0, delayed = _full_system(top, P, D, t1, t2, ta)
+    ev = _generator_roots(A0, delayed, 24)
+    ev = ev[np.abs(ev) > 1e-6]
+    cand = ev[np.argsort(-ev.real)[:8]]
+    polished = np.array([_newton_det(A0, delayed, complex(z)) for z in cand])
+    polished = polished[np.abs(polished) > 1e-6]
+    best = polished[np.argmax(polished.real)]
+    return complex(best.real, abs(best.imag))
+
+
+@pytest.mark.parametrize(
+    ("t1", "t2", "ta"),
+    [(0.3, 0.2, 0.1), (0.3, 0.2, 0.5), (2.0, 1.0, 0.05), (1.0, 0.0, 0.3), (0.5, 1.5, 0.8)],
+)
+def test_dominant_root_matches_full_system_discretization(t1: float, t2: float, ta: float) -> None:
+    top = paper_six()
+    r = dominant_root(top, 1.0, 0.5, t1, t2, actuation_delay=ta)
+    ref = _reference_rightmost(top, 1.0, 0.5, t1, t2, ta)
+    assert abs(r.root - ref) <= 1e-8 * (1.0 + abs(ref))
+    assert r.is_stable == (ref.real < 0.0)
+    assert r.actuation_delay == ta
+
+
+def test_zero_actuation_delay_is_todays_answer_exactly() -> None:
+    top = paper_six()
+    for t1, t2 in [(0.3, 0.2), (1.0, 2.0), (0.0, 0.7)]:
+        assert dominant_root(top, 1.0, 0.5, t1, t2, actuation_delay=0.0) == dominant_root(top, 1.0, 0.5, t1, t2)
+
+
+def test_actuation_delay_can_destabilise_a_stable_point() -> None:
+    # point a of Fig. stability is stable without actuation delay; the discretization decides with it
+    top = paper_six()
+    assert dominant_root(top, 1.0, 0.5, 0.3, 0.2).is_stable
+    r = dominant_root(top, 1.0, 0.5, 0.3, 0.2, actuation_delay=1.5)
+    ref = _reference_rightmost(top, 1.0, 0.5, 0.3, 0.2, 1.5)
+    assert ref.real > 0.0 and not r.is_stable
+    assert abs(r.root - ref) <= 1e-8 * (1.0 + abs(ref))
+
+
+def test_drift_line_keeps_its_double_zero() -> None:
+    # on tau1 = 0 the centroid factor is s (s + D e^{-ta s}(1 - e^{-t2 s})): the drift is reported as 0
+    r = dominant_root(paper_six(), 1.0, 0.5, 0.0, 0.4, actuation_delay=0.2)
+    assert r.is_drift and r.beside_drift is not None
+    ref = _reference_rightmost(paper_six(), 1.0, 0.5, 1e-9, 0.4, 0.2)  # just off the line: the same shape modes
+    assert abs(r.formation_root - ref) <= 1e-6
+
+
+def test_actuated_factor_is_the_determinant_factor() -> None:
+    # det of the full system's characteristic matrix = prod over eigenvalues of the factors (eq. factorized)
+    top = paper_six()
+    P, D, t1, t2, ta = 1.0, 0.5, 0.4, 0.9, 0.3
+    A0, delayed = _full_system(top, P, D, t1, t2, ta)
+    lams = np.linalg.eigvals(top.C_sparse.toarray())
+    for s in (0.3 + 0.7j, -0.2 + 2.0j):
+        M = s * np.eye(A0.shape[0]) - A0 - sum(Ak * np.exp(-h * s) for Ak, h in delayed)
+        prod = np.prod([complex(actuated_factor(P, D, lam).evaluate(s, t1, t2, ta)) for lam in lams])
+        assert np.linalg.det(M) == pytest.approx(prod, rel=1e-10)
+
+
+@pytest.mark.parametrize("bad", [-0.1, math.nan, math.inf])
+def test_bad_actuation_delay_is_a_delay_error(bad: float) -> None:
+    with pytest.raises(DelayError, match="actuation_delay"):
+        dominant_root(paper_six(), 1.0, 0.5, 0.3, 0.2, actuation_delay=bad)
