@@ -99,3 +99,72 @@ def test_actuated_factor_is_the_determinant_factor() -> None:
 def test_bad_actuation_delay_is_a_delay_error(bad: float) -> None:
     with pytest.raises(DelayError, match="actuation_delay"):
         dominant_root(paper_six(), 1.0, 0.5, 0.3, 0.2, actuation_delay=bad)
+
+
+# ============================================================ simulation
+from delayform.errors import SimulationInputError  # noqa: E402
+from delayform.simulation import simulate  # noqa: E402
+from delayform.simulation.robots import IROBOT_CREATE, Robot  # noqa: E402
+
+
+def _envelope_rate(times: np.ndarray, error: np.ndarray, t0: float, t1: float) -> float:
+    """Slope of log(error) through its local maxima in [t0, t1] (the dominant pair's envelope)."""
+    sel = np.flatnonzero((times > t0) & (times < t1))
+    e = error[sel]
+    peaks = sel[1:-1][(e[1:-1] > e[:-2]) & (e[1:-1] >= e[2:])]
+    return float(np.polyfit(times[peaks], np.log(error[peaks]), 1)[0])
+
+
+@pytest.mark.parametrize("ta", [0.1, 0.3])
+def test_double_integrator_decay_rate_is_the_dominant_root(ta: float) -> None:
+    top = paper_six()
+    run = simulate(top, 1.0, 0.5, 0.3, 0.2, "hexagon", model="double_integrator", duration=60.0, dt=0.01,
+                   actuation_delay=ta)  # fmt: skip
+    root = dominant_root(top, 1.0, 0.5, 0.3, 0.2, actuation_delay=ta).formation_root
+    rate = _envelope_rate(run.times, run.formation_error, 20.0, 58.0)
+    assert rate == pytest.approx(root.real, abs=0.005)
+    assert run.actuation_delay == ta and run.stated_order == 2
+    if ta == 0.3:  # stable without actuation delay, unstable with it: the analysis says so first
+        assert root.real > 0.0 and run.status != "settled"
+
+
+def test_command_buffer_converges_at_second_order() -> None:
+    # halving dt divides the difference to a fine reference run by about 4 (interpolated commands)
+    top = paper_six()
+    # every delay a whole number of steps (module doc of delayform.simulation.actuation)
+    kw = dict(model="double_integrator", duration=6.0, actuation_delay=0.2)
+    ref = simulate(top, 1.0, 0.5, 0.3, 0.2, "hexagon", dt=0.003125, **kw).positions[-1]
+    errs = [np.abs(simulate(top, 1.0, 0.5, 0.3, 0.2, "hexagon", dt=dt, **kw).positions[-1] - ref).max()
+            for dt in (0.05, 0.025)]  # fmt: skip
+    assert 2.5 < errs[0] / errs[1] < 8.0
+
+
+def test_limited_robots_apply_their_commands_late() -> None:
+    top = paper_six()
+    kw = dict(limits=IROBOT_CREATE, duration=40.0, dt=0.01)
+    base = simulate(top, 1.0, 0.5, 0.3, 0.2, "hexagon", **kw)
+    late = simulate(top, 1.0, 0.5, 0.3, 0.2, "hexagon", actuation_delay=0.05, **kw)
+    # nothing moves before the first command arrives: the heading and speed stay at their start
+    first = late.times <= 0.05 - 1e-9
+    assert np.all(late.speeds[first] == late.speeds[0])
+    assert not np.array_equal(base.positions, late.positions)
+    assert late.status == "settled"
+    same = simulate(top, 1.0, 0.5, 0.3, 0.2, "hexagon", robot=Robot(limits=IROBOT_CREATE), duration=40.0, dt=0.01)
+    np.testing.assert_array_equal(same.positions, base.positions)
+
+
+@pytest.mark.parametrize("bad", [-0.1, math.nan, math.inf, "0.1"])
+def test_bad_robot_actuation_delay(bad: object) -> None:
+    with pytest.raises(SimulationInputError, match="actuation_delay"):
+        Robot(actuation_delay=bad)  # type: ignore[arg-type]
+
+
+def test_actuation_delay_refusals() -> None:
+    top = paper_six()
+    with pytest.raises(SimulationInputError, match="ideal robots"):
+        simulate(top, 1.0, 0.5, 0.3, 0.2, "hexagon", duration=1.0, dt=0.01, actuation_delay=0.1)
+    with pytest.raises(SimulationInputError, match="at least one step"):
+        simulate(top, 1.0, 0.5, 0.3, 0.2, "hexagon", model="double_integrator", duration=1.0, dt=0.01,
+                 actuation_delay=0.001)  # fmt: skip
+    with pytest.raises(SimulationInputError, match="not both"):
+        simulate(top, 1.0, 0.5, 0.3, 0.2, "hexagon", robot=Robot(), duration=1.0, dt=0.01, actuation_delay=0.1)

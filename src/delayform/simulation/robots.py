@@ -135,6 +135,15 @@ class RobotLimits:
 IROBOT_CREATE = RobotLimits()
 
 
+def _nonnegative(name: str, value: object, unit: str) -> float:
+    """A finite non-negative number of a Robot, or SimulationInputError naming it."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
+        raise SimulationInputError(f"{name} must be a number ({unit}), got {value!r}")
+    if not (math.isfinite(value) and value >= 0):
+        raise SimulationInputError(f"{name} must be finite and non-negative ({unit}), got {value!r}")
+    return float(value)
+
+
 @dataclass(frozen=True)
 class Robot:
     """What belongs to the robot in a simulation, gathered as :class:`Network` gathers the network.
@@ -150,6 +159,12 @@ class Robot:
         Radius (m) of the disc containing the body, for contacts. None
         (default): ``limits.radius``, else the Create's 0.17 m for robots
         and 0 (points, no contacts) for double integrators.
+    actuation_delay
+        tau_a >= 0 (s): each robot applies its command tau_a late,
+        ``x'' = u(t - tau_a)`` for double integrators; for robots the demands
+        (dv/dt, omega) of eq. transform2, computed on the state when the
+        command is made, are executed tau_a later under the limits of that
+        time (docs/theory.md, "Actuation delay"). 0 (default): the paper's model.
 
     Examples
     --------
@@ -160,8 +175,10 @@ class Robot:
     model: str = "unicycle"
     limits: RobotLimits | None = None
     radius: float | None = None
+    actuation_delay: float = 0.0
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "actuation_delay", _nonnegative("actuation_delay", self.actuation_delay, "s"))
         if self.model not in MODELS:
             raise SimulationInputError(f"unknown model {self.model!r}; choose one of {', '.join(MODELS)}")
         if self.limits is not None and not isinstance(self.limits, RobotLimits):
@@ -169,12 +186,7 @@ class Robot:
         if self.limits is not None and self.model != "unicycle":
             raise SimulationInputError("limits apply to robots: use model='unicycle'")
         if self.radius is not None:
-            r = self.radius
-            if isinstance(r, bool) or not isinstance(r, (int, float, np.floating, np.integer)):
-                raise SimulationInputError(f"radius must be a number (m), got {r!r}")
-            if not (math.isfinite(r) and r >= 0):
-                raise SimulationInputError(f"radius must be finite and non-negative (m), got {r!r}")
-            object.__setattr__(self, "radius", float(r))
+            object.__setattr__(self, "radius", _nonnegative("radius", self.radius, "m"))
 
     @property
     def body_radius(self) -> float:
@@ -299,6 +311,13 @@ class DoubleIntegrator:
         """(state derivative, Cartesian acceleration, extras)."""
         return np.concatenate([state[:, 2:], u], axis=1), u, ()
 
+    @staticmethod
+    def command(state: _Array, u: _Array) -> _Array:
+        """What the actuators receive, to be applied late (actuation delay): the acceleration u itself."""
+        return u
+
+    apply = rhs  # applying a (late) command: x'' = the command
+
 
 class LimitedUnicycle:
     """State rows (x, y, theta, v): eq. transform2 with saturated inputs.
@@ -339,25 +358,41 @@ class LimitedUnicycle:
         limits (``e . u`` and the softened eq. transform2 turn rate); 1.0
         where the speed limit cut the demanded acceleration by more than 1 %.
         """
-        # np.minimum / np.maximum instead of np.clip: for a handful of robots the
-        # call overhead, not the arithmetic, is the cost of a step.
-        lo, hi = np.maximum, np.minimum
+        return self.apply(state, self.command(state, u))
+
+    def command(self, state: _Array, u: _Array) -> _Array:
+        """The demands (dv/dt, omega) of eq. transform2 (softened) on this state, columns of an (n, 2) array.
+
+        With an actuation delay these are what is sent late; the limits act
+        when they are executed (:meth:`apply`), on the state then.
+        """
         lim = self.limits
         th, v = state[:, 2], state[:, 3]
         c, s = np.cos(th), np.sin(th)
         ux, uy = u[:, 0], u[:, 1]
         along = c * ux + s * uy  # eq. transform2, first row
         across = c * uy - s * ux
-        speed = np.abs(v)
-        amax = lim.max_acceleration
-        accel = hi(lo(along, -amax), amax)
-        fade = np.where(accel * v > 0.0, lo(1.0 - (speed / lim.speed_cap) ** 8, 0.0), 1.0)
-        accel = accel * fade
         size2 = ux * ux + uy * uy
         vs = np.sqrt(lim.slow_speed**2 + lim.turn_time_constant**2 * size2)
         # towards the line of u at rest: +1 when u is ahead, -1 when behind (then reverse)
         toward = along / np.sqrt(size2 + 1e-24)
         demand = across * (v + toward * vs) / (v * v + vs * vs)  # eq. transform2, second row, softened
+        return np.column_stack([along, demand])
+
+    def apply(self, state: _Array, command: _Array) -> tuple[_Array, _Array, tuple[_Array, ...]]:
+        """Execute demands (dv/dt, omega) under the limits at this state: as :meth:`rhs` returns."""
+        # np.minimum / np.maximum instead of np.clip: for a handful of robots the
+        # call overhead, not the arithmetic, is the cost of a step.
+        lo, hi = np.maximum, np.minimum
+        lim = self.limits
+        th, v = state[:, 2], state[:, 3]
+        c, s = np.cos(th), np.sin(th)
+        along, demand = command[:, 0], command[:, 1]
+        speed = np.abs(v)
+        amax = lim.max_acceleration
+        accel = hi(lo(along, -amax), amax)
+        fade = np.where(accel * v > 0.0, lo(1.0 - (speed / lim.speed_cap) ** 8, 0.0), 1.0)
+        accel = accel * fade
         wanted = hi(lo(demand, -lim.max_turn_rate), lim.max_turn_rate)
         # Both wheels at full speed leave no room to turn: the turn comes first, so a
         # robot faster than the wheels allow for the wanted turn brakes (ramp over 0.1 s).

@@ -203,6 +203,7 @@ def simulate(
     progress: Progress | None = None,
     network: Network | None = None,
     assignment: str = "given",
+    actuation_delay: float | None = None,
 ) -> Trajectory:
     """Simulate n agents under eq. formation with delays tau1 (positions) and tau2 (velocities).
 
@@ -257,6 +258,12 @@ def simulate(
         double integrator (ideal robots are rebuilt from it), or with
         ``limits`` the saturated unicycle driven by what each robot hears.
         None or the ideal network: the paths above, unchanged.
+    actuation_delay
+        Shortcut for :attr:`Robot.actuation_delay` (s, >= 0; at least dt when
+        non-zero): each robot executes its command that much later (a command
+        buffer, linear between steps: :mod:`delayform.simulation.actuation`;
+        stated order 2). Double integrators and robots with ``limits``;
+        ideal robots (no limits) and an imperfect ``network`` refuse it.
     assignment
         ``"given"`` (default): robot i takes slot i of ``formation``.
         ``"optimal"``: the slots that minimise the total squared distance from
@@ -295,12 +302,13 @@ def simulate(
     dt = check_positive("dt", dt, SimulationInputError)
     duration = check_positive("duration", duration, SimulationInputError)
     rest_speed = check_positive("rest_speed", rest_speed, SimulationInputError)
-    robot = _robot(robot, model, limits)
-    model, limits = robot.model, robot.limits
+    robot = _robot(robot, model, limits, actuation_delay)
+    model, limits, ta = robot.model, robot.limits, robot.actuation_delay
     if network is not None and not isinstance(network, Network):
         raise SimulationInputError(f"network must be a Network, got {type(network).__name__}")
     if network is not None and network.is_ideal:
         network = None  # the paper's network: exactly the ordinary integrators
+    _check_actuation(robot, network, dt)
     for name, tau in (("tau1", tau1), ("tau2", tau2)):
         if 0.0 < tau < dt * (1.0 - 1e-9):
             raise SimulationInputError(
@@ -347,27 +355,48 @@ def simulate(
                                 save_every=save_every, progress=progress)  # fmt: skip
     elif limits is not None:
         agent = LimitedUnicycle(x0, th0, speed0, limits)
-        run = integrate(agent, C, F, P, D, eff1, eff2, dt, steps, save_every, progress)
+        run = integrate(agent, C, F, P, D, eff1, eff2, dt, steps, save_every, progress, ta)
     else:
-        if linear:
+        if linear and ta == 0.0:
             run = integrate_linear(x0, v0, C, F, P, D, eff1, eff2, dt, steps, save_every, progress)
         if run is None:
-            run = integrate(DoubleIntegrator(x0, v0), C, F, P, D, eff1, eff2, dt, steps, save_every, progress)
+            run = integrate(DoubleIntegrator(x0, v0), C, F, P, D, eff1, eff2, dt, steps, save_every, progress, ta)
     if progress is not None:
         progress(steps, steps)
     traj = _trajectory(topology, desired, robot, P, D, tau1, tau2, dt, duration, th0, run, rest_speed)
     return dataclasses.replace(traj, slots=slots)
 
 
-def _robot(robot: Robot | None, model: str | None, limits: RobotLimits | None) -> Robot:
-    """The robot of a run: ``robot``, or one built from the ``model`` and ``limits`` shortcuts."""
+def _robot(
+    robot: Robot | None, model: str | None, limits: RobotLimits | None, actuation_delay: float | None = None
+) -> Robot:
+    """The robot of a run: ``robot``, or one built from the ``model``, ``limits`` and ``actuation_delay`` shortcuts."""
     if robot is None:
-        return Robot(model="unicycle" if model is None else model, limits=limits)
+        return Robot(model="unicycle" if model is None else model, limits=limits,
+                     actuation_delay=0.0 if actuation_delay is None else actuation_delay)  # fmt: skip
     if not isinstance(robot, Robot):
         raise SimulationInputError(f"robot must be a Robot, got {type(robot).__name__}")
-    if model is not None or limits is not None:
-        raise SimulationInputError("give the model and limits either in robot or as keywords, not both")
+    if model is not None or limits is not None or actuation_delay is not None:
+        raise SimulationInputError(
+            "give the model, limits and actuation_delay either in robot or as keywords, not both"
+        )
     return robot
+
+
+def _check_actuation(robot: Robot, network: Network | None, dt: float) -> None:
+    """Refuse the runs an actuation delay is not modelled for, with the reason."""
+    ta = robot.actuation_delay
+    if ta == 0.0:
+        return
+    if ta < dt * (1.0 - 1e-9):
+        raise SimulationInputError(f"dt = {dt} exceeds actuation_delay = {ta}: a non-zero delay must be at least one step")
+    if robot.model == "unicycle" and robot.limits is None:
+        raise SimulationInputError(
+            "an actuation delay needs robots with limits or model='double_integrator': ideal robots are "
+            "integrated as double integrators, which a late (dv/dt, omega) no longer is"
+        )
+    if network is not None and not network.is_ideal:
+        raise SimulationInputError("an actuation delay over an imperfect network is not modelled; use the ideal network")
 
 
 def _trajectory(
@@ -417,7 +446,8 @@ def _trajectory(
     return Trajectory(
         times=times, positions=pos, velocities=vel, headings=head, speeds=spd, inputs=inp,
         desired=desired, model=model, P=P, D=D, tau1=tau1, tau2=tau2, dt=dt,
-        stated_order=2 if limits is not None else stated_order(tau1, tau2, dt),
+        stated_order=2 if limits is not None or robot.actuation_delay > 0.0 else stated_order(tau1, tau2, dt),
+        actuation_delay=robot.actuation_delay,
         formation_error=error, settling_time=settled,
         final_centroid=centroid_weights(topology) @ pos[-1],
         min_distance=approach.min_distance, closest_at=approach.at, radius=robot.body_radius,

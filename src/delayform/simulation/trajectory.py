@@ -92,6 +92,8 @@ class Trajectory:
         Sentences for a reader about a run that did not settle.
     labels
         Agent labels of the topology (figures number agents from 1).
+    actuation_delay
+        The robots' actuation delay tau_a (s), 0 for the paper's model.
     """
 
     times: _Array
@@ -121,6 +123,8 @@ class Trajectory:
     status: str = "settled"
     warnings: tuple[str, ...] = ()
     labels: tuple[Any, ...] = field(default=())
+    #: tau_a (s), the actuation delay of the run (:attr:`~delayform.simulation.robots.Robot.actuation_delay`)
+    actuation_delay: float = 0.0
 
     @property
     def n(self) -> int:
