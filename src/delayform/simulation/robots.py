@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -150,6 +151,9 @@ class Robot:
         Radius (m) of the disc containing the body, for contacts. None
         (default): ``limits.radius``, else the Create's 0.17 m for robots
         and 0 (points, no contacts) for double integrators.
+    safety
+        A safety filter (:class:`~delayform.simulation.safety.BarrierFilter`,
+        or its name ``"barrier"``), or None (default).
 
     Examples
     --------
@@ -160,8 +164,12 @@ class Robot:
     model: str = "unicycle"
     limits: RobotLimits | None = None
     radius: float | None = None
+    safety: Any = None
 
     def __post_init__(self) -> None:
+        from delayform.simulation.safety import check_safety
+
+        object.__setattr__(self, "safety", check_safety(self.safety))
         if self.model not in MODELS:
             raise SimulationInputError(f"unknown model {self.model!r}; choose one of {', '.join(MODELS)}")
         if self.limits is not None and not isinstance(self.limits, RobotLimits):
