@@ -150,3 +150,28 @@ def test_unknown_safety_filter_is_one_clear_error(bad, message):
 def test_bad_filter_settings(field, value):
     with pytest.raises(SimulationInputError, match=f"safety.{field}"):
         BarrierFilter(**{field: value})
+
+
+def test_cli_safety_filter_reports_its_cost_and_the_scenario_key(tmp_path):
+    import json
+
+    from test_cli import run
+
+    proc = run("simulate", "--safety", "barrier", "--duration", "40", "--dt", "0.05", "--no-csv", "--json",
+               "--out", str(tmp_path / "a"), cwd=tmp_path)  # fmt: skip
+    assert proc.returncode == 0 and "collided" not in proc.stderr, proc.stderr
+    out = json.loads(proc.stdout)
+    assert out["contacts"] == [] and out["contacts_without_filter"] > 0
+    assert out["safety"]["active_fraction"] > 0 and out["min_distance"] >= 0.34
+    from delayform.scenario import load_scenario
+
+    path = tmp_path / "s.toml"
+    path.write_text('[topology]\nname = "ring"\nn = 4\n[gains]\nP = 1.0\nD = 0.5\n[delays]\ntau1 = 0.3\ntau2 = 0.2\n'
+                    '[formation]\nshape = "polygon"\nspacing = 2.0\n[robot]\nlimits = false\nsafety = "barrier"\n')  # fmt: skip
+    sc = load_scenario(path)
+    assert sc.robot is None and sc.robot_spec.safety == BarrierFilter()
+    from delayform.app import scenario_toml
+
+    again = tmp_path / "again.toml"
+    again.write_text(scenario_toml(sc))
+    assert load_scenario(again).robot_spec == sc.robot_spec
