@@ -645,7 +645,8 @@ class Explorer:
             with np.errstate(over="ignore", invalid="ignore"):  # an unstable run may overflow; cut below
                 tr = simulate(
                     s.topology, P, D, tau1, tau2, s.desired_positions(),
-                    robot=Robot(model=s.simulation.model, limits=robot, radius=s.radius), network=net,
+                    robot=Robot(model=s.simulation.model, limits=robot, radius=s.radius, safety=s.safety),
+                    network=net,
                     initial_positions=s.initial_positions(), initial_headings=s.initial_headings(),
                     initial_speed=s.initial.speed, seed=s.initial.seed, duration=duration, dt=dt,
                 )  # fmt: skip

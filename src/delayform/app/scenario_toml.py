@@ -145,8 +145,12 @@ def scenario_toml(scenario: Scenario) -> str:
         if s.radius is not None:  # the body's radius, which may be 0 (points) unlike a limit
             values["radius"] = s.radius
         out += ["", "[robot]"] + [f"{k} = {_number(v)}" for k, v in values.items()]
-    elif s.radius is not None:
-        out += ["", "[robot]", "limits = false", f"radius = {_number(s.radius)}"]
+    elif s.radius is not None or s.safety is not None:
+        out += ["", "[robot]", "limits = false"]
+        if s.radius is not None:
+            out.append(f"radius = {_number(s.radius)}")
+    if s.safety is not None:
+        out.append(f"safety = {_string(s.safety)}")
     chart = s.chart
     out += ["", "[chart]", f"tau1_max = {_number(chart.tau1_max)}", f"tau2_max = {_number(chart.tau2_max)}"]
     if chart.points:

@@ -182,7 +182,10 @@ def _robot(robot: Any, use_limits: bool | None, given: dict[str, float], model: 
 
 
 def radius_option(func: F) -> F:
-    """``--radius`` (the scenario's ``[robot] radius``) and ``--assignment`` (``[simulation] assignment``)."""
+    """``--radius``, ``--safety`` (the scenario's ``[robot]`` table) and ``--assignment`` (``[simulation]``)."""
+    func = click.option("--safety", type=click.Choice(("barrier", "none")),
+                        help="Filter every command through control barrier functions that keep the bodies apart "
+                             "(barrier) or not (none) [default: robot.safety, else none].")(func)  # fmt: skip
     func = click.option("--assignment", type=click.Choice(("given", "optimal")),
                         help="Which robot takes which slot: given (robot i, slot i) or optimal (least total squared "
                              "distance to the predicted final positions) [default: simulation.assignment].")(func)  # fmt: skip

@@ -83,7 +83,7 @@ def montecarlo_command(scenario: Path | None, runs: int, seed: int | None, worke
                        model: str | None, duration: float | None, dt: float | None, loss: float | None,
                        burst: tuple[float, float] | None, jitter: tuple[float, float] | None, rate: float | None,
                        noise: tuple[float, float] | None, spread: float | None, use_limits: bool | None,
-                       radius: float | None, assignment: str | None, out: Path | None, as_json: bool, **overrides: Any) -> None:  # fmt: skip
+                       radius: float | None, assignment: str | None, safety: str | None, out: Path | None, as_json: bool, **overrides: Any) -> None:  # fmt: skip
     """Monte Carlo of the scenario over an imperfect network: N seeded runs.
 
     The network comes from the scenario's [network] table and the options
@@ -111,7 +111,8 @@ def montecarlo_command(scenario: Path | None, runs: int, seed: int | None, worke
     sim = _simulation_spec(sc, model=model, duration=duration, dt=dt, assignment=assignment)
     network = _network(sc.network, loss=loss, burst=burst, jitter=jitter, rate=rate, noise=noise, spread=spread)
     sc = replace(sc, simulation=sim, network=network, robot=_robot(sc.robot, use_limits, given, sim.model),
-                 radius=sc.radius if radius is None else radius)
+                 radius=sc.radius if radius is None else radius,
+                 safety=sc.safety if safety is None else (None if safety == "none" else safety))
     # every input and the budget are checked before anything is started or written
     setup = scenario_setup(sc)
     guard(setup, runs, workers or 1)

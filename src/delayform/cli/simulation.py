@@ -36,6 +36,7 @@ from delayform.cli._common import (
 @click.option("--gif/--no-gif", default=False, show_default=True, help="Also write an animated GIF.")
 def simulate_command(scenario: Path | None, model: str | None, duration: float | None, dt: float | None,
                      seed: int | None, use_limits: bool | None, radius: float | None, assignment: str | None,
+                     safety: str | None,
                      csv: bool | None, gif: bool,
                      out: Path | None, as_json: bool, **overrides: Any) -> None:  # fmt: skip
     """Simulate the team at the scenario's delays into its formation.
@@ -56,6 +57,7 @@ def simulate_command(scenario: Path | None, model: str | None, duration: float |
     sim = _simulation_spec(sc, model=model, duration=duration, dt=dt, assignment=assignment)
     robot = _robot(sc.robot, use_limits, given, sim.model)
     sc = replace(sc, simulation=sim, robot=robot, radius=sc.radius if radius is None else radius,
+                 safety=sc.safety if safety is None else (None if safety == "none" else safety),
                  initial=replace(sc.initial, seed=sc.initial.seed if seed is None else seed))  # fmt: skip
     sc.robot_spec.check_slots(sc.desired_positions())  # bodies that overlap in formation: before writing
     directory = _out_dir(out, sc)

@@ -93,7 +93,7 @@ def montecarlo_section(
         scenario.topology, scenario.P, scenario.D, scenario.tau1, scenario.tau2, scenario.desired_positions(),
         model=sim.model, network=net, runs=runs, seed=seed, duration=sim.duration, dt=sim.dt,
         initial_positions=scenario.initial_positions(), initial_headings=scenario.initial_headings(),
-        initial_speed=scenario.initial.speed, limits=scenario.robot, radius=scenario.radius, assignment=sim.assignment, executor=executor, progress=progress,
+        initial_speed=scenario.initial.speed, limits=scenario.robot, radius=scenario.radius, assignment=sim.assignment, safety=scenario.safety, executor=executor, progress=progress,
     )  # fmt: skip
     files: list[str] = []
     fig, ax = plt.subplots(figsize=(7.0, 4.2))
@@ -149,7 +149,7 @@ def scenario_setup(scenario: Scenario) -> Any:
         scenario.topology, scenario.P, scenario.D, scenario.tau1, scenario.tau2, scenario.desired_positions(),
         model=sim.model, network=scenario.network, duration=sim.duration, dt=sim.dt,
         initial_positions=scenario.initial_positions(), initial_headings=scenario.initial_headings(),
-        initial_speed=scenario.initial.speed, limits=scenario.robot, radius=scenario.radius, assignment=sim.assignment,
+        initial_speed=scenario.initial.speed, limits=scenario.robot, radius=scenario.radius, assignment=sim.assignment, safety=scenario.safety,
     )  # fmt: skip
 
 

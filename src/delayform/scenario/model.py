@@ -179,6 +179,8 @@ class Scenario:
     radius
         ``[robot] radius`` (m), the bodies' size for contacts, or None for the
         default of :class:`~delayform.simulation.robots.Robot`.
+    safety
+        ``[robot] safety``: the safety filter's name (``"barrier"``), or None.
     network
         The ``[network]`` table as a :class:`~delayform.simulation.network.Network`, or None.
     topology_spec
@@ -205,12 +207,13 @@ class Scenario:
     robot: RobotLimits | None = None
     network: Network | None = None
     radius: float | None = None
+    safety: str | None = None
 
     @property
     def robot_spec(self) -> Robot:
         """The ``[robot]`` table (and ``simulation.model``) as one :class:`~delayform.simulation.robots.Robot`."""
         limits = self.robot if self.simulation.model == "unicycle" else None  # limits apply to robots only
-        return Robot(model=self.simulation.model, limits=limits, radius=self.radius)
+        return Robot(model=self.simulation.model, limits=limits, radius=self.radius, safety=self.safety)
 
     def summary(self) -> dict[str, Any]:
         """The scenario as plain JSON-ready values, for summaries and report tables."""

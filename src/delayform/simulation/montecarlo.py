@@ -99,6 +99,8 @@ class Setup:
         :class:`~delayform.simulation.robots.Robot` (0 for double integrators).
     assignment
         Which robot takes which slot, per run (``simulate(..., assignment=...)``).
+    safety
+        The safety filter of every run (``"barrier"``), or None.
     """
 
     topology: Topology
@@ -117,11 +119,12 @@ class Setup:
     limits: Any = None
     radius: float | None = None
     assignment: str = "given"
+    safety: Any = None
 
     @property
     def robot(self) -> Robot:
-        """The robot of every run (model, limits, body radius)."""
-        return Robot(model=self.model, limits=self.limits, radius=self.radius)
+        """The robot of every run (model, limits, body radius, safety filter)."""
+        return Robot(model=self.model, limits=self.limits, radius=self.radius, safety=self.safety)
 
     def with_changes(self, **changes: Any) -> Setup:
         """A copy with some fields replaced (sweeps).
@@ -141,6 +144,7 @@ class Setup:
             "network": "ideal" if self.network is None else self.network.describe(),
             "robots": "ideal" if self.limits is None else self.limits.describe(),
             "radius": self.robot.body_radius,
+            "safety": "none" if self.safety is None else "barrier",
             "duration": self.duration, "dt": self.dt,
         }  # fmt: skip
 
@@ -440,6 +444,8 @@ def estimate_cost(setup: Setup, runs: int) -> tuple[float, float]:
         packets = int(setup.duration / period) + 2
     nbytes = network_memory(links, steps, packets, n) + (steps + 1) * n * 8 * 8
     per_step = _STEP_SECONDS[0] + _STEP_SECONDS[1] * links + (_LIMITED_STEP_SECONDS if setup.limits is not None else 0.0)
+    # the safety filter: about 4 x 50 microseconds per step for a small team (docs/benchmarks.md, issue 21)
+    per_step += 2e-4 + 2e-6 * n if setup.safety is not None else 0.0
     seconds = runs * steps * per_step
     return nbytes, seconds
 
@@ -480,6 +486,7 @@ def make_setup(
     limits: Any = None,
     radius: float | None = None,
     assignment: str = "given",
+    safety: Any = None,
 ) -> Setup:
     """The checked scenario-like inputs of a Monte Carlo or of a sweep's base point.
 
@@ -503,6 +510,8 @@ def make_setup(
         Body radius (m) for contacts; None: the :class:`~delayform.simulation.robots.Robot` default.
     assignment
         ``"given"`` or ``"optimal"`` slots (``simulate(..., assignment=...)``).
+    safety
+        The safety filter (``"barrier"``) or None.
 
     Raises
     ------
@@ -516,7 +525,7 @@ def make_setup(
         model=model, network=network, duration=duration, dt=dt,
         initial_positions=None if initial_positions is None else np.asarray(initial_positions, dtype=np.float64),
         initial_headings=None if initial_headings is None else np.asarray(initial_headings, dtype=np.float64),
-        initial_speed=initial_speed, limits=limits, radius=radius, assignment=assignment,
+        initial_speed=initial_speed, limits=limits, radius=radius, assignment=assignment, safety=safety,
     )  # fmt: skip
     return checked(setup)
 
@@ -595,6 +604,7 @@ def monte_carlo(
     limits: Any = None,
     radius: float | None = None,
     assignment: str = "given",
+    safety: Any = None,
     executor: Executor | None = None,
     progress: Progress | None = None,
 ) -> MonteCarloResult:
@@ -629,6 +639,8 @@ def monte_carlo(
         :class:`~delayform.simulation.robots.Robot` default (0 for double integrators).
     assignment
         ``"given"`` or ``"optimal"`` slots in every run (``simulate(..., assignment=...)``).
+    safety
+        The safety filter of every run (``"barrier"``), or None.
     executor
         Where the runs go (:class:`SerialExecutor` by default; see
         :func:`delayform.sweeps.executor` for Dask); its ``workers``
@@ -660,7 +672,7 @@ def monte_carlo(
     setup = make_setup(
         topology, P, D, tau1, tau2, formation, model=model, network=network, duration=duration, dt=dt,
         initial_positions=initial_positions, initial_headings=initial_headings, initial_speed=initial_speed,
-        limits=limits, radius=radius, assignment=assignment,
+        limits=limits, radius=radius, assignment=assignment, safety=safety,
     )  # fmt: skip
     guard(setup, runs, int(getattr(executor, "workers", 1)))
     tasks = [(setup, r, s) for r, s in enumerate(run_seeds(seed, runs))]

@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -159,6 +160,9 @@ class Robot:
         Radius (m) of the disc containing the body, for contacts. None
         (default): ``limits.radius``, else the Create's 0.17 m for robots
         and 0 (points, no contacts) for double integrators.
+    safety
+        A safety filter (:class:`~delayform.simulation.safety.BarrierFilter`,
+        or its name ``"barrier"``), or None (default).
     actuation_delay
         tau_a >= 0 (s): each robot applies its command tau_a late,
         ``x'' = u(t - tau_a)`` for double integrators; for robots the demands
@@ -175,9 +179,13 @@ class Robot:
     model: str = "unicycle"
     limits: RobotLimits | None = None
     radius: float | None = None
+    safety: Any = None
     actuation_delay: float = 0.0
 
     def __post_init__(self) -> None:
+        from delayform.simulation.safety import check_safety
+
+        object.__setattr__(self, "safety", check_safety(self.safety))
         object.__setattr__(self, "actuation_delay", _nonnegative("actuation_delay", self.actuation_delay, "s"))
         if self.model not in MODELS:
             raise SimulationInputError(f"unknown model {self.model!r}; choose one of {', '.join(MODELS)}")

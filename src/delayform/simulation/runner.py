@@ -48,6 +48,7 @@ import math
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from typing import Any
 
 from delayform._validation import check_delay, check_gains, check_positive
 from delayform.errors import SimulationInputError
@@ -82,6 +83,7 @@ from delayform.simulation.robots import (
 )
 from delayform.simulation.assignment import assign_slots, check_assignment
 from delayform.simulation.bodies import closest_approach
+from delayform.simulation.safety import BarrierFilter, FilteredAgent, SafetyReport
 from delayform.simulation.trajectory import (
     Trajectory,
     contact_warning,
@@ -92,6 +94,9 @@ from delayform.simulation.trajectory import (
 from delayform.topology import Topology, paper_six
 
 __all__ = ["MODELS", "simulate", "paper_simulations", "estimate_resources"]
+
+#: robots slower than this (m/s) at the end of a filtered run that did not settle are deadlocked
+DEADLOCK_SPEED = 1e-2
 
 #: teams up to this size multiply by a dense C and use the blocked linear path
 _DENSE_AGENTS = 64
@@ -203,6 +208,7 @@ def simulate(
     progress: Progress | None = None,
     network: Network | None = None,
     assignment: str = "given",
+    safety: str | BarrierFilter | None = None,
     actuation_delay: float | None = None,
 ) -> Trajectory:
     """Simulate n agents under eq. formation with delays tau1 (positions) and tau2 (velocities).
@@ -271,6 +277,13 @@ def simulate(
         (:func:`~delayform.simulation.assignment.assign_slots`; exact for
         balanced teams, certified or bounded otherwise). It relabels the
         slots only: the stability analysis is unchanged (docs/theory.md).
+    safety
+        Shortcut for ``Robot.safety``: ``"barrier"`` (or a
+        :class:`~delayform.simulation.safety.BarrierFilter`) filters every
+        command through control barrier functions that keep the bodies
+        apart (:mod:`delayform.simulation.safety`); the run's ``safety``
+        says when it acted, and a team it stopped short of the formation has
+        status ``"deadlock"``. None (default): no filter.
 
     Returns
     -------
@@ -302,7 +315,7 @@ def simulate(
     dt = check_positive("dt", dt, SimulationInputError)
     duration = check_positive("duration", duration, SimulationInputError)
     rest_speed = check_positive("rest_speed", rest_speed, SimulationInputError)
-    robot = _robot(robot, model, limits, actuation_delay)
+    robot = _robot(robot, model, limits, safety, actuation_delay)
     model, limits, ta = robot.model, robot.limits, robot.actuation_delay
     if network is not None and not isinstance(network, Network):
         raise SimulationInputError(f"network must be a Network, got {type(network).__name__}")
@@ -340,8 +353,9 @@ def simulate(
         raise SimulationInputError(f"save_every must be a positive integer, got {save_every!r}")
     # a delay longer than the run reads only the constant history (integrator doc)
     eff1, eff2 = effective_delay(tau1, dt, steps), effective_delay(tau2, dt, steps)
+    filtered = robot.safety is not None
     nbytes, seconds, linear = estimate_resources(
-        n, steps, save_every, eff1, eff2, dt, limited=limits is not None, nnz=topology.C_sparse.nnz
+        n, steps, save_every, eff1, eff2, dt, limited=limits is not None or filtered, nnz=topology.C_sparse.nnz
     )
     require(what=f"this simulation ({steps:,} steps of {n:,} agents)", nbytes=nbytes, seconds=seconds,
             setting="duration (--duration), the step dt (raise --dt), the number of agents or save_every")  # fmt: skip
@@ -349,13 +363,15 @@ def simulate(
     C = topology.C_sparse.toarray() if n <= _DENSE_AGENTS else topology.C_sparse
     F = formation_forcing(topology, P, desired)
     run: Samples | None = None
-    if network is not None:
-        agent = DoubleIntegrator(x0, v0) if limits is None else LimitedUnicycle(x0, th0, speed0, limits)
-        run = integrate_network(agent, topology, F, P, D, tau1, tau2, network=network, dt=dt, steps=steps,
-                                save_every=save_every, progress=progress)  # fmt: skip
-    elif limits is not None:
-        agent = LimitedUnicycle(x0, th0, speed0, limits)
-        run = integrate(agent, C, F, P, D, eff1, eff2, dt, steps, save_every, progress, ta)
+    if network is not None or limits is not None or filtered:
+        agent: Any = DoubleIntegrator(x0, v0) if limits is None else LimitedUnicycle(x0, th0, speed0, limits)
+        if filtered:
+            agent = FilteredAgent(agent, robot.safety, robot.body_radius)
+        if network is not None:
+            run = integrate_network(agent, topology, F, P, D, tau1, tau2, network=network, dt=dt, steps=steps,
+                                    save_every=save_every, progress=progress)  # fmt: skip
+        else:
+            run = integrate(agent, C, F, P, D, eff1, eff2, dt, steps, save_every, progress, ta)
     else:
         if linear and ta == 0.0:
             run = integrate_linear(x0, v0, C, F, P, D, eff1, eff2, dt, steps, save_every, progress)
@@ -368,17 +384,18 @@ def simulate(
 
 
 def _robot(
-    robot: Robot | None, model: str | None, limits: RobotLimits | None, actuation_delay: float | None = None
+    robot: Robot | None, model: str | None, limits: RobotLimits | None, safety: object,
+    actuation_delay: float | None = None,
 ) -> Robot:
-    """The robot of a run: ``robot``, or one built from the ``model``, ``limits`` and ``actuation_delay`` shortcuts."""
+    """The robot of a run: ``robot``, or one built from the shortcuts (model, limits, safety, actuation_delay)."""
     if robot is None:
-        return Robot(model="unicycle" if model is None else model, limits=limits,
+        return Robot(model="unicycle" if model is None else model, limits=limits, safety=safety,
                      actuation_delay=0.0 if actuation_delay is None else actuation_delay)  # fmt: skip
     if not isinstance(robot, Robot):
         raise SimulationInputError(f"robot must be a Robot, got {type(robot).__name__}")
-    if model is not None or limits is not None or actuation_delay is not None:
+    if model is not None or limits is not None or safety is not None or actuation_delay is not None:
         raise SimulationInputError(
-            "give the model, limits and actuation_delay either in robot or as keywords, not both"
+            "give the model, limits, safety and actuation_delay either in robot or as keywords, not both"
         )
     return robot
 
@@ -397,6 +414,8 @@ def _check_actuation(robot: Robot, network: Network | None, dt: float) -> None:
         )
     if network is not None and not network.is_ideal:
         raise SimulationInputError("an actuation delay over an imperfect network is not modelled; use the ideal network")
+    if robot.safety is not None:
+        raise SimulationInputError("an actuation delay with the safety filter is not modelled; give one of them")
 
 
 def _trajectory(
@@ -424,7 +443,7 @@ def _trajectory(
         inp = np.stack([vdot, omega], axis=-1)
         commands = RobotCommands.from_motion(times, spd, omega, vdot, IROBOT_CREATE)
     else:
-        assert run.states is not None
+        assert run.states is not None and limits is not None
         head, spd = np.angle(np.exp(1j * run.states[..., 2])), run.states[..., 3].copy()
         ex = run.extras
         inp = np.stack([ex["dv_dt"], ex["omega"]], axis=-1)
@@ -440,20 +459,48 @@ def _trajectory(
         found = commands.exceedances()
         if found and status != "settled":
             warnings += ("the actuator limits were active: " + "; ".join(e.sentence for e in found),)
+    report = None
+    if robot.safety is not None:
+        report = SafetyReport(2.0 * robot.body_radius + robot.safety.margin, run.extras["safety_active"] > 0.5,
+                              run.extras["safety_infeasible"] > 0.5, times)  # fmt: skip
+        if report.was_active:
+            warnings += (report.sentence(),)
+        status, warnings = _deadlock(status, warnings, report, spd, duration)
     approach = closest_approach(times, pos, vel, 2.0 * robot.body_radius)
     if approach.contacts:
         warnings += (contact_warning(approach.contacts),)
     return Trajectory(
         times=times, positions=pos, velocities=vel, headings=head, speeds=spd, inputs=inp,
         desired=desired, model=model, P=P, D=D, tau1=tau1, tau2=tau2, dt=dt,
-        stated_order=2 if limits is not None or robot.actuation_delay > 0.0 else stated_order(tau1, tau2, dt),
+        stated_order=2 if limits is not None or report is not None or robot.actuation_delay > 0.0
+        else stated_order(tau1, tau2, dt),
         actuation_delay=robot.actuation_delay,
         formation_error=error, settling_time=settled,
         final_centroid=centroid_weights(topology) @ pos[-1],
         min_distance=approach.min_distance, closest_at=approach.at, radius=robot.body_radius,
-        contacts=approach.contacts, commands=commands, limits=limits,
+        contacts=approach.contacts, safety=report, commands=commands, limits=limits,
         status=status, warnings=warnings, labels=topology.labels,
     )  # fmt: skip
+
+
+def _deadlock(
+    status: str, warnings: tuple[str, ...], report: SafetyReport, speeds: _Array, duration: float
+) -> tuple[str, tuple[str, ...]]:
+    """A run that did not settle because the filter holds robots still short of their slots: ``"deadlock"``.
+
+    Deadlock: not settled, the filter still acting over the last tenth of the
+    saved samples, and every robot slower than :data:`DEADLOCK_SPEED` at the end.
+    """
+    if status != "not settled":
+        return status, warnings
+    tail = max(1, report.times.size // 10)
+    if report.active[-tail:].any() and float(np.abs(speeds[-1]).max()) < DEADLOCK_SPEED:
+        return "deadlock", (
+            f"deadlock: the robots stopped short of the formation within {duration:.4g} s, held apart by "
+            f"the safety filter (robots {', '.join(str(i + 1) for i in np.flatnonzero(report.active[-1]))} "
+            f"were still filtered at the end)",
+        ) + tuple(w for w in warnings if not w.startswith("the formation error did not stay"))
+    return status, warnings
 
 
 # ------------------------------------------------------------ paper demo

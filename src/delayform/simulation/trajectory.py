@@ -13,6 +13,7 @@ from numpy.typing import NDArray
 from delayform.simulation.bodies import Contact
 from delayform.simulation.commands import RobotCommands
 from delayform.simulation.robots import RobotLimits
+from delayform.simulation.safety import SafetyReport
 
 __all__ = ["Trajectory", "SETTLING_FRACTION", "STATUSES"]
 
@@ -22,7 +23,7 @@ _Array = NDArray[np.float64]
 SETTLING_FRACTION = 0.02
 
 #: what :attr:`Trajectory.status` can be
-STATUSES = ("settled", "not settled", "diverging", "stopped")
+STATUSES = ("settled", "not settled", "diverging", "stopped", "deadlock")
 
 #: a run whose formation error ends this many times above its initial value is diverging
 DIVERGING_GROWTH = 10.0
@@ -80,6 +81,9 @@ class Trajectory:
     slots
         ``(n,)``: the slot of ``formation`` robot i took (``simulate(...,
         assignment=...)``); ``desired`` is already in this order.
+    safety
+        When the safety filter acted (:class:`~delayform.simulation.safety.SafetyReport`),
+        or None for a run without it.
     commands
         The robots' commands (:class:`RobotCommands`); None for double integrators.
     limits
@@ -87,7 +91,9 @@ class Trajectory:
     status
         One of :data:`STATUSES`: ``"settled"``; ``"not settled"`` within the
         run; ``"diverging"`` (the error ended more than 10 times its start);
-        ``"stopped"`` (the state overflowed and integration stopped early).
+        ``"stopped"`` (the state overflowed and integration stopped early);
+        ``"deadlock"`` (the safety filter holds the robots still short of
+        the formation).
     warnings
         Sentences for a reader about a run that did not settle.
     labels
@@ -118,6 +124,7 @@ class Trajectory:
     radius: float = 0.0
     contacts: tuple[Contact, ...] = ()
     slots: NDArray[np.intp] | None = None
+    safety: SafetyReport | None = None
     commands: RobotCommands | None = None
     limits: RobotLimits | None = None
     status: str = "settled"
