@@ -168,3 +168,42 @@ def test_actuation_delay_refusals() -> None:
                  actuation_delay=0.001)  # fmt: skip
     with pytest.raises(SimulationInputError, match="not both"):
         simulate(top, 1.0, 0.5, 0.3, 0.2, "hexagon", robot=Robot(), duration=1.0, dt=0.01, actuation_delay=0.1)
+
+
+# ============================================================ scenario and command line
+from test_cli import assert_one_line_error, run  # noqa: E402
+
+from delayform.errors import ScenarioError  # noqa: E402
+from delayform.scenario import PAPER_TOML, parse_scenario  # noqa: E402
+
+
+def _scenario_with_robot(table: str):
+    import tomllib
+
+    return parse_scenario(tomllib.loads(PAPER_TOML + "\n[robot]\n" + table), source="<test>", default_name="t")
+
+
+def test_scenario_key_maps_onto_the_robot() -> None:
+    sc = _scenario_with_robot("actuation_delay = 0.05\n")
+    assert sc.actuation_delay == 0.05 and sc.robot_spec.actuation_delay == 0.05
+    for bad in ("-0.1", "nan", "inf", '"x"'):
+        with pytest.raises(ScenarioError, match="actuation_delay"):
+            _scenario_with_robot(f"actuation_delay = {bad}\n")
+
+
+@pytest.mark.slow
+def test_cli_roots_and_simulate_take_the_actuation_delay(tmp_path) -> None:
+    import json
+
+    proc = run("roots", "--actuation-delay", "0.3", "--json", "--out", str(tmp_path / "r"), cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    summary = json.loads(proc.stdout)
+    ref = dominant_root(paper_six(), 1.0, 0.5, 0.3, 0.2, actuation_delay=0.3).root
+    assert summary["actuation_delay"] == 0.3 and summary["stable"] is False
+    assert complex(summary["dominant_root"]["re"], summary["dominant_root"]["im"]) == pytest.approx(ref)
+    for bad in ("-1", "nan"):
+        proc = run("roots", "--actuation-delay", bad, "--out", str(tmp_path / "bad"), cwd=tmp_path)
+        assert_one_line_error(proc, "--actuation-delay")
+    proc = run("simulate", "--actuation-delay", "0.1", "--duration", "1", "--out", str(tmp_path / "s"), cwd=tmp_path)
+    assert_one_line_error(proc, "actuation delay")
+    assert not (tmp_path / "s").exists()

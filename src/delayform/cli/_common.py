@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import sys
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -192,6 +193,26 @@ def radius_option(func: F) -> F:
     return click.option("--radius", type=NON_NEGATIVE,
                         help="Body radius of each robot (m), for contacts [default: robot.radius, else 0.17 m "
                              "(the iRobot Create) for robots and 0 (points) for double integrators].")(func)  # fmt: skip
+
+
+def _finite_delay(ctx: click.Context, param: click.Parameter, value: float | None) -> float | None:
+    if value is not None and not (math.isfinite(value) and value >= 0.0):
+        raise click.BadParameter(f"{value} is not a finite non-negative delay (seconds)")
+    return value
+
+
+def actuation_option(func: F) -> F:
+    """``--actuation-delay`` (the scenario's ``[robot] actuation_delay``): each robot applies its command late."""
+    return click.option("--actuation-delay", "actuation_delay", type=float, callback=_finite_delay,
+                        help="Actuation delay tau_a (s): each robot applies its command tau_a late; every factor "
+                             "gains the delayed own-state terms [default: robot.actuation_delay, else 0].")(func)  # fmt: skip
+
+
+def with_actuation(scenario: Scenario, actuation_delay: float | None) -> Scenario:
+    """The scenario with ``--actuation-delay`` applied when given."""
+    from dataclasses import replace
+
+    return scenario if actuation_delay is None else replace(scenario, actuation_delay=actuation_delay)
 
 
 def _team_options() -> list[Callable[[F], F]]:

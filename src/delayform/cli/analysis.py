@@ -17,9 +17,11 @@ from delayform.cli._common import (
     _inner_progress,
     _out_dir,
     _scenario,
+    actuation_option,
     cli,
     scenario_options,
     team_options,
+    with_actuation,
 )
 
 if TYPE_CHECKING:
@@ -125,8 +127,9 @@ def chart_command(scenario: Path | None, tau1_max: float | None, tau2_max: float
 @click.option("--region", type=FloatTuple(4),
               help="Rectangle RE_MIN,RE_MAX,IM_MIN,IM_MAX of the s-plane in which to list every root "
                    "[default: Re from min(-2, 2 Re(dominant)) to 1, Im from -0.01 to 10].")  # fmt: skip
+@actuation_option
 def roots_command(scenario: Path | None, region: tuple[float, float, float, float] | None,
-                  out: Path | None, as_json: bool, **overrides: Any) -> None:  # fmt: skip
+                  actuation_delay: float | None, out: Path | None, as_json: bool, **overrides: Any) -> None:  # fmt: skip
     """Dominant root and characteristic roots at one delay pair.
 
     The dominant root is the rightmost root over all factors, the centroid
@@ -140,7 +143,7 @@ def roots_command(scenario: Path | None, region: tuple[float, float, float, floa
 
     if region is not None and (region[0] >= region[1] or region[2] >= region[3]):
         raise click.BadParameter("expected RE_MIN < RE_MAX and IM_MIN < IM_MAX", param_hint="--region")
-    sc = _scenario(scenario, **overrides)
+    sc = with_actuation(_scenario(scenario, **overrides), actuation_delay)
     directory = _out_dir(out, sc)
     with _inner_progress("roots of every factor") as callback:
         section = roots_section(sc, directory, region=region, progress=callback)

@@ -20,6 +20,8 @@ from delayform.cli._common import (
     cli,
     limit_options,
     radius_option,
+    actuation_option,
+    with_actuation,
     scenario_options,
 )
 
@@ -31,12 +33,13 @@ from delayform.cli._common import (
 @click.option("--dt", type=POSITIVE, help="Time step in seconds [default: simulation.dt].")
 @limit_options
 @radius_option
+@actuation_option
 @click.option("--csv/--no-csv", "csv", default=None,
               help="Also write the trajectory and commands as CSV [default: only when under 20 MiB; NPZ always].")
 @click.option("--gif/--no-gif", default=False, show_default=True, help="Also write an animated GIF.")
 def simulate_command(scenario: Path | None, model: str | None, duration: float | None, dt: float | None,
                      seed: int | None, use_limits: bool | None, radius: float | None, assignment: str | None,
-                     safety: str | None,
+                     safety: str | None, actuation_delay: float | None,
                      csv: bool | None, gif: bool,
                      out: Path | None, as_json: bool, **overrides: Any) -> None:  # fmt: skip
     """Simulate the team at the scenario's delays into its formation.
@@ -53,13 +56,16 @@ def simulate_command(scenario: Path | None, model: str | None, duration: float |
     from delayform.report import simulation_section
 
     given = _limits_given(overrides)
-    sc = _scenario(scenario, seed=seed, **overrides)
+    sc = with_actuation(_scenario(scenario, seed=seed, **overrides), actuation_delay)
     sim = _simulation_spec(sc, model=model, duration=duration, dt=dt, assignment=assignment)
     robot = _robot(sc.robot, use_limits, given, sim.model)
     sc = replace(sc, simulation=sim, robot=robot, radius=sc.radius if radius is None else radius,
                  safety=sc.safety if safety is None else (None if safety == "none" else safety),
                  initial=replace(sc.initial, seed=sc.initial.seed if seed is None else seed))  # fmt: skip
     sc.robot_spec.check_slots(sc.desired_positions())  # bodies that overlap in formation: before writing
+    from delayform.simulation.runner import check_actuation
+
+    check_actuation(sc.robot_spec, sc.network, sim.dt)  # an actuation delay this run cannot model: before writing
     directory = _out_dir(out, sc)
     with _inner_progress(f"simulate {sim.model}, {sim.duration:g} s (steps)") as callback:
         section = simulation_section(sc, directory, gif=gif, csv=csv, progress=callback)

@@ -181,6 +181,10 @@ class Scenario:
         default of :class:`~delayform.simulation.robots.Robot`.
     safety
         ``[robot] safety``: the safety filter's name (``"barrier"``), or None.
+    actuation_delay
+        ``[robot] actuation_delay`` (s, default 0): each robot applies its
+        command that late (:attr:`~delayform.simulation.robots.Robot.actuation_delay`);
+        the simulation and the dominant roots use it.
     network
         The ``[network]`` table as a :class:`~delayform.simulation.network.Network`, or None.
     topology_spec
@@ -208,12 +212,14 @@ class Scenario:
     network: Network | None = None
     radius: float | None = None
     safety: str | None = None
+    actuation_delay: float = 0.0
 
     @property
     def robot_spec(self) -> Robot:
         """The ``[robot]`` table (and ``simulation.model``) as one :class:`~delayform.simulation.robots.Robot`."""
         limits = self.robot if self.simulation.model == "unicycle" else None  # limits apply to robots only
-        return Robot(model=self.simulation.model, limits=limits, radius=self.radius, safety=self.safety)
+        return Robot(model=self.simulation.model, limits=limits, radius=self.radius, safety=self.safety,
+                     actuation_delay=self.actuation_delay)  # fmt: skip
 
     def summary(self) -> dict[str, Any]:
         """The scenario as plain JSON-ready values, for summaries and report tables."""

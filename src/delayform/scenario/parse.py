@@ -174,7 +174,7 @@ def _robot(reader: _Reader, data: Mapping[str, Any] | None, model: str) -> Robot
     """The ``[robot]`` table: actuator limits, defaults from IROBOT_CREATE; None without the table."""
     if data is None:
         return None
-    reader.keys(data, "robot", ("limits", "safety") + _ROBOT_KEYS)
+    reader.keys(data, "robot", ("limits", "safety", "actuation_delay") + _ROBOT_KEYS)
     enabled = data.get("limits", True)
     if not isinstance(enabled, bool):
         raise reader.error("robot.limits", "true or false", enabled)
@@ -194,6 +194,13 @@ def _body_radius(reader: _Reader, data: Mapping[str, Any] | None) -> float | Non
     if data is None or "radius" not in data:
         return None
     return reader.non_negative("robot.radius", data["radius"])
+
+
+def _actuation_delay(reader: _Reader, data: Mapping[str, Any] | None) -> float:
+    """``[robot] actuation_delay`` (s): how late each robot applies its command; 0 if absent."""
+    if data is None or "actuation_delay" not in data:
+        return 0.0
+    return reader.non_negative("robot.actuation_delay", data["actuation_delay"])
 
 
 def _safety(reader: _Reader, data: Mapping[str, Any] | None) -> str | None:
@@ -329,6 +336,7 @@ def parse_scenario(data: Mapping[str, Any], *, source: str = "<scenario>", defau
     robot = _robot(reader, reader.table(data, "robot", required=False), simulation.model)
     radius = _body_radius(reader, reader.table(data, "robot", required=False))
     safety = _safety(reader, reader.table(data, "robot", required=False))
+    actuation_delay = _actuation_delay(reader, reader.table(data, "robot", required=False))
     chart = _chart(reader, reader.table(data, "chart", required=False) or {})
     grid = _map(reader, reader.table(data, "map", required=False) or {}, chart)
     schedule = _schedule(reader, reader.table(data, "schedule", required=False) or {}, (tau1, tau2), chart)
@@ -336,6 +344,7 @@ def parse_scenario(data: Mapping[str, Any], *, source: str = "<scenario>", defau
         name=name, description=description, topology=topology, P=P, D=D, tau1=tau1, tau2=tau2,
         formation=formation, simulation=simulation, initial=initial, chart=chart, map=grid,
         schedule=schedule, topology_spec=spec, source=source, robot=robot, radius=radius, safety=safety,
+        actuation_delay=actuation_delay,
         network=parse_network_table(reader, reader.table(data, "network", required=False), n),
     )  # fmt: skip
 

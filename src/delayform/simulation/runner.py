@@ -321,7 +321,7 @@ def simulate(
         raise SimulationInputError(f"network must be a Network, got {type(network).__name__}")
     if network is not None and network.is_ideal:
         network = None  # the paper's network: exactly the ordinary integrators
-    _check_actuation(robot, network, dt)
+    check_actuation(robot, network, dt)
     for name, tau in (("tau1", tau1), ("tau2", tau2)):
         if 0.0 < tau < dt * (1.0 - 1e-9):
             raise SimulationInputError(
@@ -400,7 +400,7 @@ def _robot(
     return robot
 
 
-def _check_actuation(robot: Robot, network: Network | None, dt: float) -> None:
+def check_actuation(robot: Robot, network: Network | None, dt: float) -> None:
     """Refuse the runs an actuation delay is not modelled for, with the reason."""
     ta = robot.actuation_delay
     if ta == 0.0:

@@ -21,8 +21,11 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+import numpy as np
+from numpy.typing import NDArray
+
 from delayform.analysis.roots.problem import UNIT_DELAYS, _problem_of_quasi
-from delayform.analysis.roots.single import _rightmost
+from delayform.analysis.roots.single import _rightmost, roots_in
 from delayform.characteristic import CharacteristicFactor
 from delayform.quasipolynomial import QuasiPolynomial
 
@@ -89,3 +92,19 @@ def actuated_beside_drift(factor: CharacteristicFactor, t2: float, ta: float) ->
     prob = replace(_problem_of_quasi(qp, (ta, t2)), deflate_zero=True)
     root = _rightmost(prob, *UNIT_DELAYS, where=f"(tau2, tau_a) = ({t2:g}, {ta:g})")
     return complex(root.real, abs(root.imag))
+
+
+def actuated_roots_in(
+    factor: CharacteristicFactor, t1: float, t2: float, ta: float, region: tuple[float, float, float, float]
+) -> NDArray[np.complex128]:
+    """Every root of one factor in the rectangle with actuation delay ``ta`` (certified, as :func:`roots_in`).
+
+    A conjugate pair's factor has the roots of lam and their conjugates: the
+    roots of lam in the rectangle and in its mirror image, the latter conjugated.
+    """
+    qp = actuated_factor(factor.P, factor.D, complex(factor.lam))
+    x0, x1, y0, y1 = region
+    roots = roots_in(qp, t1, t2, ta, region)
+    if factor.group.is_complex_pair:
+        roots = np.concatenate([roots, np.conj(roots_in(qp, t1, t2, ta, (x0, x1, -y1, -y0)))])
+    return roots[np.lexsort((-roots.imag, -roots.real))]
