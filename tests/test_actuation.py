@@ -207,3 +207,44 @@ def test_cli_roots_and_simulate_take_the_actuation_delay(tmp_path) -> None:
     proc = run("simulate", "--actuation-delay", "0.1", "--duration", "1", "--out", str(tmp_path / "s"), cwd=tmp_path)
     assert_one_line_error(proc, "actuation delay")
     assert not (tmp_path / "s").exists()
+
+
+# ============================================================ the exact map at a given actuation delay
+from delayform.analysis.ctcr.stability_map import stability_map  # noqa: E402
+from delayform.analysis.roots.single import count_roots_right_of  # noqa: E402
+from delayform.characteristic import factors  # noqa: E402
+from delayform.topology import ring  # noqa: E402
+
+
+def _certified_nu(top: Topology, P: float, D: float, t1: float, t2: float, ta: float) -> int:
+    """NU from the argument-principle count of every factor (the centroid's zero at s = 0 left out:
+    it counts the roots with Re s > 1e-7, a random point is not that close to a crossing)."""
+    total = 0
+    for f in factors(top, P, D):
+        c = 1e-7 if f.is_centroid else 0.0
+        n = count_roots_right_of(actuated_factor(P, D, complex(f.lam)), t1, t2, ta, c)
+        total += n * int(f.multiplicity) * (2 if f.group.is_complex_pair else 1)
+    return total
+
+
+def test_map_at_a_vanishing_actuation_delay_is_todays_map() -> None:
+    top = paper_six()
+    pts = np.random.default_rng(3).uniform(0.0, 8.0, (200, 2))
+    today = stability_map(top, 1.0, 0.5, 8.0, 8.0).unstable_count(pts[:, 0], pts[:, 1])
+    tiny = stability_map(top, 1.0, 0.5, 8.0, 8.0, actuation_delay=1e-7).unstable_count(pts[:, 0], pts[:, 1])
+    np.testing.assert_array_equal(tiny, today)
+    assert stability_map(top, 1.0, 0.5, 8.0, 8.0, actuation_delay=0.0).delay_free_count == 0
+
+
+@pytest.mark.parametrize(("top", "P", "D", "ta", "seed"), [
+    (paper_six(), 1.0, 0.5, 0.3, 0), (paper_six(), 1.0, 0.5, 1.0, 1), (ring(5), 2.0, 1.0, 0.2, 2),
+])  # fmt: skip
+def test_map_counts_equal_certified_counts_at_random_points(top: Topology, P: float, D: float, ta: float,
+                                                            seed: int) -> None:  # fmt: skip
+    m = stability_map(top, P, D, 6.0, 6.0, actuation_delay=ta)
+    assert m.actuation_delay == ta
+    pts = np.random.default_rng(seed).uniform(0.0, 6.0, (25, 2))
+    got = m.unstable_count(pts[:, 0], pts[:, 1])
+    ref = [_certified_nu(top, P, D, x, y, ta) for x, y in pts]
+    np.testing.assert_array_equal(got, ref)
+    assert int(m.unstable_count(0.0, 0.0)) == _certified_nu(top, P, D, 0.0, 0.0, ta)

@@ -105,7 +105,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from delayform._validation import check_delay_array, check_positive
+from delayform._validation import check_delay, check_delay_array, check_positive
+from delayform.analysis.ctcr.actuated import ActuatedStabilityMap, actuated_stability_map
 # the curves and the count live in one module per concept; names other modules and
 # tests import from here stay importable from here
 from delayform.analysis.ctcr.count import (  # noqa: F401
@@ -412,7 +413,9 @@ def crossing_map(qp: TwoDelayQuasiPolynomial, tau1_max: float, tau2_max: float) 
     return _assemble([(qp, 1, parts)], t1, t2)
 
 
-def stability_map(topology: Topology, P: float, D: float, tau1_max: float, tau2_max: float) -> StabilityMap:
+def stability_map(
+    topology: Topology, P: float, D: float, tau1_max: float, tau2_max: float, *, actuation_delay: float = 0.0
+) -> StabilityMap | ActuatedStabilityMap:
     """The exact CTCR stability map of the formation protocol (eq. protocolss).
 
     Every factor of eq. factorized is traced: a real eigenvalue lam gives the
@@ -429,10 +432,15 @@ def stability_map(topology: Topology, P: float, D: float, tau1_max: float, tau2_
         Positive gains of eq. protocol.
     tau1_max, tau2_max
         The window [0, tau1_max] x [0, tau2_max].
+    actuation_delay
+        tau_a >= 0 (s). Above 0 every factor gains the delayed own-state
+        terms and the map, exact in (tau1, tau2) at this tau_a, is an
+        :class:`~delayform.analysis.ctcr.actuated.ActuatedStabilityMap`
+        (same counting and drawing interface); 0 (default): the paper's map.
 
     Returns
     -------
-    StabilityMap
+    StabilityMap or ActuatedStabilityMap
 
     Raises
     ------
@@ -451,6 +459,8 @@ def stability_map(topology: Topology, P: float, D: float, tau1_max: float, tau2_
     """
     topology.require_spanning_tree()
     t1, t2 = _check_window(tau1_max, tau2_max)
+    if check_delay("actuation_delay", actuation_delay) > 0.0:
+        return actuated_stability_map(topology, P, D, t1, t2, actuation_delay)
     sources = []
     for idx, f in enumerate(factors(topology, P, D)):
         mult = f.multiplicity
