@@ -86,9 +86,10 @@ def factors_command(scenario: Path | None, as_json: bool, **overrides: Any) -> N
 @click.option("--tau2-max", type=POSITIVE, help="Top edge of the delay window [default: chart.tau2_max].")
 @click.option("--point", "points", type=LabelledPoint(), multiple=True,
               help="Delay pair to mark and classify, e.g. --point a=0.3,0.2 (repeatable) [default: chart.points].")
+@actuation_option
 def chart_command(scenario: Path | None, tau1_max: float | None, tau2_max: float | None,
-                  points: tuple[tuple[str, float, float], ...], out: Path | None, as_json: bool,
-                  **overrides: Any) -> None:  # fmt: skip
+                  points: tuple[tuple[str, float, float], ...], actuation_delay: float | None,
+                  out: Path | None, as_json: bool, **overrides: Any) -> None:  # fmt: skip
     """Exact CTCR stability chart in the (tau1, tau2) plane.
 
     Writes stability_chart.png/.svg (kernel curves red, offspring blue,
@@ -98,7 +99,7 @@ def chart_command(scenario: Path | None, tau1_max: float | None, tau2_max: float
     """
     from delayform.report import chart_section
 
-    sc = _scenario(scenario, **overrides)
+    sc = with_actuation(_scenario(scenario, **overrides), actuation_delay)
     chart = replace(
         sc.chart,
         tau1_max=sc.chart.tau1_max if tau1_max is None else tau1_max,

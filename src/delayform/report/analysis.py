@@ -108,7 +108,8 @@ def chart_section(scenario: Scenario, out: Path) -> Section:
         tau1_max=max([scenario.chart.tau1_max] + [a for _, a, _ in points]),
         tau2_max=max([scenario.chart.tau2_max] + [b for _, _, b in points]),
     )
-    smap = stability_map(scenario.topology, scenario.P, scenario.D, cs.tau1_max, cs.tau2_max)
+    smap = stability_map(scenario.topology, scenario.P, scenario.D, cs.tau1_max, cs.tau2_max,
+                         actuation_delay=scenario.actuation_delay)  # fmt: skip
     t1 = np.array([p[1] for p in points])
     t2 = np.array([p[2] for p in points])
     counts = np.asarray(smap.unstable_count(t1, t2))
@@ -124,6 +125,7 @@ def chart_section(scenario: Scenario, out: Path) -> Section:
     fraction = float(smap.stable_fraction())
     summary = {
         "window": [cs.tau1_max, cs.tau2_max],
+        "actuation_delay": scenario.actuation_delay,
         "curves": len(smap.curves),
         "kernel_curves": len(smap.kernel_curves),
         "delay_free_unstable_roots": int(smap.delay_free_count),

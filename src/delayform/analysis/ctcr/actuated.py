@@ -349,6 +349,16 @@ class ActuatedStabilityMap:
         """True where NU = 0."""
         return self.unstable_count(tau1, tau2) == 0
 
+    def stable_fraction(self, *, resolution: int = 400) -> float:
+        """Fraction of the window's area that is stable (cell centres of a resolution x resolution grid)."""
+        centres = (np.arange(resolution) + 0.5) / resolution
+        return float(np.mean(self.is_stable(centres[None, :] * self.tau1_max, centres[:, None] * self.tau2_max)))
+
+    @property
+    def kernel_curves(self) -> tuple[CrossingCurve, ...]:
+        """The kernel curves only."""
+        return tuple(c for c in self.curves if c.is_kernel)
+
     def plot(self, ax: Axes | None = None, points: dict[str, tuple[float, float]] | None = None) -> Axes:
         """Draw the chart (see :func:`delayform.plots.stability_chart`)."""
         from delayform.plots import stability_chart
