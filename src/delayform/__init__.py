@@ -105,6 +105,9 @@ _EXPORTS: dict[str, str] = {
     "Contact": "simulation",
     "Approach": "simulation",
     "closest_approach": "simulation",
+    # actuation delay (issue 21, item 4)
+    "actuated_factor": "analysis.roots.actuated",
+    "ActuatedStabilityMap": "analysis.ctcr.actuated",
 }
 
 __all__ = sorted(_EXPORTS) + ["errors", "__version__"]
