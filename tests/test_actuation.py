@@ -248,3 +248,17 @@ def test_map_counts_equal_certified_counts_at_random_points(top: Topology, P: fl
     ref = [_certified_nu(top, P, D, x, y, ta) for x, y in pts]
     np.testing.assert_array_equal(got, ref)
     assert int(m.unstable_count(0.0, 0.0)) == _certified_nu(top, P, D, 0.0, 0.0, ta)
+
+
+def test_explorer_point_report_uses_the_scenarios_actuation_delay(tmp_path) -> None:
+    import dataclasses
+
+    from delayform.app import Explorer
+    from delayform.scenario import paper_scenario
+
+    ex = Explorer(dataclasses.replace(paper_scenario(), actuation_delay=0.3), out_dir=tmp_path)
+    report = ex.point(1.0, 0.5, 0.3, 0.2).as_json()
+    assert report["actuation_delay"] == 0.3 and report["stable"] is False
+    assert report["unstable_count"] == _certified_nu(paper_six(), 1.0, 0.5, 0.3, 0.2, 0.3) == 2
+    ref = dominant_root(paper_six(), 1.0, 0.5, 0.3, 0.2, actuation_delay=0.3).root
+    assert complex(*report["dominant_root"]) == pytest.approx(ref)

@@ -42,6 +42,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from delayform.analysis.roots.actuated import actuated_roots_in
 from delayform.analysis.ctcr.stability_map import StabilityMap, stability_map
 from delayform.analysis.roots.team_roots import factor_roots_in
 from delayform.analysis.roots.dominant import DominantRoot, dominant_root, roots_in
@@ -167,6 +168,7 @@ class PointReport(_AtPoint):
             "time_constant": None if math.isinf(self.dominant.time_constant) else self.dominant.time_constant,
             "growth_rate": max(root.real, 0.0),
             "dominant_factor": self.dominant.factor.describe(),
+            "actuation_delay": self.dominant.actuation_delay,
         }  # fmt: skip
 
 
@@ -463,7 +465,9 @@ class Explorer:
         """
         key = (P, D, tau1_max, tau2_max)
         topology = self.scenario.topology
-        return self._cached(self._maps, key, _MAP_CACHE, lambda: stability_map(topology, P, D, tau1_max, tau2_max))
+        ta = self.scenario.actuation_delay  # [robot] actuation_delay: the exact map at that tau_a
+        return self._cached(self._maps, key, _MAP_CACHE,
+                            lambda: stability_map(topology, P, D, tau1_max, tau2_max, actuation_delay=ta))  # fmt: skip
 
     def _map_covering(self, P: float, D: float, tau1: float, tau2: float) -> StabilityMap:
         with self._lock:
@@ -506,7 +510,8 @@ class Explorer:
         """
         self._check_bandwidth(P, D, max(tau1, tau2), "tau1, tau2")
         count = int(self._map_covering(P, D, tau1, tau2).unstable_count(tau1, tau2))
-        return PointReport(P, D, tau1, tau2, count, dominant_root(self.scenario.topology, P, D, tau1, tau2))
+        dom = dominant_root(self.scenario.topology, P, D, tau1, tau2, actuation_delay=self.scenario.actuation_delay)
+        return PointReport(P, D, tau1, tau2, count, dom)
 
     def roots(self, P: float, D: float, tau1: float, tau2: float) -> RootsReport:
         """The roots of every factor in a window around the imaginary axis and the dominant root.
@@ -526,7 +531,8 @@ class Explorer:
         """
         self._check_bandwidth(P, D, max(tau1, tau2), "tau1, tau2")
         topology = self.scenario.topology
-        dom = dominant_root(topology, P, D, tau1, tau2).root
+        ta = self.scenario.actuation_delay
+        dom = dominant_root(topology, P, D, tau1, tau2, actuation_delay=ta).root
         height = max(min(_ROOT_WINDOW_IM, _ROOT_WINDOW_PHASE / max(tau1, tau2, 1e-12)), abs(dom.imag) + 0.5)
         # irrational nudges keep the edges off roots exactly on the real axis or at s = 0
         region = (
@@ -540,12 +546,14 @@ class Explorer:
         certified = True
         fs = factors(topology, P, D)
         try:  # all factors as one family; factor by factor only to keep what a failing one found
-            per_factor = [roots for _, roots in factor_roots_in(topology, P, D, tau1, tau2, region)]
+            per_factor = [roots for _, roots in factor_roots_in(topology, P, D, tau1, tau2, region,
+                                                                actuation_delay=ta)]  # fmt: skip
         except NotConvergedError:
             per_factor = []
             for f in fs:
                 try:
-                    per_factor.append(roots_in(f, tau1, tau2, region))
+                    per_factor.append(actuated_roots_in(f, tau1, tau2, ta, region) if ta > 0.0
+                                      else roots_in(f, tau1, tau2, region))  # fmt: skip
                 except NotConvergedError as exc:
                     certified = False
                     per_factor.append(np.asarray(exc.partial if exc.partial is not None else [], dtype=np.complex128))
