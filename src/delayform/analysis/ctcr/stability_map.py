@@ -459,8 +459,7 @@ def stability_map(
     """
     topology.require_spanning_tree()
     t1, t2 = _check_window(tau1_max, tau2_max)
-    if check_delay("actuation_delay", actuation_delay) > 0.0:
-        return actuated_stability_map(topology, P, D, t1, t2, actuation_delay)
+    ta = check_delay("actuation_delay", actuation_delay)
     sources = []
     for idx, f in enumerate(factors(topology, P, D)):
         mult = f.multiplicity
@@ -469,7 +468,10 @@ def stability_map(
         else:
             parts = [_Part(_lam_factor(f.P, f.D, lam), 2 * mult, idx, complex(lam)) for lam in (f.lam, np.conj(f.lam))]
         sources.append((f.quasi_polynomial, mult, parts))
+    # with an actuation delay the crossing frequencies obey the same bound (|e^{-j w tau_a}| = 1)
     _guard_window([p.qp for _, _, parts in sources for p in parts], t1, t2)
+    if ta > 0.0:
+        return actuated_stability_map(topology, P, D, t1, t2, ta)
     return _assemble(sources, t1, t2)
 
 
