@@ -110,7 +110,13 @@ class BarrierFilter:
 
 
 def check_safety(safety: object) -> BarrierFilter | None:
-    """``None``, a :class:`BarrierFilter`, or a name of :data:`SAFETY_FILTERS` -> the filter (or None)."""
+    """``None``, a :class:`BarrierFilter`, or a name of :data:`SAFETY_FILTERS` -> the filter (or None).
+
+    Parameters
+    ----------
+    safety
+        What the user gave; anything else raises SimulationInputError.
+    """
     if safety is None or isinstance(safety, BarrierFilter):
         return safety
     if isinstance(safety, str) and safety in SAFETY_FILTERS:
