@@ -103,6 +103,10 @@ _EXPORTS: dict[str, str] = {
     "Contact": "simulation",
     "Approach": "simulation",
     "closest_approach": "simulation",
+    "assign_slots": "simulation.assignment",
+    "SlotAssignment": "simulation.assignment",
+    "BarrierFilter": "simulation.safety",
+    "SafetyReport": "simulation.safety",
 }
 
 __all__ = sorted(_EXPORTS) + ["errors", "__version__"]
