@@ -105,6 +105,10 @@ _EXPORTS: dict[str, str] = {
     "Contact": "simulation",
     "Approach": "simulation",
     "closest_approach": "simulation",
+    "assign_slots": "simulation.assignment",
+    "SlotAssignment": "simulation.assignment",
+    "BarrierFilter": "simulation.safety",
+    "SafetyReport": "simulation.safety",
     # actuation delay (issue 21, item 4)
     "actuated_factor": "analysis.roots.actuated",
     "ActuatedStabilityMap": "analysis.ctcr.actuated",

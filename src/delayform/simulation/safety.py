@@ -79,6 +79,9 @@ SAFETY_FILTERS = ("barrier",)
 #: teams up to this size test every pair; larger ones use a KD-tree per step
 _ALL_PAIRS = 64
 
+#: rounds of the active set before every side of the polygons is taken
+_ROUNDS = 3
+
 #: a constraint counts as satisfied within this relative tolerance
 _FEASIBLE = 1e-9
 
@@ -262,6 +265,7 @@ def _solve_polygons(
     tol = _FEASIBLE * (1.0 + np.abs(b))
     u = u_hat.copy()
     squeezed = np.zeros(n, dtype=bool)
+    rounds = 0
     while True:
         u_new, empty = _closest_in_polygons(rows[use], A[use], b[use], u_hat, n)
         u[moving] = u_new[moving]
@@ -271,7 +275,9 @@ def _solve_polygons(
         violated = ((A * u[rows]).sum(axis=1) - b > tol) & ~use & ~squeezed[rows]
         if not violated.any():
             return u, moving, squeezed
-        use |= violated
+        rounds += 1
+        # after a few rounds take every side at once: as exact, and the rounds stay bounded
+        use |= violated if rounds < _ROUNDS else np.ones_like(use)
 
 
 def _closest_in_polygons(
