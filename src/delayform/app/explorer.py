@@ -43,6 +43,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from delayform._files import atomic_path
+from delayform._validation import validated
 from delayform.analysis.roots.actuated import actuated_roots_in
 from delayform.analysis.ctcr.stability_map import StabilityMap, stability_map
 from delayform.analysis.network import JitterMargin, jitter_margin

@@ -12,6 +12,7 @@ from numpy.typing import NDArray
 
 from delayform._files import atomic_path, save_npz
 from delayform._display import FigureRepr  # Jupyter shows the figure (issue 23)
+from delayform._validation import validated
 from delayform.errors import SimulationInputError
 from delayform.simulation.bodies import Contact
 from delayform.simulation.commands import RobotCommands

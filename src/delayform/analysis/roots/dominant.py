@@ -38,7 +38,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from delayform.analysis.network.per_link import LinkDominantRoot, link_dominant_root
-from delayform._validation import check_delay, check_gains
+from delayform._validation import check_delay, check_gains, validated
 from delayform.analysis.roots.actuated import actuated_beside_drift, actuated_rightmost
 from delayform.analysis.roots.family.solve import family_grid, family_rightmost
 from delayform.analysis.roots.problem import MAX_DEGREE, RESIDUAL_TOL, _Problem, _problem_of_factor, _problem_of_qp

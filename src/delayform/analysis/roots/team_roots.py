@@ -32,7 +32,7 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from delayform._validation import check_delay
+from delayform._validation import check_delay, validated
 from delayform.analysis.roots.actuated import actuated_roots_in
 from delayform.analysis.roots.family.solve import family_reach_scales
 from delayform.analysis.roots.family.polish import _polish_rows, _q
