@@ -113,7 +113,18 @@ class BarrierFilter:
 
 
 def check_safety(safety: object) -> BarrierFilter | None:
-    """``None``, a :class:`BarrierFilter`, or a name of :data:`SAFETY_FILTERS` -> the filter (or None)."""
+    """``None``, a :class:`BarrierFilter`, or a name of :data:`SAFETY_FILTERS` -> the filter (or None).
+
+    Parameters
+    ----------
+    safety
+        What ``simulate(..., safety=...)`` or ``Robot(safety=...)`` was given.
+
+    Raises
+    ------
+    SimulationInputError
+        For anything else.
+    """
     if safety is None or isinstance(safety, BarrierFilter):
         return safety
     if isinstance(safety, str) and safety in SAFETY_FILTERS:
