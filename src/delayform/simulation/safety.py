@@ -118,7 +118,12 @@ def check_safety(safety: object) -> BarrierFilter | None:
     Parameters
     ----------
     safety
-        What the user gave; anything else raises SimulationInputError.
+        What ``simulate(..., safety=...)`` or ``Robot(safety=...)`` was given.
+
+    Raises
+    ------
+    SimulationInputError
+        For anything else.
     """
     if safety is None or isinstance(safety, BarrierFilter):
         return safety
