@@ -123,8 +123,11 @@ class MissingGlyphWarning(UserWarning):
 _GLYPH_MISSING = re.compile(r"Glyph (\d+) .*missing from font")
 
 
-def savefig_noting_glyphs(fig: Figure, target: object, *, where: str, **kwargs: object) -> None:
-    """``fig.savefig(target, **kwargs)``, the missing-glyph warnings gathered into one.
+def savefig_noting_glyphs(fig: Figure, tmp: object, *, where: str, **kwargs: object) -> None:
+    """``fig.savefig(tmp, **kwargs)``, the missing-glyph warnings gathered into one.
+
+    ``tmp`` is a temporary path of :func:`delayform._files.atomic_path` or an
+    in-memory buffer: this function never writes a user's file directly.
 
     The default font, DejaVu Sans (shipped with matplotlib), covers Latin,
     Greek, Cyrillic and most symbols; other scripts (CJK, emoji) are not in any
@@ -133,7 +136,7 @@ def savefig_noting_glyphs(fig: Figure, target: object, *, where: str, **kwargs: 
     """
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        fig.savefig(target, **kwargs)  # type: ignore[arg-type]
+        fig.savefig(tmp, **kwargs)  # type: ignore[arg-type]
     missing: list[str] = []
     for w in caught:
         match = _GLYPH_MISSING.search(str(w.message))

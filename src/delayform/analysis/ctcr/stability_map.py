@@ -139,7 +139,7 @@ from delayform.analysis.ctcr.curves import (  # noqa: F401
     _tendency,
     _ZeroLine,
 )
-from delayform.analysis.ctcr.general import as_traced
+from delayform.analysis.ctcr.general import TermsQP, as_traced
 from delayform.characteristic import TwoDelayQuasiPolynomial, factors
 from delayform.quasipolynomial import QuasiPolynomial
 from delayform.resources import require
@@ -193,7 +193,7 @@ class StabilityMap(FigureRepr):
     tau1_max: float
     tau2_max: float
     delay_free_count: int
-    traced: tuple[TwoDelayQuasiPolynomial, ...] = field(repr=False)
+    traced: tuple[TwoDelayQuasiPolynomial | TermsQP, ...] = field(repr=False)
     _start1: int = field(repr=False)
     _axis2: tuple[NDArray[np.float64], NDArray[np.float64]] = field(repr=False)
     _axis1: tuple[NDArray[np.float64], NDArray[np.float64]] = field(repr=False)
