@@ -58,7 +58,7 @@ def test_json_equals_the_library(tmp_path: Path) -> None:
     assert printed["final_error"]["median"] == pytest.approx(lib["final_error"]["median"], rel=1e-12)
     assert printed["peak_command_1"]["max"] == pytest.approx(lib["peak_command_1"]["max"], rel=1e-12)
     rows = np.loadtxt(tmp_path / "mc" / "montecarlo_runs.csv", delimiter=",", skiprows=1)
-    assert rows.shape == (5, 5)
+    assert rows.shape == (5, 7)
     assert {f.rsplit("/", 1)[-1] for f in printed["files"]} >= {"montecarlo_bands.png", "montecarlo_histograms.svg"}
 
 

@@ -303,14 +303,15 @@ def test_paper_simulations_points_a_and_b():
 
 
 # ------------------------------------------------------------- metrics
-def test_min_distance_matches_brute_force_for_large_team():
+def test_min_distance_at_most_the_brute_force_over_samples_for_large_team():
     topo = ring(90)
     traj = simulate(topo, P, D, 0.1, 0.1, "polygon", model="double_integrator",
                     duration=0.5, dt=0.1, seed=7)
     pos = traj.positions
     diff = np.linalg.norm(pos[:, :, None] - pos[:, None, :], axis=-1)
     diff[:, np.arange(90), np.arange(90)] = np.inf
-    assert traj.min_distance == pytest.approx(diff.min(), rel=1e-12)
+    # exact between samples too (tests/test_bodies.py): never above the samples' minimum
+    assert diff.min() - 0.05 <= traj.min_distance <= diff.min()
 
 
 def test_sparse_team_and_saving_stride():

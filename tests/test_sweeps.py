@@ -100,7 +100,7 @@ def test_monte_carlo_result_figures_and_table() -> None:
     assert mc.command_names == ("|dv/dt|", "|omega|")
     ax = mc.plot()
     assert ax.get_yscale() == "log"
-    assert len(mc.plot_histograms()) == 3
+    assert len(mc.plot_histograms()) == 4
     rows = dict(mc.table())
     assert set(rows) >= {"settling time: median [5 %, 95 %]", "final formation error", "peak |omega|"}
     q = mc.quantiles((0.1, 0.9))

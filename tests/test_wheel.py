@@ -8,6 +8,7 @@ script and Plotly served from the installed package).
 
 from __future__ import annotations
 
+import os
 import re
 import subprocess
 import sys
@@ -24,7 +25,9 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def _run(args: list[str], *, timeout: float = 600, cwd: Path | None = None) -> str:
-    done = subprocess.run(args, capture_output=True, text=True, timeout=timeout, cwd=cwd, check=False)
+    # without PYTHONPATH: the bare venv must import the installed wheel, never a source tree
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    done = subprocess.run(args, capture_output=True, text=True, timeout=timeout, cwd=cwd, check=False, env=env)
     assert done.returncode == 0, f"{' '.join(args)}\n{done.stdout[-2000:]}\n{done.stderr[-3000:]}"
     return done.stdout
 

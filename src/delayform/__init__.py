@@ -159,6 +159,18 @@ _EXPORTS: dict[str, str] = {
         "FormationError", "SimulationInputError", "NetworkError", "ClusterError", "ScenarioError",
         "ResourceLimitError", "NotConvergedError",
     )},  # fmt: skip
+    # robots with bodies (issue 21)
+    "Robot": "simulation",
+    "Contact": "simulation",
+    "Approach": "simulation",
+    "closest_approach": "simulation",
+    "assign_slots": "simulation.assignment",
+    "SlotAssignment": "simulation.assignment",
+    "BarrierFilter": "simulation.safety",
+    "SafetyReport": "simulation.safety",
+    # actuation delay (issue 21, item 4)
+    "actuated_factor": "analysis.roots.actuated",
+    "ActuatedStabilityMap": "analysis.ctcr.actuated",
 }
 
 __all__ = sorted(_EXPORTS) + ["errors", "__version__"]

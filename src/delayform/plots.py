@@ -126,8 +126,8 @@ _GLYPH_MISSING = re.compile(r"Glyph (\d+) .*missing from font")
 def savefig_noting_glyphs(fig: Figure, tmp: object, *, where: str, **kwargs: object) -> None:
     """``fig.savefig(tmp, **kwargs)``, the missing-glyph warnings gathered into one.
 
-    ``tmp`` is the temporary file of :func:`delayform._files.atomic_path` or an
-    in-memory buffer, never the final name (a failed figure leaves no file).
+    ``tmp`` is a temporary path of :func:`delayform._files.atomic_path` or an
+    in-memory buffer: this function never writes a user's file directly.
 
     The default font, DejaVu Sans (shipped with matplotlib), covers Latin,
     Greek, Cyrillic and most symbols; other scripts (CJK, emoji) are not in any

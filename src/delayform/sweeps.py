@@ -439,7 +439,8 @@ class SweepResult:
         Parameters
         ----------
         metric
-            ``settling_time``, ``final_error``, ``peak_command_1`` or ``peak_command_2``.
+            ``settling_time``, ``final_error``, ``peak_command_1``, ``peak_command_2`` or
+            ``min_distance`` (closest approach of two robots).
         q
             Probability of the quantile (:func:`~delayform.simulation.montecarlo.quantile`:
             the ordinary median at 0.5; runs that did not settle count as infinite).
@@ -447,12 +448,14 @@ class SweepResult:
         return np.array([float(mc.run_quantile(r.metric(metric), q)) for r in self.results])
 
     def table(self) -> tuple[tuple[str, str], ...]:
-        """Rows ``(point, settling median [5 %, 95 %] and settled fraction)``."""
+        """Rows ``(point, settling median [5 %, 95 %], settled fraction, closest approach, contacts)``."""
         rows = []
         for label, r in zip(self.labels, self.results, strict=True):
             s = r.summary()["settling_time"]
+            close = r.summary()["min_distance"]["median"]
+            bodies = f", contacts in {100 * r.contact_probability:.0f} %" if r.setup.robot.body_radius > 0 else ""
             rows.append((label, f"{_fmt(s['median'])} s [{_fmt(s['q05'])}, {_fmt(s['q95'])}], "
-                                f"{100 * r.settled_fraction:.0f} % settled"))  # fmt: skip
+                                f"{100 * r.settled_fraction:.0f} % settled, closest {_fmt(close)} m{bodies}"))  # fmt: skip
         return tuple(rows)
 
     def summary(self) -> dict[str, Any]:

@@ -44,6 +44,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from delayform._files import atomic_path
 from delayform._validation import validated
+from delayform.analysis.roots.actuated import actuated_roots_in
 from delayform.analysis.ctcr.stability_map import StabilityMap, stability_map
 from delayform.analysis.network import JitterMargin, jitter_margin
 from delayform.analysis.roots.team_roots import factor_roots_in
@@ -55,7 +56,7 @@ from delayform.app.scenario_toml import scenario_toml
 from delayform.characteristic import factors
 from delayform.errors import InputError, NotConvergedError
 from delayform.scenario import Scenario
-from delayform.simulation import IROBOT_CREATE, RobotLimits, Trajectory, simulate
+from delayform.simulation import IROBOT_CREATE, Robot, RobotLimits, Trajectory, simulate
 from delayform.simulation.network import BernoulliLoss, Jitter, Network
 
 __all__ = ["Explorer", "PointReport", "RootsReport", "ChartData", "Animation", "crossing_frequency_bound"]
@@ -171,6 +172,7 @@ class PointReport(_AtPoint):
             "time_constant": None if math.isinf(self.dominant.time_constant) else self.dominant.time_constant,
             "growth_rate": max(root.real, 0.0),
             "dominant_factor": self.dominant.factor.describe(),
+            "actuation_delay": self.dominant.actuation_delay,
         }  # fmt: skip
 
 
@@ -324,6 +326,8 @@ class Animation:
             "settling_time": None if math.isinf(tr.settling_time) else tr.settling_time,
             "final_error": float(tr.formation_error[k[-1]]),
             "min_distance": tr.min_distance if self.diverged_at is None else None,
+            "radius": tr.radius,
+            "contacts": [[c.agents[0], c.agents[1], c.start, c.end, c.closest] for c in tr.contacts],
             "diverged_at": self.diverged_at,
             "status": tr.status,
             "warnings": list(tr.warnings),
@@ -505,7 +509,9 @@ class Explorer:
         """
         key = (P, D, tau1_max, tau2_max)
         topology = self.scenario.topology
-        return self._cached(self._maps, key, _MAP_CACHE, lambda: stability_map(topology, P, D, tau1_max, tau2_max))
+        ta = self.scenario.actuation_delay  # [robot] actuation_delay: the exact map at that tau_a
+        return self._cached(self._maps, key, _MAP_CACHE,
+                            lambda: stability_map(topology, P, D, tau1_max, tau2_max, actuation_delay=ta))  # fmt: skip
 
     def _map_covering(self, P: float, D: float, tau1: float, tau2: float) -> StabilityMap:
         with self._lock:
@@ -548,7 +554,8 @@ class Explorer:
         """
         self._check_bandwidth(P, D, max(tau1, tau2), "tau1, tau2", roots=True)
         count = int(self._map_covering(P, D, tau1, tau2).unstable_count(tau1, tau2))
-        return PointReport(P, D, tau1, tau2, count, dominant_root(self.scenario.topology, P, D, tau1, tau2))
+        dom = dominant_root(self.scenario.topology, P, D, tau1, tau2, actuation_delay=self.scenario.actuation_delay)
+        return PointReport(P, D, tau1, tau2, count, dom)
 
     def guarantee(self, P: float, D: float, tau1: float, tau2: float) -> GuaranteeReport:
         """The certified jitter margin at one delay pair (issue 20), for teams up to :data:`GUARANTEE_AGENTS`.
@@ -583,7 +590,8 @@ class Explorer:
         """
         self._check_bandwidth(P, D, max(tau1, tau2), "tau1, tau2", roots=True)
         topology = self.scenario.topology
-        dom = dominant_root(topology, P, D, tau1, tau2).root
+        ta = self.scenario.actuation_delay
+        dom = dominant_root(topology, P, D, tau1, tau2, actuation_delay=ta).root
         height = max(min(_ROOT_WINDOW_IM, _ROOT_WINDOW_PHASE / max(tau1, tau2, 1e-12)), abs(dom.imag) + 0.5)
         # irrational nudges keep the edges off roots exactly on the real axis or at s = 0
         region = (
@@ -597,12 +605,14 @@ class Explorer:
         certified = True
         fs = factors(topology, P, D)
         try:  # all factors as one family; factor by factor only to keep what a failing one found
-            per_factor = [roots for _, roots in factor_roots_in(topology, P, D, tau1, tau2, region)]
+            per_factor = [roots for _, roots in factor_roots_in(topology, P, D, tau1, tau2, region,
+                                                                actuation_delay=ta)]  # fmt: skip
         except NotConvergedError:
             per_factor = []
             for f in fs:
                 try:
-                    per_factor.append(roots_in(f, tau1, tau2, region))
+                    per_factor.append(actuated_roots_in(f, tau1, tau2, ta, region) if ta > 0.0
+                                      else roots_in(f, tau1, tau2, region))  # fmt: skip
                 except NotConvergedError as exc:
                     certified = False
                     per_factor.append(np.asarray(exc.partial if exc.partial is not None else [], dtype=np.complex128))
@@ -727,7 +737,8 @@ class Explorer:
         def run() -> tuple[Trajectory, int]:
             with np.errstate(over="ignore", invalid="ignore"):  # an unstable run may overflow; cut below
                 tr = simulate(
-                    s.topology, P, D, tau1, tau2, s.desired_positions(), model=s.simulation.model, limits=robot,
+                    s.topology, P, D, tau1, tau2, s.desired_positions(),
+                    robot=Robot(model=s.simulation.model, limits=robot, radius=s.radius, safety=s.safety),
                     network=net,
                     initial_positions=s.initial_positions(), initial_headings=s.initial_headings(),
                     initial_speed=s.initial.speed, seed=s.initial.seed, duration=duration, dt=dt,

@@ -134,6 +134,8 @@ def scenario_toml(scenario: Scenario) -> str:
     sim = s.simulation
     out += ["", "[simulation]", f"model = {_string(sim.model)}",
             f"duration = {_number(sim.duration)}", f"dt = {_number(sim.dt)}"]  # fmt: skip
+    if sim.assignment != "given":
+        out.append(f"assignment = {_string(sim.assignment)}")
     ini = s.initial
     out += ["", "[initial]", f"seed = {ini.seed}", f"speed = {_number(ini.speed)}"]
     if ini.positions is not None:
@@ -141,8 +143,17 @@ def scenario_toml(scenario: Scenario) -> str:
     if ini.headings is not None:
         out.append(f"headings = {_array(ini.headings)}")
     if s.robot is not None:  # actuator limits (delayform.simulation.RobotLimits)
+        values = {f.name: getattr(s.robot, f.name) for f in fields(s.robot)}
+        if s.radius is not None:  # the body's radius, which may be 0 (points) unlike a limit
+            values["radius"] = s.radius
         out += ["", "[robot]"] + ([f"profile = {_string(s.robot_profile)}"] if s.robot_profile else [])
-        out += [f"{f.name} = {_number(getattr(s.robot, f.name))}" for f in fields(s.robot)]
+        out += [f"{k} = {_number(v)}" for k, v in values.items()]
+    elif s.radius is not None or s.safety is not None:
+        out += ["", "[robot]", "limits = false"]
+        if s.radius is not None:
+            out.append(f"radius = {_number(s.radius)}")
+    if s.safety is not None:
+        out.append(f"safety = {_string(s.safety)}")
     chart = s.chart
     out += ["", "[chart]", f"tau1_max = {_number(chart.tau1_max)}", f"tau2_max = {_number(chart.tau2_max)}"]
     if chart.points:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import sys
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -212,6 +213,37 @@ def _with_robot(scenario: Scenario, use_limits: bool | None, given: dict[str, An
 
         require_formation_fit(scenario.desired_positions(), replace(robot_profile(profile), limits=robot))
     return replace(scenario, robot=robot, robot_profile=profile)
+def radius_option(func: F) -> F:
+    """``--radius``, ``--safety`` (the scenario's ``[robot]`` table) and ``--assignment`` (``[simulation]``)."""
+    func = click.option("--safety", type=click.Choice(("barrier", "none")),
+                        help="Filter every command through control barrier functions that keep the bodies apart "
+                             "(barrier) or not (none) [default: robot.safety, else none].")(func)  # fmt: skip
+    func = click.option("--assignment", type=click.Choice(("given", "optimal")),
+                        help="Which robot takes which slot: given (robot i, slot i) or optimal (least total squared "
+                             "distance to the predicted final positions) [default: simulation.assignment].")(func)  # fmt: skip
+    return click.option("--radius", type=NON_NEGATIVE,
+                        help="Body radius of each robot (m), for contacts [default: robot.radius, else 0.17 m "
+                             "(the iRobot Create) for robots and 0 (points) for double integrators].")(func)  # fmt: skip
+
+
+def _finite_delay(ctx: click.Context, param: click.Parameter, value: float | None) -> float | None:
+    if value is not None and not (math.isfinite(value) and value >= 0.0):
+        raise click.BadParameter(f"{value} is not a finite non-negative delay (seconds)")
+    return value
+
+
+def actuation_option(func: F) -> F:
+    """``--actuation-delay`` (the scenario's ``[robot] actuation_delay``): each robot applies its command late."""
+    return click.option("--actuation-delay", "actuation_delay", type=float, callback=_finite_delay,
+                        help="Actuation delay tau_a (s): each robot applies its command tau_a late; every factor "
+                             "gains the delayed own-state terms [default: robot.actuation_delay, else 0].")(func)  # fmt: skip
+
+
+def with_actuation(scenario: Scenario, actuation_delay: float | None) -> Scenario:
+    """The scenario with ``--actuation-delay`` applied when given."""
+    from dataclasses import replace
+
+    return scenario if actuation_delay is None else replace(scenario, actuation_delay=actuation_delay)
 
 
 def _team_options() -> list[Callable[[F], F]]:
@@ -287,13 +319,14 @@ def _scenario(
     return scenario.with_changes(topology=topology, P=P, D=D, tau1=tau1, tau2=tau2, formation=formation_name)
 
 
-def _simulation_spec(scenario: Scenario, *, model: str | None, duration: float | None, dt: float | None) -> Any:
-    """The scenario's ``[simulation]`` table with ``--model``, ``--duration`` and ``--dt`` applied."""
+def _simulation_spec(scenario: Scenario, *, model: str | None, duration: float | None, dt: float | None,
+                     assignment: str | None = None) -> Any:  # fmt: skip
+    """The scenario's ``[simulation]`` table with ``--model``, ``--duration``, ``--dt`` and ``--assignment`` applied."""
     from delayform.scenario import SimulationSpec
 
     sim = scenario.simulation
     spec = SimulationSpec(model=model or sim.model, duration=sim.duration if duration is None else duration,
-                          dt=sim.dt if dt is None else dt)  # fmt: skip
+                          dt=sim.dt if dt is None else dt, assignment=assignment or sim.assignment)  # fmt: skip
     if spec.dt >= spec.duration:
         raise click.BadParameter(f"the step must be smaller than the duration {spec.duration:g}", param_hint="--dt")
     return spec

@@ -17,9 +17,11 @@ from delayform.cli._common import (
     _inner_progress,
     _out_dir,
     _scenario,
+    actuation_option,
     cli,
     scenario_options,
     team_options,
+    with_actuation,
 )
 
 if TYPE_CHECKING:
@@ -84,9 +86,10 @@ def factors_command(scenario: Path | None, as_json: bool, **overrides: Any) -> N
 @click.option("--tau2-max", type=POSITIVE, help="Top edge of the delay window [default: chart.tau2_max].")
 @click.option("--point", "points", type=LabelledPoint(), multiple=True,
               help="Delay pair to mark and classify, e.g. --point a=0.3,0.2 (repeatable) [default: chart.points].")
+@actuation_option
 def chart_command(scenario: Path | None, tau1_max: float | None, tau2_max: float | None,
-                  points: tuple[tuple[str, float, float], ...], out: Path | None, as_json: bool,
-                  **overrides: Any) -> None:  # fmt: skip
+                  points: tuple[tuple[str, float, float], ...], actuation_delay: float | None,
+                  out: Path | None, as_json: bool, **overrides: Any) -> None:  # fmt: skip
     """Exact CTCR stability chart in the (tau1, tau2) plane.
 
     Writes stability_chart.png/.svg (kernel curves red, offspring blue,
@@ -96,7 +99,7 @@ def chart_command(scenario: Path | None, tau1_max: float | None, tau2_max: float
     """
     from delayform.report import chart_section
 
-    sc = _scenario(scenario, **overrides)
+    sc = with_actuation(_scenario(scenario, **overrides), actuation_delay)
     chart = replace(
         sc.chart,
         tau1_max=sc.chart.tau1_max if tau1_max is None else tau1_max,
@@ -125,8 +128,9 @@ def chart_command(scenario: Path | None, tau1_max: float | None, tau2_max: float
 @click.option("--region", type=FloatTuple(4),
               help="Rectangle RE_MIN,RE_MAX,IM_MIN,IM_MAX of the s-plane in which to list every root "
                    "[default: Re from min(-2, 2 Re(dominant)) to 1, Im from -0.01 to 10].")  # fmt: skip
+@actuation_option
 def roots_command(scenario: Path | None, region: tuple[float, float, float, float] | None,
-                  out: Path | None, as_json: bool, **overrides: Any) -> None:  # fmt: skip
+                  actuation_delay: float | None, out: Path | None, as_json: bool, **overrides: Any) -> None:  # fmt: skip
     """Dominant root and characteristic roots at one delay pair.
 
     The dominant root is the rightmost root over all factors, the centroid
@@ -140,7 +144,7 @@ def roots_command(scenario: Path | None, region: tuple[float, float, float, floa
 
     if region is not None and (region[0] >= region[1] or region[2] >= region[3]):
         raise click.BadParameter("expected RE_MIN < RE_MAX and IM_MIN < IM_MAX", param_hint="--region")
-    sc = _scenario(scenario, **overrides)
+    sc = with_actuation(_scenario(scenario, **overrides), actuation_delay)
     directory = _out_dir(out, sc)
     with _inner_progress("roots of every factor") as callback:
         section = roots_section(sc, directory, region=region, progress=callback)

@@ -21,6 +21,7 @@ from delayform.cli._common import (
     _simulation_spec,
     cli,
     limit_options,
+    radius_option,
     scenario_options,
 )
 
@@ -78,11 +79,12 @@ def _network(base: Any, *, loss: float | None, burst: tuple[float, float] | None
 @click.option("--delay-spread", "spread", type=NON_NEGATIVE,
               help="Per-link delays drawn in tau (1 +- SPREAD), SPREAD < 1 (network.delay_spread).")
 @limit_options
+@radius_option
 def montecarlo_command(scenario: Path | None, runs: int, seed: int | None, workers: int | None, scheduler: str | None,
                        model: str | None, duration: float | None, dt: float | None, loss: float | None,
                        burst: tuple[float, float] | None, jitter: tuple[float, float] | None, rate: float | None,
                        noise: tuple[float, float] | None, spread: float | None, use_limits: bool | None,
-                       out: Path | None, as_json: bool, **overrides: Any) -> None:  # fmt: skip
+                       radius: float | None, assignment: str | None, safety: str | None, out: Path | None, as_json: bool, **overrides: Any) -> None:  # fmt: skip
     """Monte Carlo of the scenario over an imperfect network: N seeded runs.
 
     The network comes from the scenario's [network] table and the options
@@ -92,8 +94,9 @@ def montecarlo_command(scenario: Path | None, runs: int, seed: int | None, worke
     actuator limits (the scenario's [robot] table, --limits and the limit
     options) are the saturated unicycle driven by what each robot hears.
     Writes the quantile bands of the formation error
-    (montecarlo_bands.png/.svg), histograms of settling time, final error
-    and peak command (montecarlo_histograms.png/.svg), one CSV row per run
+    (montecarlo_bands.png/.svg), histograms of settling time, final error,
+    peak command and closest approach (montecarlo_histograms.png/.svg), the
+    probability of contact between bodies (--radius), one CSV row per run
     and an NPZ; reports median and 5-95 % of each. The same seed gives the
     same numbers in this process, with --workers and with --scheduler.
     --seed seeds the runs (per-run seeds from numpy SeedSequence.spawn;
@@ -112,9 +115,11 @@ def montecarlo_command(scenario: Path | None, runs: int, seed: int | None, worke
     given = _limits_given(overrides)
     sc = _scenario(scenario, seed=seed, **overrides)
     seed = 0 if seed is None else seed
-    sim = _simulation_spec(sc, model=model, duration=duration, dt=dt)
+    sim = _simulation_spec(sc, model=model, duration=duration, dt=dt, assignment=assignment)
     network = _network(sc.network, loss=loss, burst=burst, jitter=jitter, rate=rate, noise=noise, spread=spread)
-    sc = replace(_with_robot(sc, use_limits, given, sim.model), simulation=sim, network=network)
+    sc = replace(_with_robot(sc, use_limits, given, sim.model), simulation=sim, network=network,
+                 radius=sc.radius if radius is None else radius,
+                 safety=sc.safety if safety is None else (None if safety == "none" else safety))
     # every input and the budget are checked before anything is started or written
     setup = scenario_setup(sc)
     guard(setup, runs, workers or 1)

@@ -19,6 +19,9 @@ from delayform.cli._common import (
     _simulation_spec,
     cli,
     limit_options,
+    radius_option,
+    actuation_option,
+    with_actuation,
     scenario_options,
 )
 
@@ -29,13 +32,17 @@ from delayform.cli._common import (
 @click.option("--duration", type=POSITIVE, help="Simulated time in seconds [default: simulation.duration].")
 @click.option("--dt", type=POSITIVE, help="Time step in seconds [default: simulation.dt].")
 @limit_options
+@radius_option
+@actuation_option
 @click.option("--csv/--no-csv", "csv", default=None,
               help="Also write the trajectory and commands as CSV [default: only when under 20 MiB; NPZ always].")
 @click.option("--gif/--no-gif", default=False, show_default=True, help="Also write an animated GIF.")
 @click.option("--mcap", type=click.Path(dir_okay=False, path_type=Path),
               help="Also write the run as a ROS 2 recording (MCAP: Twist, PoseStamped, /tf; docs/deploy.md).")
 def simulate_command(scenario: Path | None, model: str | None, duration: float | None, dt: float | None,
-                     seed: int | None, use_limits: bool | None, csv: bool | None, gif: bool, mcap: Path | None,
+                     seed: int | None, use_limits: bool | None, radius: float | None, assignment: str | None,
+                     safety: str | None, actuation_delay: float | None,
+                     csv: bool | None, gif: bool, mcap: Path | None,
                      out: Path | None, as_json: bool, **overrides: Any) -> None:  # fmt: skip
     """Simulate the team at the scenario's delays into its formation.
 
@@ -43,17 +50,19 @@ def simulate_command(scenario: Path | None, model: str | None, duration: float |
     the plane (sim_operating_xy.png/.svg), the robots' commands with their
     limits (sim_operating_commands.png/.svg, .npz), the trajectory as NPZ,
     CSV files when small or with --csv, and with --gif an animation;
-    reports settling time, final formation error, closest approach and any
-    command beyond a limit. With --robot (or the scenario's [robot] profile)
-    a formation the robots cannot hold (bodies overlapping, wider than the
-    arena) is refused before anything runs; --mcap FILE writes the run as a
-    ROS 2 recording. A run that diverges is noted on stderr.
+    reports settling time, final formation error, closest approach (exact
+    between saved steps), contacts between the robots' bodies (--radius) and
+    any command beyond a limit. With --robot (or the scenario's [robot]
+    profile) a formation the robots cannot hold (bodies overlapping, wider
+    than the arena) is refused before anything runs; --mcap FILE writes the
+    run as a ROS 2 recording. A run that diverges or whose robots collide is
+    noted on stderr.
     """
     from delayform.report import simulation_section
 
     given = _limits_given(overrides)
-    sc = _scenario(scenario, seed=seed, **overrides)
-    sim = _simulation_spec(sc, model=model, duration=duration, dt=dt)
+    sc = with_actuation(_scenario(scenario, seed=seed, **overrides), actuation_delay)
+    sim = _simulation_spec(sc, model=model, duration=duration, dt=dt, assignment=assignment)
     if mcap is not None:
         from delayform.deploy.recording import check_mcap_path
 
@@ -61,11 +70,18 @@ def simulate_command(scenario: Path | None, model: str | None, duration: float |
             raise click.UsageError("--mcap records robots: use --model unicycle")
         check_mcap_path(mcap)
     sc = replace(_with_robot(sc, use_limits, given, sim.model), simulation=sim,
+                 radius=sc.radius if radius is None else radius,
+                 safety=sc.safety if safety is None else (None if safety == "none" else safety),
                  initial=replace(sc.initial, seed=sc.initial.seed if seed is None else seed))  # fmt: skip
+    sc.robot_spec.check_slots(sc.desired_positions())  # bodies that overlap in formation: before writing
+    from delayform.simulation.runner import check_actuation
+
+    check_actuation(sc.robot_spec, sc.network, sim.dt)  # an actuation delay this run cannot model: before writing
     directory = _out_dir(out, sc)
     with _inner_progress(f"simulate {sim.model}, {sim.duration:g} s (steps)") as callback:
         section = simulation_section(sc, directory, gif=gif, csv=csv, mcap=mcap, progress=callback)
     _emit(section, directory, as_json=as_json)
-    if section.summary["status"] in ("diverging", "stopped"):
-        for warning in section.summary["warnings"]:
+    for warning in section.summary["warnings"]:
+        # a run that diverged, or whose robots collided, is said plainly
+        if section.summary["status"] in ("diverging", "stopped") or warning.startswith("the robots collided"):
             click.echo(f"delayform: note: {warning}", err=True)

@@ -109,7 +109,8 @@ def chart_section(scenario: Scenario, out: Path) -> Section:
         tau1_max=max([scenario.chart.tau1_max] + [a for _, a, _ in points]),
         tau2_max=max([scenario.chart.tau2_max] + [b for _, _, b in points]),
     )
-    smap = stability_map(scenario.topology, scenario.P, scenario.D, cs.tau1_max, cs.tau2_max)
+    smap = stability_map(scenario.topology, scenario.P, scenario.D, cs.tau1_max, cs.tau2_max,
+                         actuation_delay=scenario.actuation_delay)  # fmt: skip
     t1 = np.array([p[1] for p in points])
     t2 = np.array([p[2] for p in points])
     counts = np.asarray(smap.unstable_count(t1, t2))
@@ -125,6 +126,7 @@ def chart_section(scenario: Scenario, out: Path) -> Section:
     fraction = float(smap.stable_fraction())
     summary = {
         "window": [cs.tau1_max, cs.tau2_max],
+        "actuation_delay": scenario.actuation_delay,
         "curves": len(smap.curves),
         "kernel_curves": len(smap.kernel_curves),
         "delay_free_unstable_roots": int(smap.delay_free_count),
@@ -201,24 +203,27 @@ def roots_section(
     from delayform.analysis.roots.dominant import dominant_root
 
     team, P, D = scenario.topology, scenario.P, scenario.D
-    dom = dominant_root(team, P, D, scenario.tau1, scenario.tau2)
+    ta = scenario.actuation_delay  # [robot] actuation_delay: every factor with its delayed own-state terms
+    dom = dominant_root(team, P, D, scenario.tau1, scenario.tau2, actuation_delay=ta)
     s_dom = complex(dom.root)
     # Im from just below 0, so real roots lie inside and not on the boundary
     region = region or (min(-2.0, 2.0 * s_dom.real), 1.0, -0.01, 10.0)
     # one batched solve for all factors (a rectangle too far out is refused before it starts)
-    per_factor = factor_roots_in(team, P, D, scenario.tau1, scenario.tau2, region, progress=progress)
+    per_factor = factor_roots_in(team, P, D, scenario.tau1, scenario.tau2, region, progress=progress,
+                                 actuation_delay=ta)  # fmt: skip
     rows = [(i, complex(f.lam).real, complex(f.lam).imag, float(s.real), float(s.imag))
             for i, (f, roots) in enumerate(per_factor, start=1) for s in roots]  # fmt: skip
     files = [_write_csv(out / "roots.csv", ("factor", "lam_re", "lam_im", "re", "im"), rows)]
     at_points = []
     for label, a, b in _chart_points(scenario):
-        d = dominant_root(team, P, D, a, b)
+        d = dominant_root(team, P, D, a, b, actuation_delay=ta)
         at_points.append({"label": label, "tau1": a, "tau2": b, "root": complex(d.root),
                           "time_constant": _time_constant(complex(d.root))})  # fmt: skip
     formation_root = complex(dom.formation_root if dom.formation_root is not None else s_dom)
     summary = {
         "tau1": scenario.tau1,
         "tau2": scenario.tau2,
+        "actuation_delay": ta,
         "dominant_root": s_dom,
         "stable": bool(dom.is_stable),
         "time_constant": _time_constant(s_dom),

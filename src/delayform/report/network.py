@@ -94,20 +94,22 @@ def montecarlo_section(
         scenario.topology, scenario.P, scenario.D, scenario.tau1, scenario.tau2, scenario.desired_positions(),
         model=sim.model, network=net, runs=runs, seed=seed, duration=sim.duration, dt=sim.dt,
         initial_positions=scenario.initial_positions(), initial_headings=scenario.initial_headings(),
-        initial_speed=scenario.initial.speed, limits=scenario.robot, executor=executor, progress=progress,
+        initial_speed=scenario.initial.speed, limits=scenario.robot, radius=scenario.radius, assignment=sim.assignment, safety=scenario.safety, executor=executor, progress=progress,
     )  # fmt: skip
     files: list[str] = []
     fig, ax = plt.subplots(figsize=(7.0, 4.2))
     mc.plot(ax=ax)
     files += _save(fig, out, "montecarlo_bands")
-    fig, axes = plt.subplots(1, 3, figsize=(12.0, 3.4))
+    fig, axes = plt.subplots(1, 4, figsize=(16.0, 3.4))
     mc.plot_histograms(axes)
     fig.tight_layout()
     files += _save(fig, out, "montecarlo_histograms")
-    rows = [(r, mc.settling_times[r], mc.final_errors[r], *mc.peak_commands[r]) for r in range(mc.runs)]
+    rows = [(r, mc.settling_times[r], mc.final_errors[r], *mc.peak_commands[r], mc.min_distances[r],
+             mc.contact_counts[r]) for r in range(mc.runs)]  # fmt: skip
     names = [n.strip("|").replace("/", "_") or "unused" for n in mc.command_names]
     files.append(_write_csv(out / "montecarlo_runs.csv",
-                            ("run", "settling_time", "final_error", f"peak_{names[0]}", f"peak_{names[1]}"), rows))  # fmt: skip
+                            ("run", "settling_time", "final_error", f"peak_{names[0]}", f"peak_{names[1]}",
+                             "min_distance", "contacts"), rows))  # fmt: skip
     save_npz(out / "montecarlo.npz", times=mc.times, errors=mc.errors, settling_times=mc.settling_times)
     files.append("montecarlo.npz")
     where = "given" if scenario.initial.positions is not None else "random (one draw per run)"
@@ -127,7 +129,8 @@ def montecarlo_section(
             Figure("montecarlo_bands", "Formation error over time",
                    "Median and 5-95 %, 25-75 % quantile bands of the formation error (log scale) over the runs."),
             Figure("montecarlo_histograms", "Distributions",
-                   "Histograms over the runs of the settling time, the final formation error and the peak command."),
+                   "Histograms over the runs of the settling time, the final formation error, the peak command "
+                   "and the closest approach of two robots (exact between saved steps)."),
         ),  # fmt: skip
         table=table,
         summary=summary,
@@ -169,7 +172,7 @@ def scenario_setup(scenario: Scenario) -> Any:
         scenario.topology, scenario.P, scenario.D, scenario.tau1, scenario.tau2, scenario.desired_positions(),
         model=sim.model, network=scenario.network, duration=sim.duration, dt=sim.dt,
         initial_positions=scenario.initial_positions(), initial_headings=scenario.initial_headings(),
-        initial_speed=scenario.initial.speed, limits=scenario.robot,
+        initial_speed=scenario.initial.speed, limits=scenario.robot, radius=scenario.radius, assignment=sim.assignment, safety=scenario.safety,
     )  # fmt: skip
 
 

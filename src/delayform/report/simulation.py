@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -72,12 +73,14 @@ def simulation_section(
     tau1 = scenario.tau1 if tau1 is None else tau1
     tau2 = scenario.tau2 if tau2 is None else tau2
     sim = scenario.simulation
-    limits = scenario.robot if sim.model == "unicycle" else None
+    robot = scenario.robot_spec
+    limits = robot.limits
     traj = simulate(
         scenario.topology, scenario.P, scenario.D, tau1, tau2, scenario.desired_positions(),
-        model=sim.model, limits=limits, initial_positions=scenario.initial_positions(),
+        robot=robot, initial_positions=scenario.initial_positions(),
         initial_headings=scenario.initial_headings(), initial_speed=scenario.initial.speed,
         seed=scenario.initial.seed, duration=sim.duration, dt=sim.dt, progress=progress,
+        assignment=sim.assignment,
     )  # fmt: skip
     stem = f"sim_{label}"
     files: list[str] = []
@@ -134,6 +137,20 @@ def simulation_section(
         "initial_error": float(traj.formation_error[0]),
         "final_error": float(traj.formation_error[-1]),
         "min_distance": float(traj.min_distance),
+        "closest_at": float(traj.closest_at) if np.isfinite(traj.closest_at) else None,
+        "radius": float(traj.radius),
+        "assignment": sim.assignment,
+        "safety": None if traj.safety is None else {
+            "safe_distance": traj.safety.safe_distance, "active_fraction": traj.safety.active_fraction,
+            "first_active": traj.safety.first_active if traj.safety.was_active else None,
+            "last_active": traj.safety.last_active if traj.safety.was_active else None,
+        },
+        "slots": [int(k) + 1 for k in traj.slots] if traj.slots is not None else None,
+        "contacts": [
+            {"agents": [c.agents[0] + 1, c.agents[1] + 1], "start": c.start, "end": c.end,
+             "closest": c.closest, "closest_at": c.closest_at}
+            for c in traj.contacts
+        ],
         "final_centroid": np.asarray(traj.final_centroid),
         "robot_limits": None if limits is None else limits.describe(),
         "limits_exceeded": limits_text,
@@ -150,8 +167,27 @@ def simulation_section(
         ("model", sim.model + ("" if commands is None else (", with limits" if commands.limited else ", ideal robots"))),
         ("settling time (2 %)", settled_text),
         ("final formation error", f"{_fmt(summary['final_error'])} m"),
-        ("closest approach of two agents", f"{_fmt(summary['min_distance'])} m"),
+        ("closest approach of two agents", f"{_fmt(summary['min_distance'])} m at t = {_fmt(traj.closest_at)} s"),
     ]
+    if sim.assignment != "given" and traj.slots is not None:
+        table.append(("slots (robot: slot)", f"{sim.assignment}: " + ", ".join(
+            f"{i + 1}: {k + 1}" for i, k in enumerate(traj.slots))))  # fmt: skip
+    if traj.safety is not None:
+        table.append(("safety filter", traj.safety.sentence()))
+        # the settling time it costs: the same run without the filter
+        bare = simulate(
+            scenario.topology, scenario.P, scenario.D, tau1, tau2, scenario.desired_positions(),
+            robot=replace(robot, safety=None), initial_positions=scenario.initial_positions(),
+            initial_headings=scenario.initial_headings(), initial_speed=scenario.initial.speed,
+            seed=scenario.initial.seed, duration=sim.duration, dt=sim.dt, assignment=sim.assignment,
+        )  # fmt: skip
+        summary["settling_time_without_filter"] = float(bare.settling_time)
+        summary["contacts_without_filter"] = len(bare.contacts)
+        table.append(("without the filter", f"settling {_fmt(float(bare.settling_time))} s, "
+                                            f"{len(bare.contacts)} contact(s), closest {_fmt(bare.min_distance)} m"))  # fmt: skip
+    if traj.radius > 0:
+        table.append(("contacts (bodies " + f"{2 * traj.radius:g} m across)",
+                      f"{len(traj.contacts)}: collided" if traj.collided else "none"))  # fmt: skip
     if commands is not None:
         table.append(("beyond the limits" if commands.limited else "beyond an iRobot Create's limits", limits_text))
     table += [("warning", w) for w in traj.warnings]

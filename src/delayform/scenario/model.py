@@ -13,7 +13,7 @@ from delayform.scenario._reader import _check_sizes, _Reader
 from delayform.simulation.network import (
     Network,
 )
-from delayform.simulation.robots import RobotLimits
+from delayform.simulation.robots import Robot, RobotLimits
 from delayform.topology import Topology
 
 TOPOLOGY_NAMES = ("paper_six", "ring", "complete", "star", "random_digraph")
@@ -114,6 +114,8 @@ class SimulationSpec:
     dt: float = 0.01
     #: whether the file gave the step; a default step follows the delays (:func:`default_step`)
     dt_given: bool = field(default=True, compare=False)
+    #: which robot takes which slot (delayform.simulation.assignment.ASSIGNMENTS)
+    assignment: str = "given"
 
 
 #: the step used when the file gives none (s)
@@ -207,6 +209,15 @@ class Scenario:
     robot_profile
         Name of the real robot the ``[robot]`` table starts from (``profile = "NAME"``,
         :data:`delayform.deploy.PROFILES`), or None.
+    radius
+        ``[robot] radius`` (m), the bodies' size for contacts, or None for the
+        default of :class:`~delayform.simulation.robots.Robot`.
+    safety
+        ``[robot] safety``: the safety filter's name (``"barrier"``), or None.
+    actuation_delay
+        ``[robot] actuation_delay`` (s, default 0): each robot applies its
+        command that late (:attr:`~delayform.simulation.robots.Robot.actuation_delay`);
+        the simulation and the dominant roots use it.
     network
         The ``[network]`` table as a :class:`~delayform.simulation.network.Network`, or None.
     topology_spec
@@ -233,6 +244,16 @@ class Scenario:
     robot: RobotLimits | None = None
     network: Network | None = None
     robot_profile: str | None = None
+    radius: float | None = None
+    safety: str | None = None
+    actuation_delay: float = 0.0
+
+    @property
+    def robot_spec(self) -> Robot:
+        """The ``[robot]`` table (and ``simulation.model``) as one :class:`~delayform.simulation.robots.Robot`."""
+        limits = self.robot if self.simulation.model == "unicycle" else None  # limits apply to robots only
+        return Robot(model=self.simulation.model, limits=limits, radius=self.radius, safety=self.safety,
+                     actuation_delay=self.actuation_delay)  # fmt: skip
 
     def summary(self) -> dict[str, Any]:
         """The scenario as plain JSON-ready values, for summaries and report tables."""

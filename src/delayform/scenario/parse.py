@@ -38,6 +38,7 @@ from delayform.simulation.network import (
     Sampling,
     SmoothVariation,
 )
+from delayform.simulation.assignment import ASSIGNMENTS
 from delayform.simulation.robots import IROBOT_CREATE, RobotLimits
 from delayform.topology import Topology, complete, paper_six, random_digraph, ring, star
 
@@ -153,7 +154,7 @@ def _formation(reader: _Reader, data: Mapping[str, Any], n: int) -> FormationSpe
 
 
 def _simulation(reader: _Reader, data: Mapping[str, Any], tau: tuple[float, float]) -> SimulationSpec:
-    reader.keys(data, "simulation", ("model", "duration", "dt"))
+    reader.keys(data, "simulation", ("model", "duration", "dt", "assignment"))
     default = SimulationSpec()
     model = reader.string("simulation.model", data.get("model", default.model), MODELS)
     duration = reader.positive("simulation.duration", data.get("duration", default.duration))
@@ -161,7 +162,8 @@ def _simulation(reader: _Reader, data: Mapping[str, Any], tau: tuple[float, floa
     dt = reader.positive("simulation.dt", data["dt"]) if "dt" in data else min(default_step(*tau), duration / 2)
     if dt >= duration:
         raise reader.error("simulation.dt", f"a step smaller than simulation.duration = {duration:g}", dt)
-    return SimulationSpec(model=model, duration=duration, dt=dt, dt_given="dt" in data)
+    assignment = reader.string("simulation.assignment", data.get("assignment", default.assignment), ASSIGNMENTS)
+    return SimulationSpec(model=model, duration=duration, dt=dt, dt_given="dt" in data, assignment=assignment)
 
 
 _ROBOT_KEYS = (
@@ -179,7 +181,7 @@ def _robot(reader: _Reader, data: Mapping[str, Any] | None, model: str) -> tuple
     """
     if data is None:
         return None, None
-    reader.keys(data, "robot", ("limits", "profile") + _ROBOT_KEYS)
+    reader.keys(data, "robot", ("limits", "profile", "safety", "actuation_delay") + _ROBOT_KEYS)
     enabled = data.get("limits", True)
     if not isinstance(enabled, bool):
         raise reader.error("robot.limits", "true or false", enabled)
@@ -193,7 +195,9 @@ def _robot(reader: _Reader, data: Mapping[str, Any] | None, model: str) -> tuple
             raise ScenarioError(f"{reader.source}: robot.profile: {exc}") from None
         base, name = profile.limits, profile.name
     # checked even with limits = false: a table kept for later must not hide a wrong value
-    values = {key: reader.positive(f"robot.{key}", data[key]) for key in _ROBOT_KEYS if key in data}
+    values = {key: reader.positive(f"robot.{key}", data[key]) for key in _ROBOT_KEYS if key in data and key != "radius"}
+    if data.get("radius"):  # a zero radius (point robots) is not a limit: it stays the Robot's (_body_radius)
+        values["radius"] = reader.positive("robot.radius", data["radius"])
     try:
         robot = replace(base, **values)
     except InputError as exc:  # RobotLimits' own consistency checks (e.g. slow_speed < max_speed)
@@ -204,6 +208,30 @@ def _robot(reader: _Reader, data: Mapping[str, Any] | None, model: str) -> tuple
         raise reader.error("robot.limits", "false for simulation.model = 'double_integrator' (limits apply to robots)",
                            enabled)  # fmt: skip
     return robot, name
+
+
+def _body_radius(reader: _Reader, data: Mapping[str, Any] | None) -> float | None:
+    """``[robot] radius`` (m) whether or not limits apply: the bodies' size for contacts; None if absent."""
+    if data is None or "radius" not in data:
+        return None
+    return reader.non_negative("robot.radius", data["radius"])
+
+
+def _actuation_delay(reader: _Reader, data: Mapping[str, Any] | None) -> float:
+    """``[robot] actuation_delay`` (s): how late each robot applies its command; 0 if absent."""
+    if data is None or "actuation_delay" not in data:
+        return 0.0
+    return reader.non_negative("robot.actuation_delay", data["actuation_delay"])
+
+
+def _safety(reader: _Reader, data: Mapping[str, Any] | None) -> str | None:
+    """``[robot] safety``: a safety filter's name (:data:`~delayform.simulation.safety.SAFETY_FILTERS`) or None."""
+    if data is None or "safety" not in data:
+        return None
+    from delayform.simulation.safety import SAFETY_FILTERS
+
+    name = reader.string("robot.safety", data["safety"], SAFETY_FILTERS + ("none",))
+    return None if name == "none" else name
 
 
 def _initial(reader: _Reader, data: Mapping[str, Any], n: int) -> InitialSpec:
@@ -336,13 +364,17 @@ def parse_scenario(data: Mapping[str, Any], *, source: str = "<scenario>", defau
     _check_step(reader, simulation.dt, tau1, tau2)
     initial = _initial(reader, reader.table(data, "initial", required=False) or {}, n)
     robot, profile_name = _robot(reader, reader.table(data, "robot", required=False), simulation.model)
+    radius = _body_radius(reader, reader.table(data, "robot", required=False))
+    safety = _safety(reader, reader.table(data, "robot", required=False))
+    actuation_delay = _actuation_delay(reader, reader.table(data, "robot", required=False))
     chart = _chart(reader, reader.table(data, "chart", required=False) or {}, (tau1, tau2))
     grid = _map(reader, reader.table(data, "map", required=False) or {}, chart)
     schedule = _schedule(reader, reader.table(data, "schedule", required=False) or {}, (tau1, tau2), chart)
     return Scenario(
         name=name, description=description, topology=topology, P=P, D=D, tau1=tau1, tau2=tau2,
         formation=formation, simulation=simulation, initial=initial, chart=chart, map=grid,
-        schedule=schedule, topology_spec=spec, source=source, robot=robot, robot_profile=profile_name,
+        schedule=schedule, topology_spec=spec, source=source, robot=robot, robot_profile=profile_name, radius=radius, safety=safety,
+        actuation_delay=actuation_delay,
         network=parse_network_table(reader, reader.table(data, "network", required=False), n),
     )  # fmt: skip
 

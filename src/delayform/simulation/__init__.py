@@ -24,7 +24,8 @@ from delayform.simulation.network import (
     Sampling,
     SmoothVariation,
 )
-from delayform.simulation.robots import IROBOT_CREATE, REST_SPEED, RobotLimits
+from delayform.simulation.bodies import Approach, Contact, closest_approach
+from delayform.simulation.robots import IROBOT_CREATE, REST_SPEED, Robot, RobotLimits
 from delayform.simulation.runner import MODELS, paper_simulations, simulate
 from delayform.simulation.trajectory import SETTLING_FRACTION, STATUSES, Trajectory
 
@@ -35,6 +36,10 @@ __all__ = [
     "STATUSES",
     "IROBOT_CREATE",
     "RobotLimits",
+    "Robot",
+    "Contact",
+    "Approach",
+    "closest_approach",
     "RobotCommands",
     "LimitExceedance",
     "Trajectory",

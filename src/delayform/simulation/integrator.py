@@ -46,6 +46,8 @@ import numpy as np
 from numpy.lib.stride_tricks import as_strided
 from numpy.typing import NDArray
 
+from delayform.simulation.actuation import CommandBuffer
+
 __all__ = ["stated_order", "effective_delay", "BLOWUP"]
 
 _Array = NDArray[np.float64]
@@ -243,10 +245,14 @@ def integrate(
     steps: int,
     save_every: int,
     progress: Progress | None = None,
+    actuation_delay: float = 0.0,
 ) -> Samples:
     """RK4 with Hermite look-ups of the delayed terms (module doc), stage by stage.
 
-    ``progress(done, steps)`` is called every 1000 steps when given.
+    ``progress(done, steps)`` is called every 1000 steps when given. With
+    ``actuation_delay`` > 0 (at least dt) each stage executes the command of
+    ``actuation_delay`` earlier (:mod:`delayform.simulation.actuation`); the
+    agent then needs ``command`` and ``apply``.
     """
     n = F.shape[0]
     look1, look2 = _lookups(tau1, tau2, dt)
@@ -276,12 +282,18 @@ def integrate(
             midpoint[positions] = value
         return value
 
+    late = CommandBuffer(actuation_delay, dt, steps, F.shape) if actuation_delay > 0.0 else None
+
     def stage(k: int, j: int, st: _Array) -> tuple[_Array, _Array, tuple[_Array, ...]]:
         X, V = st[:, :2], agent.velocity(st)
         cxd = C @ X if look1[j].current else delayed(k, j, look1[j], True)
         cvd = C @ V if look2[j].current else delayed(k, j, look2[j], False)
         u = P * (cxd - X) + D * (cvd - V) + F  # eq. protocol + forcing of eq. formation
-        return agent.rhs(st, u)
+        if late is None:
+            return agent.rhs(st, u)
+        if j == 0:  # the command made at the grid point, executed actuation_delay later
+            late.store(k, agent.command(st, u))  # type: ignore[attr-defined]
+        return agent.apply(st, late.read(k, _STAGE_C[j]))  # type: ignore[attr-defined]
 
     for k in range(steps + 1):
         if progress is not None and k % 1000 == 0:

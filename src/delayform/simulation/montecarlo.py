@@ -37,7 +37,8 @@ from delayform.resources import require
 from delayform.formation import check_formation
 from delayform.simulation.network import Network
 from delayform.simulation.reception import network_memory
-from delayform.simulation.runner import MODELS, simulate
+from delayform.simulation.robots import MODELS, Robot
+from delayform.simulation.runner import simulate
 from delayform.topology import Topology
 
 __all__ = [
@@ -144,6 +145,13 @@ class Setup:
     limits
         Actuator limits of the robots (:class:`~delayform.simulation.robots.RobotLimits`),
         or None for ideal ones: the saturated unicycle driven by what each robot hears.
+    radius
+        Body radius (m) for contacts; None: the default of
+        :class:`~delayform.simulation.robots.Robot` (0 for double integrators).
+    assignment
+        Which robot takes which slot, per run (``simulate(..., assignment=...)``).
+    safety
+        The safety filter of every run (``"barrier"``), or None.
     """
 
     topology: Topology
@@ -160,6 +168,14 @@ class Setup:
     initial_headings: _Array | None = None
     initial_speed: float = 1e-3
     limits: Any = None
+    radius: float | None = None
+    assignment: str = "given"
+    safety: Any = None
+
+    @property
+    def robot(self) -> Robot:
+        """The robot of every run (model, limits, body radius, safety filter)."""
+        return Robot(model=self.model, limits=self.limits, radius=self.radius, safety=self.safety)
 
     def with_changes(self, **changes: Any) -> Setup:
         """A copy with some fields replaced (sweeps).
@@ -178,6 +194,8 @@ class Setup:
             "tau1": self.tau1, "tau2": self.tau2, "model": self.model,
             "network": "ideal" if self.network is None else self.network.describe(self.topology.adjacency),
             "robots": "ideal" if self.limits is None else self.limits.describe(),
+            "radius": self.robot.body_radius,
+            "safety": "none" if self.safety is None else "barrier",
             "duration": self.duration, "dt": self.dt,
         }  # fmt: skip
 
@@ -194,6 +212,8 @@ class RunOutcome:
     error_times: _Array
     errors: _Array
     status: str = "settled"
+    min_distance: float = math.inf
+    contacts: int = 0
 
 
 def run_seeds(seed: int, runs: int) -> list[tuple[int, int]]:
@@ -227,9 +247,9 @@ def simulate_run(task: tuple[Setup, int, tuple[int, int]]) -> RunOutcome:
     network = None if setup.network is None else setup.network.with_seed(network_seed)
     traj = simulate(
         setup.topology, setup.P, setup.D, setup.tau1, setup.tau2, setup.formation,
-        model=setup.model, initial_positions=setup.initial_positions,
+        robot=setup.robot, initial_positions=setup.initial_positions,
         initial_headings=setup.initial_headings, initial_speed=setup.initial_speed,
-        seed=initial_seed, duration=setup.duration, dt=setup.dt, network=network, limits=setup.limits,
+        seed=initial_seed, duration=setup.duration, dt=setup.dt, network=network, assignment=setup.assignment,
     )  # fmt: skip
     if setup.model == "unicycle":
         peaks = (float(np.abs(traj.inputs[..., 0]).max()), float(np.abs(traj.inputs[..., 1]).max()))
@@ -245,6 +265,8 @@ def simulate_run(task: tuple[Setup, int, tuple[int, int]]) -> RunOutcome:
         error_times=traj.times[keep],
         errors=traj.formation_error[keep],
         status=traj.status,
+        min_distance=float(traj.min_distance),
+        contacts=len(traj.contacts),
     )
 
 
@@ -283,7 +305,7 @@ class SerialExecutor:
 
 
 # ------------------------------------------------------------------ result
-_METRICS = ("settling_time", "final_error", "peak_command_1", "peak_command_2")
+_METRICS = ("settling_time", "final_error", "peak_command_1", "peak_command_2", "min_distance")
 
 
 @validated()
@@ -314,6 +336,11 @@ class MonteCarloResult(FigureRepr):
     statuses
         ``(runs,)`` status of each run (:data:`delayform.simulation.STATUSES`:
         settled, not settled, diverging, stopped).
+    min_distances
+        ``(runs,)`` closest approach of two robots in each run (m, exact
+        between saved steps: :func:`~delayform.simulation.bodies.closest_approach`).
+    contact_counts
+        ``(runs,)`` number of contacts (bodies closer than two radii) in each run.
     """
 
     setup: Setup
@@ -327,6 +354,13 @@ class MonteCarloResult(FigureRepr):
     peak_commands: _Array
     command_names: tuple[str, str] = field(default=("|u|", ""))
     statuses: tuple[str, ...] = ()
+    min_distances: _Array = field(default_factory=lambda: np.zeros(0))
+    contact_counts: NDArray[np.int_] = field(default_factory=lambda: np.zeros(0, dtype=int))
+
+    @property
+    def contact_probability(self) -> float:
+        """Fraction of runs in which two robots' bodies touched (0 for point agents)."""
+        return float(np.mean(self.contact_counts > 0)) if self.contact_counts.size else 0.0
 
     @property
     def settled_fraction(self) -> float:
@@ -354,6 +388,7 @@ class MonteCarloResult(FigureRepr):
         values = {
             "settling_time": self.settling_times, "final_error": self.final_errors,
             "peak_command_1": self.peak_commands[:, 0], "peak_command_2": self.peak_commands[:, 1],
+            "min_distance": self.min_distances,
         }  # fmt: skip
         if name not in values:
             raise SimulationInputError(f"unknown metric {name!r}; choose one of {', '.join(_METRICS)}")
@@ -368,7 +403,8 @@ class MonteCarloResult(FigureRepr):
         """
         out: dict[str, Any] = {"runs": self.runs, "seed": self.seed, "settled_fraction": self.settled_fraction,
                                "setup": self.setup.describe(), "command_names": list(self.command_names),
-                               "statuses": {k: self.statuses.count(k) for k in sorted(set(self.statuses))}}  # fmt: skip
+                               "statuses": {k: self.statuses.count(k) for k in sorted(set(self.statuses))},
+                               "contact_probability": self.contact_probability}  # fmt: skip
         for name in _METRICS:
             if name == "peak_command_2" and not self.command_names[1]:
                 continue
@@ -401,7 +437,11 @@ class MonteCarloResult(FigureRepr):
             ("settling time: median [5 %, 95 %]", cell(s["settling_time"], " s")),
             ("final formation error", cell(s["final_error"], " m")),
             (f"peak {self.command_names[0]}", cell(s["peak_command_1"], "")),
+            ("closest approach of two robots", cell(s["min_distance"], " m")),
         ]
+        if s["setup"]["radius"] > 0:
+            rows.append((f"runs with contacts (bodies {2 * s['setup']['radius']:g} m across)",
+                         f"{100 * self.contact_probability:.0f} %"))  # fmt: skip
         if self.command_names[1]:
             rows.append((f"peak {self.command_names[1]}", cell(s["peak_command_2"], "")))
         return tuple(rows)
@@ -421,12 +461,12 @@ class MonteCarloResult(FigureRepr):
         return plot_error_bands(self.times, self.quantiles(q), tuple(q), ax=ax, title=self.setup.describe()["network"])
 
     def plot_histograms(self, axes: Any = None) -> Any:
-        """Histograms of settling time, final error and peak command; returns the axes.
+        """Histograms of settling time, final error, peak command and closest approach; returns the axes.
 
         Parameters
         ----------
         axes
-            Three axes to draw on; None makes a figure.
+            Four axes to draw on; None makes a figure.
         """
         from delayform.plots import plot_histograms
 
@@ -434,6 +474,7 @@ class MonteCarloResult(FigureRepr):
             ("settling time (s)", self.settling_times),
             ("final formation error (m)", self.final_errors),
             (f"peak {self.command_names[0]}", self.peak_commands[:, 0]),
+            ("closest approach of two robots (m)", self.min_distances),
         ]
         return plot_histograms(panels, axes=axes)
 
@@ -458,6 +499,8 @@ def estimate_cost(setup: Setup, runs: int) -> tuple[float, float]:
         packets = int(setup.duration / period) + 2
     nbytes = network_memory(links, steps, packets, n) + (steps + 1) * n * 8 * 8
     per_step = _STEP_SECONDS[0] + _STEP_SECONDS[1] * links + (_LIMITED_STEP_SECONDS if setup.limits is not None else 0.0)
+    # the safety filter: about 4 x 50 microseconds per step for a small team (docs/benchmarks.md, issue 21)
+    per_step += 2e-4 + 2e-6 * n if setup.safety is not None else 0.0
     seconds = runs * steps * per_step
     return nbytes, seconds
 
@@ -497,6 +540,9 @@ def make_setup(
     initial_headings: ArrayLike | None = None,
     initial_speed: float = 1e-3,
     limits: Any = None,
+    radius: float | None = None,
+    assignment: str = "given",
+    safety: Any = None,
 ) -> Setup:
     """The checked scenario-like inputs of a Monte Carlo or of a sweep's base point.
 
@@ -516,6 +562,12 @@ def make_setup(
         Initial speed (the paper's 1e-3).
     limits
         Actuator limits of the robots, or None for ideal ones.
+    radius
+        Body radius (m) for contacts; None: the :class:`~delayform.simulation.robots.Robot` default.
+    assignment
+        ``"given"`` or ``"optimal"`` slots (``simulate(..., assignment=...)``).
+    safety
+        The safety filter (``"barrier"``) or None.
 
     Raises
     ------
@@ -529,7 +581,7 @@ def make_setup(
         model=model, network=network, duration=duration, dt=dt,
         initial_positions=None if initial_positions is None else np.asarray(initial_positions, dtype=np.float64),
         initial_headings=None if initial_headings is None else np.asarray(initial_headings, dtype=np.float64),
-        initial_speed=initial_speed, limits=limits,
+        initial_speed=initial_speed, limits=limits, radius=radius, assignment=assignment, safety=safety,
     )  # fmt: skip
     return checked(setup)
 
@@ -583,6 +635,8 @@ def collect(setup: Setup, runs: int, seed: int, outcomes: Sequence[RunOutcome]) 
         peak_commands=np.array([o.peak_commands for o in ordered]),
         command_names=names,
         statuses=tuple(o.status for o in ordered),
+        min_distances=np.array([o.min_distance for o in ordered]),
+        contact_counts=np.array([o.contacts for o in ordered], dtype=int),
     )  # fmt: skip
 
 
@@ -605,6 +659,9 @@ def monte_carlo(
     initial_headings: ArrayLike | None = None,
     initial_speed: float = 1e-3,
     limits: Any = None,
+    radius: float | None = None,
+    assignment: str = "given",
+    safety: Any = None,
     executor: Executor | None = None,
     progress: Progress | None = None,
 ) -> MonteCarloResult:
@@ -634,6 +691,13 @@ def monte_carlo(
     limits
         Actuator limits of the robots (:class:`~delayform.simulation.robots.RobotLimits`),
         or None for ideal ones: the saturated unicycle driven by what each robot hears.
+    radius
+        Body radius (m) for contacts (``contact_probability``); None: the
+        :class:`~delayform.simulation.robots.Robot` default (0 for double integrators).
+    assignment
+        ``"given"`` or ``"optimal"`` slots in every run (``simulate(..., assignment=...)``).
+    safety
+        The safety filter of every run (``"barrier"``), or None.
     executor
         Where the runs go (:class:`SerialExecutor` by default; see
         :func:`delayform.sweeps.executor` for Dask); its ``workers``
@@ -665,7 +729,7 @@ def monte_carlo(
     setup = make_setup(
         topology, P, D, tau1, tau2, formation, model=model, network=network, duration=duration, dt=dt,
         initial_positions=initial_positions, initial_headings=initial_headings, initial_speed=initial_speed,
-        limits=limits,
+        limits=limits, radius=radius, assignment=assignment, safety=safety,
     )  # fmt: skip
     guard(setup, runs, int(getattr(executor, "workers", 1)))
     tasks = [(setup, r, s) for r, s in enumerate(run_seeds(seed, runs))]

@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -42,7 +43,10 @@ from numpy.typing import NDArray
 from delayform._validation import validated
 from delayform.errors import SimulationInputError
 
-__all__ = ["RobotLimits", "IROBOT_CREATE", "REST_SPEED", "ideal_commands", "wheel_speeds"]
+__all__ = ["Robot", "RobotLimits", "IROBOT_CREATE", "REST_SPEED", "MODELS", "ideal_commands", "wheel_speeds"]
+
+#: agent models accepted by :func:`delayform.simulation.simulate`
+MODELS = ("double_integrator", "unicycle")
 
 _Array = NDArray[np.float64]
 
@@ -134,6 +138,105 @@ class RobotLimits:
 IROBOT_CREATE = RobotLimits()
 
 
+def _nonnegative(name: str, value: object, unit: str) -> float:
+    """A finite non-negative number of a Robot, or SimulationInputError naming it."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
+        raise SimulationInputError(f"{name} must be a number ({unit}), got {value!r}")
+    if not (math.isfinite(value) and value >= 0):
+        raise SimulationInputError(f"{name} must be finite and non-negative ({unit}), got {value!r}")
+    return float(value)
+
+
+@dataclass(frozen=True)
+class Robot:
+    """What belongs to the robot in a simulation, gathered as :class:`Network` gathers the network.
+
+    Attributes
+    ----------
+    model
+        ``"unicycle"`` (differential-drive robot, eq. transform2) or
+        ``"double_integrator"`` (point agents, ``x'' = u``).
+    limits
+        Actuator limits (:class:`RobotLimits`); None for ideal robots.
+    radius
+        Radius (m) of the disc containing the body, for contacts. None
+        (default): ``limits.radius``, else the Create's 0.17 m for robots
+        and 0 (points, no contacts) for double integrators.
+    safety
+        A safety filter (:class:`~delayform.simulation.safety.BarrierFilter`,
+        or its name ``"barrier"``), or None (default).
+    actuation_delay
+        tau_a >= 0 (s): each robot applies its command tau_a late,
+        ``x'' = u(t - tau_a)`` for double integrators; for robots the demands
+        (dv/dt, omega) of eq. transform2, computed on the state when the
+        command is made, are executed tau_a later under the limits of that
+        time (docs/theory.md, "Actuation delay"). 0 (default): the paper's model.
+
+    Examples
+    --------
+    >>> Robot().body_radius, Robot(model="double_integrator").body_radius
+    (0.17, 0.0)
+    """
+
+    model: str = "unicycle"
+    limits: RobotLimits | None = None
+    radius: float | None = None
+    safety: Any = None
+    actuation_delay: float = 0.0
+
+    def __post_init__(self) -> None:
+        from delayform.simulation.safety import check_safety
+
+        object.__setattr__(self, "safety", check_safety(self.safety))
+        object.__setattr__(self, "actuation_delay", _nonnegative("actuation_delay", self.actuation_delay, "s"))
+        if self.model not in MODELS:
+            raise SimulationInputError(f"unknown model {self.model!r}; choose one of {', '.join(MODELS)}")
+        if self.limits is not None and not isinstance(self.limits, RobotLimits):
+            raise SimulationInputError(f"limits must be a RobotLimits or None, got {type(self.limits).__name__}")
+        if self.limits is not None and self.model != "unicycle":
+            raise SimulationInputError("limits apply to robots: use model='unicycle'")
+        if self.radius is not None:
+            object.__setattr__(self, "radius", _nonnegative("radius", self.radius, "m"))
+
+    @property
+    def body_radius(self) -> float:
+        """The radius (m) used for contacts (see :attr:`radius`)."""
+        if self.radius is not None:
+            return self.radius
+        if self.limits is not None:
+            return self.limits.radius
+        return IROBOT_CREATE.radius if self.model == "unicycle" else 0.0
+
+    def check_slots(self, desired: _Array) -> None:
+        """Refuse a formation whose slots are closer than two body radii (the bodies would overlap).
+
+        Parameters
+        ----------
+        desired
+            ``(n, 2)`` desired positions.
+
+        Raises
+        ------
+        SimulationInputError
+            Naming the closest two slots.
+        """
+        r = self.body_radius
+        n = desired.shape[0]
+        if r == 0.0 or n < 2:
+            return
+        from scipy.spatial import cKDTree
+
+        dist, idx = cKDTree(desired).query(desired, k=2)
+        i = int(np.argmin(dist[:, 1]))
+        if dist[i, 1] < 2.0 * r * (1.0 - 1e-9):  # touching slots are allowed
+            a, b = sorted((i, int(idx[i, 1])))
+            raise SimulationInputError(
+                f"formation slots {a + 1} and {b + 1} are {dist[i, 1]:.3g} m apart, closer than two robot "
+                f"radii ({2.0 * r:.3g} m): the bodies would overlap in formation; spread the formation "
+                f"or give a smaller radius"
+            )
+
+
 def wheel_speeds(v: _Array, omega: _Array, robot: RobotLimits) -> tuple[_Array, _Array]:
     """Left and right wheel speeds (rad/s) of a differential drive at speed v and turn rate omega.
 
@@ -218,6 +321,13 @@ class DoubleIntegrator:
         """(state derivative, Cartesian acceleration, extras)."""
         return np.concatenate([state[:, 2:], u], axis=1), u, ()
 
+    @staticmethod
+    def command(state: _Array, u: _Array) -> _Array:
+        """What the actuators receive, to be applied late (actuation delay): the acceleration u itself."""
+        return u
+
+    apply = rhs  # applying a (late) command: x'' = the command
+
 
 class LimitedUnicycle:
     """State rows (x, y, theta, v): eq. transform2 with saturated inputs.
@@ -258,25 +368,41 @@ class LimitedUnicycle:
         limits (``e . u`` and the softened eq. transform2 turn rate); 1.0
         where the speed limit cut the demanded acceleration by more than 1 %.
         """
-        # np.minimum / np.maximum instead of np.clip: for a handful of robots the
-        # call overhead, not the arithmetic, is the cost of a step.
-        lo, hi = np.maximum, np.minimum
+        return self.apply(state, self.command(state, u))
+
+    def command(self, state: _Array, u: _Array) -> _Array:
+        """The demands (dv/dt, omega) of eq. transform2 (softened) on this state, columns of an (n, 2) array.
+
+        With an actuation delay these are what is sent late; the limits act
+        when they are executed (:meth:`apply`), on the state then.
+        """
         lim = self.limits
         th, v = state[:, 2], state[:, 3]
         c, s = np.cos(th), np.sin(th)
         ux, uy = u[:, 0], u[:, 1]
         along = c * ux + s * uy  # eq. transform2, first row
         across = c * uy - s * ux
-        speed = np.abs(v)
-        amax = lim.max_acceleration
-        accel = hi(lo(along, -amax), amax)
-        fade = np.where(accel * v > 0.0, lo(1.0 - (speed / lim.speed_cap) ** 8, 0.0), 1.0)
-        accel = accel * fade
         size2 = ux * ux + uy * uy
         vs = np.sqrt(lim.slow_speed**2 + lim.turn_time_constant**2 * size2)
         # towards the line of u at rest: +1 when u is ahead, -1 when behind (then reverse)
         toward = along / np.sqrt(size2 + 1e-24)
         demand = across * (v + toward * vs) / (v * v + vs * vs)  # eq. transform2, second row, softened
+        return np.column_stack([along, demand])
+
+    def apply(self, state: _Array, command: _Array) -> tuple[_Array, _Array, tuple[_Array, ...]]:
+        """Execute demands (dv/dt, omega) under the limits at this state: as :meth:`rhs` returns."""
+        # np.minimum / np.maximum instead of np.clip: for a handful of robots the
+        # call overhead, not the arithmetic, is the cost of a step.
+        lo, hi = np.maximum, np.minimum
+        lim = self.limits
+        th, v = state[:, 2], state[:, 3]
+        c, s = np.cos(th), np.sin(th)
+        along, demand = command[:, 0], command[:, 1]
+        speed = np.abs(v)
+        amax = lim.max_acceleration
+        accel = hi(lo(along, -amax), amax)
+        fade = np.where(accel * v > 0.0, lo(1.0 - (speed / lim.speed_cap) ** 8, 0.0), 1.0)
+        accel = accel * fade
         wanted = hi(lo(demand, -lim.max_turn_rate), lim.max_turn_rate)
         # Both wheels at full speed leave no room to turn: the turn comes first, so a
         # robot faster than the wheels allow for the wanted turn brakes (ramp over 0.1 s).

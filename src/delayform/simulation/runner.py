@@ -43,10 +43,12 @@ cleanly; its :attr:`Trajectory.status` says so.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from typing import Any
 
 from delayform._validation import check_delay, check_gains, check_magnitude, check_positive, validated
 from delayform.errors import SimulationInputError
@@ -71,16 +73,21 @@ from delayform.simulation.network import Network
 from delayform.simulation.reception import integrate_network
 from delayform.simulation.robots import (
     IROBOT_CREATE,
+    MODELS,
     REST_SPEED,
     DoubleIntegrator,
     LimitedUnicycle,
+    Robot,
     RobotLimits,
     ideal_commands,
 )
+from delayform.simulation.assignment import assign_slots, check_assignment
+from delayform.simulation.bodies import closest_approach
+from delayform.simulation.safety import BarrierFilter, FilteredAgent, SafetyReport
 from delayform.simulation.trajectory import (
     Trajectory,
+    contact_warning,
     formation_error,
-    min_distance,
     run_status,
     settling_time,
 )
@@ -88,8 +95,8 @@ from delayform.topology import Topology, paper_six
 
 __all__ = ["MODELS", "simulate", "paper_simulations", "estimate_resources"]
 
-#: agent models accepted by :func:`simulate`
-MODELS = ("double_integrator", "unicycle")
+#: robots slower than this (m/s) at the end of a filtered run that did not settle are deadlocked
+DEADLOCK_SPEED = 1e-2
 
 #: teams up to this size multiply by a dense C and use the blocked linear path
 _DENSE_AGENTS = 64
@@ -200,7 +207,8 @@ def simulate(
     tau2: float,
     formation: ArrayLike | str,
     *,
-    model: str = "unicycle",
+    robot: Robot | None = None,
+    model: str | None = None,
     limits: RobotLimits | None = None,
     initial_positions: ArrayLike | None = None,
     initial_headings: ArrayLike | None = None,
@@ -212,6 +220,9 @@ def simulate(
     save_every: int | None = None,
     progress: Progress | None = None,
     network: Network | None = None,
+    assignment: str = "given",
+    safety: str | BarrierFilter | None = None,
+    actuation_delay: float | None = None,
 ) -> Trajectory:
     """Simulate n agents under eq. formation with delays tau1 (positions) and tau2 (velocities).
 
@@ -225,13 +236,18 @@ def simulate(
         Non-negative delays (s); a non-zero delay must be at least ``dt``.
     formation
         ``(n, 2)`` desired positions or a shape name (:data:`delayform.formation.SHAPES`).
+    robot
+        What belongs to the robot (:class:`~delayform.simulation.robots.Robot`:
+        model, limits, body radius). None: ``Robot(model, limits)`` from the
+        two shortcuts below (give either ``robot`` or the shortcuts).
     model
-        ``"unicycle"`` (differential-drive robot, eq. transform2) or ``"double_integrator"``.
+        Shortcut for ``Robot.model``: ``"unicycle"`` (differential-drive robot,
+        eq. transform2; the default) or ``"double_integrator"``.
     limits
-        Actuator limits of the robots (:class:`RobotLimits`, e.g.
-        :data:`IROBOT_CREATE`): the saturated unicycle is integrated. None
-        (default): ideal robots, whose wheel speeds are reported for the
-        geometry of :data:`IROBOT_CREATE`.
+        Shortcut for ``Robot.limits``: actuator limits of the robots
+        (:class:`RobotLimits`, e.g. :data:`IROBOT_CREATE`): the saturated
+        unicycle is integrated. None (default): ideal robots, whose wheel
+        speeds are reported for the geometry of :data:`IROBOT_CREATE`.
     initial_positions
         ``(n, 2)``; default: uniform random (see ``_initial_state``) from ``seed``.
     initial_headings
@@ -261,17 +277,40 @@ def simulate(
         double integrator (ideal robots are rebuilt from it), or with
         ``limits`` the saturated unicycle driven by what each robot hears.
         None or the ideal network: the paths above, unchanged.
+    actuation_delay
+        Shortcut for :attr:`Robot.actuation_delay` (s, >= 0; at least dt when
+        non-zero): each robot executes its command that much later (a command
+        buffer, linear between steps: :mod:`delayform.simulation.actuation`;
+        stated order 2). Double integrators and robots with ``limits``;
+        ideal robots (no limits) and an imperfect ``network`` refuse it.
+    assignment
+        ``"given"`` (default): robot i takes slot i of ``formation``.
+        ``"optimal"``: the slots that minimise the total squared distance from
+        each robot's start to its predicted final position
+        (:func:`~delayform.simulation.assignment.assign_slots`; exact for
+        balanced teams, certified or bounded otherwise). It relabels the
+        slots only: the stability analysis is unchanged (docs/theory.md).
+    safety
+        Shortcut for ``Robot.safety``: ``"barrier"`` (or a
+        :class:`~delayform.simulation.safety.BarrierFilter`) filters every
+        command through control barrier functions that keep the bodies
+        apart (:mod:`delayform.simulation.safety`); the run's ``safety``
+        says when it acted, and a team it stopped short of the formation has
+        status ``"deadlock"``. None (default): no filter.
 
     Returns
     -------
     Trajectory
-        With ``status`` and ``warnings`` saying whether the run settled,
-        and the robots' ``commands``.
+        With ``status`` and ``warnings`` saying whether the run settled and
+        whether bodies touched (``min_distance``, ``contacts``:
+        :func:`~delayform.simulation.bodies.closest_approach`), and the
+        robots' ``commands``.
 
     Raises
     ------
     GainError, DelayError, FormationError, SimulationInputError, NoSpanningTreeError
-        For bad gains, delays, formation, step, duration, model, limits or initial state.
+        For bad gains, delays, formation, step, duration, model, limits or initial state,
+        and for formation slots closer than two body radii.
     ResourceLimitError
         When the run would need more memory or time than the machine has.
 
@@ -289,16 +328,13 @@ def simulate(
     dt = check_positive("dt", dt, SimulationInputError)
     duration = check_positive("duration", duration, SimulationInputError)
     rest_speed = check_positive("rest_speed", rest_speed, SimulationInputError)
-    if model not in MODELS:
-        raise SimulationInputError(f"unknown model {model!r}; choose one of {', '.join(MODELS)}")
+    robot = _robot(robot, model, limits, safety, actuation_delay)
+    model, limits, ta = robot.model, robot.limits, robot.actuation_delay
     if network is not None and not isinstance(network, Network):
         raise SimulationInputError(f"network must be a Network, got {type(network).__name__}")
     if network is not None and network.is_ideal:
         network = None  # the paper's network: exactly the ordinary integrators
-    if limits is not None and not isinstance(limits, RobotLimits):
-        raise SimulationInputError(f"limits must be a RobotLimits or None, got {type(limits).__name__}")
-    if limits is not None and model != "unicycle":
-        raise SimulationInputError("limits apply to robots: use model='unicycle'")
+    check_actuation(robot, network, dt)
     for name, tau in (("tau1", tau1), ("tau2", tau2)):
         if 0.0 < tau < dt * (1.0 - 1e-9):
             raise SimulationInputError(
@@ -306,6 +342,8 @@ def simulate(
             )
     n = topology.n
     desired = check_formation(formation, n)
+    robot.check_slots(desired)
+    check_assignment(assignment)
     x0, th0, speed0 = _initial_state(n, initial_positions, initial_headings, initial_speed, seed)
     if model == "unicycle" and limits is None and np.any(speed0 == 0.0):
         raise SimulationInputError(
@@ -317,6 +355,10 @@ def simulate(
             f"initial_speed {np.abs(speed0).max():g} m/s exceeds the robots' speed limit {limits.speed_cap:g} m/s"
         )
     v0 = speed0[:, None] * np.column_stack([np.cos(th0), np.sin(th0)])
+    slots = np.arange(n)
+    if assignment == "optimal":
+        slots = assign_slots(topology, P, D, tau1, tau2, desired, x0, v0).slots
+        desired = desired[slots]
     steps = max(1, math.ceil(duration / dt - 1e-9))
     if save_every is None:
         save_every = max(1, math.ceil((steps + 1) * n / _SAVE_BUDGET))
@@ -324,8 +366,9 @@ def simulate(
         raise SimulationInputError(f"save_every must be a positive integer, got {save_every!r}")
     # a delay longer than the run reads only the constant history (integrator doc)
     eff1, eff2 = effective_delay(tau1, dt, steps), effective_delay(tau2, dt, steps)
+    filtered = robot.safety is not None
     nbytes, seconds, linear = estimate_resources(
-        n, steps, save_every, eff1, eff2, dt, limited=limits is not None, nnz=topology.C_sparse.nnz
+        n, steps, save_every, eff1, eff2, dt, limited=limits is not None or filtered, nnz=topology.C_sparse.nnz
     )
     # a step count past 1e12 said in full would be a line of digits
     count = f"{steps:,}" if steps < 10**12 else f"{float(steps):.3g}"
@@ -335,28 +378,65 @@ def simulate(
     C = topology.C_sparse.toarray() if n <= _DENSE_AGENTS else topology.C_sparse
     F = formation_forcing(topology, P, desired)
     run: Samples | None = None
-    if network is not None:
-        agent = DoubleIntegrator(x0, v0) if limits is None else LimitedUnicycle(x0, th0, speed0, limits)
-        run = integrate_network(agent, topology, F, P, D, tau1, tau2, network=network, dt=dt, steps=steps,
-                                save_every=save_every, progress=progress)  # fmt: skip
-    elif limits is not None:
-        agent = LimitedUnicycle(x0, th0, speed0, limits)
-        run = integrate(agent, C, F, P, D, eff1, eff2, dt, steps, save_every, progress)
+    if network is not None or limits is not None or filtered:
+        agent: Any = DoubleIntegrator(x0, v0) if limits is None else LimitedUnicycle(x0, th0, speed0, limits)
+        if filtered:
+            agent = FilteredAgent(agent, robot.safety, robot.body_radius)
+        if network is not None:
+            run = integrate_network(agent, topology, F, P, D, tau1, tau2, network=network, dt=dt, steps=steps,
+                                    save_every=save_every, progress=progress)  # fmt: skip
+        else:
+            run = integrate(agent, C, F, P, D, eff1, eff2, dt, steps, save_every, progress, ta)
     else:
-        if linear:
+        if linear and ta == 0.0:
             run = integrate_linear(x0, v0, C, F, P, D, eff1, eff2, dt, steps, save_every, progress)
         if run is None:
-            run = integrate(DoubleIntegrator(x0, v0), C, F, P, D, eff1, eff2, dt, steps, save_every, progress)
+            run = integrate(DoubleIntegrator(x0, v0), C, F, P, D, eff1, eff2, dt, steps, save_every, progress, ta)
     if progress is not None:
         progress(steps, steps)
-    return _trajectory(topology, desired, model, limits, P, D, tau1, tau2, dt, duration, th0, run, rest_speed)
+    traj = _trajectory(topology, desired, robot, P, D, tau1, tau2, dt, duration, th0, run, rest_speed)
+    return dataclasses.replace(traj, slots=slots)
+
+
+def _robot(
+    robot: Robot | None, model: str | None, limits: RobotLimits | None, safety: object,
+    actuation_delay: float | None = None,
+) -> Robot:
+    """The robot of a run: ``robot``, or one built from the shortcuts (model, limits, safety, actuation_delay)."""
+    if robot is None:
+        return Robot(model="unicycle" if model is None else model, limits=limits, safety=safety,
+                     actuation_delay=0.0 if actuation_delay is None else actuation_delay)  # fmt: skip
+    if not isinstance(robot, Robot):
+        raise SimulationInputError(f"robot must be a Robot, got {type(robot).__name__}")
+    if model is not None or limits is not None or safety is not None or actuation_delay is not None:
+        raise SimulationInputError(
+            "give the model, limits, safety and actuation_delay either in robot or as keywords, not both"
+        )
+    return robot
+
+
+def check_actuation(robot: Robot, network: Network | None, dt: float) -> None:
+    """Refuse the runs an actuation delay is not modelled for, with the reason."""
+    ta = robot.actuation_delay
+    if ta == 0.0:
+        return
+    if ta < dt * (1.0 - 1e-9):
+        raise SimulationInputError(f"dt = {dt} exceeds actuation_delay = {ta}: a non-zero delay must be at least one step")
+    if robot.model == "unicycle" and robot.limits is None:
+        raise SimulationInputError(
+            "an actuation delay needs robots with limits or model='double_integrator': ideal robots are "
+            "integrated as double integrators, which a late (dv/dt, omega) no longer is"
+        )
+    if network is not None and not network.is_ideal:
+        raise SimulationInputError("an actuation delay over an imperfect network is not modelled; use the ideal network")
+    if robot.safety is not None:
+        raise SimulationInputError("an actuation delay with the safety filter is not modelled; give one of them")
 
 
 def _trajectory(
     topology: Topology,
     desired: _Array,
-    model: str,
-    limits: RobotLimits | None,
+    robot: Robot,
     P: float,
     D: float,
     tau1: float,
@@ -367,6 +447,7 @@ def _trajectory(
     run: Samples,
     rest_speed: float,
 ) -> Trajectory:
+    model, limits = robot.model, robot.limits
     times, pos, vel, acc = run.times, run.positions, run.velocities, run.accelerations
     commands = None
     if model == "double_integrator":
@@ -377,7 +458,7 @@ def _trajectory(
         inp = np.stack([vdot, omega], axis=-1)
         commands = RobotCommands.from_motion(times, spd, omega, vdot, IROBOT_CREATE)
     else:
-        assert run.states is not None
+        assert run.states is not None and limits is not None
         head, spd = np.angle(np.exp(1j * run.states[..., 2])), run.states[..., 3].copy()
         ex = run.extras
         inp = np.stack([ex["dv_dt"], ex["omega"]], axis=-1)
@@ -393,15 +474,48 @@ def _trajectory(
         found = commands.exceedances()
         if found and status != "settled":
             warnings += ("the actuator limits were active: " + "; ".join(e.sentence for e in found),)
+    report = None
+    if robot.safety is not None:
+        report = SafetyReport(2.0 * robot.body_radius + robot.safety.margin, run.extras["safety_active"] > 0.5,
+                              run.extras["safety_infeasible"] > 0.5, times)  # fmt: skip
+        if report.was_active:
+            warnings += (report.sentence(),)
+        status, warnings = _deadlock(status, warnings, report, spd, duration)
+    approach = closest_approach(times, pos, vel, 2.0 * robot.body_radius)
+    if approach.contacts:
+        warnings += (contact_warning(approach.contacts),)
     return Trajectory(
         times=times, positions=pos, velocities=vel, headings=head, speeds=spd, inputs=inp,
         desired=desired, model=model, P=P, D=D, tau1=tau1, tau2=tau2, dt=dt,
-        stated_order=2 if limits is not None else stated_order(tau1, tau2, dt),
+        stated_order=2 if limits is not None or report is not None or robot.actuation_delay > 0.0
+        else stated_order(tau1, tau2, dt),
+        actuation_delay=robot.actuation_delay,
         formation_error=error, settling_time=settled,
         final_centroid=centroid_weights(topology) @ pos[-1],
-        min_distance=min_distance(pos), commands=commands, limits=limits,
+        min_distance=approach.min_distance, closest_at=approach.at, radius=robot.body_radius,
+        contacts=approach.contacts, safety=report, commands=commands, limits=limits,
         status=status, warnings=warnings, labels=topology.labels, stopped_at=run.stopped,
     )  # fmt: skip
+
+
+def _deadlock(
+    status: str, warnings: tuple[str, ...], report: SafetyReport, speeds: _Array, duration: float
+) -> tuple[str, tuple[str, ...]]:
+    """A run that did not settle because the filter holds robots still short of their slots: ``"deadlock"``.
+
+    Deadlock: not settled, the filter still acting over the last tenth of the
+    saved samples, and every robot slower than :data:`DEADLOCK_SPEED` at the end.
+    """
+    if status != "not settled":
+        return status, warnings
+    tail = max(1, report.times.size // 10)
+    if report.active[-tail:].any() and float(np.abs(speeds[-1]).max()) < DEADLOCK_SPEED:
+        return "deadlock", (
+            f"deadlock: the robots stopped short of the formation within {duration:.4g} s, held apart by "
+            f"the safety filter (robots {', '.join(str(i + 1) for i in np.flatnonzero(report.active[-1]))} "
+            f"were still filtered at the end)",
+        ) + tuple(w for w in warnings if not w.startswith("the formation error did not stay"))
+    return status, warnings
 
 
 # ------------------------------------------------------------ paper demo

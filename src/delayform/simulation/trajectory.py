@@ -14,8 +14,10 @@ from delayform._files import atomic_path, save_npz
 from delayform._display import FigureRepr  # Jupyter shows the figure (issue 23)
 from delayform._validation import validated
 from delayform.errors import SimulationInputError
+from delayform.simulation.bodies import Contact
 from delayform.simulation.commands import RobotCommands
 from delayform.simulation.robots import RobotLimits
+from delayform.simulation.safety import SafetyReport
 
 __all__ = ["Trajectory", "SETTLING_FRACTION", "STATUSES"]
 
@@ -25,7 +27,7 @@ _Array = NDArray[np.float64]
 SETTLING_FRACTION = 0.02
 
 #: what :attr:`Trajectory.status` can be
-STATUSES = ("settled", "not settled", "diverging", "stopped")
+STATUSES = ("settled", "not settled", "diverging", "stopped", "deadlock")
 
 #: a run whose formation error ends this many times above its initial value is diverging
 DIVERGING_GROWTH = 10.0
@@ -70,7 +72,23 @@ class Trajectory(FigureRepr):
     final_centroid
         Weighted centroid ``w^T x`` (eq. factor1) at the last time.
     min_distance
-        Smallest distance between any two robots over the saved times.
+        Smallest centre-to-centre distance of two robots over the run, exact
+        for the interpolated motion between saved samples too
+        (:func:`~delayform.simulation.bodies.closest_approach`).
+    closest_at
+        When it happened (s).
+    radius
+        The robots' body radius (m) used for contacts; 0 for point agents.
+    contacts
+        Each time two bodies overlapped (:class:`~delayform.simulation.bodies.Contact`:
+        which pair, when, how long, how close); a run with contacts says so
+        in :attr:`warnings`.
+    slots
+        ``(n,)``: the slot of ``formation`` robot i took (``simulate(...,
+        assignment=...)``); ``desired`` is already in this order.
+    safety
+        When the safety filter acted (:class:`~delayform.simulation.safety.SafetyReport`),
+        or None for a run without it.
     commands
         The robots' commands (:class:`RobotCommands`); None for double integrators.
     limits
@@ -78,7 +96,9 @@ class Trajectory(FigureRepr):
     status
         One of :data:`STATUSES`: ``"settled"``; ``"not settled"`` within the
         run; ``"diverging"`` (the error ended more than 10 times its start);
-        ``"stopped"`` (the state overflowed and integration stopped early).
+        ``"stopped"`` (the state overflowed and integration stopped early);
+        ``"deadlock"`` (the safety filter holds the robots still short of
+        the formation).
     warnings
         Sentences for a reader about a run that did not settle.
     labels
@@ -86,6 +106,8 @@ class Trajectory(FigureRepr):
     stopped_at
         Time (s) at which integration stopped because the state passed 1e8
         times its initial size (status ``"stopped"``), else None.
+    actuation_delay
+        The robots' actuation delay tau_a (s), 0 for the paper's model.
     """
 
     _figure_method = "plot_traces"  # the robots' paths in the plane: what a notebook wants to see
@@ -108,17 +130,29 @@ class Trajectory(FigureRepr):
     settling_time: float
     final_centroid: _Array
     min_distance: float
+    closest_at: float = math.nan
+    radius: float = 0.0
+    contacts: tuple[Contact, ...] = ()
+    slots: NDArray[np.intp] | None = None
+    safety: SafetyReport | None = None
     commands: RobotCommands | None = None
     limits: RobotLimits | None = None
     status: str = "settled"
     warnings: tuple[str, ...] = ()
     labels: tuple[Any, ...] = field(default=())
     stopped_at: float | None = None
+    #: tau_a (s), the actuation delay of the run (:attr:`~delayform.simulation.robots.Robot.actuation_delay`)
+    actuation_delay: float = 0.0
 
     @property
     def n(self) -> int:
         """Number of agents."""
         return int(self.positions.shape[1])
+
+    @property
+    def collided(self) -> bool:
+        """Whether two robots' bodies overlapped during the run (see :attr:`contacts`)."""
+        return bool(self.contacts)
 
     @property
     def final_positions(self) -> _Array:
@@ -234,22 +268,14 @@ def settling_time(times: _Array, error: _Array, scale: float) -> float:
     return float(times[last + 1]) if last + 1 < times.size else math.inf
 
 
-def min_distance(positions: _Array) -> float:
-    """Smallest distance between two robots over all samples, without an n x n matrix for large n."""
-    T, n, _ = positions.shape
-    if n < 2:
-        return math.inf
-    if n <= 64:
-        i, j = np.triu_indices(n, k=1)
-        diff = positions[:, i] - positions[:, j]
-        return float(np.sqrt(np.min(diff[..., 0] ** 2 + diff[..., 1] ** 2)))
-    from scipy.spatial import cKDTree
-
-    best = math.inf
-    for frame in positions:
-        d, _ = cKDTree(frame).query(frame, k=2)
-        best = min(best, float(d[:, 1].min()))
-    return best
+def contact_warning(contacts: tuple[Contact, ...], labels: tuple[Any, ...] = ()) -> str:
+    """The sentence of a run whose robots touched: how many contacts, the deepest one."""
+    deepest = max(contacts, key=lambda c: c.depth)
+    pairs = len({c.agents for c in contacts})
+    return (
+        f"the robots collided: {len(contacts)} contact(s) between {pairs} pair(s) of robots; the deepest: "
+        + deepest.sentence(labels)
+    )
 
 
 def run_status(

@@ -106,7 +106,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from delayform._display import FigureRepr  # Jupyter shows the figure (issue 23)
-from delayform._validation import check_delay_array, check_positive, validated
+from delayform._validation import check_delay, check_delay_array, check_positive, validated
+from delayform.analysis.ctcr.actuated import ActuatedStabilityMap, actuated_stability_map
 # the curves and the count live in one module per concept; names other modules and
 # tests import from here stay importable from here
 from delayform.analysis.ctcr.count import (  # noqa: F401
@@ -428,7 +429,9 @@ def crossing_map(qp: TwoDelayQuasiPolynomial | QuasiPolynomial, tau1_max: float,
 
 
 @validated()
-def stability_map(topology: Topology, P: float, D: float, tau1_max: float, tau2_max: float) -> StabilityMap:
+def stability_map(
+    topology: Topology, P: float, D: float, tau1_max: float, tau2_max: float, *, actuation_delay: float = 0.0
+) -> StabilityMap | ActuatedStabilityMap:
     """The exact CTCR stability map of the formation protocol (eq. protocolss).
 
     Every factor of eq. factorized is traced: a real eigenvalue lam gives the
@@ -445,10 +448,15 @@ def stability_map(topology: Topology, P: float, D: float, tau1_max: float, tau2_
         Positive gains of eq. protocol.
     tau1_max, tau2_max
         The window [0, tau1_max] x [0, tau2_max].
+    actuation_delay
+        tau_a >= 0 (s). Above 0 every factor gains the delayed own-state
+        terms and the map, exact in (tau1, tau2) at this tau_a, is an
+        :class:`~delayform.analysis.ctcr.actuated.ActuatedStabilityMap`
+        (same counting and drawing interface); 0 (default): the paper's map.
 
     Returns
     -------
-    StabilityMap
+    StabilityMap or ActuatedStabilityMap
 
     Raises
     ------
@@ -467,6 +475,7 @@ def stability_map(topology: Topology, P: float, D: float, tau1_max: float, tau2_
     """
     topology.require_spanning_tree()
     t1, t2 = _check_window(tau1_max, tau2_max)
+    ta = check_delay("actuation_delay", actuation_delay)
     sources = []
     for idx, f in enumerate(factors(topology, P, D)):
         mult = f.multiplicity
@@ -475,7 +484,10 @@ def stability_map(topology: Topology, P: float, D: float, tau1_max: float, tau2_
         else:
             parts = [_Part(_lam_factor(f.P, f.D, lam), 2 * mult, idx, complex(lam)) for lam in (f.lam, np.conj(f.lam))]
         sources.append((f.quasi_polynomial, mult, parts))
+    # with an actuation delay the crossing frequencies obey the same bound (|e^{-j w tau_a}| = 1)
     _guard_window([p.qp for _, _, parts in sources for p in parts], t1, t2)
+    if ta > 0.0:
+        return actuated_stability_map(topology, P, D, t1, t2, ta)
     return _assemble(sources, t1, t2)
 
 

@@ -39,6 +39,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from delayform.analysis.network.per_link import LinkDominantRoot, link_dominant_root
 from delayform._validation import check_delay, check_gains, validated
+from delayform.analysis.roots.actuated import actuated_beside_drift, actuated_rightmost
 from delayform.analysis.roots.family.solve import family_grid, family_rightmost
 from delayform.analysis.roots.problem import MAX_DEGREE, RESIDUAL_TOL, _Problem, _problem_of_factor, _problem_of_qp
 from delayform.analysis.roots.single import (  # noqa: F401 - the roots of one quasi-polynomial, re-exported
@@ -116,6 +117,8 @@ class DominantRoot:
     beside_drift
         On tau1 = 0: the rightmost root with both centroid zeros removed
         (see :attr:`stability_root`); None elsewhere.
+    actuation_delay
+        The actuation delay tau_a (s) of :func:`dominant_root`.
     """
 
     root: complex
@@ -125,6 +128,8 @@ class DominantRoot:
     formation_root: complex | None = None
     centroid_root: complex | None = None
     beside_drift: complex | None = None
+    #: tau_a (s), the actuation delay the roots were computed with (0: the paper's model)
+    actuation_delay: float = 0.0
 
     @property
     def stability_root(self) -> complex:
@@ -214,7 +219,8 @@ def _factors_of(topology: Topology, P: float, D: float) -> tuple[CharacteristicF
 
 @validated()
 def dominant_root(
-    topology: Topology, P: float, D: float, tau1: float | ArrayLike, tau2: float | ArrayLike
+    topology: Topology, P: float, D: float, tau1: float | ArrayLike, tau2: float | ArrayLike, *,
+    actuation_delay: float = 0.0,
 ) -> DominantRoot | LinkDominantRoot:
     """The dominant root of the formation and its time constant.
 
@@ -232,6 +238,11 @@ def dominant_root(
     tau1, tau2
         Non-negative delays on positions and velocities, or N x N arrays of
         per-link delays (entries without a link ignored).
+    actuation_delay
+        tau_a >= 0 (s): each robot applies its command tau_a late, so every
+        factor gains the delayed own-state terms
+        (:func:`~delayform.analysis.roots.actuated.actuated_factor`); 0
+        (default) is the paper's model, solved by the vectorized family path.
 
     Returns
     -------
@@ -249,7 +260,10 @@ def dominant_root(
     if np.ndim(tau1) or np.ndim(tau2):  # per-link delays: the matrix quasi-polynomial, no factorization
         return link_dominant_root(topology, P, D, tau1, tau2)
     t1, t2 = check_delay("tau1", tau1), check_delay("tau2", tau2)
+    ta = check_delay("actuation_delay", actuation_delay)
     fs = _checked_factors(topology, P, D)
+    if ta > 0.0:
+        return _actuated_dominant(fs, t1, t2, ta)
     # all factors in one batch (one stacked discretization, one vectorized certificate)
     _family_reach(fs, t1, t2)
     right = family_rightmost(fs, fs[0].P, fs[0].D, t1, t2)
@@ -266,6 +280,21 @@ def dominant_root(
         beside = formation[0] if nxt is None or formation[0].real >= nxt.real else nxt
     return DominantRoot(best[0], best[1], t1, t2, formation_root=formation[0], centroid_root=centroid_root,
                         beside_drift=beside)  # fmt: skip
+
+
+def _actuated_dominant(fs: tuple[CharacteristicFactor, ...], t1: float, t2: float, ta: float) -> DominantRoot:
+    """:func:`dominant_root` with an actuation delay: each factor in three delays, certified one by one."""
+    right = [actuated_rightmost(f, t1, t2, ta) for f in fs]
+    k0 = next(k for k, f in enumerate(fs) if f.is_centroid)
+    centroid, centroid_root = fs[k0], right[k0]
+    formation = max(((right[k], f) for k, f in enumerate(fs) if not f.is_centroid), key=lambda rf: rf[0].real)
+    best = formation if formation[0].real >= centroid_root.real else (centroid_root, centroid)
+    beside = None
+    if best[1].is_centroid and best[0] == 0.0:  # the drift on tau1 = 0, as without the actuation delay
+        nxt = actuated_beside_drift(centroid, t2, ta)
+        beside = formation[0] if nxt is None or formation[0].real >= nxt.real else nxt
+    return DominantRoot(best[0], best[1], t1, t2, formation_root=formation[0], centroid_root=centroid_root,
+                        beside_drift=beside, actuation_delay=ta)  # fmt: skip
 
 
 @validated()

@@ -33,6 +33,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from delayform._validation import check_delay, validated
+from delayform.analysis.roots.actuated import actuated_roots_in
 from delayform.analysis.roots.family.solve import family_reach_scales
 from delayform.analysis.roots.family.polish import _polish_rows, _q
 from delayform.analysis.roots.family.rows import _lams, _Rows
@@ -60,6 +61,7 @@ def factor_roots_in(
     region: ArrayLike,
     *,
     progress: Callable[[int, int], None] | None = None,
+    actuation_delay: float = 0.0,
 ) -> tuple[tuple[CharacteristicFactor, NDArray[np.complex128]], ...]:
     """The roots in a rectangle of every factor of eq. factorized: :func:`roots_in` for a whole team.
 
@@ -76,6 +78,9 @@ def factor_roots_in(
     progress
         Called as ``progress(done, total)`` while the factors are solved
         (total = the number of factors).
+    actuation_delay
+        tau_a >= 0 (s): the factors with the delayed own-state terms, one by
+        one (:func:`~delayform.analysis.roots.actuated.actuated_roots_in`); 0: the batched path.
 
     Returns
     -------
@@ -104,6 +109,14 @@ def factor_roots_in(
     fs = _checked_factors(topology, P, D)
     t1, t2 = check_delay("tau1", tau1), check_delay("tau2", tau2)
     region = _check_region(region)
+    ta = check_delay("actuation_delay", actuation_delay)
+    if ta > 0.0:
+        found = []
+        for k, f in enumerate(fs):
+            found.append((f, actuated_roots_in(f, t1, t2, ta, region)))
+            if progress is not None:
+                progress(k + 1, len(fs))
+        return tuple(found)
     hmax = max(t1, t2)
     if hmax >= _TINY_DELAY:
         _require_resolvable(region, hmax)  # every factor with lam != 0 has both delays

@@ -235,7 +235,8 @@ function startAnimation(sim) {
   const diverged = sim.diverged_at === null ? "" : `; overflowed at ${fmt(sim.diverged_at, 1)} s`;
   const limits = sim.limits !== null ? ", with actuator limits"
     : sim.network !== null ? `, network: ${sim.network}` : "";
-  $("sim-info").textContent = `${sim.n} ${sim.model} robots${limits}, ${settle}${diverged}`;
+  const touched = sim.contacts.length ? `; COLLIDED: ${sim.contacts.length} contact(s)` : "";
+  $("sim-info").textContent = `${sim.n} ${sim.model} robots${limits}, ${settle}${diverged}${touched}`;
   $("sim-info").title = [sim.limits || sim.network || "", ...sim.warnings].join("\n");
   const err = sim.formation_error.map((e) => Math.max(e, 1e-12));
   Plotly.react("error", [{ type: "scatter", mode: "lines", x: sim.times, y: err, name: "formation error",
@@ -309,6 +310,15 @@ function drawFrame(k) {
   }
   ctx.globalAlpha = 1; ctx.strokeStyle = "#2a2"; ctx.lineWidth = 1.5;
   for (const q of sim.desired_final) { ctx.beginPath(); ctx.arc(X(q[0]), Y(q[1]), 8, 0, 2 * Math.PI); ctx.stroke(); }
+  // bodies to scale (radius sim.radius m); red while the robot touches another (sim.contacts)
+  const t = sim.times[k], touching = new Set();
+  for (const [i, j, t0, t1] of sim.contacts) if (t0 <= t && t <= t1) { touching.add(i); touching.add(j); }
+  if (sim.radius > 0) {
+    for (let i = 0; i < n; i++) {
+      ctx.beginPath(); ctx.arc(X(sim.x[k][i]), Y(sim.y[k][i]), sim.radius * scale, 0, 2 * Math.PI);
+      ctx.strokeStyle = touching.has(i) ? "#d00" : "#888"; ctx.lineWidth = touching.has(i) ? 2.5 : 0.8; ctx.stroke();
+    }
+  }
   ctx.textAlign = "center"; ctx.fillStyle = "#222";
   for (let i = 0; i < n; i++) {  // unicycles: a triangle along the heading
     const x = X(sim.x[k][i]), y = Y(sim.y[k][i]), th = sim.heading[k][i], c = Math.cos(th), s = Math.sin(th);
@@ -319,7 +329,8 @@ function drawFrame(k) {
   }
   ctx.restore();
   ctx.fillStyle = "#222"; ctx.font = "12px sans-serif"; ctx.textAlign = "center";
-  ctx.fillText(`robots (unicycles with headings; green: the formation at its final offset), t = ${fmt(sim.times[k], 1)} s`, W / 2, 16);
+  const bodies = sim.radius > 0 ? `; circles: bodies to scale, red: in contact${touching.size ? " NOW" : ""}` : "";
+  ctx.fillText(`robots (unicycles with headings; green: the formation at its final offset${bodies}), t = ${fmt(sim.times[k], 1)} s`, W / 2, 16);
   moveCursor(sim.times[k]);
   $("sim-time").textContent = `t = ${fmt(sim.times[k], 1)} s`;
   document.body.dataset.simTime = String(sim.times[k]);

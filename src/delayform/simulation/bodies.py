@@ -1,0 +1,401 @@
+"""Robots with bodies: the exact closest approach of a run and the contacts between robots.
+
+Method
+------
+Between two saved samples ``t_k`` and ``t_{k+1} = t_k + h`` the motion of a
+robot is the cubic Hermite interpolant of its saved positions and
+velocities (the same interpolant the integrator uses for its delayed
+look-ups, :mod:`delayform.simulation.integrator`, so with every step saved it
+is the integrator's own fourth-order continuous extension). The separation
+``d(s) = x_i - x_j`` of a pair is then a planar cubic in ``s in [0, 1]``,
+``d = a0 + a1 s + a2 s^2 + a3 s^3``, its squared length ``|d|^2`` a
+polynomial of degree 6, and
+
+* the interval's closest approach is the smaller of the end values and the
+  values at the real roots in ``(0, 1)`` of the quintic ``d/ds |d|^2``,
+  found as eigenvalues of its companion matrix (batched over all intervals
+  at once) and polished by Newton steps on the quintic itself;
+* a contact starts and ends at the real roots of ``|d|^2 - R^2`` (degree 6,
+  the same companion construction), ``R`` the sum of the two radii.
+
+So the closest approach is exact for the interpolated motion, between saved
+steps too, not just the minimum over saved samples (which it never exceeds).
+
+Pruning
+-------
+Only intervals that could come close are solved: on ``[0, 1]``,
+``|d(s)| >= |a0| - |a1| - |a2| - |a3|``, so an interval whose bound is above
+both the best distance found so far and ``R`` cannot matter. Small teams
+(at most :data:`_ALL_PAIRS` robots) test all pairs; larger teams take the
+candidate pairs of each stretch of samples from a KD-tree
+(:class:`scipy.spatial.cKDTree`) on the stretch's middle positions, with a
+search radius grown by how far any robot moves within the stretch: a pair
+farther apart than that cannot come within the threshold during it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["Contact", "Approach", "closest_approach", "sample_min_distance"]
+
+_Array = NDArray[np.float64]
+_Index = NDArray[np.intp]
+
+#: teams up to this size test every pair; larger ones use a KD-tree per stretch
+_ALL_PAIRS = 64
+
+#: about this many (interval x pair) entries are handled at once
+_CHUNK_ENTRIES = 400_000
+
+#: samples per stretch (one KD-tree each) in teams above _ALL_PAIRS robots
+_STRETCH = 16
+
+#: Newton steps that polish a companion-matrix root on the polynomial itself
+_NEWTON = 3
+
+
+@dataclass(frozen=True)
+class Contact:
+    """Two robots closer than the sum of their radii during one stretch of time.
+
+    Attributes
+    ----------
+    agents
+        The pair ``(i, j)``, ``i < j``, as agent indices (from 0).
+    start, end
+        When the bodies first touched and separated again (s); ``end`` is the
+        end of the run when they were still in contact then.
+    closest
+        Smallest centre-to-centre distance during the contact (m).
+    closest_at
+        When it happened (s).
+    contact_distance
+        The sum of the two radii (m): a contact is ``distance < contact_distance``.
+    """
+
+    agents: tuple[int, int]
+    start: float
+    end: float
+    closest: float
+    closest_at: float
+    contact_distance: float
+
+    @property
+    def duration(self) -> float:
+        """How long the bodies overlapped (s)."""
+        return self.end - self.start
+
+    @property
+    def depth(self) -> float:
+        """How far the bodies overlapped at the closest point (m)."""
+        return self.contact_distance - self.closest
+
+    def sentence(self, labels: tuple[object, ...] = ()) -> str:
+        """One line for a reader, agents by their topology ``labels`` (else numbered from 1)."""
+        i, j = self.agents
+        a, b = (labels[i], labels[j]) if labels else (i + 1, j + 1)
+        return (
+            f"robots {a} and {b} touched from t = {self.start:.4g} s to {self.end:.4g} s "
+            f"({self.duration:.3g} s), {self.closest:.3g} m apart at t = {self.closest_at:.4g} s "
+            f"(bodies need {self.contact_distance:.3g} m)"
+        )
+
+
+@dataclass(frozen=True)
+class Approach:
+    """The closest approach of a run and its contacts (:func:`closest_approach`).
+
+    Attributes
+    ----------
+    min_distance
+        Smallest centre-to-centre distance of two robots over the run (m),
+        exact for the interpolated motion; ``inf`` for one robot.
+    at
+        When it happened (s); NaN for one robot.
+    pair
+        Which two robots (indices from 0); ``(-1, -1)`` for one robot.
+    contacts
+        Every contact, ordered by start time.
+    """
+
+    min_distance: float
+    at: float
+    pair: tuple[int, int]
+    contacts: tuple[Contact, ...]
+
+
+# ----------------------------------------------------------- polynomials
+def _hermite_coefficients(d0: _Array, d1: _Array, w0: _Array, w1: _Array, h: _Array) -> tuple[_Array, ...]:
+    """Power-basis coefficients ``a0..a3`` (each ``(..., 2)``) of the cubic Hermite separation."""
+    m0, m1 = w0 * h[..., None], w1 * h[..., None]
+    step = d1 - d0
+    return d0, m0, 3.0 * step - 2.0 * m0 - m1, -2.0 * step + m0 + m1
+
+
+def _squared_length(a: tuple[_Array, ...]) -> _Array:
+    """``(..., 7)`` coefficients (ascending) of ``|a0 + a1 s + a2 s^2 + a3 s^3|^2``."""
+    out = np.zeros(a[0].shape[:-1] + (7,))
+    for p in range(4):
+        for q in range(4):
+            out[..., p + q] += np.einsum("...k,...k->...", a[p], a[q])
+    return out
+
+
+def _polyval(coef: _Array, s: _Array) -> _Array:
+    """Evaluate ascending coefficients ``(M, m)`` at ``s`` ``(M, r)`` (Horner)."""
+    out = np.zeros_like(s) + coef[:, -1:]
+    for c in range(coef.shape[1] - 2, -1, -1):
+        out = out * s + coef[:, c : c + 1]
+    return out
+
+
+def _unit_roots(coef: _Array) -> tuple[_Array, _Array]:
+    """Real roots in ``[0, 1]`` of polynomials with ascending coefficients ``(M, m)``.
+
+    Returns ``(roots, valid)``, both ``(M, m - 1)``: the companion matrix's
+    eigenvalues, polished by Newton steps, and where they are real and in
+    ``[0, 1]``. A vanishing leading coefficient (a lower degree) is lifted
+    to a tiny one, which only adds a root far outside ``[0, 1]``.
+    """
+    M, m = coef.shape
+    deg = m - 1
+    scale = np.abs(coef).max(axis=1) + 1e-300
+    lead = coef[:, -1].copy()
+    tiny = 1e-13 * scale
+    small = np.abs(lead) < tiny
+    lead[small] = np.where(lead[small] < 0, -tiny[small], tiny[small])
+    comp = np.zeros((M, deg, deg))
+    comp[:, 1:, :-1] = np.eye(deg - 1)
+    comp[:, :, -1] = -coef[:, :-1] / lead[:, None]
+    eig = np.linalg.eigvals(comp)
+    real = np.abs(eig.imag) <= 1e-6 * (1.0 + np.abs(eig.real))
+    s = eig.real.copy()
+    deriv = coef[:, 1:] * np.arange(1, m)
+    for _ in range(_NEWTON):
+        f, fp = _polyval(coef, s), _polyval(deriv, s)
+        ok = np.abs(fp) > 0
+        s = np.where(ok, s - f / np.where(ok, fp, 1.0), s)
+    valid = real & (s >= -1e-9) & (s <= 1.0 + 1e-9)
+    return np.clip(s, 0.0, 1.0), valid
+
+
+def _interval_minima(sq: _Array) -> tuple[_Array, _Array]:
+    """Smallest ``|d|^2`` over ``[0, 1]`` and where, for squared-length coefficients ``(M, 7)``."""
+    roots, valid = _unit_roots(sq[:, 1:] * np.arange(1, 7))
+    cand = np.concatenate([np.zeros((sq.shape[0], 1)), np.ones((sq.shape[0], 1)), roots], axis=1)
+    values = _polyval(sq, cand)
+    values[:, 2:][~valid] = np.inf
+    best = np.argmin(values, axis=1)
+    rows = np.arange(sq.shape[0])
+    return np.maximum(values[rows, best], 0.0), cand[rows, best]
+
+
+def _crossing(sq: _Array, level: float, lo: _Array, hi: _Array, first: bool) -> _Array:
+    """The first (or last) root of ``|d|^2 = level`` in ``[lo, hi]`` per row; ``lo`` / ``hi`` if none."""
+    shifted = sq.copy()
+    shifted[:, 0] -= level
+    roots, valid = _unit_roots(shifted)
+    valid &= (roots >= lo[:, None] - 1e-12) & (roots <= hi[:, None] + 1e-12)
+    fill = np.inf if first else -np.inf
+    pick = np.where(valid, roots, fill)
+    out = pick.min(axis=1) if first else pick.max(axis=1)
+    default = lo if first else hi
+    return np.where(np.isfinite(out), out, default)
+
+
+# --------------------------------------------------------------- search
+def _pairs_all(n: int) -> _Index:
+    i, j = np.triu_indices(n, k=1)
+    return np.column_stack([i, j])
+
+
+def _pairs_near(frames: _Array, reach: _Array, threshold: float) -> _Index:
+    """Pairs of a stretch of samples that may come closer than ``threshold`` (all that can matter).
+
+    ``frames`` ``(m, n, 2)``; ``reach`` ``(n,)`` how far each robot's
+    interpolated path strays from its samples within the stretch
+    (:func:`_reach`). A pair farther apart at the middle sample than the
+    threshold plus twice the largest excursion from it cannot come closer
+    during the stretch. An infinite threshold (nothing found yet) is
+    replaced by the closest distance at the middle sample, an upper bound.
+    """
+    from scipy.spatial import cKDTree
+
+    mid = frames[frames.shape[0] // 2]
+    tree = cKDTree(mid)
+    if not math.isfinite(threshold):
+        near, _ = tree.query(mid, k=2)
+        threshold = float(near[:, 1].min())
+    excursion = np.hypot(*(frames - mid[None]).transpose(2, 0, 1)).max(axis=0) + reach
+    radius = threshold + 2.0 * float(excursion.max())
+    return tree.query_pairs(radius, output_type="ndarray").astype(np.intp).reshape(-1, 2)
+
+
+def sample_min_distance(positions: _Array) -> float:
+    """Smallest distance of two robots over the saved samples only (the brute-force check).
+
+    Parameters
+    ----------
+    positions
+        ``(T, n, 2)``.
+    """
+    T, n, _ = positions.shape
+    if n < 2:
+        return math.inf
+    pairs = _pairs_all(n)
+    best = math.inf
+    step = max(1, _CHUNK_ENTRIES // pairs.shape[0])
+    for k in range(0, T, step):
+        d = positions[k : k + step, pairs[:, 0]] - positions[k : k + step, pairs[:, 1]]
+        best = min(best, float(np.sqrt((d**2).sum(axis=2)).min()))
+    return best
+
+
+def closest_approach(
+    times: _Array, positions: _Array, velocities: _Array, contact_distance: float = 0.0
+) -> Approach:
+    """The exact closest approach of a run and its contacts (module doc).
+
+    Parameters
+    ----------
+    times
+        ``(T,)`` saved times, increasing.
+    positions, velocities
+        ``(T, n, 2)`` saved positions and Cartesian velocities.
+    contact_distance
+        Sum of two robots' radii (m); 0 for point agents (no contacts).
+
+    Returns
+    -------
+    Approach
+
+    Examples
+    --------
+    Two robots passing on parallel lines 0.1 m apart, closest between samples:
+
+    >>> t = np.array([0.0, 1.0])
+    >>> x = np.array([[[-0.5, 0.0], [0.5, 0.1]], [[0.5, 0.0], [-0.5, 0.1]]])
+    >>> v = np.array([[[1.0, 0.0], [-1.0, 0.0]]] * 2)
+    >>> a = closest_approach(t, x, v, 0.34)
+    >>> round(a.min_distance, 12), a.at, len(a.contacts)
+    (0.1, 0.5, 1)
+    """
+    T, n, _ = positions.shape
+    if n < 2:
+        return Approach(math.inf, math.nan, (-1, -1), ())
+    R = float(contact_distance)
+    if T == 1:
+        d2 = ((positions[0][:, None] - positions[0][None]) ** 2).sum(axis=2) + np.diag(np.full(n, np.inf))
+        a, b = sorted(divmod(int(np.argmin(d2)), n))
+        return Approach(math.sqrt(float(d2[a, b])), float(times[0]), (a, b), ())
+    h_all = np.diff(times)
+    reach = _reach(positions, velocities, h_all)
+    search = _Search(times, h_all, R)
+    all_pairs = _pairs_all(n) if n <= _ALL_PAIRS else None
+    # small teams: long stretches (memory-bound); large ones: short stretches keep KD-tree radii tight
+    stretch = max(2, _CHUNK_ENTRIES // max(1, n * (n - 1) // 2)) if all_pairs is not None else _STRETCH
+    for k0 in range(0, T - 1, stretch):
+        k1 = min(T - 1, k0 + stretch)  # samples k0..k1, intervals k0..k1-1
+        if all_pairs is None:
+            pairs = _pairs_near(positions[k0 : k1 + 1], reach[k0:k1].max(axis=0), search.threshold)
+        else:
+            pairs = all_pairs
+        if pairs.shape[0]:
+            search.stretch(k0, positions[k0 : k1 + 1], velocities[k0 : k1 + 1], reach[k0:k1], pairs)
+    contacts = _contacts(times, search.hits, R) if search.hits else ()
+    return Approach(math.sqrt(search.best2), search.best_at, search.best_pair, contacts)
+
+
+def _reach(positions: _Array, velocities: _Array, h: _Array) -> _Array:
+    """``(T - 1, n)``: how far each robot's interpolated path can stray from either end sample.
+
+    The cubic Hermite segment lies in the convex hull of its Bezier control
+    points ``x0, x0 + h v0 / 3, x1 - h v1 / 3, x1``; each is within
+    ``|x1 - x0| + h (|v0| + |v1|) / 3`` of both ends.
+    """
+    step = np.diff(positions, axis=0)
+    speed = np.hypot(velocities[..., 0], velocities[..., 1])
+    return np.hypot(step[..., 0], step[..., 1]) + (h[:, None] / 3.0) * (speed[:-1] + speed[1:])
+
+
+class _Search:
+    """The running closest approach and the intervals in contact, stretch by stretch."""
+
+    def __init__(self, times: _Array, h: _Array, R: float) -> None:
+        self.times, self.h, self.R = times, h, R
+        self.best2, self.best_at, self.best_pair = math.inf, math.nan, (-1, -1)
+        self.hits: list[tuple[_Index, _Index, _Index, _Array, _Array, _Array]] = []
+
+    @property
+    def threshold(self) -> float:
+        """Intervals that may come closer than this matter: the best so far, or a contact."""
+        return max(math.sqrt(self.best2), self.R) if self.best2 < math.inf else math.inf
+
+    def stretch(self, k0: int, frames: _Array, vel: _Array, reach: _Array, pairs: _Index) -> None:
+        """Samples ``k0 .. k0 + len(frames) - 1`` of the candidate ``pairs``."""
+        i, j = pairs[:, 0], pairs[:, 1]
+        d = frames[:, i] - frames[:, j]
+        dist = np.hypot(d[..., 0], d[..., 1])
+        flat = int(np.argmin(dist))
+        if dist.flat[flat] ** 2 < self.best2:
+            kk, pp = divmod(flat, pairs.shape[0])
+            self.best2, self.best_at = float(dist.flat[flat] ** 2), float(self.times[k0 + kk])
+            self.best_pair = (int(i[pp]), int(j[pp]))
+        # |d(s)| >= max(|d_k|, |d_k+1|) - reach_i - reach_j on interval k (_reach)
+        bound = np.maximum(dist[:-1], dist[1:]) - reach[:, i] - reach[:, j]
+        kc, pc = np.nonzero(bound < self.threshold)
+        if not kc.size:
+            return
+        w0, w1 = vel[kc, i[pc]] - vel[kc, j[pc]], vel[kc + 1, i[pc]] - vel[kc + 1, j[pc]]
+        h = self.h[k0 + kc]
+        sq = _squared_length(_hermite_coefficients(d[kc, pc], d[kc + 1, pc], w0, w1, h))
+        low, where = _interval_minima(sq)
+        m = int(np.argmin(low))
+        if low[m] < self.best2:
+            self.best2 = float(low[m])
+            self.best_at = float(self.times[k0 + kc[m]] + where[m] * h[m])
+            self.best_pair = (int(i[pc[m]]), int(j[pc[m]]))
+        touch = low < self.R**2
+        if np.any(touch):
+            self.hits.append((k0 + kc[touch], i[pc[touch]], j[pc[touch]], low[touch], where[touch], sq[touch]))
+
+
+def _contacts(
+    times: _Array, hits: list[tuple[_Index, _Index, _Index, _Array, _Array, _Array]], R: float
+) -> tuple[Contact, ...]:
+    """Group the intervals in contact into episodes per pair, with exact start and end times."""
+    k = np.concatenate([hh[0] for hh in hits])
+    i = np.concatenate([hh[1] for hh in hits])
+    j = np.concatenate([hh[2] for hh in hits])
+    low = np.concatenate([hh[3] for hh in hits])
+    where = np.concatenate([hh[4] for hh in hits])
+    sq = np.concatenate([hh[5] for hh in hits])
+    # each interval belongs to exactly one stretch: no duplicates to remove
+    order = np.lexsort((k, j, i))
+    k, i, j, low, where, sq = k[order], i[order], j[order], low[order], where[order], sq[order]
+    new = np.ones(k.size, dtype=bool)
+    new[1:] = (i[1:] != i[:-1]) | (j[1:] != j[:-1]) | (k[1:] != k[:-1] + 1)
+    starts = np.flatnonzero(new)
+    ends = np.append(starts[1:], k.size) - 1
+    h = np.diff(times)
+    zero, one = np.zeros(starts.size), np.ones(starts.size)
+    R2 = R * R
+    s_in = _crossing(sq[starts], R2, zero, where[starts], first=True)
+    s_out = _crossing(sq[ends], R2, where[ends], one, first=False)
+    out = []
+    for e, (a, b) in enumerate(zip(starts, ends)):
+        span = slice(a, b + 1)
+        m = a + int(np.argmin(low[span]))
+        start = float(times[k[a]] + s_in[e] * h[k[a]])
+        end = float(times[k[b]] + s_out[e] * h[k[b]])
+        out.append(Contact(
+            agents=(int(i[a]), int(j[a])), start=start, end=end, closest=float(math.sqrt(low[m])),
+            closest_at=float(times[k[m]] + where[m] * h[k[m]]), contact_distance=R,
+        ))  # fmt: skip
+    out.sort(key=lambda c: (c.start, c.agents))
+    return tuple(out)

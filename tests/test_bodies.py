@@ -1,0 +1,161 @@
+"""Bodies: the exact closest approach, contacts, the Robot object and its bad input."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import delayform.simulation.bodies as bodies
+from delayform.errors import SimulationInputError
+from delayform.simulation import IROBOT_CREATE, Robot, closest_approach, paper_simulations, simulate
+from delayform.simulation.bodies import sample_min_distance
+from delayform.topology import paper_six, ring
+
+
+def _straight(d0: np.ndarray, w: np.ndarray, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Robot 0 at rest at the origin, robot 1 on the line d0 + w t (a cubic Hermite reproduces it)."""
+    pos = np.zeros((times.size, 2, 2))
+    pos[:, 1] = d0 + w * times[:, None]
+    vel = np.zeros_like(pos)
+    vel[:, 1] = w
+    return pos, vel
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.floats(-5, 5), st.floats(-5, 5), st.floats(-3, 3), st.floats(-3, 3),
+    st.integers(2, 7), st.floats(0.05, 1.0),
+)  # fmt: skip
+def test_straight_lines_match_the_closed_form(x, y, wx, wy, samples, R):
+    """|d0 + w t| is smallest at t* = -d0.w / |w|^2; contact between the roots of |d0 + w t| = R."""
+    times = np.linspace(0.0, 4.0, samples)
+    d0, w = np.array([x, y]), np.array([wx, wy])
+    pos, vel = _straight(d0, w, times)
+    got = closest_approach(times, pos, vel, R)
+    ww = float(w @ w)
+    t_star = float(np.clip(-(d0 @ w) / ww, 0.0, 4.0)) if ww > 0 else 0.0
+    exact = float(np.linalg.norm(d0 + w * t_star))
+    assert got.min_distance == pytest.approx(exact, abs=1e-9)
+    assert got.min_distance <= sample_min_distance(pos) + 1e-12
+    if exact < R - 1e-6 and ww > 1e-6:
+        # roots of |w|^2 t^2 + 2 d0.w t + |d0|^2 - R^2 = 0, clipped to the run
+        b, c = float(d0 @ w), float(d0 @ d0) - R * R
+        disc = math.sqrt(b * b - ww * c)
+        t_in, t_out = max((-b - disc) / ww, 0.0), min((-b + disc) / ww, 4.0)
+        (contact,) = got.contacts
+        assert contact.start == pytest.approx(t_in, abs=1e-7)
+        assert contact.end == pytest.approx(t_out, abs=1e-7)
+        assert contact.closest == pytest.approx(exact, abs=1e-9)
+    elif exact > R + 1e-6:
+        assert got.contacts == ()
+
+
+def _fine_brute_force(traj_fine):
+    """Per pair and saved fine step: the centre distances (brute force over every pair)."""
+    pos = traj_fine.positions
+    n = pos.shape[1]
+    i, j = np.triu_indices(n, k=1)
+    return (i, j), np.linalg.norm(pos[:, i] - pos[:, j], axis=-1)
+
+
+def test_closest_approach_between_saved_steps_matches_a_finer_step():
+    """Saved every 50th step (0.1 s), the interpolant's exact minimum finds what every step shows."""
+    kw = dict(seed=0, duration=20.0, dt=0.002)
+    fine = simulate(paper_six(), 1.0, 0.5, 0.3, 0.2, "hexagon", **kw, save_every=1)
+    coarse = simulate(paper_six(), 1.0, 0.5, 0.3, 0.2, "hexagon", **kw, save_every=50)
+    (i, j), dist = _fine_brute_force(fine)
+    brute = float(dist.min())
+    assert coarse.min_distance == pytest.approx(brute, abs=2e-5)
+    # the saved samples alone miss it by much more
+    assert sample_min_distance(coarse.positions) - brute > 10 * abs(coarse.min_distance - brute)
+    # contacts: the same pairs, start and end within a fine step of where the fine samples cross
+    R = 2 * IROBOT_CREATE.radius
+    assert len(coarse.contacts) == len(fine.contacts) > 0
+    for c in coarse.contacts:
+        col = int(np.flatnonzero((i == c.agents[0]) & (j == c.agents[1]))[0])
+        inside = np.flatnonzero(dist[:, col] < R)
+        t_inside = fine.times[inside]
+        episode = t_inside[(t_inside >= c.start - 0.02) & (t_inside <= c.end + 0.02)]
+        assert episode.size > 0
+        assert episode[0] - 0.002 - 1e-6 <= c.start <= episode[0] + 1e-9
+        assert episode[-1] - 1e-9 <= c.end <= episode[-1] + 0.002 + 1e-6
+        during = (fine.times >= episode[0]) & (fine.times <= episode[-1])
+        # the samples every 2 ms can only overestimate the closest distance, by little
+        assert 0.0 <= dist[during, col].min() - c.closest <= 3e-4
+
+
+def test_large_team_kd_tree_search_equals_all_pairs(monkeypatch):
+    traj = simulate(ring(90), 1.0, 0.5, 0.1, 0.1, "polygon", model="double_integrator",
+                    duration=4.0, dt=0.1, seed=7)  # fmt: skip
+    args = (traj.times, traj.positions, traj.velocities, 0.6)
+    tree = closest_approach(*args)
+    monkeypatch.setattr(bodies, "_ALL_PAIRS", 1000)
+    every = closest_approach(*args)
+    assert tree.min_distance == every.min_distance and tree.contacts == every.contacts
+    assert len(tree.contacts) > 0
+    assert tree.min_distance <= sample_min_distance(traj.positions)
+
+
+def test_the_papers_ideal_robots_collide_and_say_so():
+    a, _ = paper_simulations(duration=40.0, dt=0.05)
+    assert a.collided and a.radius == IROBOT_CREATE.radius
+    assert any("collided" in w for w in a.warnings)
+    assert a.min_distance < 2 * a.radius
+    assert all(c.closest < c.contact_distance and c.start < c.closest_at < c.end for c in a.contacts)
+
+
+def test_point_agents_have_no_contacts_and_robot_object_equals_shortcuts():
+    kw = dict(duration=20.0, dt=0.05)
+    short = simulate(paper_six(), 1.0, 0.5, 0.3, 0.2, "hexagon", model="double_integrator", **kw)
+    obj = simulate(paper_six(), 1.0, 0.5, 0.3, 0.2, "hexagon", robot=Robot(model="double_integrator"), **kw)
+    assert short.contacts == () and short.radius == 0.0
+    assert np.array_equal(short.positions, obj.positions)
+    big = simulate(paper_six(), 1.0, 0.5, 0.3, 0.2, "hexagon", robot=Robot(model="double_integrator", radius=0.45), **kw)
+    assert np.array_equal(big.positions, obj.positions) and big.collided
+
+
+@pytest.mark.parametrize(
+    "make, message",
+    [
+        (lambda: Robot(radius=-0.1), "non-negative"),
+        (lambda: Robot(radius=math.inf), "finite"),
+        (lambda: Robot(radius=math.nan), "finite"),
+        (lambda: Robot(radius="big"), "number"),
+        (lambda: Robot(model="tank"), "unknown model"),
+        (lambda: Robot(model="double_integrator", limits=IROBOT_CREATE), "limits apply"),
+    ],
+)
+def test_robot_bad_input(make, message):
+    with pytest.raises(SimulationInputError, match=message):
+        make()
+
+
+def test_overlapping_slots_are_refused_before_simulating():
+    with pytest.raises(SimulationInputError, match="slots .* closer than two robot radii"):
+        simulate(paper_six(), 1.0, 0.5, 0.3, 0.2, "hexagon", robot=Robot(radius=1.5), duration=1e9, dt=1e-6)
+    with pytest.raises(SimulationInputError, match="not both"):
+        simulate(paper_six(), 1.0, 0.5, 0.3, 0.2, "hexagon", robot=Robot(), model="unicycle", duration=1.0, dt=0.1)
+
+
+# ------------------------------------------------------------ command line
+def test_cli_says_plainly_that_robots_collided_and_refuses_overlapping_bodies(tmp_path):
+    import json
+
+    from test_cli import assert_one_line_error, run
+
+    proc = run("simulate", "--duration", "30", "--dt", "0.05", "--no-csv", "--json", "--out", str(tmp_path / "a"),
+               cwd=tmp_path)  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr.startswith("delayform: note: the robots collided:"), proc.stderr
+    summary = json.loads(proc.stdout)
+    assert summary["radius"] == 0.17 and summary["contacts"]
+    assert summary["min_distance"] < 0.34
+    proc = run("simulate", "--radius", "5", "--duration", "1", "--out", str(tmp_path / "b"), cwd=tmp_path)
+    assert_one_line_error(proc, "slots", "radii")
+    assert not (tmp_path / "b").exists()
+    proc = run("simulate", "--radius", "-1", "--duration", "1", "--out", str(tmp_path / "c"), cwd=tmp_path)
+    assert proc.returncode == 2 and "radius" in proc.stderr and not (tmp_path / "c").exists()
