@@ -42,6 +42,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import linear_sum_assignment
 
+from delayform._validation import validated
 from delayform.errors import FormationError, SimulationInputError
 from delayform.formation import centroid_weights, final_centroid
 from delayform.topology import Topology
@@ -60,6 +61,7 @@ _DUAL_STEPS = 60
 _EXCHANGE_AGENTS = 40
 
 
+@validated(SimulationInputError)
 @dataclass(frozen=True)
 class SlotAssignment:
     """Which slot each robot takes (:func:`assign_slots`).
@@ -106,6 +108,7 @@ def assignment_cost(slots: NDArray[np.intp], desired: _Array, x0: _Array, weight
     return float(((x0 - final) ** 2).sum())
 
 
+@validated(SimulationInputError)
 def assign_slots(
     topology: Topology, P: float, D: float, tau1: float, tau2: float, desired: _Array, x0: _Array, v0: _Array
 ) -> SlotAssignment:

@@ -41,6 +41,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from delayform._validation import validated
+from delayform.errors import SimulationInputError
+
 __all__ = ["Contact", "Approach", "closest_approach", "sample_min_distance"]
 
 _Array = NDArray[np.float64]
@@ -59,6 +62,7 @@ _STRETCH = 16
 _NEWTON = 3
 
 
+@validated(SimulationInputError)
 @dataclass(frozen=True)
 class Contact:
     """Two robots closer than the sum of their radii during one stretch of time.
@@ -106,6 +110,7 @@ class Contact:
         )
 
 
+@validated(SimulationInputError)
 @dataclass(frozen=True)
 class Approach:
     """The closest approach of a run and its contacts (:func:`closest_approach`).
@@ -256,6 +261,7 @@ def sample_min_distance(positions: _Array) -> float:
     return best
 
 
+@validated(SimulationInputError)
 def closest_approach(
     times: _Array, positions: _Array, velocities: _Array, contact_distance: float = 0.0
 ) -> Approach:

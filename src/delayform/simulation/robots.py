@@ -147,6 +147,7 @@ def _nonnegative(name: str, value: object, unit: str) -> float:
     return float(value)
 
 
+@validated(SimulationInputError)
 @dataclass(frozen=True)
 class Robot:
     """What belongs to the robot in a simulation, gathered as :class:`Network` gathers the network.

@@ -67,6 +67,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from delayform._validation import validated
 from delayform.errors import SimulationInputError
 
 __all__ = ["SAFETY_FILTERS", "BarrierFilter", "FilteredAgent", "SafetyReport", "barrier_commands", "check_safety"]
@@ -86,6 +87,7 @@ _ROUNDS = 3
 _FEASIBLE = 1e-9
 
 
+@validated(SimulationInputError)
 @dataclass(frozen=True)
 class BarrierFilter:
     """The control-barrier-function safety filter (module doc).
@@ -366,6 +368,7 @@ class FilteredAgent:
         return deriv, cart, tuple(extra) + (active.astype(float), infeasible.astype(float))
 
 
+@validated(SimulationInputError)
 @dataclass(frozen=True)
 class SafetyReport:
     """When the safety filter acted during a run (from the saved samples).

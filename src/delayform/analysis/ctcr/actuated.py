@@ -46,7 +46,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from delayform._validation import check_delay, check_delay_array, check_gains
+from delayform._validation import check_delay, check_delay_array, check_gains, validated
 from delayform.analysis.ctcr.curves import CrossingCurve
 from delayform.analysis.roots.actuated import actuated_factor
 from delayform.analysis.roots.single import count_roots_right_of
@@ -297,6 +297,7 @@ def _near(th: NDArray, guess: NDArray) -> NDArray:
     return th + TWO_PI * np.round((guess - th) / TWO_PI)
 
 
+@validated()
 @dataclass(frozen=True, eq=False)
 class ActuatedStabilityMap:
     """The exact CTCR map in [0, tau1_max] x [0, tau2_max] at actuation delay tau_a (module docstring).

@@ -24,6 +24,7 @@ from dataclasses import replace
 import numpy as np
 from numpy.typing import NDArray
 
+from delayform._validation import validated
 from delayform.analysis.roots.problem import UNIT_DELAYS, _problem_of_quasi
 from delayform.analysis.roots.single import _rightmost, roots_in
 from delayform.characteristic import CharacteristicFactor
@@ -32,6 +33,7 @@ from delayform.quasipolynomial import QuasiPolynomial
 __all__ = ["actuated_factor"]
 
 
+@validated()
 def actuated_factor(P: float, D: float, lam: complex) -> QuasiPolynomial:
     """The factor of eq. factorized for eigenvalue lam with an actuation delay, in delays (tau1, tau2, tau_a).
 
