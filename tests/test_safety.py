@@ -140,7 +140,8 @@ def test_head_on_robots_deadlock_and_say_so():
     assert abs(traj.positions[-1, 0, 0] - traj.positions[-1, 1, 0]) >= 2 * R
 
 
-@pytest.mark.parametrize("bad, message", [("shield", "unknown safety filter"), (BarrierFilter, "unknown")])
+# the class, not a filter: the checking layer refuses it by type
+@pytest.mark.parametrize("bad, message", [("shield", "unknown safety filter"), (BarrierFilter, "safety must be a string or a BarrierFilter")])
 def test_unknown_safety_filter_is_one_clear_error(bad, message):
     with pytest.raises(SimulationInputError, match=message):
         simulate(paper_six(), 1.0, 0.5, 0.3, 0.2, "hexagon", duration=1.0, dt=0.1, safety=bad)

@@ -139,7 +139,8 @@ _F = TypeVar("_F")
 _ERROR_BY_NAME: dict[str, type[InputError]] = {
     "P": GainError, "D": GainError, "P_bounds": GainError, "D_bounds": GainError,
     "tau1": DelayError, "tau2": DelayError, "tau_min": DelayError, "tau_max": DelayError,
-    "tau1_max": DelayError, "tau2_max": DelayError, "topology": TopologyError, "qp": QuasiPolynomialError,
+    "tau1_max": DelayError, "tau2_max": DelayError, "actuation_delay": DelayError,
+    "topology": TopologyError, "qp": QuasiPolynomialError,
 }  # fmt: skip
 
 #: a check: True when the value fits, with what the parameter takes (for the message)
