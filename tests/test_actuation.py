@@ -155,7 +155,7 @@ def test_limited_robots_apply_their_commands_late() -> None:
 
 @pytest.mark.parametrize("bad", [-0.1, math.nan, math.inf, "0.1"])
 def test_bad_robot_actuation_delay(bad: object) -> None:
-    with pytest.raises(SimulationInputError, match="actuation_delay"):
+    with pytest.raises(DelayError, match="actuation_delay"):  # a delay: DelayError, as in dominant_root
         Robot(actuation_delay=bad)  # type: ignore[arg-type]
 
 

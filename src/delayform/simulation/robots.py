@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from delayform._validation import validated
+from delayform._validation import check_delay, validated
 from delayform.errors import SimulationInputError
 
 __all__ = ["Robot", "RobotLimits", "IROBOT_CREATE", "REST_SPEED", "MODELS", "ideal_commands", "wheel_speeds"]
@@ -189,7 +189,7 @@ class Robot:
         from delayform.simulation.safety import check_safety
 
         object.__setattr__(self, "safety", check_safety(self.safety))
-        object.__setattr__(self, "actuation_delay", _nonnegative("actuation_delay", self.actuation_delay, "s"))
+        object.__setattr__(self, "actuation_delay", check_delay("actuation_delay", self.actuation_delay))  # a DelayError, as everywhere
         if self.model not in MODELS:
             raise SimulationInputError(f"unknown model {self.model!r}; choose one of {', '.join(MODELS)}")
         if self.limits is not None and not isinstance(self.limits, RobotLimits):
