@@ -205,7 +205,10 @@ def test_robot_check_numbers_and_plot():
     pos = traj.positions
     brute = min(float(np.hypot(*(pos[:, i] - pos[:, j]).T).min()) for i in range(6) for j in range(i))
     radius = next(v for v in result.verdicts if v.key == "radius")
-    assert radius.numbers["closest_approach"] == pytest.approx(brute, rel=1e-12)
+    # the run's closest approach is exact between saved steps (simulation.bodies): at most the sampled
+    # minimum, and within what two robots at 0.306 m/s close in one saved step (0.02 s) of it
+    approach = radius.numbers["closest_approach"]
+    assert approach == traj.min_distance and brute - 2 * 0.306 * 0.02 <= approach <= brute
     assert [v.key for v in result.verdicts] == ["limits", "radius", "arena", "control rate", "jitter"]
     assert result.summary()["verdicts"]["arena"]["fits"] is None
     ax = result.plot()
