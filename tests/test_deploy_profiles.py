@@ -213,3 +213,21 @@ def test_robot_check_numbers_and_plot():
     assert result.summary()["verdicts"]["arena"]["fits"] is None
     ax = result.plot()
     assert len(ax.patches) == 6  # one body per robot, no arena
+
+
+def test_check_jitter_margins_agree_with_the_exact_map():
+    """The time-varying (small-gain) margin implies the constant one, which the exact CTCR map measures.
+
+    Delays varying within tau +- delta include every constant pair in [tau, tau + delta]^2, so the
+    exact map's constant margin can never be smaller than the certified time-varying one: two
+    independent methods, and a certificate that said more than the map would be unsound.
+    """
+    from delayform.report.check import robot_check
+
+    for tau in ((0.3, 0.2), (2.0, 1.0)):
+        sc = dataclasses.replace(load_scenario(EXAMPLE), tau1=tau[0], tau2=tau[1])
+        numbers = next(v for v in robot_check(sc, "create3").verdicts if v.key == "jitter").numbers
+        varying, constant = numbers["time_varying_jitter_margin"], numbers["jitter_margin"]
+        assert 0.0 < varying
+        assert constant >= varying * (1 - 1e-4)
+        assert numbers["tick_variation_certified"] == (numbers["tick_jitter_margin"] >= 0.005)

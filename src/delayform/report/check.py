@@ -31,9 +31,12 @@ initial state, simulation settings) and a robot profile
     The largest extra delay j such that every constant pair in
     ``[tau1, tau1 + j] x [tau2, tau2 + j]`` is proven stable, by bisection
     on the same certificate. This covers delays that are constant but
-    unknown within the box; delays that vary in time inside it are not
-    covered by a CTCR certificate (the Monte Carlo runs of ``delayform
-    montecarlo`` measure them). Informational: no verdict.
+    unknown within the box. Delays that vary in time are covered by the
+    small-gain jitter margin (:func:`delayform.analysis.network.jitter_margin`,
+    Kao & Lincoln's bound: per link, arbitrarily fast): the margin about
+    (tau1, tau2), and whether the tick's own variation (a delay in
+    ``tau + [0, h)``, i.e. ``tau + h/2`` varying by ``h/2``) is certified.
+    Informational: no verdict.
 """
 
 from __future__ import annotations
@@ -266,6 +269,7 @@ def _arena_verdict(profile: RobotProfile, desired: np.ndarray, limited: Any) -> 
 
 def _delay_verdicts(scenario: Scenario, profile: RobotProfile) -> tuple[Verdict, Verdict]:
     from delayform.analysis.ctcr import stability_map
+    from delayform.analysis.network import jitter_margin
     from delayform.design.gains import box_is_stable
 
     tau1, tau2 = scenario.tau1, scenario.tau2
@@ -299,8 +303,18 @@ def _delay_verdicts(scenario: Scenario, profile: RobotProfile) -> tuple[Verdict,
             mid = 0.5 * (lo + hi)
             lo, hi = (mid, hi) if stable_box(mid) else (lo, mid)
     more = " or more" if lo == reach else ""
+    # delays that vary in time: the small-gain jitter margin (Kao & Lincoln), per link and as fast as they
+    # like; a robot ticking every h applies tau + [0, h), i.e. tau + h/2 with a variation of h/2
+    varying = jitter_margin(scenario.topology, scenario.P, scenario.D, tau1, tau2).delta
+    tick = jitter_margin(scenario.topology, scenario.P, scenario.D, tau1 + h / 2, tau2 + h / 2).delta
+    covered = tick >= h / 2
     jitter = Verdict("jitter", None,
                      f"constant delays up to {lo:.3g} s{more} above (tau1, tau2) are proven stable "
-                     f"({lo / h:.3g} control periods); delays varying in time within that box are not covered",
-                     {"jitter_margin": lo, "jitter_margin_periods": lo / h if math.isfinite(lo) else math.inf})  # fmt: skip
+                     f"({lo / h:.3g} control periods, exact CTCR map); delays varying in time, per link and "
+                     f"arbitrarily fast, within +-{varying:.3g} s of (tau1, tau2) are certified (small gain, "
+                     f"jitter_margin); the tick's own variation (h/2 = {h / 2:.3g} s about tau + h/2, margin "
+                     f"{tick:.3g} s there) is {'certified' if covered else 'not certified'}",
+                     {"jitter_margin": lo, "jitter_margin_periods": lo / h if math.isfinite(lo) else math.inf,
+                      "time_varying_jitter_margin": varying, "tick_jitter_margin": tick,
+                      "tick_variation_certified": covered})  # fmt: skip
     return rate, jitter
