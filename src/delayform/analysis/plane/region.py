@@ -61,9 +61,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from delayform._display import FigureRepr  # Jupyter shows the figure (issue 23)
 from delayform._validation import check_complex_array, check_delay, check_gains, validated
-from delayform.analysis.plane.spectrum_bounds import SpectrumBound, spectrum_bound
 from delayform.analysis.plane.boundary_curve import ab_terms, omega_limit
-from delayform.analysis.plane.spectrum_sets import SafeDelayMap, SpectrumSet, parse_spectrum, safe_delays
 from delayform.errors import InputError, ResourceLimitError
 from delayform.topology import Topology
 
@@ -74,14 +72,6 @@ __all__ = [
     "CENTROID_TOL",
     "LambdaRegion",
     "lambda_region",
-    # re-exported: certificates for classes of teams
-    "SafeDelayMap",
-    "SpectrumSet",
-    "safe_delays",
-    "parse_spectrum",
-    # re-exported: spectrum bounds for large teams
-    "SpectrumBound",
-    "spectrum_bound",
 ]
 
 #: Eigenvalues closer than this to 1 are the centroid eigenvalue (eq. factor1).
