@@ -25,6 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from delayform._validation import validated
+from delayform.analysis.roots.family.actuated import actuated_quasi
 from delayform.analysis.roots.problem import UNIT_DELAYS, _problem_of_quasi
 from delayform.analysis.roots.single import _rightmost, roots_in
 from delayform.characteristic import CharacteristicFactor
@@ -56,13 +57,7 @@ def actuated_factor(P: float, D: float, lam: complex) -> QuasiPolynomial:
     >>> complex(q.evaluate(0.0, 0.3, 0.2, 0.1))  # the centroid's persistent zero
     0j
     """
-    lam = complex(lam)
-    return QuasiPolynomial({
-        (0, 0, 0): [0.0, 0.0, 1.0],
-        (0, 0, 1): [P, D],
-        (1, 0, 1): [-lam * P],
-        (0, 1, 1): [0.0, -lam * D],
-    })  # fmt: skip
+    return actuated_quasi(P, D, complex(lam))
 
 
 def actuated_rightmost(factor: CharacteristicFactor, t1: float, t2: float, ta: float) -> complex:

@@ -39,9 +39,17 @@ from numpy.typing import ArrayLike, NDArray
 
 from delayform.analysis.network.per_link import LinkDominantRoot, link_dominant_root
 from delayform._validation import check_delay, check_gains, validated
-from delayform.analysis.roots.actuated import actuated_beside_drift, actuated_rightmost
+from delayform.analysis.roots.actuated import actuated_beside_drift, actuated_factor, actuated_rightmost
 from delayform.analysis.roots.family.solve import family_grid, family_rightmost
-from delayform.analysis.roots.problem import MAX_DEGREE, RESIDUAL_TOL, _Problem, _problem_of_factor, _problem_of_qp
+from delayform.analysis.roots.problem import (
+    MAX_DEGREE,
+    RESIDUAL_TOL,
+    UNIT_DELAYS,
+    _Problem,
+    _problem_of_factor,
+    _problem_of_qp,
+    _problem_of_quasi,
+)
 from delayform.analysis.roots.single import (  # noqa: F401 - the roots of one quasi-polynomial, re-exported
     _check_reach,
     _family_reach,
@@ -315,6 +323,8 @@ class DominantRootMap:
     formation_real
         Re of the rightmost root of the disagreement factors (the shape), or
         None; decides stability where the dominant root is the centroid's drift.
+    actuation_delay
+        The actuation delay tau_a (s) the roots were computed with (0: the paper's model).
     """
 
     tau1_values: NDArray[np.float64]
@@ -323,6 +333,7 @@ class DominantRootMap:
     factor_index: NDArray[np.int64]
     factors: tuple[CharacteristicFactor, ...]
     formation_real: NDArray[np.float64] | None = None
+    actuation_delay: float = 0.0
 
     @property
     def real(self) -> NDArray[np.float64]:
@@ -388,6 +399,7 @@ def dominant_root_map(
     tau2_values: ArrayLike,
     *,
     progress: bool | Callable[[int, int], None] = False,
+    actuation_delay: float = 0.0,
 ) -> DominantRootMap:
     """Dominant root at every point of a delay grid (paper Figs. dominant and contour).
 
@@ -412,6 +424,12 @@ def dominant_root_map(
         True shows a Rich progress bar on stderr; a callable is called as
         ``progress(done, total)`` (grid points times factors) as work finishes,
         for callers that draw their own bar.
+    actuation_delay
+        tau_a >= 0 (s): every factor in three delays
+        (:func:`~delayform.analysis.roots.actuated.actuated_factor`), solved by
+        the same continuation on the family of
+        :mod:`delayform.analysis.roots.family.actuated`, every point certified;
+        0 (default) is the paper's model.
 
     Returns
     -------
@@ -435,6 +453,7 @@ def dominant_root_map(
     fs = _checked_factors(topology, P, D)
     ax1 = _grid_axis("tau1_values", tau1_values)
     ax2 = _grid_axis("tau2_values", tau2_values)
+    ta = check_delay("actuation_delay", actuation_delay)
     points = float(ax1.size) * float(ax2.size)
     # measured: ~1.3e-4 s per grid point and factor on the paper's map; ~20 work arrays per point
     require(
@@ -444,10 +463,14 @@ def dominant_root_map(
         seconds=points * len(fs) * 2e-4,
     )
     for f in fs:
-        _check_reach(_problem_of_factor(f), float(ax1.max()), float(ax2.max()))
+        if ta > 0.0:  # the longest delays of the map, each term's own: (tau1, tau2, tau_a)
+            quasi = actuated_factor(f.P, f.D, complex(f.lam))
+            _check_reach(_problem_of_quasi(quasi, (float(ax1.max()), float(ax2.max()), ta)), *UNIT_DELAYS)
+        else:
+            _check_reach(_problem_of_factor(f), float(ax1.max()), float(ax2.max()))
     per_factor = np.empty((len(fs), ax1.size, ax2.size), dtype=np.complex128)
     with _progress(progress, len(fs) * ax1.size * ax2.size) as advance:
-        per_factor[:] = family_grid(fs, fs[0].P, fs[0].D, ax1, ax2, advance)
+        per_factor[:] = family_grid(fs, fs[0].P, fs[0].D, ax1, ax2, advance, ta)
         row0 = np.flatnonzero(ax1 == 0.0)
         if row0.size:  # on tau1 = 0 the centroid's second zero is its drift: kept (the surface stays
             # continuous as tau1 -> 0); `stable` reads the shape's modes there
@@ -457,7 +480,7 @@ def dominant_root_map(
     roots = np.take_along_axis(per_factor, index[None], 0)[0]
     shape = np.array([not f.is_centroid for f in fs])
     formation_real = per_factor[shape].real.max(axis=0)
-    return DominantRootMap(ax1, ax2, roots, index, fs, formation_real)
+    return DominantRootMap(ax1, ax2, roots, index, fs, formation_real, ta)
 
 
 class _progress:

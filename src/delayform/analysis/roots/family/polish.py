@@ -116,11 +116,18 @@ def _polish_rows(seeds: NDArray[np.complex128], rows: _Rows) -> tuple[NDArray[np
         double = t1[near] * lz * _at(P, np.flatnonzero(near)) + _at(D, np.flatnonzero(near)) * (1.0 - lz) == 0.0
         s[near] = np.where(double, 0.0, s[near])
         ok[near] = double
-    out = np.full(R * K, np.nan + 0j)
+    return _scatter(live, s, ok, (R, K))
+
+
+def _scatter(
+    live: NDArray[np.int64], s: NDArray[np.complex128], ok: NDArray[np.bool_], shape: tuple[int, int]
+) -> tuple[NDArray[np.complex128], NDArray[np.bool_]]:
+    """The polished live seeds back in the seeds' (R, K) layout: NaN and not accepted where there was none."""
+    out = np.full(shape[0] * shape[1], np.nan + 0j)
     out[live] = s
-    good = np.zeros(R * K, dtype=bool)
+    good = np.zeros(out.size, dtype=bool)
     good[live] = ok
-    return out.reshape(R, K), good.reshape(R, K)
+    return out.reshape(shape), good.reshape(shape)
 
 
 def _halley_step(

@@ -51,20 +51,24 @@ def _root_scales(lam: Any, P: Gain, D: Gain) -> NDArray[np.float64]:
 
 
 class _Rows:
-    """Flat arrays describing rows (factor, delay pair): lam, tau1, tau2, two flags and the gains."""
+    """Flat arrays describing rows (factor, delay pair): lam, tau1, tau2, two flags and the gains.
 
-    __slots__ = ("lam", "t1", "t2", "real", "deflate", "P", "D")
+    ``ta`` is an actuation delay shared by all rows: > 0 makes them rows of the family of
+    :mod:`delayform.analysis.roots.family.actuated`.
+    """
+
+    __slots__ = ("lam", "t1", "t2", "real", "deflate", "P", "D", "ta")
 
     def __init__(
         self, lam: NDArray[np.complex128], t1: NDArray[np.float64], t2: NDArray[np.float64],
-        real: NDArray[np.bool_], deflate: NDArray[np.bool_], P: Gain, D: Gain,
+        real: NDArray[np.bool_], deflate: NDArray[np.bool_], P: Gain, D: Gain, ta: float = 0.0,
     ) -> None:
         self.lam, self.t1, self.t2, self.real, self.deflate = lam, t1, t2, real, deflate
-        self.P, self.D = P, D
+        self.P, self.D, self.ta = P, D, ta
 
     def take(self, idx: NDArray[np.int64]) -> _Rows:
         return _Rows(self.lam[idx], self.t1[idx], self.t2[idx], self.real[idx], self.deflate[idx],
-                     _at(self.P, idx), _at(self.D, idx))  # fmt: skip
+                     _at(self.P, idx), _at(self.D, idx), self.ta)  # fmt: skip
 
     @property
     def size(self) -> int:

@@ -40,6 +40,13 @@ from functools import lru_cache
 import numpy as np
 from numpy.typing import NDArray
 
+from delayform.analysis.roots.family.actuated import (
+    actuated_count,
+    actuated_fallback,
+    actuated_polish,
+    actuated_seeds,
+    actuated_slopes,
+)
 from delayform.analysis.roots.generator import _igd_seeds
 from delayform.analysis.roots.problem import _problem_of_factor
 from delayform.analysis.roots.rightmost import (
@@ -85,8 +92,10 @@ def _certify_rows(
     rightmost root is reported with Im >= 0 (real lam: of a conjugate pair;
     complex lam: the factor of conj(lam) mirrors it).
     """
-    if rows.size <= _FEW_ROWS:
+    if rows.size <= _FEW_ROWS and not rows.ta:
         return _certify_few(rows, seeds, fresh, window)
+    # an actuation delay (rows.ta > 0): the same steps on the family of family/actuated.py
+    polish, count = (actuated_polish, actuated_count) if rows.ta else (_polish_rows, _count_rows)
     real = rows.real[:, None]
     seeds = seeds.copy()  # the caller's seeds stay as they are
     np.abs(seeds.imag, out=seeds.imag, where=real)  # real rows: the member of a pair with Im >= 0
@@ -100,17 +109,17 @@ def _certify_rows(
     seeds[seeds.real < top_seed[:, None] - window] = np.nan
     if any_moved:
         seeds[moved] = -1e-2
-    roots, ok = _polish_rows(seeds, rows)
+    roots, ok = polish(seeds, rows)
     np.abs(roots.imag, out=roots.imag, where=real)
     right, c, expected, distinct = _lines_of_rows(roots, ok, rows.real, rows.deflate)
     good = np.isfinite(c)
     if good.all():
-        counts = _count_rows(rows, c)
+        counts = count(rows, c)
     else:
         counts = np.full(rows.size, np.nan)
         idx = np.flatnonzero(good)
         if idx.size:
-            counts[idx] = _count_rows(rows.take(idx), c[idx])
+            counts[idx] = count(rows.take(idx), c[idx])
     return right, good & (counts == expected), distinct
 
 
@@ -263,6 +272,8 @@ def _without_persistent_zero(seeds: NDArray[np.complex128], deflate: NDArray[np.
 
 def _fresh_seeds(rows: _Rows, k: int) -> NDArray[np.complex128]:
     """The k rightmost eigenvalues of every row's discretized generator (persistent zero dropped)."""
+    if rows.ta:
+        return actuated_seeds(rows, k)
     return _without_persistent_zero(_row_seeds(rows.lam, rows.t1, rows.t2, rows.P, rows.D, k), rows.deflate)
 
 
@@ -294,12 +305,17 @@ def _certify_afresh(
 
 
 def _generic_rightmost(
-    f: CharacteristicFactor, t1: NDArray[np.float64], t2: NDArray[np.float64]
+    f: CharacteristicFactor, t1: NDArray[np.float64], t2: NDArray[np.float64], ta: float = 0.0
 ) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
     """Rows the fast path could not certify, by the generic batched then robust path.
 
     Returns the certified rightmost roots (Im >= 0) and the known roots (seeds for neighbours).
+    With an actuation delay ``ta`` > 0 each row goes to the robust path in three delays.
     """
+    if ta:
+        lam, P, D, defl = complex(f.lam), float(f.P), float(f.D), bool(f.is_centroid)
+        out = np.array([actuated_fallback(lam, P, D, defl, a, b, ta) for a, b in zip(t1.tolist(), t2.tolist())])
+        return out.astype(np.complex128).reshape(t1.shape), _pad(out.reshape(-1, 1).astype(np.complex128), _KEEP)
     prob = _problem_of_factor(f)
     out = np.full(t1.size, np.nan + 0j)
     known = np.full((t1.size, _KEEP), np.nan + 0j)
@@ -430,9 +446,12 @@ def _predict(
 def family_grid(
     fs: Sequence[CharacteristicFactor], P: float, D: float,
     ax1: NDArray[np.float64], ax2: NDArray[np.float64],
-    advance: Callable[[int], None] | None = None,
+    advance: Callable[[int], None] | None = None, ta: float = 0.0,
 ) -> NDArray[np.complex128]:
-    """Certified rightmost root (Im >= 0) of every factor at every grid point, shape (F, n1, n2)."""
+    """Certified rightmost root (Im >= 0) of every factor at every grid point, shape (F, n1, n2).
+
+    ``ta`` > 0: the factors with that actuation delay (:mod:`delayform.analysis.roots.family.actuated`).
+    """
     lam, real, centroid = _lams(tuple(fs))
     F, n1, n2 = lam.size, ax1.size, ax2.size
     npts = n1 * n2
@@ -453,7 +472,7 @@ def family_grid(
             continue
         rows = _Rows(
             np.repeat(lam, pts.size), np.tile(t1[pts], F), np.tile(t2[pts], F),
-            np.repeat(real, pts.size), np.repeat(centroid, pts.size), P, D,
+            np.repeat(real, pts.size), np.repeat(centroid, pts.size), P, D, ta,
         )
         if prev1 is None:  # first level: seeds from the discretized generator (stacked by size)
             seeds = _fresh_seeds(rows, _BATCH_SEEDS)
@@ -472,10 +491,13 @@ def family_grid(
         right[:, pts], known[:, pts] = r, roots
         for k in np.flatnonzero((~ok).any(axis=1)):
             bad = pts[~ok[k]]
-            right[k, bad], known[k, bad] = _generic_rightmost(fs[k], t1[bad], t2[bad])
+            right[k, bad], known[k, bad] = _generic_rightmost(fs[k], t1[bad], t2[bad], ta)
         solved[pts] = True
         if not solved.all():  # a finer level follows
-            slope1[:, pts], slope2[:, pts] = _root_slopes(known[:, pts], lam, t1[pts], t2[pts], P, D)
+            slope1[:, pts], slope2[:, pts] = (
+                actuated_slopes(known[:, pts], lam, t1[pts], t2[pts], ta, P, D) if ta
+                else _root_slopes(known[:, pts], lam, t1[pts], t2[pts], P, D)
+            )  # fmt: skip
         prev1, prev2 = lev1, lev2
         if advance is not None:
             advance(int(F * pts.size))

@@ -1,0 +1,102 @@
+"""Dominant-root maps with an actuation delay (issue 21, item 4): the vectorized family in three delays.
+
+Checked against two independent methods: the Chebyshev discretization of the
+generator of the *full* 2N-state delayed system (tests/test_general_roots.py,
+polished by Newton on det M(s)), and the exact CTCR map of
+:func:`delayform.analysis.ctcr.actuated.actuated_stability_map` (law of cosines,
+a different algorithm) for the stable set.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from test_actuation import _reference_rightmost
+
+from delayform.analysis.ctcr.actuated import actuated_stability_map
+from delayform.analysis.roots.actuated import actuated_factor, actuated_rightmost
+from delayform.analysis.roots.dominant import dominant_root_map
+from delayform.analysis.roots.family.actuated import actuated_count
+from delayform.analysis.roots.family.rows import _Rows
+from delayform.analysis.roots.single import count_roots_right_of
+from delayform.errors import DelayError
+from delayform.topology import paper_six, ring
+
+
+@pytest.mark.parametrize("ta", [0.1, 0.6])
+def test_map_matches_the_full_system_discretization(ta: float) -> None:
+    top = paper_six()
+    ax1, ax2 = np.linspace(0.0, 1.6, 9), np.linspace(0.0, 2.4, 7)
+    m = dominant_root_map(top, 1.0, 0.5, ax1, ax2, actuation_delay=ta)
+    assert m.actuation_delay == ta and m.roots.shape == (9, 7)
+    for i, j in [(1, 1), (3, 5), (6, 2), (8, 6), (4, 0)]:
+        ref = _reference_rightmost(top, 1.0, 0.5, float(ax1[i]), float(ax2[j]), ta)
+        assert abs(m.roots[i, j] - ref) <= 1e-8 * (1.0 + abs(ref)), (i, j)
+        assert bool(m.stable[i, j]) == (ref.real < 0.0)
+
+
+def test_map_with_complex_eigenvalues_matches_the_full_system() -> None:
+    # a directed ring of 5: two conjugate pairs of lam, rows walked over the whole line
+    top = ring(5)
+    ax1, ax2 = np.linspace(0.05, 1.0, 5), np.linspace(0.0, 1.0, 4)
+    m = dominant_root_map(top, 1.0, 1.5, ax1, ax2, actuation_delay=0.2)
+    for i, j in [(0, 0), (2, 3), (4, 1)]:
+        ref = _reference_rightmost(top, 1.0, 1.5, float(ax1[i]), float(ax2[j]), 0.2)
+        assert abs(m.roots[i, j] - ref) <= 1e-8 * (1.0 + abs(ref)), (i, j)
+
+
+def test_every_point_is_the_single_point_answer() -> None:
+    # the continuation (seeds from neighbours) gives each factor the root the per-point robust path certifies
+    top = paper_six()
+    ax1, ax2 = np.linspace(0.0, 2.0, 11), np.linspace(0.0, 3.0, 11)
+    m = dominant_root_map(top, 1.0, 0.5, ax1, ax2, actuation_delay=0.4)
+    k0 = next(k for k, f in enumerate(m.factors) if f.is_centroid)
+    for i in range(0, 11, 3):
+        for j in range(0, 11, 2):
+            per = [actuated_rightmost(f, float(ax1[i]), float(ax2[j]), 0.4) for f in m.factors]
+            if ax1[i] == 0.0:
+                per[k0] = 0j
+            best = max(per, key=lambda z: z.real)
+            assert abs(m.roots[i, j] - best) <= 1e-9 * (1.0 + abs(best))
+
+
+def test_stable_set_agrees_with_the_exact_ctcr_map() -> None:
+    top = paper_six()
+    ta = 0.1
+    ax1, ax2 = np.linspace(0.01, 1.5, 16), np.linspace(0.0, 2.0, 16)
+    m = dominant_root_map(top, 1.0, 0.5, ax1, ax2, actuation_delay=ta)
+    ctcr = actuated_stability_map(top, 1.0, 0.5, 1.5, 2.0, ta)
+    exact = ctcr.is_stable(ax1[:, None], ax2[None, :])
+    clear = np.abs(m.real) > 1e-3  # a point on a crossing curve is neither
+    assert clear.mean() > 0.9
+    np.testing.assert_array_equal(m.stable[clear], exact[clear])
+    assert 0 < m.stable.sum() < m.stable.size  # both kinds of point in the window
+
+
+def test_zero_actuation_delay_is_todays_map() -> None:
+    top = paper_six()
+    a = dominant_root_map(top, 1.0, 0.5, [0.0, 0.5], [0.3, 1.0])
+    b = dominant_root_map(top, 1.0, 0.5, [0.0, 0.5], [0.3, 1.0], actuation_delay=0.0)
+    np.testing.assert_array_equal(a.roots, b.roots)
+    assert b.actuation_delay == 0.0
+
+
+def test_the_walk_counts_as_the_generic_certificate() -> None:
+    # the family's walk (chord test, tails against s^2) against the generic argument principle
+    # on the QuasiPolynomial in three delays (its own bounds and sampling)
+    lams = np.array([1.0, 0.46, -0.5, -0.16 + 0.21j, 0.3 - 0.8j])
+    t1, t2, ta = np.array([0.3, 1.2, 2.0, 0.7, 0.1]), np.array([0.2, 0.0, 1.5, 2.5, 0.9]), 0.7
+    rows = _Rows(lams, t1, t2, lams.imag == 0.0, np.zeros(5, bool), 1.0, 0.5, ta)
+    for c in (-0.31, 0.0137, 0.2):
+        got = actuated_count(rows, np.full(5, c))
+        want = [count_roots_right_of(actuated_factor(1.0, 0.5, lam), t1[k], t2[k], ta, c) for k, lam in enumerate(lams)]
+        np.testing.assert_array_equal(got, want)
+    assert np.any(actuated_count(rows, np.full(5, -0.31)) > 0)
+
+
+@pytest.mark.parametrize("bad", [-0.1, math.nan, math.inf])
+def test_bad_actuation_delay(bad: float) -> None:
+    with pytest.raises(DelayError, match="actuation_delay"):
+        dominant_root_map(paper_six(), 1.0, 0.5, [0.3], [0.2], actuation_delay=bad)
