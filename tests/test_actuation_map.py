@@ -100,3 +100,30 @@ def test_the_walk_counts_as_the_generic_certificate() -> None:
 def test_bad_actuation_delay(bad: float) -> None:
     with pytest.raises(DelayError, match="actuation_delay"):
         dominant_root_map(paper_six(), 1.0, 0.5, [0.3], [0.2], actuation_delay=bad)
+
+
+# ============================================================ the command line
+from test_hardening import cli, one_line_error  # noqa: E402
+
+
+def test_cli_map_takes_the_actuation_delay(tmp_path, capsys) -> None:
+    import json
+
+    out = tmp_path / "m"
+    code, stdout, _ = cli(capsys, "map", "--out", str(out), "--size", "5,4", "--tau1-range", "0,2",
+                          "--tau2-range", "0,3", "--actuation-delay", "0.2", "--json")  # fmt: skip
+    assert code == 0
+    summary = json.loads(stdout)
+    assert summary["actuation_delay"] == 0.2
+    ref = dominant_root_map(paper_six(), 1.0, 0.5, np.linspace(0, 2, 5), np.linspace(0, 3, 4), actuation_delay=0.2)
+    assert summary["stable_fraction"] == pytest.approx(float(np.mean(ref.stable)))
+    saved = np.load(out / "dominant_map.npz")
+    np.testing.assert_allclose(saved["roots"], ref.roots, rtol=0, atol=1e-12)
+    line = one_line_error(capsys, "map", "--out", str(tmp_path / "bad"), "--actuation-delay", "-1")
+    assert "--actuation-delay" in line and not (tmp_path / "bad").exists()
+
+
+def test_cli_report_refuses_an_actuation_delay_it_cannot_simulate_before_writing(tmp_path, capsys) -> None:
+    # the paper's ideal robots: the report's simulation cannot apply a late (dv/dt, omega); said before anything
+    line = one_line_error(capsys, "report", "--out", str(tmp_path / "r"), "--actuation-delay", "0.1")
+    assert "actuation delay" in line and not (tmp_path / "r").exists()

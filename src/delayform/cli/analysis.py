@@ -156,9 +156,10 @@ def roots_command(scenario: Path | None, region: tuple[float, float, float, floa
 @click.option("--tau1-range", type=FloatTuple(2, minimum=0.0), help="FIRST,LAST along tau1 [default: map.tau1].")
 @click.option("--tau2-range", type=FloatTuple(2, minimum=0.0), help="FIRST,LAST along tau2 [default: map.tau2].")
 @click.option("--size", type=FloatTuple(2, integer=True, minimum=2), help="Grid points N1,N2 [default: map.size].")
+@actuation_option
 def map_command(scenario: Path | None, tau1_range: tuple[float, float] | None,
                 tau2_range: tuple[float, float] | None, size: tuple[int, int] | None,
-                out: Path | None, as_json: bool, **overrides: Any) -> None:  # fmt: skip
+                actuation_delay: float | None, out: Path | None, as_json: bool, **overrides: Any) -> None:  # fmt: skip
     """Dominant-root map over a grid of delays: surface and contour.
 
     Writes dominant_surface.png/.svg (Re of the dominant root with the
@@ -170,7 +171,7 @@ def map_command(scenario: Path | None, tau1_range: tuple[float, float] | None,
     for name, rng in (("--tau1-range", tau1_range), ("--tau2-range", tau2_range)):
         if rng is not None and rng[0] >= rng[1]:
             raise click.BadParameter("expected FIRST < LAST", param_hint=name)
-    sc = _scenario(scenario, **overrides)
+    sc = with_actuation(_scenario(scenario, **overrides), actuation_delay)
     grid = replace(
         sc.map,
         tau1=tau1_range or sc.map.tau1,

@@ -15,8 +15,10 @@ from delayform.cli._common import (
     _out_dir,
     _progress,
     _scenario,
+    actuation_option,
     cli,
     scenario_options,
+    with_actuation,
 )
 
 if TYPE_CHECKING:
@@ -79,16 +81,21 @@ def _build_full_report(sc: Scenario, directory: Path, *, paper: bool) -> tuple[l
 
 @cli.command("report")
 @scenario_options
-def report_command(scenario: Path | None, out: Path | None, as_json: bool, **overrides: Any) -> None:
+@actuation_option
+def report_command(scenario: Path | None, actuation_delay: float | None, out: Path | None, as_json: bool,
+                   **overrides: Any) -> None:  # fmt: skip
     """All analyses of one scenario as one self-contained HTML page.
 
     Runs factors, chart, roots, map, schedule and simulate and writes their
     files plus index.html (figures embedded, a table of numbers and a short
     text per figure) and summary.json into --out.
     """
-    sc = _scenario(scenario, **overrides)
+    from delayform.simulation.runner import check_actuation
+
+    sc = with_actuation(_scenario(scenario, **overrides), actuation_delay)
     sc.desired_positions()  # the simulation needs a formation that fits the team: say so before computing
     sc.initial_positions()
+    check_actuation(sc.robot_spec, sc.network, sc.simulation.dt)  # a run the report cannot make: before computing
     _write_full_report(sc, _out_dir(out, sc), paper=False, as_json=as_json)
 
 

@@ -423,7 +423,9 @@ def map_section(scenario: Scenario, out: Path, *, progress: MapProgress | None =
     plt = _pyplot()
     grid = scenario.map
     t1, t2 = grid.tau1_values(), grid.tau2_values()
-    dmap = dominant_root_map(scenario.topology, scenario.P, scenario.D, t1, t2, progress=progress or False)
+    ta = scenario.actuation_delay  # [robot] actuation_delay: every factor in three delays
+    dmap = dominant_root_map(scenario.topology, scenario.P, scenario.D, t1, t2, progress=progress or False,
+                             actuation_delay=ta)  # fmt: skip
     re = np.asarray(dmap.real, dtype=float)
     files = []
     fig = plt.figure(figsize=(7.0, 5.6))
@@ -445,6 +447,7 @@ def map_section(scenario: Scenario, out: Path, *, progress: MapProgress | None =
     summary = {
         "tau1": [float(t1[0]), float(t1[-1]), int(t1.size)],
         "tau2": [float(t2[0]), float(t2[-1]), int(t2.size)],
+        "actuation_delay": ta,
         # DominantRootMap.stable, the one meaning of stable: on tau1 = 0 the centroid's drift (Re = 0
         # exactly) is not instability, as in the chart and roots (Re < 0 alone would call that row unstable)
         "stable_fraction": float(np.mean(dmap.stable)),
@@ -455,7 +458,7 @@ def map_section(scenario: Scenario, out: Path, *, progress: MapProgress | None =
         ("grid", f"{t1.size} x {t2.size} over [{t1[0]:g}, {t1[-1]:g}] x [{t2[0]:g}, {t2[-1]:g}] s"),
         ("stable fraction (the centroid's drift on tau1 = 0 excepted)", f"{summary['stable_fraction']:.3f}"),
         ("most negative Re on the grid", f"{re[best]:.4g} at ({t1[best[0]]:g}, {t2[best[1]]:g})"),
-    )
+    ) + ((("actuation delay tau_a", f"{ta:g} s (every factor with its delayed own-state terms)"),) if ta else ())
     return Section(
         key="map",
         title="Dominant root over the delay plane",
