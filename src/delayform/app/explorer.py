@@ -679,7 +679,7 @@ class Explorer:
     def _step(self, tau1: float, tau2: float) -> float:
         """The scenario's step, shortened when a non-zero delay is smaller (simulate needs tau >= dt)."""
         dt = self.scenario.simulation.dt
-        for tau in (tau1, tau2):
+        for tau in (tau1, tau2, self.scenario.actuation_delay):
             if 0.0 < tau < dt:
                 dt = tau
         return dt
@@ -738,7 +738,8 @@ class Explorer:
             with np.errstate(over="ignore", invalid="ignore"):  # an unstable run may overflow; cut below
                 tr = simulate(
                     s.topology, P, D, tau1, tau2, s.desired_positions(),
-                    robot=Robot(model=s.simulation.model, limits=robot, radius=s.radius, safety=s.safety),
+                    robot=Robot(model=s.simulation.model, limits=robot, radius=s.radius, safety=s.safety,
+                                actuation_delay=s.actuation_delay), assignment=s.simulation.assignment,
                     network=net,
                     initial_positions=s.initial_positions(), initial_headings=s.initial_headings(),
                     initial_speed=s.initial.speed, seed=s.initial.seed, duration=duration, dt=dt,

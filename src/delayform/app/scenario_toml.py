@@ -148,12 +148,14 @@ def scenario_toml(scenario: Scenario) -> str:
             values["radius"] = s.radius
         out += ["", "[robot]"] + ([f"profile = {_string(s.robot_profile)}"] if s.robot_profile else [])
         out += [f"{k} = {_number(v)}" for k, v in values.items()]
-    elif s.radius is not None or s.safety is not None:
+    elif s.radius is not None or s.safety is not None or s.actuation_delay:
         out += ["", "[robot]", "limits = false"]
         if s.radius is not None:
             out.append(f"radius = {_number(s.radius)}")
     if s.safety is not None:
         out.append(f"safety = {_string(s.safety)}")
+    if s.actuation_delay:  # [robot] actuation_delay: each robot applies its command that late
+        out.append(f"actuation_delay = {_number(s.actuation_delay)}")
     chart = s.chart
     out += ["", "[chart]", f"tau1_max = {_number(chart.tau1_max)}", f"tau2_max = {_number(chart.tau2_max)}"]
     if chart.points:

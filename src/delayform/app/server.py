@@ -46,6 +46,7 @@ from typing import Any
 
 from delayform.app.explorer import Explorer
 from delayform.app.params import Param, parse_query
+from delayform.app.robot_controls import RobotControls
 from delayform.errors import DelayformError, InputError
 
 __all__ = ["LOOPBACK", "create_app", "check_host", "bind", "start", "serve", "RunningExplorer"]
@@ -159,9 +160,11 @@ def create_app(explorer: Explorer) -> Any:
     from starlette.routing import Route
 
     limiter = anyio.CapacityLimiter(_WORKERS)
+    robot = RobotControls(explorer)
     assets = {
         "explorer.js": (STATIC / "explorer.js", "text/javascript"),
         "explorer.css": (STATIC / "explorer.css", "text/css"),
+        "robot_controls.js": (STATIC / "robot_controls.js", "text/javascript"),
         "plotly.min.js": (plotly_bundle(), "text/javascript"),
     }
 
@@ -179,9 +182,9 @@ def create_app(explorer: Explorer) -> Any:
 
         return endpoint
 
-    def file_endpoint(work: Callable[..., Path], media: str) -> Callable[..., Any]:
+    def file_endpoint(spec: Callable[[], tuple[Param, ...]], work: Callable[..., Path], media: str) -> Callable[..., Any]:
         async def endpoint(request: Request) -> Response:
-            path = await compute(request, explorer.download_params(), work)
+            path = await compute(request, spec(), work)
             headers = {**_SECURITY_HEADERS, "Content-Disposition": f'attachment; filename="{path.name}"'}
             return Response(path.read_bytes(), media_type=media, headers=headers)
 
@@ -214,6 +217,7 @@ def create_app(explorer: Explorer) -> Any:
             # the longest delay per kind of request at the scenario's gains (the roots' from the finder's own rule)
             "delay_limits": explorer.delay_limits(s.P, s.D),
             "toggles": explorer.toggles,
+            "robot_controls": robot.describe(),  # actuation delay, safety filter, slot assignment
             "out_dir": str(explorer.out_dir),
         }
         return JSONResponse(body, headers=_SECURITY_HEADERS)
@@ -236,14 +240,17 @@ def create_app(explorer: Explorer) -> Any:
         Route("/static/{name}", static),
         Route("/favicon.ico", no_icon),
         Route("/api/scenario", scenario),
-        Route("/api/chart", json_endpoint(explorer.chart_params, explorer.chart)),
-        Route("/api/point", json_endpoint(explorer.point_params, explorer.point)),
-        Route("/api/roots", json_endpoint(explorer.point_params, explorer.roots)),
-        Route("/api/guarantee", json_endpoint(explorer.point_params, explorer.guarantee)),
-        Route("/api/region", json_endpoint(explorer.point_params, explorer.region)),
-        Route("/api/simulate", json_endpoint(explorer.animation_params, explorer.animation)),
-        Route("/download/scenario.toml", file_endpoint(explorer.scenario_file, "application/toml")),
-        Route("/download/figures.zip", file_endpoint(explorer.figures_file, "application/zip")),
+        # every answer at the page's robot controls (delayform.app.robot_controls)
+        Route("/api/chart", json_endpoint(*robot.route("chart_params", "chart"))),
+        Route("/api/point", json_endpoint(*robot.route("point_params", "point"))),
+        Route("/api/roots", json_endpoint(*robot.route("point_params", "roots"))),
+        Route("/api/guarantee", json_endpoint(*robot.route("point_params", "guarantee"))),
+        Route("/api/region", json_endpoint(*robot.route("point_params", "region"))),
+        Route("/api/simulate", json_endpoint(*robot.route("animation_params", "animation", run=True))),
+        Route("/download/scenario.toml",
+              file_endpoint(*robot.route("download_params", "scenario_file", run=True), "application/toml")),
+        Route("/download/figures.zip",
+              file_endpoint(*robot.route("download_params", "figures_file", run=True), "application/zip")),
     ]
     hosts = [LOOPBACK, "localhost"]
     return Starlette(

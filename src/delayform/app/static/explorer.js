@@ -20,7 +20,8 @@ function complexText(re, im) {
 function say(text) { $("message").textContent = text || ""; }
 
 async function getJSON(path, params) {
-  const query = new URLSearchParams(params).toString();
+  // the robot controls (robot_controls.js) ride along with every request that takes them
+  const query = new URLSearchParams(params ? { ...params, ...robotParams(path) } : params).toString();
   const res = await fetch(query ? `${path}?${query}` : path);
   const body = await res.json();
   if (!res.ok) throw new Error(body.error || `HTTP ${res.status}`);
@@ -366,7 +367,8 @@ function tick(now) {
 // ------------------------------------------------------------------ controls
 function downloadParams() {
   return new URLSearchParams({ ...point(), ...gains(), duration: num("duration"),
-    tau1_max: num("tau1_max"), tau2_max: num("tau2_max"), ...toggleParams() }).toString();
+    tau1_max: num("tau1_max"), tau2_max: num("tau2_max"), ...toggleParams(),
+    ...robotParams("/download/scenario.toml") }).toString();
 }
 
 function updateDownloads() {
@@ -410,6 +412,7 @@ async function init() {
   for (const key of ["P", "D", "tau1", "tau2", "tau1_max", "tau2_max", "duration"]) $(key).value = info.defaults[key];
   $("P-range").value = info.defaults.P;
   $("D-range").value = info.defaults.D;
+  initRobotControls(info);
   state.toggles = Object.keys(info.toggles || {});
   const names = { limits: "actuator limits", network: "network imperfections" };
   for (const t of state.toggles) {
