@@ -283,6 +283,8 @@ def integrate(
         return value
 
     late = CommandBuffer(actuation_delay, dt, steps, F.shape) if actuation_delay > 0.0 else None
+    if late is not None and hasattr(agent, "predict_with"):  # a filter that must see the commands in flight
+        agent.predict_with(late)
 
     def stage(k: int, j: int, st: _Array) -> tuple[_Array, _Array, tuple[_Array, ...]]:
         X, V = st[:, :2], agent.velocity(st)

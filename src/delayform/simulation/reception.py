@@ -23,6 +23,7 @@ from numpy.typing import NDArray
 
 from delayform.errors import NetworkError
 from delayform.resources import require
+from delayform.simulation.actuation import CommandBuffer
 from delayform.simulation.integrator import Agent, Progress, Samples
 from delayform.simulation.network import BernoulliLoss, GilbertElliott, Network, check_link_matrix
 from delayform.topology import Topology
@@ -346,6 +347,7 @@ def integrate_network(
     steps: int,
     save_every: int,
     progress: Progress | None = None,
+    actuation_delay: float = 0.0,
 ) -> Samples:
     """RK4 of eq. protocol + forcing for ``agent`` with what each agent hears over ``network`` (module doc).
 
@@ -379,6 +381,10 @@ def integrate_network(
         Keep every ``save_every``-th step (and the last).
     progress
         Optional callback ``progress(steps_done, steps)``, every 1000 steps.
+    actuation_delay
+        tau_a (s, 0 or at least dt): each agent executes its command that late, through the
+        command buffer of :mod:`delayform.simulation.actuation` as in the ordinary integrator
+        (what it sends is what it does: its actual state and acceleration).
 
     Returns
     -------
@@ -425,14 +431,23 @@ def integrate_network(
             out = out + noise_sum[k, j]
         return out
 
-    def stage(heard: _Array, st: _Array) -> tuple[_Array, _Array, tuple[_Array, ...]]:
+    late = CommandBuffer(actuation_delay, dt, steps, F.shape) if actuation_delay > 0.0 else None
+    if late is not None and hasattr(agent, "predict_with"):  # a filter that must see the commands in flight
+        agent.predict_with(late)
+
+    def stage(heard: _Array, st: _Array, k: int = 0, c: float = 0.0) -> tuple[_Array, _Array, tuple[_Array, ...]]:
         x, v = st[:, :2], agent.velocity(st)
         cxd, cvd = heard[:n], heard[n:]
         if now_on[0]:
             cxd = cxd + now[0] @ x
         if now_on[1]:
             cvd = cvd + now[1] @ v
-        return agent.rhs(st, P * (cxd - x) + D * (cvd - v) + F)  # eq. protocol + forcing of eq. formation
+        u = P * (cxd - x) + D * (cvd - v) + F  # eq. protocol + forcing of eq. formation
+        if late is None:
+            return agent.rhs(st, u)
+        if c == 0.0:  # the command made at the grid point t_k, executed actuation_delay later
+            late.store(k, agent.command(st, u))
+        return agent.apply(st, late.read(k, c))
 
     half = 0.5 * dt
     limit = _BLOWUP * (1.0 + float(np.abs(state0).max(initial=0.0)))
@@ -441,16 +456,16 @@ def integrate_network(
     for k in range(steps + 1):
         if progress is not None and k % 1000 == 0:
             progress(k, steps)
-        k1, S[k, :, 2], extra = stage(delayed(k, 0), state)
+        k1, S[k, :, 2], extra = stage(delayed(k, 0), state, k, 0.0)
         states[k] = state
         for e, value in enumerate(extra):
             extras[e, k] = value
         if k == last:
             break
         middle = delayed(k, 1)  # stages 2 and 3 share their time, hence what is heard
-        k2 = stage(middle, state + half * k1)[0]
-        k3 = stage(middle, state + half * k2)[0]
-        k4 = stage(delayed(k, 2), state + dt * k3)[0]
+        k2 = stage(middle, state + half * k1, k, 0.5)[0]
+        k3 = stage(middle, state + half * k2, k, 0.5)[0]
+        k4 = stage(delayed(k, 2), state + dt * k3, k, 1.0)[0]
         state = state + (dt / 6.0) * (k1 + 2.0 * (k2 + k3) + k4)
         S[k + 1, :, 0], S[k + 1, :, 1] = state[:, :2], agent.velocity(state)
         # an unstable run grows exponentially: stop before it overflows (the run reports where)

@@ -281,8 +281,9 @@ def simulate(
         Shortcut for :attr:`Robot.actuation_delay` (s, >= 0; at least dt when
         non-zero): each robot executes its command that much later (a command
         buffer, linear between steps: :mod:`delayform.simulation.actuation`;
-        stated order 2). Double integrators and robots with ``limits``;
-        ideal robots (no limits) and an imperfect ``network`` refuse it.
+        stated order 2). Double integrators and robots with ``limits``, over any
+        ``network``; with ``safety`` double integrators only (the filter predicts
+        each robot tau_a ahead, docs/theory.md); ideal robots (no limits) refuse it.
     assignment
         ``"given"`` (default): robot i takes slot i of ``formation``.
         ``"optimal"``: the slots that minimise the total squared distance from
@@ -384,7 +385,7 @@ def simulate(
             agent = FilteredAgent(agent, robot.safety, robot.body_radius)
         if network is not None:
             run = integrate_network(agent, topology, F, P, D, tau1, tau2, network=network, dt=dt, steps=steps,
-                                    save_every=save_every, progress=progress)  # fmt: skip
+                                    save_every=save_every, progress=progress, actuation_delay=ta)  # fmt: skip
         else:
             run = integrate(agent, C, F, P, D, eff1, eff2, dt, steps, save_every, progress, ta)
     else:
@@ -427,10 +428,13 @@ def check_actuation(robot: Robot, network: Network | None, dt: float) -> None:
             "an actuation delay needs robots with limits or model='double_integrator': ideal robots are "
             "integrated as double integrators, which a late (dv/dt, omega) no longer is"
         )
-    if network is not None and not network.is_ideal:
-        raise SimulationInputError("an actuation delay over an imperfect network is not modelled; use the ideal network")
-    if robot.safety is not None:
-        raise SimulationInputError("an actuation delay with the safety filter is not modelled; give one of them")
+    if robot.safety is not None and robot.limits is not None:
+        # the filter must predict where each robot will be when its command is executed: exact for
+        # x'' = u (CommandBuffer.predict), not for the saturated unicycle, of which nothing sound is known
+        raise SimulationInputError(
+            "an actuation delay with the safety filter is modelled for double integrators only: the filter "
+            "must predict each robot tau_a ahead, which it cannot do soundly through actuator limits"
+        )
 
 
 def _trajectory(

@@ -56,6 +56,18 @@ the RK4 step resolves it to its (second) order, and the margin absorbs that.
 Robots with actuator limits cannot always execute the filtered command: the
 filter is then applied before the limits and contacts are still checked.
 Where no constraint binds, ``u = u_hat``: the run is the unfiltered run.
+
+Actuation delay
+---------------
+A command made at t is executed at t + tau_a, so the filter is applied at the
+state predicted for then from the commands in flight
+(:meth:`~delayform.simulation.actuation.CommandBuffer.predict`, exact for
+double integrators but on the last grid interval, where the previous command is
+held). The guarantee above then holds from t = tau_a on (before it nothing the
+filter decides is executed). The filter is assumed to know every robot's
+commands in flight (a central filter, or robots that broadcast them). Robots with
+limits under an actuation delay refuse the filter: their prediction would have to
+pass through the saturations (docs/theory.md, "The safety filter with an actuation delay").
 """
 
 from __future__ import annotations
@@ -366,6 +378,31 @@ class FilteredAgent:
         filtered, active, infeasible = barrier_commands(x, v, u, self.safe, self.safety.rate, self.neighbours(x, v))
         deriv, cart, extra = self.agent.rhs(state, filtered)
         return deriv, cart, tuple(extra) + (active.astype(float), infeasible.astype(float))
+
+    # ---- with an actuation delay: filter the command for the state it will be executed in
+    def predict_with(self, buffer: Any) -> None:
+        """Filter at the state tau_a ahead, predicted from the commands in flight (module doc, "Actuation delay").
+
+        ``buffer`` is the run's :class:`~delayform.simulation.actuation.CommandBuffer`;
+        only double integrators (x'' = the late command) are predicted exactly, so
+        :func:`~delayform.simulation.runner.check_actuation` refuses the filter for
+        robots with limits under an actuation delay.
+        """
+        self._buffer = buffer
+        n = self.state0.shape[0]
+        self._flags = (np.zeros(n), np.zeros(n))
+
+    def command(self, state: _Array, u: _Array) -> _Array:
+        """The filtered command, made now and executed tau_a later, at the predicted state then."""
+        x, v = self._buffer.predict(state[:, :2], self.agent.velocity(state))
+        filtered, active, infeasible = barrier_commands(x, v, u, self.safe, self.safety.rate, self.neighbours(x, v))
+        self._flags = (active.astype(float), infeasible.astype(float))
+        return self.agent.command(state, filtered)  # type: ignore[no-any-return]
+
+    def apply(self, state: _Array, command: _Array) -> tuple[_Array, _Array, tuple[_Array, ...]]:
+        """Execute a (late, already filtered) command; the extras flag the command made last."""
+        deriv, cart, extra = self.agent.apply(state, command)
+        return deriv, cart, tuple(extra) + self._flags
 
 
 @validated(SimulationInputError)
