@@ -127,3 +127,29 @@ def test_cli_report_refuses_an_actuation_delay_it_cannot_simulate_before_writing
     # the paper's ideal robots: the report's simulation cannot apply a late (dv/dt, omega); said before anything
     line = one_line_error(capsys, "report", "--out", str(tmp_path / "r"), "--actuation-delay", "0.1")
     assert "actuation delay" in line and not (tmp_path / "r").exists()
+
+
+# ============================================================ delay scheduling
+def test_schedule_with_an_actuation_delay_is_certified_and_stable() -> None:
+    from delayform.design.scheduling import schedule_delays
+
+    top, ta = paper_six(), 0.1
+    s = schedule_delays(top, 1.0, 0.5, tau_min=(0.2, 0.1), tau_max=(1.5, 2.0), grid=9, actuation_delay=ta)
+    assert s.actuation_delay == ta and 0.2 <= s.tau1 <= 1.5 and 0.1 <= s.tau2 <= 2.0
+    ref = _reference_rightmost(top, 1.0, 0.5, s.tau1, s.tau2, ta)  # the full system, discretized
+    assert abs(s.root - ref) <= 1e-8 * (1.0 + abs(ref)) and ref.real < 0.0
+    coarse = dominant_root_map(top, 1.0, 0.5, np.linspace(0.2, 1.5, 9), np.linspace(0.1, 2.0, 9), actuation_delay=ta)
+    assert s.root.real <= coarse.real.min() + 1e-12  # at least as fast as the best grid point
+    assert s.hardware_root == pytest.approx(_reference_rightmost(top, 1.0, 0.5, 0.2, 0.1, ta))
+
+
+def test_cli_schedule_takes_the_actuation_delay(tmp_path, capsys) -> None:
+    import json
+
+    code, stdout, _ = cli(capsys, "schedule", "--out", str(tmp_path / "s"), "--tau-min", "0.2,0.1",
+                          "--tau-max", "1.5,2", "--actuation-delay", "0.1", "--json")  # fmt: skip
+    assert code == 0
+    summary = json.loads(stdout)
+    assert summary["actuation_delay"] == 0.1 and summary["stable_delays_found"]
+    root = complex(summary["root"]["re"], summary["root"]["im"])
+    assert abs(root - _reference_rightmost(paper_six(), 1.0, 0.5, summary["tau1"], summary["tau2"], 0.1)) < 1e-8

@@ -40,7 +40,7 @@ def _invocations(example: str, out: str) -> dict[str, list[str]]:
         "chart": [example, "--out", out, "--tau1-max", "2", "--tau2-max", "2"],
         "roots": [example, "--out", out],
         "map": [example, "--out", out, "--size", "5,5", "--actuation-delay", "0.1"],
-        "schedule": [example, "--out", out],
+        "schedule": [example, "--out", out, "--actuation-delay", "0"],
         "gains": [example, "--out", out, "--grid", "5"],
         "simulate": [example, "--out", out, "--duration", "5", "--dt", "0.05"],
         "report": [example, "--out", out, "--actuation-delay", "0"],

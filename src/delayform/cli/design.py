@@ -13,8 +13,10 @@ from delayform.cli._common import (
     _emit,
     _out_dir,
     _scenario,
+    actuation_option,
     cli,
     scenario_options,
+    with_actuation,
 )
 
 if TYPE_CHECKING:
@@ -28,9 +30,10 @@ if TYPE_CHECKING:
                    "[default: --tau1,--tau2 when given, else schedule.tau_min].")
 @click.option("--tau-max", type=FloatTuple(2, minimum=0.0),
               help="Largest acceptable delays T1,T2 [default: schedule.tau_max].")
+@actuation_option
 def schedule_command(scenario: Path | None, tau_min: tuple[float, float] | None,
-                     tau_max: tuple[float, float] | None, out: Path | None, as_json: bool,
-                     **overrides: Any) -> None:  # fmt: skip
+                     tau_max: tuple[float, float] | None, actuation_delay: float | None, out: Path | None,
+                     as_json: bool, **overrides: Any) -> None:  # fmt: skip
     """Delay scheduling: the stable delays, no smaller than the hardware's, that converge fastest.
 
     Minimises the real part of the dominant root over
@@ -40,7 +43,7 @@ def schedule_command(scenario: Path | None, tau_min: tuple[float, float] | None,
     from delayform.report import schedule_section
     from delayform.scenario import ScheduleSpec
 
-    sc = _scenario(scenario, **overrides)
+    sc = with_actuation(_scenario(scenario, **overrides), actuation_delay)
     lo = tau_min or sc.schedule.tau_min
     # the default upper bound follows the lower one given (ScheduleSpec.starting_at)
     hi = tau_max or sc.schedule.starting_at(lo).tau_max

@@ -54,6 +54,8 @@ class DelaySchedule:
     root: complex
     factor: CharacteristicFactor
     hardware_root: complex
+    #: the actuation delay tau_a (s) the delays were scheduled for (0: the paper's model)
+    actuation_delay: float = 0.0
 
     @property
     def time_constant(self) -> float:
@@ -88,6 +90,7 @@ def schedule_delays(
     tau_min: tuple[float, float],
     tau_max: tuple[float, float],
     grid: int = 41,
+    actuation_delay: float = 0.0,
 ) -> DelaySchedule:
     """Delays within ``tau_min <= tau <= tau_max`` that minimise Re(dominant root).
 
@@ -109,6 +112,10 @@ def schedule_delays(
         Largest allowed delays (T1, T2).
     grid
         Points per axis of the coarse map (>= 2).
+    actuation_delay
+        tau_a >= 0 (s): schedule for robots that apply their commands that late
+        (every root in three delays; the local search then evaluates the
+        certified :func:`dominant_root` at each step, slower than the warm start).
 
     Returns
     -------
@@ -136,9 +143,10 @@ def schedule_delays(
     if isinstance(grid, bool) or not isinstance(grid, (int, np.integer)) or grid < 2:
         raise InputError(f"grid must be an integer >= 2, got {grid!r}")
     fs = _checked_factors(topology, P, D)
+    ta = check_delay("actuation_delay", actuation_delay)
     ax1 = np.linspace(lo[0], hi[0], grid) if hi[0] > lo[0] else np.array([lo[0]])
     ax2 = np.linspace(lo[1], hi[1], grid) if hi[1] > lo[1] else np.array([lo[1]])
-    coarse = dominant_root_map(topology, P, D, ax1, ax2)
+    coarse = dominant_root_map(topology, P, D, ax1, ax2, actuation_delay=ta)
     if not coarse.stable.any():
         raise NoStableDelaysError(
             f"no stable delay pair in the box tau1 in [{lo[0]:g}, {hi[0]:g}], "
@@ -146,7 +154,16 @@ def schedule_delays(
             "or choose other gains"
         )
 
-    objective = _WarmDominant(tuple(_problem_of_factor(f) for f in fs), np.array(lo), np.array(hi))
+    objective: Callable[[NDArray[np.float64]], float]
+    if ta > 0.0:  # no warm start in three delays: the certified root at every step of the search
+
+        def certified(x: NDArray[np.float64]) -> float:
+            t = np.clip(x, lo, hi)
+            return float(dominant_root(topology, P, D, float(t[0]), float(t[1]), actuation_delay=ta).root.real)
+
+        objective = certified
+    else:
+        objective = _WarmDominant(tuple(_problem_of_factor(f) for f in fs), np.array(lo), np.array(hi))
 
     flat = np.argsort(coarse.real, axis=None)[:2]
     candidates = [coarse.best()[:2]]
@@ -159,15 +176,15 @@ def schedule_delays(
         x, fx = _refine(objective, np.array(x0), np.array(lo), np.array(hi), grid)
         if fx < best_f:
             best_x, best_f = x, fx
-    final = dominant_root(topology, P, D, float(best_x[0]), float(best_x[1]))
+    final = dominant_root(topology, P, D, float(best_x[0]), float(best_x[1]), actuation_delay=ta)
     if not final.root.real <= float(coarse.real.min()):
         # the search was steered by uncertified values into something worse: keep the grid's best
         t1b, t2b, _ = coarse.best()
-        final = dominant_root(topology, P, D, t1b, t2b)
+        final = dominant_root(topology, P, D, t1b, t2b, actuation_delay=ta)
     if not final.is_stable:  # cannot happen: the grid's best is certified and stable
         raise NoStableDelaysError("delay scheduling ended on an unstable pair")
-    hardware = dominant_root(topology, P, D, lo[0], lo[1])
-    return DelaySchedule(final.tau1, final.tau2, final.root, final.factor, hardware.root)
+    hardware = dominant_root(topology, P, D, lo[0], lo[1], actuation_delay=ta)
+    return DelaySchedule(final.tau1, final.tau2, final.root, final.factor, hardware.root, ta)
 
 
 class _WarmDominant:

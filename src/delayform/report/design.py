@@ -47,7 +47,8 @@ def schedule_section(
     suffix = f"_{label}" if label else ""
     where = f"point {label} " if label else ""
     try:
-        result = schedule_delays(scenario.topology, scenario.P, scenario.D, tau_min=lo, tau_max=hi)
+        result = schedule_delays(scenario.topology, scenario.P, scenario.D, tau_min=lo, tau_max=hi,
+                                 actuation_delay=scenario.actuation_delay)  # fmt: skip
     except NoStableDelaysError as exc:
         if not report_failure:
             raise
@@ -70,13 +71,15 @@ def schedule_section(
         "time_constant": float(result.time_constant),
         "settling_time": float(result.settling_time),
         "hardware_root": hardware,
+        "actuation_delay": scenario.actuation_delay,
     }
     settling_rows = [("predicted settling time ln(50)/|Re|", f"{_fmt(float(result.settling_time))} s")]
     if result.factor.is_centroid:
         # the slowest mode is the centroid's speed: say so, and give the shape's own settling time
         from delayform.analysis.roots.dominant import SETTLING_FACTOR, dominant_root
 
-        shape = complex(dominant_root(scenario.topology, scenario.P, scenario.D, result.tau1, result.tau2).formation_root)
+        shape = complex(dominant_root(scenario.topology, scenario.P, scenario.D, result.tau1, result.tau2,
+                                      actuation_delay=scenario.actuation_delay).formation_root)  # fmt: skip
         summary |= {"dominant_is_centroid": True, "formation_root": shape,
                     "formation_settling_time": SETTLING_FACTOR / abs(shape.real)}  # fmt: skip
         settling_rows = [
