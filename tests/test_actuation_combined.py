@@ -172,3 +172,18 @@ def test_lossy_network_with_an_actuation_delay_runs_and_differs() -> None:
     assert late.actuation_delay == 0.1 and np.all(np.isfinite(late.positions))
     assert np.abs(late.positions - now.positions).max() > 1e-3
     assert np.all(late.inputs[late.times < 0.1 - 1e-9] == 0.0)  # nothing executes before tau_a
+
+
+def test_monte_carlo_runs_carry_the_actuation_delay() -> None:
+    from delayform.simulation.montecarlo import monte_carlo, run_seeds
+    from delayform.simulation.network import BernoulliLoss
+
+    net = Network(loss=BernoulliLoss(0.2))
+    mc = monte_carlo(paper_six(), 1.0, 0.5, 0.3, 0.2, "hexagon", network=net, runs=2, seed=3, duration=8.0, dt=0.02,
+                     actuation_delay=0.1)  # fmt: skip
+    assert mc.setup.actuation_delay == 0.1 and mc.setup.describe()["actuation_delay"] == 0.1
+    # each run is simulate's run with the same seeds and the actuation delay
+    (s0, n0) = run_seeds(3, 2)[0]
+    one = simulate(paper_six(), 1.0, 0.5, 0.3, 0.2, "hexagon", model="double_integrator",
+                   network=net.with_seed(n0), seed=s0, duration=8.0, dt=0.02, actuation_delay=0.1)  # fmt: skip
+    assert mc.errors[0][-1] == pytest.approx(float(one.formation_error[-1]), rel=1e-12)

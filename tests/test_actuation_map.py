@@ -153,3 +153,27 @@ def test_cli_schedule_takes_the_actuation_delay(tmp_path, capsys) -> None:
     assert summary["actuation_delay"] == 0.1 and summary["stable_delays_found"]
     root = complex(summary["root"]["re"], summary["root"]["im"])
     assert abs(root - _reference_rightmost(paper_six(), 1.0, 0.5, summary["tau1"], summary["tau2"], 0.1)) < 1e-8
+
+
+@pytest.mark.parametrize("command", [
+    ["region"], ["safe-delays"], ["gains", "--grid", "5"], ["box", "--tau1-box", "0.1,0.2", "--tau2-box", "0.1,0.2"],
+    ["jitter"], ["links"],
+])  # fmt: skip
+def test_commands_without_actuation_in_their_theory_refuse_a_scenario_with_one(tmp_path, capsys, command) -> None:
+    from test_hardening import BASE
+
+    path = tmp_path / "late.toml"
+    path.write_text(BASE + "[robot]\nlimits = false\nactuation_delay = 0.1\n")
+    out = ["--out", str(tmp_path / "o")] if command[0] in ("region", "safe-delays", "gains") else []
+    line = one_line_error(capsys, command[0], str(path), *command[1:], *out)
+    assert "actuation_delay = 0.1" in line and not (tmp_path / "o").exists()
+
+
+def test_report_region_section_says_why_it_is_not_computed(tmp_path) -> None:
+    import dataclasses
+
+    from delayform.report.analysis import region_section
+    from delayform.scenario import paper_scenario
+
+    section = region_section(dataclasses.replace(paper_scenario(), actuation_delay=0.1), tmp_path)
+    assert section.summary == {"actuation_delay": 0.1, "computed": False} and not list(tmp_path.iterdir())

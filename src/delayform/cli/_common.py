@@ -239,6 +239,18 @@ def actuation_option(func: F) -> F:
                              "gains the delayed own-state terms [default: robot.actuation_delay, else 0].")(func)  # fmt: skip
 
 
+def without_actuation(scenario: Scenario, what: str) -> Scenario:
+    """The scenario, refused (exit 2, one line) when it has an actuation delay that ``what`` would ignore."""
+    if scenario.actuation_delay > 0.0:
+        from delayform.errors import ScenarioError
+
+        raise ScenarioError(
+            f"{what} has no actuation delay in its theory, and the scenario has [robot] actuation_delay = "
+            f"{scenario.actuation_delay:g} s; set it to 0 here (chart, roots, map, schedule, report and simulate take it)"
+        )
+    return scenario
+
+
 def with_actuation(scenario: Scenario, actuation_delay: float | None) -> Scenario:
     """The scenario with ``--actuation-delay`` applied when given."""
     from dataclasses import replace

@@ -10,7 +10,7 @@ from typing import Any
 
 import click
 
-from delayform.cli._common import POSITIVE, ROBOT_NAMES, _scenario, _simulation_spec, cli, team_options
+from delayform.cli._common import POSITIVE, ROBOT_NAMES, _scenario, _simulation_spec, cli, team_options, without_actuation
 
 
 @cli.command("check")
@@ -36,7 +36,7 @@ def check_command(scenario: Path | None, robot_name: str | None, duration: float
     from delayform.deploy import robot_profile
     from delayform.report.check import robot_check
 
-    sc = _scenario(scenario, **overrides)
+    sc = without_actuation(_scenario(scenario, **overrides), "the design check (its certificates and margins)")
     name = robot_name if robot_name is not None else sc.robot_profile
     if name is None:
         raise click.UsageError("which robot? give --robot NAME or [robot] profile = \"NAME\" in the scenario")

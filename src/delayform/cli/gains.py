@@ -7,7 +7,7 @@ from typing import Any
 
 import click
 
-from delayform.cli._common import FloatTuple, _emit, _out_dir, _scenario, cli, scenario_options
+from delayform.cli._common import FloatTuple, _emit, _out_dir, _scenario, cli, scenario_options, without_actuation
 
 #: Largest coarse map accepted: grid^2 gain points, each solved for every factor.
 _MAX_GRID = 101
@@ -57,7 +57,7 @@ def gains_command(scenario: Path | None, tau1_box: tuple[float, float] | None,
         raise click.UsageError("give --tau2 or --tau2-box, not both")
     box1, box2 = _box(tau1_box, "--tau1-box"), _box(tau2_box, "--tau2-box")
     pb, db = _gain_bounds(P_bounds, "--P-bounds"), _gain_bounds(D_bounds, "--D-bounds")
-    sc = _scenario(scenario, **overrides)
+    sc = without_actuation(_scenario(scenario, **overrides), "gain design")
     directory = _out_dir(out, sc)
     section = gains_section(sc, directory, tau1=box1, tau2=box2, P_bounds=pb, D_bounds=db, grid=grid)
     _emit(section, directory, as_json=as_json)

@@ -14,7 +14,7 @@ from typing import Any
 
 import click
 
-from delayform.cli._common import NON_NEGATIVE, FloatTuple, _scenario, cli, team_options
+from delayform.cli._common import NON_NEGATIVE, FloatTuple, _scenario, cli, team_options, without_actuation
 
 __all__ = ["links_command", "box_command", "jitter_command"]
 
@@ -39,6 +39,7 @@ def _matrix_file(path: Path | None, name: str) -> Any:
 def _delays(overrides: dict[str, Any], tau1_file: Path | None, tau2_file: Path | None) -> tuple[Any, Any, Any]:
     sc = _scenario(None if overrides.get("scenario") is None else overrides["scenario"],
                    **{k: v for k, v in overrides.items() if k != "scenario"})  # fmt: skip
+    sc = without_actuation(sc, "the per-link and jitter certificates")
     t1 = _matrix_file(tau1_file, "--tau1-file")
     t2 = _matrix_file(tau2_file, "--tau2-file")
     return sc, sc.tau1 if t1 is None else t1, sc.tau2 if t2 is None else t2
@@ -84,7 +85,7 @@ def box_command(scenario: Path | None, as_json: bool, tau1_box: tuple[float, flo
     """Is the team stable for every constant per-link assignment in the box? (certified / unstable / undecided)."""
     from delayform.analysis.network import robust_stability
 
-    sc = _scenario(scenario, **overrides)
+    sc = without_actuation(_scenario(scenario, **overrides), "the delay-box certificate")
     for name, (lo, hi) in (("--tau1-box", tau1_box), ("--tau2-box", tau2_box)):
         if lo > hi:
             raise click.BadParameter(f"LO = {lo:g} > HI = {hi:g}", param_hint=name)

@@ -7,7 +7,16 @@ from typing import Any
 
 import click
 
-from delayform.cli._common import POSITIVE, LabelledPoint, _emit, _out_dir, _scenario, cli, scenario_options
+from delayform.cli._common import (
+    POSITIVE,
+    LabelledPoint,
+    _emit,
+    _out_dir,
+    _scenario,
+    cli,
+    scenario_options,
+    without_actuation,
+)
 
 
 @cli.command("region")
@@ -24,7 +33,7 @@ def region_command(scenario: Path | None, out: Path | None, as_json: bool, **ove
     """
     from delayform.report import region_section
 
-    sc = _scenario(scenario, **overrides)
+    sc = without_actuation(_scenario(scenario, **overrides), "the eigenvalue plane")
     directory = _out_dir(out, sc)
     _emit(region_section(sc, directory), directory, as_json=as_json)
 
@@ -52,7 +61,7 @@ def safe_delays_command(scenario: Path | None, spectrum: str, tau1_max: float | 
     from delayform.analysis.plane.spectrum_sets import parse_spectrum
     from delayform.report import safe_delays_section
 
-    sc = _scenario(scenario, **overrides)
+    sc = without_actuation(_scenario(scenario, **overrides), "the certificate of safe delays")
     t1max = sc.chart.tau1_max if tau1_max is None else tau1_max
     t2max = sc.chart.tau2_max if tau2_max is None else tau2_max
     # the scenario's points outside a smaller window are left out; points given here must fit

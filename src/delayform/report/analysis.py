@@ -293,9 +293,18 @@ def region_section(scenario: Scenario, out: Path, *, tau1: float | None = None, 
     from delayform.analysis.plane.spectrum_sets import safe_delays
     from delayform.analysis.plane.region import lambda_region
 
-    plt = _pyplot()
     t1 = scenario.tau1 if tau1 is None else tau1
     t2 = scenario.tau2 if tau2 is None else tau2
+    if scenario.actuation_delay > 0.0:  # no number for another system: the page says why there is none
+        return Section(
+            key="region", title="Eigenvalue plane: not computed with an actuation delay",
+            text=("The stable region of the eigenvalue plane is computed for the paper's factors; with an "
+                  f"actuation delay of {scenario.actuation_delay:g} s every factor has delayed own-state terms "
+                  "that it does not model. The chart, the roots and the map above take the actuation delay."),
+            table=(("actuation delay tau_a", f"{scenario.actuation_delay:g} s"), ("result", "not computed")),
+            summary={"actuation_delay": scenario.actuation_delay, "computed": False},
+        )  # fmt: skip
+    plt = _pyplot()
     topo = scenario.topology
     region = lambda_region(scenario.P, scenario.D, t1, t2)
     window = (max(t1, 1e-3), max(t2, 1e-3))

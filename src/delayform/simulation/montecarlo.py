@@ -152,6 +152,8 @@ class Setup:
         Which robot takes which slot, per run (``simulate(..., assignment=...)``).
     safety
         The safety filter of every run (``"barrier"``), or None.
+    actuation_delay
+        tau_a (s) of every run: each robot applies its command that late.
     """
 
     topology: Topology
@@ -171,11 +173,13 @@ class Setup:
     radius: float | None = None
     assignment: str = "given"
     safety: Any = None
+    actuation_delay: float = 0.0
 
     @property
     def robot(self) -> Robot:
-        """The robot of every run (model, limits, body radius, safety filter)."""
-        return Robot(model=self.model, limits=self.limits, radius=self.radius, safety=self.safety)
+        """The robot of every run (model, limits, body radius, safety filter, actuation delay)."""
+        return Robot(model=self.model, limits=self.limits, radius=self.radius, safety=self.safety,
+                     actuation_delay=self.actuation_delay)  # fmt: skip
 
     def with_changes(self, **changes: Any) -> Setup:
         """A copy with some fields replaced (sweeps).
@@ -196,6 +200,7 @@ class Setup:
             "robots": "ideal" if self.limits is None else self.limits.describe(),
             "radius": self.robot.body_radius,
             "safety": "none" if self.safety is None else "barrier",
+            "actuation_delay": self.actuation_delay,
             "duration": self.duration, "dt": self.dt,
         }  # fmt: skip
 
@@ -543,6 +548,7 @@ def make_setup(
     radius: float | None = None,
     assignment: str = "given",
     safety: Any = None,
+    actuation_delay: float = 0.0,
 ) -> Setup:
     """The checked scenario-like inputs of a Monte Carlo or of a sweep's base point.
 
@@ -568,6 +574,8 @@ def make_setup(
         ``"given"`` or ``"optimal"`` slots (``simulate(..., assignment=...)``).
     safety
         The safety filter (``"barrier"``) or None.
+    actuation_delay
+        tau_a >= 0 (s) of every run (``Robot.actuation_delay``).
 
     Raises
     ------
@@ -582,6 +590,7 @@ def make_setup(
         initial_positions=None if initial_positions is None else np.asarray(initial_positions, dtype=np.float64),
         initial_headings=None if initial_headings is None else np.asarray(initial_headings, dtype=np.float64),
         initial_speed=initial_speed, limits=limits, radius=radius, assignment=assignment, safety=safety,
+        actuation_delay=actuation_delay,
     )  # fmt: skip
     return checked(setup)
 
@@ -662,6 +671,7 @@ def monte_carlo(
     radius: float | None = None,
     assignment: str = "given",
     safety: Any = None,
+    actuation_delay: float = 0.0,
     executor: Executor | None = None,
     progress: Progress | None = None,
 ) -> MonteCarloResult:
@@ -698,6 +708,8 @@ def monte_carlo(
         ``"given"`` or ``"optimal"`` slots in every run (``simulate(..., assignment=...)``).
     safety
         The safety filter of every run (``"barrier"``), or None.
+    actuation_delay
+        tau_a >= 0 (s): each robot applies its command that late, in every run.
     executor
         Where the runs go (:class:`SerialExecutor` by default; see
         :func:`delayform.sweeps.executor` for Dask); its ``workers``
@@ -729,7 +741,7 @@ def monte_carlo(
     setup = make_setup(
         topology, P, D, tau1, tau2, formation, model=model, network=network, duration=duration, dt=dt,
         initial_positions=initial_positions, initial_headings=initial_headings, initial_speed=initial_speed,
-        limits=limits, radius=radius, assignment=assignment, safety=safety,
+        limits=limits, radius=radius, assignment=assignment, safety=safety, actuation_delay=actuation_delay,
     )  # fmt: skip
     guard(setup, runs, int(getattr(executor, "workers", 1)))
     tasks = [(setup, r, s) for r, s in enumerate(run_seeds(seed, runs))]
