@@ -177,3 +177,31 @@ def test_report_region_section_says_why_it_is_not_computed(tmp_path) -> None:
 
     section = region_section(dataclasses.replace(paper_scenario(), actuation_delay=0.1), tmp_path)
     assert section.summary == {"actuation_delay": 0.1, "computed": False} and not list(tmp_path.iterdir())
+
+
+# ============================================================ property: the walk counts what the generic certificate counts
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    r=st.floats(0.0, 1.0), phi=st.floats(-math.pi, math.pi), t1=st.floats(0.0, 3.0), t2=st.floats(0.0, 3.0),
+    ta=st.floats(0.01, 2.0), c=st.floats(-0.4, 0.4),
+)  # fmt: skip
+def test_walk_equals_generic_certificate_at_random_rows(r, phi, t1, t2, ta, c) -> None:
+    from hypothesis import assume
+
+    from delayform.errors import NotConvergedError
+
+    lam = complex(r * math.cos(phi), r * math.sin(phi))
+    real = abs(lam.imag) < 1e-12
+    lam = complex(lam.real, 0.0) if real else lam
+    rows = _Rows(np.array([lam]), np.array([t1]), np.array([t2]), np.array([real]), np.zeros(1, bool), 1.0, 0.5, ta)
+    got = actuated_count(rows, np.array([c]))[0]
+    try:
+        want = count_roots_right_of(actuated_factor(1.0, 0.5, lam), t1, t2, ta, c)
+    except NotConvergedError:
+        assume(False)  # a root on the line: neither may decide
+    assume(np.isfinite(got))
+    assert got == want
