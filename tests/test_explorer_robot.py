@@ -119,3 +119,17 @@ def test_downloads_carry_the_controls(tmp_path: Path) -> None:
     assert again.actuation_delay == 0.05 and again.safety == "barrier" and again.simulation.assignment == "optimal"
     plain = parse_scenario(tomllib.loads(names["plain"].decode()))
     assert plain.actuation_delay == 0.0 and plain.safety is None and plain.simulation.assignment == "given"
+
+
+def test_download_names_differ_from_the_scenarios_own_setting(tmp_path: Path) -> None:
+    import dataclasses
+
+    late = dataclasses.replace(paper_scenario(), actuation_delay=0.05)  # the scenario's own tau_a
+    out = tmp_path / "out"
+    base = "tau1=0.3&tau2=0.2&duration=10&tau1_max=8&tau2_max=8&limits=1"
+    with start(Explorer(late, out_dir=out)) as running:
+        for extra in ("", "&actuation_delay=0", "&actuation_delay=0.05&safety=1"):
+            assert get(running, f"/download/scenario.toml?{base}{extra}")[0] == 200
+    names = sorted(p.name for p in out.iterdir())
+    assert len(names) == 3 and any("_ta0_" in n for n in names) and any("_barrier_" in n for n in names)
+    assert sorted(parse_scenario(tomllib.loads((out / n).read_text())).actuation_delay for n in names) == [0.0, 0.05, 0.05]

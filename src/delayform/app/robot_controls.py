@@ -21,7 +21,8 @@ Runs, figures and scenario downloads take all three; the analysis endpoints take
 nothing is refused, not ignored). Each setting is served by an
 :class:`~delayform.app.explorer.Explorer` of the scenario with that setting (a few kept,
 least recently used first out), so maps, runs and downloads are cached per setting
-and a download's file name and ``scenario.toml`` carry the setting.
+and a download's file name (the controls that differ from the scenario's own) and its
+``scenario.toml`` carry the setting.
 """
 
 from __future__ import annotations
@@ -47,15 +48,18 @@ _NO_ACTUATION = {
 }
 
 
-def _name(base: str, actuation_delay: float, safety: bool, assignment: bool) -> str:
-    """The scenario's name with the controls that differ from 'off' (download file names carry it)."""
+def _name(base: str, setting: tuple[float, bool, bool], defaults: tuple[float, bool, bool]) -> str:
+    """The scenario's name with each control that differs from the scenario's own (download names carry it).
+
+    The scenario's own setting keeps the plain name, so no two settings share a file name.
+    """
     parts = [base]
-    if actuation_delay > 0.0:
-        parts.append(f"ta{actuation_delay:.12g}")
-    if safety:
-        parts.append("barrier")
-    if assignment:
-        parts.append("optimal")
+    if setting[0] != defaults[0]:
+        parts.append(f"ta{setting[0]:.12g}")
+    if setting[1] != defaults[1]:
+        parts.append("barrier" if setting[1] else "nobarrier")
+    if setting[2] != defaults[2]:
+        parts.append("optimal" if setting[2] else "given")
     return "_".join(parts)
 
 
@@ -97,7 +101,8 @@ class RobotControls:
         """The explorer of the scenario at these settings (the base one at the scenario's own)."""
         key = (float(actuation_delay), bool(safety), bool(assignment))
         d = self.defaults
-        if key == (d["actuation_delay"], d["safety"], d["assignment"]):
+        own = (d["actuation_delay"], d["safety"], d["assignment"])
+        if key == own:
             return self.base
         with self._lock:
             if key in self._explorers:
@@ -105,7 +110,7 @@ class RobotControls:
                 return self._explorers[key]
         s = self.base.scenario
         scenario = replace(
-            s, name=_name(s.name, *key), actuation_delay=key[0],
+            s, name=_name(s.name, key, own), actuation_delay=key[0],
             safety=("barrier" if s.safety is None else s.safety) if safety else None,
             simulation=replace(s.simulation, assignment="optimal" if assignment else "given"),
         )  # fmt: skip
