@@ -36,7 +36,8 @@ from delayform.report._common import (
 
 # ------------------------------------------------------------ whole reports
 def scenario_sections(
-    scenario: Scenario, out: Path, *, progress: Progress | None = None, map_progress: MapProgress | None = None
+    scenario: Scenario, out: Path, *, progress: Progress | None = None, map_progress: MapProgress | None = None,
+    jitter_grid: int | None = None,
 ) -> list[Section]:
     """Every analysis of one scenario, in the order of the data flow.
 
@@ -50,10 +51,17 @@ def scenario_sections(
         Optional Rich progress bar advanced once per analysis.
     map_progress
         Optional callback for the dominant-root map (see :func:`map_section`).
+    jitter_grid
+        Points per axis of the jitter-margin contours on the chart; 0: none; None
+        (default): :func:`~delayform.report.jitter_overlay.auto_grid` (drawn when the
+        scenario's network jitters or varies its delays).
     """
+    from delayform.report.jitter_overlay import auto_grid
+
+    jitter_grid = auto_grid(scenario) if jitter_grid is None else jitter_grid
     steps: list[tuple[str, Callable[[], Section]]] = [
         ("factors", lambda: factors_section(scenario, out)),
-        ("stability chart", lambda: chart_section(scenario, out)),
+        ("stability chart", lambda: chart_section(scenario, out, jitter_grid=jitter_grid)),
         ("eigenvalue plane", lambda: region_section(scenario, out)),
         ("roots", lambda: roots_section(scenario, out)),
         ("dominant-root map", lambda: map_section(scenario, out, progress=map_progress)),
