@@ -104,7 +104,7 @@ def chart_section(scenario: Scenario, out: Path, *, jitter_grid: int = 0) -> Sec
         (:mod:`delayform.report.jitter_overlay`); refused up front beyond the budget.
     """
     from delayform.analysis.ctcr.stability_map import stability_map
-    from delayform.report import jitter_overlay as jo
+    from delayform.report.jitter_overlay import check_overlay, draw_overlay, jitter_overlay
 
     plt = _pyplot()
     points = _chart_points(scenario)
@@ -115,17 +115,17 @@ def chart_section(scenario: Scenario, out: Path, *, jitter_grid: int = 0) -> Sec
         tau2_max=max([scenario.chart.tau2_max] + [b for _, _, b in points]),
     )
     if jitter_grid:
-        jo.check_overlay(scenario, cs.tau1_max, cs.tau2_max, jitter_grid)
+        check_overlay(scenario, cs.tau1_max, cs.tau2_max, jitter_grid)
     smap = stability_map(scenario.topology, scenario.P, scenario.D, cs.tau1_max, cs.tau2_max,
                          actuation_delay=scenario.actuation_delay)  # fmt: skip
-    jmap = jo.jitter_overlay(scenario, cs.tau1_max, cs.tau2_max, jitter_grid) if jitter_grid else None
+    jmap = jitter_overlay(scenario, cs.tau1_max, cs.tau2_max, jitter_grid) if jitter_grid else None
     t1 = np.array([p[1] for p in points])
     t2 = np.array([p[2] for p in points])
     counts = np.asarray(smap.unstable_count(t1, t2))
     stable = np.asarray(smap.is_stable(t1, t2))
     fig, ax = plt.subplots(figsize=(6.4, 5.6))
     smap.plot(ax=ax, points={label: (a, b) for label, a, b in points})
-    jitter_summary, jitter_rows = jo.draw_overlay(jmap, ax) if jmap is not None else (None, [])
+    jitter_summary, jitter_rows = draw_overlay(jmap, ax) if jmap is not None else (None, [])
     ax.set_title(f"Stability chart: {scenario.name}, P = {scenario.P:g}, D = {scenario.D:g}")
     files = list(_save(fig, out, "stability_chart"))
     curve_rows, arrays = _curve_rows(smap)
