@@ -37,10 +37,14 @@ def _write_full_report(sc: Scenario, directory: Path, *, paper: bool, as_json: b
     index = directory / index.name
     if as_json:
         click.echo(json.dumps(jsonable({s.key: s.summary for s in sections} | {"index": str(index)}), indent=2))
-        return
-    for section in sections:
-        _emit(section, directory, as_json=False)
-    click.echo(f"Report: {index} ({seconds:.1f} s)")
+    else:
+        for section in sections:
+            _emit(section, directory, as_json=False)
+        click.echo(f"Report: {index} ({seconds:.1f} s)")
+    from delayform.cli.montecarlo import shout_bugs
+
+    for section in sections:  # the Monte Carlo's contradictions, if any: loudly, after the report is written
+        shout_bugs(section.summary if section.key == "montecarlo" else {})
 
 
 def _build_full_report(sc: Scenario, directory: Path, *, paper: bool,

@@ -4,7 +4,8 @@
 :mod:`delayform.analysis.network` that apply to a scenario's network: the exact
 per-link dominant root for per-link constant delays, the jitter margin for jitter
 and smooth variations, exact mean-square stability for independent loss with
-sampling and delays that are whole multiples of the period. :func:`contradictions`
+sampling and delays that are whole multiples of the period, and for bursty
+(Gilbert-Elliott) loss on small teams (:mod:`delayform.analysis.network.bursty`). :func:`contradictions`
 sets them against Monte Carlo runs: a run that diverges where a certificate says
 stable is a bug (of the certificate or of the simulator), never an accepted outcome.
 """
@@ -14,7 +15,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-__all__ = ["Guarantee", "network_guarantees", "contradictions", "guarantee_rows", "summary_of"]
+__all__ = ["Guarantee", "network_guarantees", "contradictions", "guarantee_rows", "summary_of", "with_actuator_limits",
+           "bug_rows"]
 
 
 @dataclass(frozen=True)
@@ -63,8 +65,7 @@ def network_guarantees(topology: Any, P: float, D: float, tau1: float, tau2: flo
 
 
 def _guarantees(topology: Any, P: float, D: float, tau1: float, tau2: float, network: Any) -> tuple[Guarantee, ...]:
-    from delayform.analysis.network import jitter_margin, link_dominant_root, mean_square_stability
-    from delayform.simulation.network import BernoulliLoss
+    from delayform.analysis.network import jitter_margin, link_dominant_root
 
     out: list[Guarantee] = []
     t1, t2 = _link_delays(network, tau1, tau2)
@@ -91,21 +92,47 @@ def _guarantees(topology: Any, P: float, D: float, tau1: float, tau2: float, net
                              f"+-{size:.4g} s: {'covered' if covered else 'not covered'}"))  # fmt: skip
     loss, sampling = getattr(network, "loss", None), getattr(network, "sampling", None)
     lossy = loss is not None and not loss.is_off
+    noisy = getattr(network, "noise", None) is not None and not network.noise.is_off
     if sampling is not None or lossy:
-        if sampling is None or size > 0.0 or spread or not (loss is None or isinstance(loss, BernoulliLoss)):
+        if sampling is None or size > 0.0 or spread or noisy:
             out.append(Guarantee("sampling and loss (mean square)", None,
-                                 "exact only for Sampling with independent (Bernoulli) loss, without jitter or variation"))  # fmt: skip
+                                 "exact only for Sampling with independent (Bernoulli) or Gilbert-Elliott loss, "
+                                 "without jitter, variation, spread or noise"))  # fmt: skip
         else:
-            p = 0.0 if loss is None else loss.probability
-            try:
-                ms = mean_square_stability(topology, P, D, t1, t2, rate=sampling.rate, loss=p)
-            except ValueError as exc:  # delays not whole multiples of the period
-                out.append(Guarantee("sampling and loss (mean square)", None, str(exc)))
-            else:
-                rate = f"expected decay rate {ms.decay_rate:.4g} 1/s" if ms.stable else "not mean-square stable"
-                out.append(Guarantee("sampling and loss (mean square, exact)", ms.stable,
-                                     f"rho = {ms.rho:.6f} per period, {rate}"))  # fmt: skip
+            out.append(_mean_square(topology, P, D, t1, t2, sampling.rate, loss))
     return tuple(out)
+
+
+def _mean_square(topology: Any, P: float, D: float, t1: Any, t2: Any, rate: float, loss: Any) -> Guarantee:
+    """The exact mean-square certificate for sampled links with Bernoulli or Gilbert-Elliott loss."""
+    from delayform.analysis.network import bursty_mean_square_stability, mean_square_stability
+    from delayform.simulation.network import GilbertElliott
+
+    bursty = isinstance(loss, GilbertElliott) and not loss.is_off
+    name = "sampling and bursty loss (mean square, exact)" if bursty else "sampling and loss (mean square, exact)"
+    try:
+        if bursty:
+            ms = bursty_mean_square_stability(topology, P, D, t1, t2, rate=rate, p_good_to_bad=loss.p_good_to_bad,
+                                              p_bad_to_good=loss.p_bad_to_good, loss_good=loss.loss_good,
+                                              loss_bad=loss.loss_bad)  # fmt: skip
+        else:
+            ms = mean_square_stability(topology, P, D, t1, t2, rate=rate, loss=0.0 if loss is None else loss.probability)
+    except ValueError as exc:  # delays not whole multiples of the period; too many chains (ResourceLimitError)
+        return Guarantee(name.replace(", exact", ""), None, str(exc))
+    decay = f"expected decay rate {ms.decay_rate:.4g} 1/s" if ms.stable else "not mean-square stable"
+    return Guarantee(name, ms.stable, f"rho = {ms.rho:.6f} per period, {decay}")
+
+
+def with_actuator_limits(guarantees: tuple[Guarantee, ...]) -> tuple[Guarantee, ...]:
+    """The certificates for robots whose commands saturate or pass a safety filter: none covers the runs.
+
+    Every certificate is for the linear protocol; saturation is outside it, so a
+    holding certificate becomes "not covered" (a proof of instability stays: the
+    linearisation about the formation is the protocol itself).
+    """
+    return tuple(Guarantee(g.name, None if g.holds else g.holds,
+                           g.detail + ("; robots with actuator limits or a safety filter: not covered" if g.holds else ""))
+                 for g in guarantees)  # fmt: skip
 
 
 def contradictions(guarantees: tuple[Guarantee, ...], statuses: tuple[str, ...]) -> list[str]:
@@ -116,7 +143,8 @@ def contradictions(guarantees: tuple[Guarantee, ...], statuses: tuple[str, ...])
     root alone does not, when jitter, variation or loss are present.
     """
     covering = [g for g in guarantees if g.holds is True]
-    diverged = [k for k, s in enumerate(statuses) if s == "diverging"]
+    # "stopped": the state overflowed and integration stopped, a divergence too
+    diverged = [k for k, s in enumerate(statuses) if s in ("diverging", "stopped")]
     if not diverged:
         return []
     return [f"run {k} diverged although '{g.name}' holds ({g.detail})" for g in covering for k in diverged]
@@ -131,3 +159,11 @@ def guarantee_rows(guarantees: tuple[Guarantee, ...]) -> tuple[tuple[str, str], 
 def summary_of(guarantees: tuple[Guarantee, ...]) -> list[dict[str, Any]]:
     """JSON-ready list of ``guarantees``."""
     return [{"name": g.name, "holds": g.holds, "detail": g.detail} for g in guarantees]
+
+
+def bug_rows(bugs: list[str]) -> tuple[tuple[str, str], ...]:
+    """Table rows that put contradictions first and in capitals: each one is a bug to report."""
+    if not bugs:
+        return ()
+    return (("BUG", f"{len(bugs)} contradiction(s) between a certificate and the runs: {bugs[0]}"
+                    + (f" (and {len(bugs) - 1} more)" if len(bugs) > 1 else "")),)  # fmt: skip

@@ -150,6 +150,14 @@ def highlights(sections: Sequence[Section]) -> tuple[tuple[str, str], ...]:
     if "roots" in by_key:
         roots = by_key["roots"]
         rows.append((f"dominant root at ({roots['tau1']:g}, {roots['tau2']:g})", _fmt_complex(roots["dominant_root"])))
+    if "montecarlo" in by_key:  # what is guaranteed beside what the runs observed (issue 20); a bug first
+        mc = by_key["montecarlo"]
+        held = [g["name"] for g in mc.get("guarantees", []) if g["holds"] is True]
+        diverged = sum(mc.get("statuses", {}).get(k, 0) for k in ("diverging", "stopped"))
+        if mc.get("contradictions"):
+            rows.append(("BUG: a run diverged where a certificate holds", mc["contradictions"][0]))
+        rows.append(("guaranteed for this network", ", ".join(held) if held else "nothing (see the Monte Carlo section)"))
+        rows.append(("observed", f"{diverged} of {mc.get('runs', '?')} runs diverged"))
     for key, summary in by_key.items():
         if key.startswith("schedule") and summary.get("stable_delays_found"):
             lo = summary["tau_min"]
