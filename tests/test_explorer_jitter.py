@@ -88,3 +88,31 @@ def test_a_map_too_long_for_one_request_is_refused(tmp_path):
                            "delays": {"tau1": 0.1, "tau2": 0.1}, "formation": {"shape": "polygon"}})  # fmt: skip
     with pytest.raises(InputError, match="MAX_SECONDS"):
         JitterLayer(Explorer(ring, out_dir=tmp_path / "r")).compute(1.0, 0.5, 1.0, 1.0, 24)
+
+
+# ---------------------------------------------------------------- guaranteed beside observed
+def test_guarantees_beside_the_page_run(server):
+    from delayform.analysis.network import link_dominant_root
+
+    ideal = get_json(server, "/api/guarantees?tau1=0.3&tau2=0.2&duration=20")
+    (exact,) = ideal["guarantees"]
+    root = link_dominant_root(paper_six(), 1.0, 0.5, 0.3, 0.2).root
+    assert exact["holds"] is True and f"{root.real:.4g}" in exact["detail"]
+    run = get_json(server, "/api/simulate?tau1=0.3&tau2=0.2&duration=20")
+    assert ideal["observed"]["status"] == run["status"] and ideal["contradictions"] == []
+    jit = get_json(server, "/api/guarantees?tau1=0.3&tau2=0.2&duration=20&network=1&loss=0&jitter=0.05")
+    margin = [g for g in jit["guarantees"] if "jitter margin" in g["name"]]
+    assert margin and margin[0]["holds"] is True  # 0.05 s within the certified 0.107 s
+    assert f"{jitter_margin(paper_six(), 1.0, 0.5, 0.3, 0.2).delta:.4g}" in margin[0]["detail"]
+
+
+def test_guarantees_at_c_prove_instability(server):
+    r = get_json(server, "/api/guarantees?tau1=1&tau2=2&duration=20")
+    assert r["guarantees"][0]["holds"] is False and r["contradictions"] == []
+
+
+@pytest.mark.parametrize("query", ["tau1=0.3", "tau1=0.3&tau2=0.2&duration=0", "tau1=0.3&tau2=0.2&loss=0.5",
+                                   "tau1=0.3&tau2=0.2&foo=1"])  # fmt: skip
+def test_guarantees_refuse_malformed_requests(server, query):
+    status, _, body = get(server, f"/api/guarantees?{query}")
+    assert status == 400 and 0 < len(json.loads(body)["error"]) < 300

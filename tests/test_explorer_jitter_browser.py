@@ -1,4 +1,7 @@
-"""The jitter-margin layer in a real headless browser: toggle it on, see the contour trace, redraw, off.
+"""The explorer's issue-20 views in a real headless browser.
+
+The jitter-margin layer: toggle it on, see the contour trace, redraw, off; and the
+guaranteed-vs-observed table filled after the robots' run.
 
 Same Chromium as tests/test_explorer_browser.py (skips without it).
 """
@@ -33,6 +36,9 @@ def test_toggle_the_jitter_layer_in_chromium(tmp_path: Path) -> None:
             page.on("console", lambda m: problems.append(f"console {m.type}: {m.text}") if m.type == "error" else None)
             page.goto(running.url)
             page.wait_for_function("() => document.body.dataset.chartReady", timeout=30_000)
+            # the first run (the scenario's point a): its certificates beside what it observed
+            page.wait_for_function("() => document.body.dataset.sideBySide", timeout=90_000)
+            beside = page.inner_text("#side-by-side-table")
             page.fill("#tau1_max", "3")
             page.fill("#tau2_max", "3")
             page.dispatch_event("#tau2_max", "change")
@@ -54,4 +60,6 @@ def test_toggle_the_jitter_layer_in_chromium(tmp_path: Path) -> None:
     assert "largest" in status and "s at" in status, status
     assert len(again) == 1, again
     assert off == []
+    assert "constant delays (exact, per link)\tguaranteed" in beside and "observed\t" in beside, beside
+    assert "BUG" not in beside
     assert not problems, problems

@@ -10,6 +10,7 @@ Endpoints (all ``GET``; every number is checked by :mod:`delayform.app.params`):
     /api/point                 tau1, tau2 [, P, D] -> stable, unstable_count, dominant_root [re, im]
     /api/guarantee             tau1, tau2 [, P, D] -> jitter_margin (s, certified; issue 20)
     /api/jitter_map            P, D, tau1_max, tau2_max, grid -> the certified margin on the chart's window
+    /api/guarantees            as /api/simulate -> the certificates for its network beside the run's status
     /api/roots                 tau1, tau2 [, P, D] -> the roots of every factor near the imaginary axis
     /api/region                tau1, tau2 [, P, D] -> the eigenvalue plane: boundary curve L(j omega),
                                NU(lam) on a grid, the team's eigenvalues of C with their NU
@@ -47,6 +48,7 @@ from typing import Any
 
 from delayform.app.explorer import Explorer
 from delayform.app.jitter_layer import JitterLayer
+from delayform.app.side_by_side import SideBySide
 from delayform.app.params import Param, parse_query
 from delayform.errors import DelayformError, InputError
 
@@ -161,10 +163,11 @@ def create_app(explorer: Explorer) -> Any:
     from starlette.routing import Route
 
     limiter = anyio.CapacityLimiter(_WORKERS)
-    layer = JitterLayer(explorer)  # the jitter-margin layer (issue 20)
+    layer, beside = JitterLayer(explorer), SideBySide(explorer)  # the jitter-margin layer, guaranteed vs observed (issue 20)
     assets = {
         "explorer.js": (STATIC / "explorer.js", "text/javascript"),
         "jitter_layer.js": (STATIC / "jitter_layer.js", "text/javascript"),
+        "side_by_side.js": (STATIC / "side_by_side.js", "text/javascript"),
         "explorer.css": (STATIC / "explorer.css", "text/css"),
         "plotly.min.js": (plotly_bundle(), "text/javascript"),
     }
@@ -245,6 +248,7 @@ def create_app(explorer: Explorer) -> Any:
         Route("/api/roots", json_endpoint(explorer.point_params, explorer.roots)),
         Route("/api/guarantee", json_endpoint(explorer.point_params, explorer.guarantee)),
         Route("/api/jitter_map", json_endpoint(layer.params, layer.compute)),
+        Route("/api/guarantees", json_endpoint(beside.params, beside.compute)),
         Route("/api/region", json_endpoint(explorer.point_params, explorer.region)),
         Route("/api/simulate", json_endpoint(explorer.animation_params, explorer.animation)),
         Route("/download/scenario.toml", file_endpoint(explorer.scenario_file, "application/toml")),
