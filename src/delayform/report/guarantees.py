@@ -129,6 +129,11 @@ def with_actuator_limits(guarantees: tuple[Guarantee, ...]) -> tuple[Guarantee, 
     Every certificate is for the linear protocol; saturation is outside it, so a
     holding certificate becomes "not covered" (a proof of instability stays: the
     linearisation about the formation is the protocol itself).
+
+    Parameters
+    ----------
+    guarantees
+        The certificates of :func:`network_guarantees`.
     """
     return tuple(Guarantee(g.name, None if g.holds else g.holds,
                            g.detail + ("; robots with actuator limits or a safety filter: not covered" if g.holds else ""))
@@ -162,7 +167,13 @@ def summary_of(guarantees: tuple[Guarantee, ...]) -> list[dict[str, Any]]:
 
 
 def bug_rows(bugs: list[str]) -> tuple[tuple[str, str], ...]:
-    """Table rows that put contradictions first and in capitals: each one is a bug to report."""
+    """Table rows that put contradictions first and in capitals: each one is a bug to report.
+
+    Parameters
+    ----------
+    bugs
+        The sentences of :func:`contradictions`.
+    """
     if not bugs:
         return ()
     return (("BUG", f"{len(bugs)} contradiction(s) between a certificate and the runs: {bugs[0]}"

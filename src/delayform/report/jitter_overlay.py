@@ -32,6 +32,15 @@ def _grid(tau_max: float, size: int) -> np.ndarray:
 def check_overlay(scenario: Any, tau1_max: float, tau2_max: float, size: int) -> None:
     """Refuse the overlay before any work: actuation delay, team size, grid size and time budget.
 
+    Parameters
+    ----------
+    scenario
+        The scenario (its topology and actuation delay).
+    tau1_max, tau2_max
+        The chart window.
+    size
+        Grid points per axis.
+
     Raises
     ------
     InputError
@@ -57,7 +66,13 @@ def check_overlay(scenario: Any, tau1_max: float, tau2_max: float, size: int) ->
 
 
 def jitter_overlay(scenario: Any, tau1_max: float, tau2_max: float, size: int) -> Any:
-    """The :class:`~delayform.analysis.network.JitterMarginMap` on ``size x size`` cell centres of the window."""
+    """The :class:`~delayform.analysis.network.JitterMarginMap` on ``size x size`` cell centres of the window.
+
+    Parameters
+    ----------
+    scenario, tau1_max, tau2_max, size
+        As for :func:`check_overlay`, which is applied first.
+    """
     from delayform.analysis.network import jitter_margin_map
 
     check_overlay(scenario, tau1_max, tau2_max, size)
@@ -65,7 +80,15 @@ def jitter_overlay(scenario: Any, tau1_max: float, tau2_max: float, size: int) -
 
 
 def draw_overlay(jmap: Any, ax: Any) -> tuple[dict[str, Any], list[tuple[str, str]]]:
-    """Draw ``jmap`` on the chart's axes; return its summary and table rows."""
+    """Draw ``jmap`` on the chart's axes; return its summary and table rows.
+
+    Parameters
+    ----------
+    jmap
+        The map of :func:`jitter_overlay`.
+    ax
+        The stability chart's axes.
+    """
     jmap.plot(ax=ax)
     ax.legend(loc="upper right", fontsize="small")  # again: now with the margin's lines
     best = np.unravel_index(int(np.argmax(jmap.delta)), jmap.delta.shape)
@@ -81,7 +104,13 @@ def draw_overlay(jmap: Any, ax: Any) -> tuple[dict[str, Any], list[tuple[str, st
 
 
 def overlay_wanted(scenario: Any) -> bool:
-    """True when the scenario's network varies its delays in time (jitter or a smooth variation)."""
+    """True when the scenario's network varies its delays in time (jitter or a smooth variation).
+
+    Parameters
+    ----------
+    scenario
+        The scenario (its ``[network]``).
+    """
     net = getattr(scenario, "network", None)
     if net is None:
         return False
@@ -93,6 +122,11 @@ def auto_grid(scenario: Any) -> int:
 
     A report draws the overlay on its own initiative only where it fits: no
     actuation delay, a team within :data:`MAX_AGENTS` and the budget.
+
+    Parameters
+    ----------
+    scenario
+        The scenario of the report.
     """
     from delayform.errors import InputError, ResourceLimitError
 

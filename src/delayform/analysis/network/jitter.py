@@ -371,6 +371,13 @@ def jitter_map_estimate(topology: Topology, points: int) -> tuple[float, float]:
 
     The cost of one certified margin grows with the links L (the loop is 2L x 2L at
     the peak, N x N at every frequency sample): about ``0.08 s (L / 12)^1.5``.
+
+    Parameters
+    ----------
+    topology
+        The team.
+    points
+        Grid points of the map.
     """
     n = topology.n
     links = max(1, int(topology.C_sparse.nnz))
