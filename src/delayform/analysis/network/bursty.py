@@ -24,10 +24,10 @@ sigma = (g_1, ..., g_J) of all J = 2L chains and Q_sigma[m] = E[S S^T 1{g[m] = s
     A_sigma = A_0 + sum_j q_j(sigma) c_j r_j^T,   T = kron of the chains' 2 x 2 matrices,
 
 exact (Costa, Fragoso & Marques, *Discrete-Time Markov Jump Linear Systems*, 2005,
-Prop. 3.35 for the second moment; the loss of step m and the chain's next state are
+Ch. 3, the second-moment operator; the loss of step m and the chain's next state are
 drawn independently given the present one, as in the simulator). The team is
 mean-square stable iff the spectral radius of this linear map, on the quotient by the
-consensus direction, is below one (ibid., Thm. 3.9; every chain that moves is
+consensus direction, is below one (ibid., Ch. 3; every chain that moves is
 irreducible, so every mode is visited); the decay rate is -ln(rho) / (2 h).
 
 The state space
