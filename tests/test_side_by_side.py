@@ -95,3 +95,44 @@ def test_saturating_robots_are_covered_by_no_certificate(tmp_path):
     assert section.summary["guarantees"] and all(g["holds"] is not True for g in section.summary["guarantees"])
     assert any("actuator limits" in g["detail"] for g in section.summary["guarantees"])
     assert np.isfinite(section.summary["settled_fraction"])
+
+
+# ---------------------------------------------------------------- which certificate covers which network
+def _names(gs):
+    return {g.name: g.holds for g in gs}
+
+
+def test_per_link_spread_is_covered_by_the_box_certificate_and_its_runs_settle():
+    from delayform.simulation.network import LinkDelays
+    from delayform.topology import paper_six
+
+    net = Network(delays=LinkDelays(spread=0.2), seed=6)
+    gs = G.network_guarantees(paper_six(), 1.0, 0.5, 0.3, 0.2, net, dt=0.02)
+    held = _names(gs)
+    assert held["per-link delays in a box (certified)"] is True
+    assert held["constant delays (exact, per link)"] is None  # the runs' delays are not the nominal ones
+    mc = monte_carlo(paper_six(), 1.0, 0.5, 0.3, 0.2, named_formation("hexagon", 6, spacing=2.0),
+                     model="double_integrator", network=net, runs=4, seed=7, duration=40.0, dt=0.02)  # fmt: skip
+    assert G.contradictions(gs, mc.statuses) == [] and set(mc.statuses) == {"settled"}
+
+
+def test_the_jitter_margin_is_asked_for_the_whole_deviation():
+    from delayform.analysis.network import jitter_margin
+    from delayform.simulation.network import LinkDelays, SmoothVariation
+    from delayform.topology import paper_six
+
+    delta = jitter_margin(paper_six(), 1.0, 0.5, 0.305, 0.205).delta  # about tau + dt / 2
+    inside, outside = 0.9 * delta - 0.01, 1.1 * delta
+    holds = lambda net: _names(G.network_guarantees(paper_six(), 1.0, 0.5, 0.3, 0.2, net, dt=0.01))[  # noqa: E731
+        "time-varying delays (jitter margin)"]
+    assert holds(Network(jitter=Jitter(inside, inside))) is True
+    assert holds(Network(jitter=Jitter(outside, outside))) is None
+    # jitter and variation add up; a spread per-link delay is a constant deviation on top
+    half = 0.55 * delta
+    assert holds(Network(jitter=Jitter(half, half), variation=SmoothVariation(half, half, period=5.0))) is None
+    assert holds(Network(jitter=Jitter(0.5 * inside, 0.5 * inside), delays=LinkDelays(spread=0.1))) is (
+        0.5 * inside + 0.1 * 0.3 + 0.005 <= delta)
+    # with loss a held value ages without bound: nothing time-varying is covered
+    from delayform.simulation.network import BernoulliLoss
+
+    assert holds(Network(jitter=Jitter(0.01, 0.01), loss=BernoulliLoss(0.1))) is None

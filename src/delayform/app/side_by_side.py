@@ -90,12 +90,12 @@ class SideBySide:
         run = ex.animation(P, D, tau1, tau2, duration, frames, limits, network, loss, jitter)
         tr = run.trajectory
         team = ex.scenario.topology
-        key = (P, D, tau1, tau2, limits, network, loss if network else 0.0, jitter if network else 0.0)
+        key = (P, D, tau1, tau2, tr.dt, limits, network, loss if network else 0.0, jitter if network else 0.0)
 
         def certify() -> tuple[Guarantee, ...]:
             if team.n > GUARANTEE_AGENTS:
                 return ()
-            gs = network_guarantees(team, P, D, tau1, tau2, ex.network(loss, jitter) if network else None)
+            gs = network_guarantees(team, P, D, tau1, tau2, ex.network(loss, jitter) if network else None, dt=tr.dt)
             return with_actuator_limits(gs) if limits or ex.scenario.safety else gs
 
         gs = ex._cached(self._lists, key, _CACHE, certify)

@@ -153,7 +153,8 @@ def _beside_guarantees(scenario: Scenario, net: Any, mc: Any) -> tuple[tuple[tup
         summary["guarantees"] = []
         summary["contradictions"] = []
         return mc.table() + (("certificates", f"not computed above {GUARANTEE_AGENTS} agents"),), summary, []
-    gs = network_guarantees(scenario.topology, scenario.P, scenario.D, scenario.tau1, scenario.tau2, net)
+    gs = network_guarantees(scenario.topology, scenario.P, scenario.D, scenario.tau1, scenario.tau2, net,
+                            dt=scenario.simulation.dt)  # fmt: skip
     if scenario.robot is not None or scenario.safety:  # saturating or filtered commands: outside every certificate
         gs = with_actuator_limits(gs)
     bugs = contradictions(gs, mc.statuses)
