@@ -89,7 +89,7 @@ def factors_command(scenario: Path | None, as_json: bool, **overrides: Any) -> N
 @actuation_option
 @click.option("--jitter-margin", "jitter", is_flag=True,
               help="Draw contour lines of the certified jitter margin over the stable region (issue 20).")
-@click.option("--jitter-grid", type=click.IntRange(2, 200), default=16, show_default=True,
+@click.option("--jitter-grid", type=click.IntRange(2, 200), default=24, show_default=True,
               help="Grid points per axis of the jitter-margin map (with --jitter-margin).")
 def chart_command(scenario: Path | None, tau1_max: float | None, tau2_max: float | None,
                   points: tuple[tuple[str, float, float], ...], actuation_delay: float | None,

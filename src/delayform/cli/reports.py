@@ -86,7 +86,7 @@ def _build_full_report(sc: Scenario, directory: Path, *, paper: bool,
 @scenario_options
 @click.option("--jitter-grid", type=click.IntRange(min=0, max=200),
               help="Contour lines of the certified jitter margin on the chart, N points per axis; 0: none "
-                   "[default: 16 when the scenario's network jitters or varies its delays, else none].")  # fmt: skip
+                   "[default: 24 when the scenario's network jitters or varies its delays, else none].")  # fmt: skip
 def report_command(scenario: Path | None, jitter_grid: int | None, out: Path | None, as_json: bool,
                    **overrides: Any) -> None:  # fmt: skip
     """All analyses of one scenario as one self-contained HTML page.

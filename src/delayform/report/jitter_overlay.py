@@ -19,8 +19,8 @@ import numpy as np
 
 __all__ = ["DEFAULT_GRID", "MAX_AGENTS", "check_overlay", "jitter_overlay", "draw_overlay", "overlay_wanted", "auto_grid"]
 
-#: grid points per axis of the overlay by default (a 16 x 16 map of the paper's team: about 10 s)
-DEFAULT_GRID = 16
+#: grid points per axis of the overlay by default (the paper's team over [0, 8]^2: about 10 s, 100 stable points)
+DEFAULT_GRID = 24
 #: the largest team the overlay is drawn for (the certificate's cost grows like L^1.5 per point)
 MAX_AGENTS = 60
 
@@ -90,7 +90,6 @@ def draw_overlay(jmap: Any, ax: Any) -> tuple[dict[str, Any], list[tuple[str, st
         The stability chart's axes.
     """
     jmap.plot(ax=ax)
-    ax.legend(loc="upper right", fontsize="small")  # again: now with the margin's lines
     best = np.unravel_index(int(np.argmax(jmap.delta)), jmap.delta.shape)
     top = float(jmap.delta[best])
     at = (float(jmap.tau1_values[best[0]]), float(jmap.tau2_values[best[1]]))

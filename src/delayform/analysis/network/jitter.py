@@ -426,6 +426,7 @@ class JitterMarginMap:
         """
         import matplotlib
         import matplotlib.pyplot as plt
+        from matplotlib.lines import Line2D
 
         if ax is None:
             ax = plt.figure().add_subplot()
@@ -440,10 +441,19 @@ class JitterMarginMap:
         elif np.count_nonzero(np.isfinite(z)) >= 4:
             cs = ax.contour(self.tau1_values, self.tau2_values, z, levels=levels, cmap="viridis", linewidths=1.2)
             ax.clabel(cs, fmt=lambda v: f"{v:.3g} s", fontsize="x-small")
-            ax.plot([], [], color=matplotlib.colormaps["viridis"](0.5), label="certified jitter margin (s)")
+            _extend_legend(ax, Line2D([], [], color=matplotlib.colormaps["viridis"](0.5), label="certified jitter margin (s)"))
         ax.set_xlabel("tau1 (s)")
         ax.set_ylabel("tau2 (s)")
         return ax
+
+
+def _extend_legend(ax: Axes, handle: object) -> None:
+    """Add ``handle`` to the axes' legend, keeping the entries already there (a chart's proxies)."""
+    old = ax.get_legend()
+    handles = list(old.legend_handles) if old is not None else []
+    labels = [t.get_text() for t in old.get_texts()] if old is not None else []
+    ax.legend(handles=[*handles, handle], labels=[*labels, handle.get_label()],  # type: ignore[attr-defined]
+              loc="upper right", fontsize="small", framealpha=0.9)  # fmt: skip
 
 
 def _map_axis(name: str, v: ArrayLike) -> NDArray[np.float64]:
