@@ -27,8 +27,11 @@ w(t) = -int_{t - tau(t)}^{t - tau} z'(theta) d theta, so by Cauchy-Schwarz
 |w(t)|^2 <= delta int_{t - tau - delta}^{t - max(tau - delta, 0)} |z'|^2, and
 integrating over t (Fubini) ``||w||_2 <= gamma ||z'||_2`` with
 ``gamma^2 = delta (delta + min(delta, tau))``: no bound on the rate of change is
-needed, so it holds for arbitrarily fast variation (and for held packets: the
-age of the newest packet received stays in the same interval).
+needed, so it holds for arbitrarily fast variation, and for held packets as long
+as the age of the value held stays in the interval. With packets sent every h
+seconds and delays in [tau - b, tau + b] that age lies in [tau - b, tau + b + h]:
+ask for the margin about tau + h/2 and compare it with b + h/2
+(:mod:`delayform.report.guarantees` does).
 
 Small gain with constant scalings
 ---------------------------------
