@@ -145,7 +145,7 @@ def bursty_mean_square_stability(
     Examples
     --------
     >>> from delayform.topology import ring
-    >>> r = bursty_mean_square_stability(ring(3), 1.0, 0.5, 0.2, 0.1, rate=10.0, p_good_to_bad=0.1, p_bad_to_good=0.5)
+    >>> r = bursty_mean_square_stability(ring(3), 1.0, 1.0, 0.2, 0.1, rate=10.0, p_good_to_bad=0.1, p_bad_to_good=0.3)
     >>> r.stable
     True
     """
