@@ -55,8 +55,10 @@ def _build_full_report(sc: Scenario, directory: Path, *, paper: bool,
     steps = (10 if paper else 7) + network
     start = time.perf_counter()
     with _progress(steps, title="paper" if paper else "report") as step:
+        # jitter_grid only when asked: None is scenario_sections' own default (automatic)
+        extra = {} if jitter_grid is None else {"jitter_grid": jitter_grid}
         sections = paper_sections(sc, directory, progress=step) if paper else \
-            scenario_sections(sc, directory, progress=step, jitter_grid=jitter_grid)
+            scenario_sections(sc, directory, progress=step, **extra)
         if paper:  # issue 12: what new gains do where the paper can only add delay
             from delayform.report import gain_comparison_section
 
