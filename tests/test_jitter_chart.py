@@ -67,3 +67,15 @@ def test_the_report_draws_it_when_the_network_jitters():
     assert auto_grid(replace(sc, network=Network(jitter=Jitter(0.05, 0.05)))) == DEFAULT_GRID
     assert auto_grid(replace(sc, network=Network(loss=BernoulliLoss(0.2)))) == 0  # loss does not vary delays
     assert auto_grid(replace(sc, network=Network(jitter=Jitter(0.05, 0.05)), actuation_delay=0.05)) == 0
+
+
+def test_the_report_does_not_draw_a_costly_overlay_unasked():
+    from dataclasses import replace
+
+    from delayform.report.jitter_overlay import auto_grid
+    from delayform.scenario import parse_scenario
+    from delayform.simulation.network import Jitter, Network
+
+    big = parse_scenario({"topology": {"name": "complete", "n": 12}, "gains": {"P": 1, "D": 0.5},
+                          "delays": {"tau1": 0.1, "tau2": 0.1}, "formation": {"shape": "polygon"}})  # fmt: skip
+    assert auto_grid(replace(big, network=Network(jitter=Jitter(0.01, 0.01)))) == 0  # 132 links: minutes

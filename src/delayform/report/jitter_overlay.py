@@ -17,10 +17,12 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["DEFAULT_GRID", "MAX_AGENTS", "check_overlay", "jitter_overlay", "draw_overlay", "overlay_wanted", "auto_grid"]
+__all__ = ["DEFAULT_GRID", "AUTO_SECONDS", "MAX_AGENTS", "check_overlay", "jitter_overlay", "draw_overlay", "overlay_wanted", "auto_grid"]
 
 #: grid points per axis of the overlay by default (the paper's team over [0, 8]^2: about 10 s, 100 stable points)
 DEFAULT_GRID = 24
+#: longest estimate (s) of an overlay the report draws without being asked (``--jitter-grid`` draws any)
+AUTO_SECONDS = 60.0
 #: the largest team the overlay is drawn for (the certificate's cost grows like L^1.5 per point)
 MAX_AGENTS = 60
 
@@ -120,7 +122,8 @@ def auto_grid(scenario: Any) -> int:
     """:data:`DEFAULT_GRID` when the overlay is wanted (:func:`overlay_wanted`) and allowed, else 0.
 
     A report draws the overlay on its own initiative only where it fits: no
-    actuation delay, a team within :data:`MAX_AGENTS` and the budget.
+    actuation delay, a team within :data:`MAX_AGENTS` and the budget, and an
+    estimate within :data:`AUTO_SECONDS`.
 
     Parameters
     ----------
@@ -131,8 +134,11 @@ def auto_grid(scenario: Any) -> int:
 
     if not overlay_wanted(scenario):
         return 0
+    from delayform.analysis.network.jitter import jitter_map_estimate
+
     try:
         check_overlay(scenario, scenario.chart.tau1_max, scenario.chart.tau2_max, DEFAULT_GRID)
     except (InputError, ResourceLimitError):
         return 0
-    return DEFAULT_GRID
+    # unasked, the overlay may not dominate the report's time
+    return DEFAULT_GRID if jitter_map_estimate(scenario.topology, DEFAULT_GRID**2)[0] <= AUTO_SECONDS else 0
