@@ -136,3 +136,12 @@ def test_the_jitter_margin_is_asked_for_the_whole_deviation():
     from delayform.simulation.network import BernoulliLoss
 
     assert holds(Network(jitter=Jitter(0.01, 0.01), loss=BernoulliLoss(0.1))) is None
+
+
+def test_an_actuation_delay_leaves_every_certificate_not_covered(tmp_path):
+    sc = replace(_at_c(), actuation_delay=0.05, simulation=replace(_at_c().simulation, duration=5.0))
+    section = montecarlo_section(sc, tmp_path, runs=1)
+    gs = section.summary["guarantees"]
+    # at tau_a = 0 point c is proven unstable; with tau_a the proof does not carry over either
+    assert gs and all(g["holds"] is None and "actuation delay 0.05 s" in g["detail"] for g in gs)
+    assert G.with_actuation_delay(PLANTED, 0.0) == PLANTED

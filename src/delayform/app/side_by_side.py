@@ -7,8 +7,8 @@ margin where delays jitter, the exact mean-square verdict for sampled Bernoulli 
 Gilbert-Elliott loss), the run's observed status (the explorer's own cached run:
 the same simulation the page animates) and any contradiction: a run that
 diverged where a certificate holds, which the page shows as a BUG. Robots with
-actuator limits or a safety filter are outside every certificate (they are listed
-as not covered); teams beyond the explorer's ``GUARANTEE_AGENTS`` get no certificates.
+actuator limits, a safety filter or an actuation delay are outside every
+certificate (they are listed as not covered); teams beyond the explorer's ``GUARANTEE_AGENTS`` get no certificates.
 """
 
 from __future__ import annotations
@@ -24,6 +24,7 @@ from delayform.report.guarantees import (
     contradictions,
     network_guarantees,
     summary_of,
+    with_actuation_delay,
     with_actuator_limits,
 )
 
@@ -96,7 +97,8 @@ class SideBySide:
             if team.n > GUARANTEE_AGENTS:
                 return ()
             gs = network_guarantees(team, P, D, tau1, tau2, ex.network(loss, jitter) if network else None, dt=tr.dt)
-            return with_actuator_limits(gs) if limits or ex.scenario.safety else gs
+            gs = with_actuator_limits(gs) if limits or ex.scenario.safety else gs
+            return with_actuation_delay(gs, ex.scenario.actuation_delay)
 
         gs = ex._cached(self._lists, key, _CACHE, certify)
         settle = None if tr.settling_time == float("inf") else float(tr.settling_time)

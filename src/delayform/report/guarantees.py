@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from typing import Any
 
 __all__ = ["Guarantee", "network_guarantees", "contradictions", "guarantee_rows", "summary_of", "with_actuator_limits",
-           "bug_rows"]
+           "with_actuation_delay", "bug_rows"]
 
 
 @dataclass(frozen=True)
@@ -216,6 +216,25 @@ def guarantee_rows(guarantees: tuple[Guarantee, ...]) -> tuple[tuple[str, str], 
 def summary_of(guarantees: tuple[Guarantee, ...]) -> list[dict[str, Any]]:
     """JSON-ready list of ``guarantees``."""
     return [{"name": g.name, "holds": g.holds, "detail": g.detail} for g in guarantees]
+
+
+def with_actuation_delay(guarantees: tuple[Guarantee, ...], actuation_delay: float) -> tuple[Guarantee, ...]:
+    """The certificates for robots that apply their commands ``actuation_delay`` s late: none covers the runs.
+
+    Every certificate here is for eq. protocol without actuation delay; with one the
+    characteristic function changes, so neither stability nor instability carries over.
+
+    Parameters
+    ----------
+    guarantees
+        The certificates of :func:`network_guarantees`.
+    actuation_delay
+        tau_a (s); 0 leaves the certificates as they are.
+    """
+    if not actuation_delay:
+        return guarantees
+    return tuple(Guarantee(g.name, None, g.detail + f"; actuation delay {actuation_delay:g} s: not covered")
+                 for g in guarantees)  # fmt: skip
 
 
 def bug_rows(bugs: list[str]) -> tuple[tuple[str, str], ...]:

@@ -145,7 +145,8 @@ GUARANTEE_AGENTS = 30
 def _beside_guarantees(scenario: Scenario, net: Any, mc: Any) -> tuple[tuple[tuple[str, str], ...], dict[str, Any], list[str]]:
     """The Monte Carlo table and summary with the applicable certificates (issue 20) and any contradiction."""
     from delayform.report.guarantees import (
-        bug_rows, contradictions, guarantee_rows, network_guarantees, summary_of, with_actuator_limits,
+        bug_rows, contradictions, guarantee_rows, network_guarantees, summary_of, with_actuation_delay,
+        with_actuator_limits,
     )  # fmt: skip
 
     summary = dict(mc.summary())
@@ -157,6 +158,7 @@ def _beside_guarantees(scenario: Scenario, net: Any, mc: Any) -> tuple[tuple[tup
                             dt=scenario.simulation.dt)  # fmt: skip
     if scenario.robot is not None or scenario.safety:  # saturating or filtered commands: outside every certificate
         gs = with_actuator_limits(gs)
+    gs = with_actuation_delay(gs, scenario.actuation_delay)
     bugs = contradictions(gs, mc.statuses)
     summary["guarantees"] = summary_of(gs)
     summary["contradictions"] = bugs
