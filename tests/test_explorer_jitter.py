@@ -118,3 +118,15 @@ def test_guarantees_at_c_prove_instability(server):
 def test_guarantees_refuse_malformed_requests(server, query):
     status, _, body = get(server, f"/api/guarantees?{query}")
     assert status == 400 and 0 < len(json.loads(body)["error"]) < 300
+
+
+def test_the_caches_belong_to_the_explorer_not_to_the_layer_object(tmp_path):
+    from delayform.app.side_by_side import SideBySide
+
+    ex = Explorer(paper_scenario(), out_dir=tmp_path / "out")
+    first = JitterLayer(ex).compute(1.0, 0.5, 1.0, 1.0, 4)
+    assert JitterLayer(ex).compute(1.0, 0.5, 1.0, 1.0, 4) is first  # a new layer object, the same cache
+    other = Explorer(paper_scenario(), out_dir=tmp_path / "other")
+    assert JitterLayer(other).compute(1.0, 0.5, 1.0, 1.0, 4) is not first
+    a = SideBySide(ex).compute(1.0, 0.5, 0.3, 0.2, 5.0, 10)
+    assert SideBySide(ex).compute(1.0, 0.5, 0.3, 0.2, 5.0, 10).guarantees is a.guarantees

@@ -19,6 +19,7 @@ from __future__ import annotations
 from collections import OrderedDict
 from dataclasses import dataclass
 from typing import Any
+from weakref import WeakKeyDictionary
 
 import numpy as np
 
@@ -39,6 +40,8 @@ DEFAULT_GRID = 12
 MAX_SECONDS = 60.0
 #: maps kept per explorer
 _CACHE = 8
+#: each explorer's cache, dropped with the explorer
+_CACHES: WeakKeyDictionary[Explorer, OrderedDict[Any, Any]] = WeakKeyDictionary()
 
 
 @dataclass(frozen=True, eq=False)
@@ -81,7 +84,8 @@ class JitterLayer:
 
     def __init__(self, explorer: Explorer) -> None:
         self.explorer = explorer
-        self._maps: OrderedDict[tuple[float, ...], JitterLayerData] = OrderedDict()
+        # the cache lives as long as its explorer, whichever layer object asks (one per setting is cheap)
+        self._maps: OrderedDict[tuple[float, ...], JitterLayerData] = _CACHES.setdefault(explorer, OrderedDict())
 
     def params(self) -> tuple[Param, ...]:
         """P, D and the window as for the chart, and ``grid`` (4 to :data:`MAX_GRID`)."""

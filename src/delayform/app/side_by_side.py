@@ -16,6 +16,7 @@ from __future__ import annotations
 from collections import OrderedDict
 from dataclasses import dataclass
 from typing import Any
+from weakref import WeakKeyDictionary
 
 from delayform.app.explorer import GUARANTEE_AGENTS, Explorer
 from delayform.app.params import Param
@@ -32,6 +33,8 @@ __all__ = ["SideBySide", "SideBySideReport"]
 
 #: certificate lists kept per explorer
 _CACHE = 16
+#: each explorer's cache, dropped with the explorer
+_CACHES: WeakKeyDictionary[Explorer, OrderedDict[Any, Any]] = WeakKeyDictionary()
 
 
 @dataclass(frozen=True, eq=False)
@@ -72,7 +75,8 @@ class SideBySide:
 
     def __init__(self, explorer: Explorer) -> None:
         self.explorer = explorer
-        self._lists: OrderedDict[tuple[Any, ...], tuple[Guarantee, ...]] = OrderedDict()
+        # the cache lives as long as its explorer, whichever object asks (one per setting is cheap)
+        self._lists: OrderedDict[tuple[Any, ...], tuple[Guarantee, ...]] = _CACHES.setdefault(explorer, OrderedDict())
 
     def params(self) -> tuple[Param, ...]:
         """The parameters of ``/api/simulate``: the run compared is the page's own."""
