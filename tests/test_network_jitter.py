@@ -119,3 +119,51 @@ def test_margin_solves_the_gain_condition_of_the_worst_channel():
         assert d * (d + min(d, tau)) * gain**2 < 1.0  # the small-gain condition holds
         e = d * 1.001
         assert e * (e + min(e, tau)) * gain**2 >= 1.0 - 1e-6  # and it is the largest such delta
+
+
+def test_the_map_is_the_point_margin_and_zero_where_the_exact_chart_is_unstable():
+    from delayform.analysis.ctcr import stability_map
+
+    ax1, ax2 = np.array([0.25, 1.0, 2.0]), np.array([0.25, 2.0])
+    m = jitter_margin_map(paper_six(), 1.0, 0.5, ax1, ax2)
+    smap = stability_map(paper_six(), 1.0, 0.5, 3.0, 3.0)
+    for i, a in enumerate(ax1):
+        for j, b in enumerate(ax2):
+            if smap.is_stable(a, b):  # stable by the exact chart: the point certificate (its own nominal root)
+                assert m.delta[i, j] == jitter_margin(paper_six(), 1.0, 0.5, a, b).delta > 0
+            else:
+                assert m.delta[i, j] == 0.0
+
+
+def test_contour_lines_lie_over_the_stable_region():
+    from delayform.analysis.ctcr import stability_map
+
+    g = (np.arange(8) + 0.5) * 3.0 / 8
+    m = jitter_margin_map(paper_six(), 1.0, 0.5, g, g)
+    levels = m.levels()
+    assert levels.size >= 2 and 0 < levels[0] and levels[-1] <= m.delta.max()
+    ax = m.plot()  # the margin's lines alone on the axes
+    vertices = np.concatenate([p.vertices for c in ax.collections for p in c.get_paths() if len(p.vertices)])
+    assert len(vertices) > 10
+    # every point of every line is stable by the exact chart: no line strays over the unstable region
+    smap = stability_map(paper_six(), 1.0, 0.5, 3.0, 3.0)
+    assert np.all(smap.is_stable(vertices[:, 0], vertices[:, 1]))
+    assert m.plot(ax=smap.plot()).get_xlabel() == "tau1 (s)"
+
+
+def test_filled_plot_and_a_map_with_nothing_certified():
+    m = jitter_margin_map(paper_six(), 1.0, 0.5, [1.0, 1.1], [2.0, 2.1])  # around the unstable point c
+    assert not m.delta.any() and m.levels().size == 0
+    ax = m.plot()
+    assert any("0 everywhere" in t.get_text() for t in ax.texts)
+    g = [0.2, 0.4, 0.6]
+    ax = jitter_margin_map(paper_six(), 1.0, 0.5, g, g).plot(filled=True)
+    assert len(ax.figure.axes) == 2  # the colour bar
+
+
+def test_a_map_beyond_the_time_budget_is_refused_before_any_work(monkeypatch):
+    from delayform.errors import ResourceLimitError
+
+    monkeypatch.setenv("DELAYFORM_TIME_BUDGET", "1")
+    with pytest.raises(ResourceLimitError, match="jitter-margin map"):
+        jitter_margin_map(paper_six(), 1.0, 0.5, np.linspace(0.1, 3, 100), np.linspace(0.1, 3, 100))

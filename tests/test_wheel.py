@@ -37,13 +37,13 @@ def _run(args: list[str], *, timeout: float = 600, cwd: Path | None = None) -> s
 def _invocations(example: str, out: str) -> dict[str, list[str]]:
     return {
         "factors": [example],
-        "chart": [example, "--out", out, "--tau1-max", "2", "--tau2-max", "2"],
+        "chart": [example, "--out", out, "--tau1-max", "2", "--tau2-max", "2", "--jitter-margin", "--jitter-grid", "4"],
         "roots": [example, "--out", out],
         "map": [example, "--out", out, "--size", "5,5", "--actuation-delay", "0.1"],
         "schedule": [example, "--out", out, "--actuation-delay", "0"],
         "gains": [example, "--out", out, "--grid", "5"],
         "simulate": [example, "--out", out, "--duration", "5", "--dt", "0.05"],
-        "report": [example, "--out", out, "--actuation-delay", "0"],
+        "report": [example, "--out", out, "--actuation-delay", "0", "--jitter-grid", "3"],
         "region": [example, "--out", out],
         "safe-delays": [example, "--out", out, "--tau1-max", "2", "--tau2-max", "2"],
         "montecarlo": [example, "--out", out, "--runs", "2", "--duration", "5"],

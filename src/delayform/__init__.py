@@ -127,6 +127,8 @@ _EXPORTS: dict[str, str] = {
     "JitterMarginMap": "analysis.network",
     "mean_square_stability": "analysis.network",
     "MeanSquareStability": "analysis.network",
+    # bursty (Gilbert-Elliott) loss in the mean square (issue 20, branch jitter-view)
+    "bursty_mean_square_stability": "analysis.network",
     # neutral quasi-polynomials (issue 19, item 5)
     "difference_operator": "analysis.neutral",
     "DifferenceOperator": "analysis.neutral",

@@ -121,27 +121,33 @@ class RobotControls:
                 self._explorers.popitem(last=False)
         return made
 
-    def route(self, spec: str, method: str, *, run: bool = False) -> tuple[Callable[[], tuple[Param, ...]], Callable[..., Any]]:
+    def route(self, spec: str, method: str, *, run: bool = False,
+              on: Callable[[Explorer], Any] | None = None) -> tuple[Callable[[], tuple[Param, ...]], Callable[..., Any]]:  # fmt: skip
         """(parameters, work) of an endpoint: the explorer's ``spec()`` plus the controls, and ``method`` at them.
 
         Parameters
         ----------
         spec
-            Name of the explorer's parameter method (``"point_params"``, ...).
+            Name of the parameter method (``"point_params"``, ...) of the explorer, or of ``on(explorer)``.
         method
-            Name of the explorer's method answering the request.
+            Name of the method answering the request, on the explorer or on ``on(explorer)``.
         run
             The endpoint simulates or downloads: it takes the safety and assignment switches too.
+        on
+            A view of an explorer that answers instead of the explorer itself (the jitter-margin
+            layer, guaranteed vs observed); it is made for the explorer of each setting, so
+            whatever it caches on its explorer is cached per setting.
         """
         d = self.defaults
+        view = on if on is not None else (lambda e: e)
 
         def params() -> tuple[Param, ...]:
-            return getattr(self.base, spec)() + self.params(run=run)  # type: ignore[no-any-return]
+            return getattr(view(self.base), spec)() + self.params(run=run)  # type: ignore[no-any-return]
 
         def work(actuation_delay: float, safety: bool = d["safety"], assignment: bool = d["assignment"],
                  **args: Any) -> Any:  # fmt: skip
             if actuation_delay > 0.0 and method in _NO_ACTUATION:
                 raise InputError(f"actuation_delay: {_NO_ACTUATION[method]}; set it to 0 for this answer")
-            return getattr(self.explorer_for(actuation_delay, safety, assignment), method)(**args)
+            return getattr(view(self.explorer_for(actuation_delay, safety, assignment)), method)(**args)
 
         return params, work

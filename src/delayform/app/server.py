@@ -9,6 +9,8 @@ Endpoints (all ``GET``; every number is checked by :mod:`delayform.app.params`):
     /api/chart                 P, D, tau1_max, tau2_max, grid -> exact curves and NU shading
     /api/point                 tau1, tau2 [, P, D] -> stable, unstable_count, dominant_root [re, im]
     /api/guarantee             tau1, tau2 [, P, D] -> jitter_margin (s, certified; issue 20)
+    /api/jitter_map            P, D, tau1_max, tau2_max, grid -> the certified margin on the chart's window
+    /api/guarantees            as /api/simulate -> the certificates for its network beside the run's status
     /api/roots                 tau1, tau2 [, P, D] -> the roots of every factor near the imaginary axis
     /api/region                tau1, tau2 [, P, D] -> the eigenvalue plane: boundary curve L(j omega),
                                NU(lam) on a grid, the team's eigenvalues of C with their NU
@@ -45,6 +47,8 @@ from pathlib import Path
 from typing import Any
 
 from delayform.app.explorer import Explorer
+from delayform.app.jitter_layer import JitterLayer
+from delayform.app.side_by_side import SideBySide
 from delayform.app.params import Param, parse_query
 from delayform.app.robot_controls import RobotControls
 from delayform.errors import DelayformError, InputError
@@ -163,6 +167,8 @@ def create_app(explorer: Explorer) -> Any:
     robot = RobotControls(explorer)
     assets = {
         "explorer.js": (STATIC / "explorer.js", "text/javascript"),
+        "jitter_layer.js": (STATIC / "jitter_layer.js", "text/javascript"),
+        "side_by_side.js": (STATIC / "side_by_side.js", "text/javascript"),
         "explorer.css": (STATIC / "explorer.css", "text/css"),
         "robot_controls.js": (STATIC / "robot_controls.js", "text/javascript"),
         "plotly.min.js": (plotly_bundle(), "text/javascript"),
@@ -245,6 +251,8 @@ def create_app(explorer: Explorer) -> Any:
         Route("/api/point", json_endpoint(*robot.route("point_params", "point"))),
         Route("/api/roots", json_endpoint(*robot.route("point_params", "roots"))),
         Route("/api/guarantee", json_endpoint(*robot.route("point_params", "guarantee"))),
+        Route("/api/jitter_map", json_endpoint(*robot.route("params", "compute", on=JitterLayer))),
+        Route("/api/guarantees", json_endpoint(*robot.route("params", "compute", run=True, on=SideBySide))),
         Route("/api/region", json_endpoint(*robot.route("point_params", "region"))),
         Route("/api/simulate", json_endpoint(*robot.route("animation_params", "animation", run=True))),
         Route("/download/scenario.toml",

@@ -87,17 +87,24 @@ def factors_command(scenario: Path | None, as_json: bool, **overrides: Any) -> N
 @click.option("--point", "points", type=LabelledPoint(), multiple=True,
               help="Delay pair to mark and classify, e.g. --point a=0.3,0.2 (repeatable) [default: chart.points].")
 @actuation_option
+@click.option("--jitter-margin", "jitter", is_flag=True,
+              help="Draw contour lines of the certified jitter margin over the stable region (issue 20).")
+@click.option("--jitter-grid", type=click.IntRange(2, 200), default=24, show_default=True,
+              help="Grid points per axis of the jitter-margin map (with --jitter-margin).")
 def chart_command(scenario: Path | None, tau1_max: float | None, tau2_max: float | None,
                   points: tuple[tuple[str, float, float], ...], actuation_delay: float | None,
-                  out: Path | None, as_json: bool, **overrides: Any) -> None:  # fmt: skip
+                  jitter: bool, jitter_grid: int, out: Path | None, as_json: bool, **overrides: Any) -> None:  # fmt: skip
     """Exact CTCR stability chart in the (tau1, tau2) plane.
 
     Writes stability_chart.png/.svg (kernel curves red, offspring blue,
     stable region shaded), the curve points as ctcr_curves.csv/.npz, and
     reports the stable fraction of the window and, at each marked point,
-    the number of unstable roots NU.
+    the number of unstable roots NU. With --jitter-margin also the certified
+    jitter margin on a --jitter-grid grid, as contour lines on the chart and
+    as jitter_margin_map.npz (refused up front beyond the time budget).
     """
     from delayform.report import chart_section
+    from delayform.report.jitter_overlay import check_overlay
 
     sc = with_actuation(_scenario(scenario, **overrides), actuation_delay)
     chart = replace(
@@ -119,8 +126,11 @@ def chart_command(scenario: Path | None, tau1_max: float | None, tau2_max: float
                 param_hint="--point",
             )
     sc = replace(sc, chart=chart)
+    grid = jitter_grid if jitter else 0
+    if grid:  # before --out is made: a refused map leaves nothing behind
+        check_overlay(sc, max([chart.tau1_max] + [sc.tau1]), max([chart.tau2_max] + [sc.tau2]), grid)
     directory = _out_dir(out, sc)
-    _emit(chart_section(sc, directory), directory, as_json=as_json)
+    _emit(chart_section(sc, directory, jitter_grid=grid), directory, as_json=as_json)
 
 
 @cli.command("roots")

@@ -128,3 +128,16 @@ def montecarlo_command(scenario: Path | None, runs: int, seed: int | None, worke
         with _inner_progress(f"montecarlo ({runs} runs)") as bar:
             section = montecarlo_section(sc, directory, runs=runs, seed=seed, executor=ex, progress=bar)
     _emit(section, directory, as_json=as_json)
+    shout_bugs(section.summary)
+
+
+def shout_bugs(summary: dict[str, Any]) -> None:
+    """A run that diverged where a certificate holds is a bug: say so on stderr and exit with code 1.
+
+    The files are written (they are the evidence); the exit code makes scripts and CI notice.
+    """
+    bugs = summary.get("contradictions") or []
+    if bugs:
+        for bug in bugs:
+            click.echo(f"delayform: BUG: {bug}", err=True)
+        raise SystemExit(1)

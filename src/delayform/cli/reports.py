@@ -25,7 +25,7 @@ if TYPE_CHECKING:
     from delayform.scenario import Scenario
 
 
-def _write_full_report(sc: Scenario, directory: Path, *, paper: bool, as_json: bool) -> None:
+def _write_full_report(sc: Scenario, directory: Path, *, paper: bool, as_json: bool, jitter_grid: int | None = None) -> None:
     """Build the report in a hidden folder inside ``directory`` and move it in when complete.
 
     The previous report's files are replaced all at once (:func:`delayform._files.staged_folder`):
@@ -35,25 +35,32 @@ def _write_full_report(sc: Scenario, directory: Path, *, paper: bool, as_json: b
     from delayform.report import jsonable
 
     with staged_folder(directory) as staging:
-        sections, index, seconds = _build_full_report(sc, staging, paper=paper)
+        sections, index, seconds = _build_full_report(sc, staging, paper=paper, jitter_grid=jitter_grid)
     index = directory / index.name
     if as_json:
         click.echo(json.dumps(jsonable({s.key: s.summary for s in sections} | {"index": str(index)}), indent=2))
-        return
-    for section in sections:
-        _emit(section, directory, as_json=False)
-    click.echo(f"Report: {index} ({seconds:.1f} s)")
+    else:
+        for section in sections:
+            _emit(section, directory, as_json=False)
+        click.echo(f"Report: {index} ({seconds:.1f} s)")
+    from delayform.cli.montecarlo import shout_bugs
+
+    for section in sections:  # the Monte Carlo's contradictions, if any: loudly, after the report is written
+        shout_bugs(section.summary if section.key == "montecarlo" else {})
 
 
-def _build_full_report(sc: Scenario, directory: Path, *, paper: bool) -> tuple[list[Any], Path, float]:
+def _build_full_report(sc: Scenario, directory: Path, *, paper: bool,
+                       jitter_grid: int | None = None) -> tuple[list[Any], Path, float]:  # fmt: skip
     from delayform.report import paper_sections, scenario_sections, write_report
 
-    build = paper_sections if paper else scenario_sections
     network = paper or sc.network is not None  # the network section: promises (paper) or a Monte Carlo
     steps = (10 if paper else 7) + network
     start = time.perf_counter()
     with _progress(steps, title="paper" if paper else "report") as step:
-        sections = build(sc, directory, progress=step)
+        # jitter_grid only when asked: None is scenario_sections' own default (automatic)
+        extra = {} if jitter_grid is None else {"jitter_grid": jitter_grid}
+        sections = paper_sections(sc, directory, progress=step) if paper else \
+            scenario_sections(sc, directory, progress=step, **extra)
         if paper:  # issue 12: what new gains do where the paper can only add delay
             from delayform.report import gain_comparison_section
 
@@ -82,13 +89,19 @@ def _build_full_report(sc: Scenario, directory: Path, *, paper: bool) -> tuple[l
 @cli.command("report")
 @scenario_options
 @actuation_option
-def report_command(scenario: Path | None, actuation_delay: float | None, out: Path | None, as_json: bool,
+@click.option("--jitter-grid", type=click.IntRange(min=0, max=200),
+              help="Contour lines of the certified jitter margin on the chart, N points per axis; 0: none "
+                   "[default: 24 when the scenario's network jitters or varies its delays, else none].")  # fmt: skip
+def report_command(scenario: Path | None, actuation_delay: float | None, jitter_grid: int | None, out: Path | None,
+                   as_json: bool,
                    **overrides: Any) -> None:  # fmt: skip
     """All analyses of one scenario as one self-contained HTML page.
 
     Runs factors, chart, roots, map, schedule and simulate and writes their
     files plus index.html (figures embedded, a table of numbers and a short
-    text per figure) and summary.json into --out.
+    text per figure) and summary.json into --out. With a [network] table also
+    a Monte Carlo over it, with the certificates that cover it beside what the
+    runs observed.
     """
     from delayform.simulation.runner import check_actuation
 
@@ -96,7 +109,11 @@ def report_command(scenario: Path | None, actuation_delay: float | None, out: Pa
     sc.desired_positions()  # the simulation needs a formation that fits the team: say so before computing
     sc.initial_positions()
     check_actuation(sc.robot_spec, sc.network, sc.simulation.dt)  # a run the report cannot make: before computing
-    _write_full_report(sc, _out_dir(out, sc), paper=False, as_json=as_json)
+    if jitter_grid:  # refused before --out is made
+        from delayform.report.jitter_overlay import check_overlay
+
+        check_overlay(sc, sc.chart.tau1_max, sc.chart.tau2_max, jitter_grid)
+    _write_full_report(sc, _out_dir(out, sc), paper=False, as_json=as_json, jitter_grid=jitter_grid)
 
 
 @cli.command("paper")

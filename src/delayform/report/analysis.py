@@ -89,7 +89,7 @@ def _chart_points(scenario: Scenario) -> tuple[tuple[str, float, float], ...]:
     return points
 
 
-def chart_section(scenario: Scenario, out: Path) -> Section:
+def chart_section(scenario: Scenario, out: Path, *, jitter_grid: int = 0) -> Section:
     """The exact CTCR stability map over the chart window, its figure, curves and the marked points.
 
     Parameters
@@ -98,8 +98,13 @@ def chart_section(scenario: Scenario, out: Path) -> Section:
         The validated scenario (topology, gains, delays, windows).
     out
         Folder the section writes its files into.
+    jitter_grid
+        Above 0: contour lines of the certified jitter margin on a grid of this
+        many points per axis are drawn over the stable region
+        (:mod:`delayform.report.jitter_overlay`); refused up front beyond the budget.
     """
     from delayform.analysis.ctcr.stability_map import stability_map
+    from delayform.report.jitter_overlay import check_overlay, draw_overlay, jitter_overlay
 
     plt = _pyplot()
     points = _chart_points(scenario)
@@ -109,14 +114,18 @@ def chart_section(scenario: Scenario, out: Path) -> Section:
         tau1_max=max([scenario.chart.tau1_max] + [a for _, a, _ in points]),
         tau2_max=max([scenario.chart.tau2_max] + [b for _, _, b in points]),
     )
+    if jitter_grid:
+        check_overlay(scenario, cs.tau1_max, cs.tau2_max, jitter_grid)
     smap = stability_map(scenario.topology, scenario.P, scenario.D, cs.tau1_max, cs.tau2_max,
                          actuation_delay=scenario.actuation_delay)  # fmt: skip
+    jmap = jitter_overlay(scenario, cs.tau1_max, cs.tau2_max, jitter_grid) if jitter_grid else None
     t1 = np.array([p[1] for p in points])
     t2 = np.array([p[2] for p in points])
     counts = np.asarray(smap.unstable_count(t1, t2))
     stable = np.asarray(smap.is_stable(t1, t2))
     fig, ax = plt.subplots(figsize=(6.4, 5.6))
     smap.plot(ax=ax, points={label: (a, b) for label, a, b in points})
+    jitter_summary, jitter_rows = draw_overlay(jmap, ax) if jmap is not None else (None, [])
     ax.set_title(f"Stability chart: {scenario.name}, P = {scenario.P:g}, D = {scenario.D:g}")
     files = list(_save(fig, out, "stability_chart"))
     curve_rows, arrays = _curve_rows(smap)
@@ -136,13 +145,17 @@ def chart_section(scenario: Scenario, out: Path) -> Section:
             for (label, a, b), n, s in zip(points, counts, stable, strict=True)
         ],
     }
+    if jmap is not None:
+        summary["jitter_margin"] = jitter_summary
+        save_npz(out / "jitter_margin_map.npz", tau1=jmap.tau1_values, tau2=jmap.tau2_values, delta=jmap.delta)
+        files.append("jitter_margin_map.npz")
     table = [("window", f"[0, {cs.tau1_max:g}] x [0, {cs.tau2_max:g}] s"),
              ("crossing curves", str(len(smap.curves))),
              ("stable fraction of the window", f"{fraction:.3f}")]  # fmt: skip
     table += [
         (f"point {label} ({a:g}, {b:g})", f"{'stable' if s else 'unstable'}, NU = {int(n)}")
         for (label, a, b), n, s in zip(points, counts, stable, strict=True)
-    ]
+    ] + jitter_rows
     return Section(
         key="chart",
         title="Stability chart in the delay plane (CTCR)",
@@ -154,7 +167,9 @@ def chart_section(scenario: Scenario, out: Path) -> Section:
         figures=(
             Figure("stability_chart", "Stability chart",
                    "Kernel curves (red), offspring curves (blue) and the stable region (shaded) "
-                   f"in [0, {cs.tau1_max:g}] x [0, {cs.tau2_max:g}] s, with the marked delay points."),
+                   f"in [0, {cs.tau1_max:g}] x [0, {cs.tau2_max:g}] s, with the marked delay points"
+                   + ("; contour lines: the certified jitter margin delta (s), the time-varying delays "
+                      "within +-delta that keep the team stable however fast they vary." if jmap is not None else ".")),
         ),  # fmt: skip
         table=tuple(table),
         summary=summary,

@@ -144,17 +144,25 @@ GUARANTEE_AGENTS = 30
 
 def _beside_guarantees(scenario: Scenario, net: Any, mc: Any) -> tuple[tuple[tuple[str, str], ...], dict[str, Any], list[str]]:
     """The Monte Carlo table and summary with the applicable certificates (issue 20) and any contradiction."""
-    from delayform.report.guarantees import contradictions, guarantee_rows, network_guarantees, summary_of
+    from delayform.report.guarantees import (
+        bug_rows, contradictions, guarantee_rows, network_guarantees, summary_of, with_actuation_delay,
+        with_actuator_limits,
+    )  # fmt: skip
 
     summary = dict(mc.summary())
     if scenario.topology.n > GUARANTEE_AGENTS:
         summary["guarantees"] = []
+        summary["contradictions"] = []
         return mc.table() + (("certificates", f"not computed above {GUARANTEE_AGENTS} agents"),), summary, []
-    gs = network_guarantees(scenario.topology, scenario.P, scenario.D, scenario.tau1, scenario.tau2, net)
+    gs = network_guarantees(scenario.topology, scenario.P, scenario.D, scenario.tau1, scenario.tau2, net,
+                            dt=scenario.simulation.dt)  # fmt: skip
+    if scenario.robot is not None or scenario.safety:  # saturating or filtered commands: outside every certificate
+        gs = with_actuator_limits(gs)
+    gs = with_actuation_delay(gs, scenario.actuation_delay)
     bugs = contradictions(gs, mc.statuses)
     summary["guarantees"] = summary_of(gs)
     summary["contradictions"] = bugs
-    return mc.table() + guarantee_rows(gs), summary, bugs
+    return bug_rows(bugs) + mc.table() + guarantee_rows(gs), summary, bugs
 
 
 def scenario_setup(scenario: Scenario) -> Any:

@@ -36,7 +36,8 @@ from delayform.report._common import (
 
 # ------------------------------------------------------------ whole reports
 def scenario_sections(
-    scenario: Scenario, out: Path, *, progress: Progress | None = None, map_progress: MapProgress | None = None
+    scenario: Scenario, out: Path, *, progress: Progress | None = None, map_progress: MapProgress | None = None,
+    jitter_grid: int | None = None,
 ) -> list[Section]:
     """Every analysis of one scenario, in the order of the data flow.
 
@@ -50,10 +51,17 @@ def scenario_sections(
         Optional Rich progress bar advanced once per analysis.
     map_progress
         Optional callback for the dominant-root map (see :func:`map_section`).
+    jitter_grid
+        Points per axis of the jitter-margin contours on the chart; 0: none; None
+        (default): :func:`~delayform.report.jitter_overlay.auto_grid` (drawn when the
+        scenario's network jitters or varies its delays).
     """
+    from delayform.report.jitter_overlay import auto_grid
+
+    jitter_grid = auto_grid(scenario) if jitter_grid is None else jitter_grid
     steps: list[tuple[str, Callable[[], Section]]] = [
         ("factors", lambda: factors_section(scenario, out)),
-        ("stability chart", lambda: chart_section(scenario, out)),
+        ("stability chart", lambda: chart_section(scenario, out, jitter_grid=jitter_grid)),
         ("eigenvalue plane", lambda: region_section(scenario, out)),
         ("roots", lambda: roots_section(scenario, out)),
         ("dominant-root map", lambda: map_section(scenario, out, progress=map_progress)),
@@ -142,6 +150,14 @@ def highlights(sections: Sequence[Section]) -> tuple[tuple[str, str], ...]:
     if "roots" in by_key:
         roots = by_key["roots"]
         rows.append((f"dominant root at ({roots['tau1']:g}, {roots['tau2']:g})", _fmt_complex(roots["dominant_root"])))
+    if "montecarlo" in by_key:  # what is guaranteed beside what the runs observed (issue 20); a bug first
+        mc = by_key["montecarlo"]
+        held = [g["name"] for g in mc.get("guarantees", []) if g["holds"] is True]
+        diverged = sum(mc.get("statuses", {}).get(k, 0) for k in ("diverging", "stopped"))
+        if mc.get("contradictions"):
+            rows.append(("BUG: a run diverged where a certificate holds", mc["contradictions"][0]))
+        rows.append(("guaranteed for this network", ", ".join(held) if held else "nothing (see the Monte Carlo section)"))
+        rows.append(("observed", f"{diverged} of {mc.get('runs', '?')} runs diverged"))
     for key, summary in by_key.items():
         if key.startswith("schedule") and summary.get("stable_delays_found"):
             lo = summary["tau_min"]

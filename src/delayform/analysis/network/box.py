@@ -188,6 +188,18 @@ class DelayBox:
         L[t.rows, t.cols] += t.weights * (t.P * self.hi1 + t.D * (1.0 + wb * self.hi2))
         return L
 
+    def lipschitz_stack(self, wb: NDArray[np.float64]) -> NDArray[np.float64]:
+        """:meth:`lipschitz` at every entry of ``wb`` at once: shape ``wb.shape + (N, N)``."""
+        t = self.t
+        wb = np.asarray(wb, dtype=np.float64)[..., None, None]
+        n = np.arange(t.n)
+        L = np.zeros(wb.shape[:-2] + (t.n, t.n))
+        L[..., n, n] = 2.0 * wb[..., 0] + t.D
+        L[..., t.rows, t.cols] += t.weights * (t.P * self.hi1 + t.D * (1.0 + wb[..., 0] * self.hi2))
+        g = wb[..., 0] + t.D + self._rows(t.P * self.hi1 + t.D)
+        dg = 1.0 + self._rows(0.5 * t.P * self.hi1**2 + t.D * self.hi2)
+        return L + (g + np.hypot(1.0, wb[..., 0]) * dg)[..., :, None] * np.abs(self.u)
+
     def lipschitz(self, wb: float) -> NDArray[np.float64]:
         """Entrywise bound of |d Mh_tau(iw) / dw| for w <= wb over the box."""
         t = self.t

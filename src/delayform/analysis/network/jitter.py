@@ -27,8 +27,11 @@ w(t) = -int_{t - tau(t)}^{t - tau} z'(theta) d theta, so by Cauchy-Schwarz
 |w(t)|^2 <= delta int_{t - tau - delta}^{t - max(tau - delta, 0)} |z'|^2, and
 integrating over t (Fubini) ``||w||_2 <= gamma ||z'||_2`` with
 ``gamma^2 = delta (delta + min(delta, tau))``: no bound on the rate of change is
-needed, so it holds for arbitrarily fast variation (and for held packets: the
-age of the newest packet received stays in the same interval).
+needed, so it holds for arbitrarily fast variation, and for held packets as long
+as the age of the value held stays in the interval. With packets sent every h
+seconds and delays in [tau - b, tau + b] that age lies in [tau - b, tau + b + h]:
+ask for the margin about tau + h/2 and compare it with b + h/2
+(:mod:`delayform.report.guarantees` does).
 
 Small gain with constant scalings
 ---------------------------------
@@ -62,7 +65,7 @@ from delayform.topology import Topology
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from matplotlib.axes import Axes
 
-__all__ = ["JitterMargin", "JitterMarginMap", "jitter_margin", "jitter_margin_map"]
+__all__ = ["JitterMargin", "JitterMarginMap", "jitter_margin", "jitter_margin_map", "jitter_map_estimate"]
 
 #: The certified norm is accepted when within this factor of the sampled peak.
 _TIGHT = 1.01
@@ -137,16 +140,32 @@ class _Loop:
         self.hf = float(np.linalg.norm(self.Sel[L:] @ self.E, 2))  # the high-frequency gain
         self.c2 = float(np.linalg.norm(team.C, 2))
         self.box = DelayBox(team, np.zeros(L), np.zeros(L), team.tau1, team.tau2)
+        # sigma_max(diag(o) Sel K E) from N x N matrices only: with R = (E E^T)^{1/2} and
+        # W = Sel^T |diag(o)|^2 Sel = |o_pos|^2 S1 + |o_vel|^2 S2, sigma_max^2 = lambda_max(R K^H W K R)
+        self.S1, self.S2 = self.Sel[:L].T @ self.Sel[:L], self.Sel[L:].T @ self.Sel[L:]
+        lam, U = np.linalg.eigh(self.E @ self.E.T)
+        self.R = (U * np.sqrt(np.maximum(lam, 0.0))) @ U.T
+
+    def _gain(self, K: NDArray[np.complex128], pos: NDArray[np.float64], vel: NDArray[np.float64]) -> NDArray[np.float64]:
+        """sigma_max(diag(o) Sel K E) per sample, |o|^2 = pos on position channels, vel on velocity ones."""
+        Y = K @ self.R
+        W = pos[:, None, None] * self.S1 + vel[:, None, None] * self.S2
+        gram = Y.conj().swapaxes(-1, -2) @ W @ Y
+        return np.sqrt(np.maximum(np.linalg.eigvalsh(gram)[..., -1], 0.0)) * (1.0 + 1e-12)
 
     def _out(self, w: NDArray[np.float64]) -> NDArray[np.complex128]:
         # iw on position channels (z = velocity), (iw)^2 on velocity channels (z = acceleration)
         return np.where(np.arange(2 * self.L)[None, :] < self.L, 1j * w[:, None], -(w[:, None] ** 2) + 0j)
 
-    def high_samples(self, w: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.complex128], NDArray[np.float64]]:
-        """sigma_max(G(iw)) at each w > 0 (from H = M^{-1}), G there, and ||H(iw)||_2."""
+    def high_samples(self, w: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """sigma_max(G(iw)) at each w > 0 (from H = M^{-1}) and ||H(iw)||_2."""
         H = np.linalg.inv(self.t.matrix(1j * w))
-        G = self._out(w)[:, :, None] * (self.Sel[None] @ H @ self.E[None])
-        return _norm2(G), G, _norm2(H)
+        return self._gain(H, w**2, w**4), _norm2(H)
+
+    def high_matrix(self, w: float) -> NDArray[np.complex128]:
+        """G(iw) itself (2L x 2L), for the scaling at the peak."""
+        H = np.linalg.inv(self.t.matrix(1j * np.array([w])))
+        return (self._out(np.array([w]))[:, :, None] * (self.Sel[None] @ H @ self.E[None]))[0]
 
     def high_lipschitz(self, wa: NDArray[np.float64], wb: NDArray[np.float64], Hn: NDArray[np.float64]) -> NDArray[np.float64]:
         """Bound of ||dG/dw|| on each piece [wa, wb], from ||H(i wa)||."""
@@ -157,22 +176,30 @@ class _Loop:
         dq = np.hypot(self.a, 2.0 * self.b * wb)
         return (dq * Hmax + q * Hmax**2 * LM) * self.e
 
-    def low_samples(self, w: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.complex128], NDArray[np.float64]]:
+    def _low_factor(self, w: NDArray[np.float64]) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
+        Hh = np.linalg.inv(self.box.centre_matrix(w))
+        s = 1j * w
+        one_u = np.outer(np.ones(self.t.n), self.box.u)
+        Z = s[:, None, None] * np.eye(self.t.n) + (1.0 - s)[:, None, None] * one_u
+        return Z @ Hh, Hh
+
+    def low_samples(self, w: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """As :meth:`high_samples`, from the deflated Mh (box module, step 2), valid down to w = 0.
 
         M = Mh T diag(s, 1, ...) T^{-1} gives s H = Z Mh^{-1} with Z = s I + (1 - s) 1 u^T,
         so G = diag(1, s) Sel Z Mh^{-1} E is analytic at s = 0.
         """
-        Hh = np.linalg.inv(self.box.centre_matrix(w))
-        s = 1j * w
-        one_u = np.outer(np.ones(self.t.n), self.box.u)
-        Z = s[:, None, None] * np.eye(self.t.n) + (1.0 - s)[:, None, None] * one_u
-        G = self._low_out(w)[:, :, None] * (self.Sel[None] @ Z @ Hh @ self.E[None])
-        return _norm2(G), G, _norm2(Hh)
+        K, Hh = self._low_factor(w)
+        return self._gain(K, np.ones_like(w), w**2), _norm2(Hh)
+
+    def low_matrix(self, w: float) -> NDArray[np.complex128]:
+        """G(iw) itself from the deflated form (valid at w = 0)."""
+        K, _ = self._low_factor(np.array([w]))
+        return (self._low_out(np.array([w]))[:, :, None] * (self.Sel[None] @ K @ self.E[None]))[0]
 
     def low_lipschitz(self, wa: NDArray[np.float64], wb: NDArray[np.float64], Hn: NDArray[np.float64]) -> NDArray[np.float64]:
         """Bound of ||dG/dw|| on each piece of the low band, from ||Mh(i wa)^{-1}||."""
-        L = np.stack([self.box.lipschitz(float(x)) for x in wb])
+        L = self.box.lipschitz_stack(wb)
         LM = np.sqrt(L.sum(axis=1).max(axis=1) * L.sum(axis=2).max(axis=1))  # ||.||_2 <= sqrt(||.||_1 ||.||_inf)
         Hmax = _inverse_growth(Hn, LM * (wb - wa))
         nu = math.sqrt(self.t.n) * float(np.linalg.norm(self.box.u))  # ||1 u^T||_2
@@ -210,25 +237,34 @@ def _norm2(X: NDArray[np.complex128]) -> NDArray[np.float64]:
 
 def _entrywise_norm(t: LinkTeam, diag: NDArray[np.float64], links: NDArray[np.float64]) -> NDArray[np.float64]:
     """sqrt(||W||_1 ||W||_inf) >= ||W||_2 for the non-negative W with that diagonal and link entries."""
-    rows = np.stack([np.bincount(t.rows, x, minlength=t.n) for x in links])
-    cols = np.stack([np.bincount(t.cols, x, minlength=t.n) for x in links])
+    rows = links @ _one_hot(t.rows, t.n)  # row sums of the link entries, every sample at once
+    cols = links @ _one_hot(t.cols, t.n)
     return np.sqrt((diag + cols.max(axis=1)) * (diag + rows.max(axis=1)))
 
 
-def _certified_sup(sample, lipschitz, w: NDArray[np.float64], floor: float) -> tuple[float, float, NDArray[np.complex128], float]:
-    """Upper bound of sigma_max(G) over [w[0], w[-1]] from samples and derivative bounds (bisection)."""
-    sig, G, nrm = sample(w)
+def _one_hot(index: NDArray[np.int64], n: int) -> NDArray[np.float64]:
+    out = np.zeros((index.size, n))
+    out[np.arange(index.size), index] = 1.0
+    return out
+
+
+def _certified_sup(sample, lipschitz, w: NDArray[np.float64], floor: float) -> tuple[float, float, float]:
+    """Upper bound of sigma_max(G) over [w[0], w[-1]] from samples and derivative bounds (bisection).
+
+    Returns (bound, frequency of the largest sample, largest sample).
+    """
+    sig, nrm = sample(w)
     while True:
-        k = int(np.argmax(sig))
         piece = sig[:-1] + lipschitz(w[:-1], w[1:], nrm[:-1]) * np.diff(w)
         bad = ~(piece <= _TIGHT * max(sig.max(), floor))
         if not bad.any() or w.size > _MAX_SAMPLES:
-            return float(max(piece.max(), sig.max())), float(w[k]), G[k], float(sig.max())
+            k = int(np.argmax(sig))
+            return float(max(piece.max(), sig.max())), float(w[k]), float(sig[k])
         add = 0.5 * (w[:-1] + w[1:])[bad]
-        s2, G2, n2 = sample(add)
+        s2, n2 = sample(add)
         order = np.argsort(np.concatenate([w, add]), kind="stable")
         w = np.concatenate([w, add])[order]
-        sig, G, nrm = (np.concatenate([a, b])[order] for a, b in ((sig, s2), (G, G2), (nrm, n2)))
+        sig, nrm = np.concatenate([sig, s2])[order], np.concatenate([nrm, n2])[order]
 
 
 def hinf_bound(loop: _Loop) -> tuple[float, float, NDArray[np.complex128], float]:
@@ -243,10 +279,11 @@ def hinf_bound(loop: _Loop) -> tuple[float, float, NDArray[np.complex128], float
         Omega *= 1.5
     w1 = min(0.25 * math.sqrt(t.P), 0.5)
     lo = _certified_sup(loop.low_samples, loop.low_lipschitz, np.linspace(0.0, w1, 65), 0.0)
-    hi = _certified_sup(loop.high_samples, loop.high_lipschitz, np.linspace(w1, Omega, 513), lo[3])
+    hi = _certified_sup(loop.high_samples, loop.high_lipschitz, np.linspace(w1, Omega, 513), lo[2])
     tail = loop.tail(Omega)
-    best = lo if lo[3] >= hi[3] else hi
-    return float(max(lo[0], hi[0], tail)), best[1], best[2], float(max(lo[3], hi[3]))
+    wpk = lo[1] if lo[2] >= hi[2] else hi[1]
+    Gpk = loop.low_matrix(wpk) if lo[2] >= hi[2] else loop.high_matrix(wpk)
+    return float(max(lo[0], hi[0], tail)), wpk, Gpk, float(max(lo[2], hi[2]))
 
 
 def _perron_scaling(G: NDArray[np.complex128]) -> NDArray[np.float64] | None:
@@ -266,6 +303,28 @@ def margin_of_team(team: LinkTeam) -> JitterMargin:
     nominal = dominant_of_team(team)
     if not nominal.is_stable:
         return JitterMargin(0.0, math.inf, float("nan"), False, nominal.root)
+    bound, wpk, scaled = _scaled_bound(team)
+    if not math.isfinite(bound):
+        raise NotConvergedError("the H-infinity bound of the jitter loop did not converge", partial=bound)
+    return JitterMargin(_delta_of_gain(bound, _longest(team)), bound, wpk, scaled, nominal.root)
+
+
+def _longest(team: LinkTeam) -> float:
+    # gamma_j^2 = delta (delta + min(delta, tau_j)) grows with tau_j: the longest nominal delay is the worst channel
+    return float(max(team.tau1.max(initial=0.0), team.tau2.max(initial=0.0)))
+
+
+def _certified_delta(team: LinkTeam) -> float:
+    """The margin of a team known to be nominally stable; 0 where the bound cannot be certified."""
+    try:
+        bound = _scaled_bound(team)[0]
+    except np.linalg.LinAlgError:  # M(iw) singular at a sample: an imaginary root, nothing to certify
+        return 0.0
+    return _delta_of_gain(bound, _longest(team)) if math.isfinite(bound) else 0.0
+
+
+def _scaled_bound(team: LinkTeam) -> tuple[float, float, bool]:
+    """(certified ||S G S^{-1}||_inf, peak frequency, scaled): the better of no scaling and the Perron one."""
     plain = _Loop(team)
     bound, wpk, Gpk, _ = hinf_bound(plain)
     scaled = False
@@ -274,11 +333,7 @@ def margin_of_team(team: LinkTeam) -> JitterMargin:
         b2, w2, _, _ = hinf_bound(_Loop(team, S))
         if b2 < bound:
             bound, wpk, scaled = b2, w2, True
-    if not math.isfinite(bound):
-        raise NotConvergedError("the H-infinity bound of the jitter loop did not converge", partial=bound)
-    # gamma_j^2 = delta (delta + min(delta, tau_j)) grows with tau_j: the longest nominal delay is the worst channel
-    tau_max = float(max(team.tau1.max(initial=0.0), team.tau2.max(initial=0.0)))
-    return JitterMargin(_delta_of_gain(bound, tau_max), bound, wpk, scaled, nominal.root)
+    return bound, wpk, scaled
 
 
 @validated()
@@ -308,6 +363,32 @@ def jitter_margin(topology: Topology, P: float, D: float, tau1: ArrayLike, tau2:
     return margin_of_team(link_team(topology, P, D, tau1, tau2))
 
 
+#: seconds of one certified margin on the paper's six agents (12 links; a 13 x 13 map, benchmarks/bench_jitter_map.py)
+_SECONDS_PER_POINT = 0.08
+#: bytes per frequency sample and link pair kept while the H-infinity bound is refined
+_BYTES_PER_SAMPLE = 16
+
+
+def jitter_map_estimate(topology: Topology, points: int) -> tuple[float, float]:
+    """Rough (seconds, bytes) of a :func:`jitter_margin_map` with ``points`` grid points.
+
+    The cost of one certified margin grows with the links L (the loop is 2L x 2L at
+    the peak, N x N at every frequency sample): about ``0.08 s (L / 12)^1.5``.
+
+    Parameters
+    ----------
+    topology
+        The team.
+    points
+        Grid points of the map.
+    """
+    n = topology.n
+    links = max(1, int(topology.C_sparse.nnz))
+    seconds = points * _SECONDS_PER_POINT * max(1.0, links / 12.0) ** 1.5
+    nbytes = _MAX_SAMPLES * (n * n + 4 * links * links) * _BYTES_PER_SAMPLE
+    return seconds, float(nbytes)
+
+
 @validated()
 @dataclass(frozen=True, eq=False)
 class JitterMarginMap:
@@ -318,24 +399,74 @@ class JitterMarginMap:
     tau1_values, tau2_values
         The grid; ``delta[i, j]`` is at (tau1_values[i], tau2_values[j]).
     delta
-        The margin (0 where the nominal point is unstable).
+        The margin (0 where the nominal point is unstable or on a crossing curve).
     """
 
     tau1_values: NDArray[np.float64]
     tau2_values: NDArray[np.float64]
     delta: NDArray[np.float64]
 
-    def plot(self, ax: Axes | None = None) -> Axes:
-        """Filled contours of the margin over the delay plane (draw the stability chart on the same axes)."""
+    def levels(self, count: int = 6) -> NDArray[np.float64]:
+        """Round contour levels of the margin, strictly inside (0, max delta]; empty when nothing is certified."""
+        top = float(self.delta.max(initial=0.0))
+        if not top > 0.0:
+            return np.zeros(0)
+        step = 10.0 ** math.floor(math.log10(top / count))
+        for mult in (1.0, 2.0, 2.5, 5.0, 10.0):
+            if top / (mult * step) <= count:
+                step *= mult
+                break
+        out = np.arange(1, int(top / step) + 1) * step
+        return out[out <= top]
+
+    def plot(self, ax: Axes | None = None, *, filled: bool = False) -> Axes:
+        """Contour lines of the certified margin over the stable region (default), or filled contours.
+
+        Lines (labelled in seconds) are drawn where delta > 0 only, so they sit on
+        the stability chart's shaded region without retracing its boundary: draw
+        :meth:`StabilityMap.plot` first on the same axes. ``filled=True`` draws
+        filled contours with a colour bar instead (a figure of its own).
+        """
+        import matplotlib
         import matplotlib.pyplot as plt
+        from matplotlib.lines import Line2D
 
         if ax is None:
             ax = plt.figure().add_subplot()
-        cs = ax.contourf(self.tau1_values, self.tau2_values, self.delta.T, levels=12, cmap="viridis", alpha=0.8)
-        ax.figure.colorbar(cs, ax=ax, label="certified jitter margin delta (s)")
+        z = np.where(self.delta > 0.0, self.delta, np.nan).T
+        levels = self.levels()
+        if levels.size == 0:  # nothing certified: say so on the axes rather than draw nothing silently
+            ax.text(0.02, 0.02, "jitter margin: 0 everywhere", transform=ax.transAxes, fontsize="small")
+        elif filled:
+            cs = ax.contourf(self.tau1_values, self.tau2_values, z, levels=np.concatenate([[0.0], levels]),
+                             cmap="viridis", alpha=0.8)  # fmt: skip
+            ax.figure.colorbar(cs, ax=ax, label="certified jitter margin delta (s)")
+        elif np.count_nonzero(np.isfinite(z)) >= 4:
+            cs = ax.contour(self.tau1_values, self.tau2_values, z, levels=levels, cmap="viridis", linewidths=1.2)
+            ax.clabel(cs, fmt=lambda v: f"{v:.3g} s", fontsize="x-small")
+            _extend_legend(ax, Line2D([], [], color=matplotlib.colormaps["viridis"](0.5), label="certified jitter margin (s)"))
         ax.set_xlabel("tau1 (s)")
         ax.set_ylabel("tau2 (s)")
         return ax
+
+
+def _extend_legend(ax: Axes, handle: object) -> None:
+    """Add ``handle`` to the axes' legend, keeping the entries already there (a chart's proxies)."""
+    old = ax.get_legend()
+    handles = list(old.legend_handles) if old is not None else []
+    labels = [t.get_text() for t in old.get_texts()] if old is not None else []
+    ax.legend(handles=[*handles, handle], labels=[*labels, handle.get_label()],  # type: ignore[attr-defined]
+              loc="upper right", fontsize="small", framealpha=0.9)  # fmt: skip
+
+
+def _map_axis(name: str, v: ArrayLike) -> NDArray[np.float64]:
+    try:
+        arr = np.atleast_1d(np.asarray(v, dtype=np.float64))
+    except (TypeError, ValueError):
+        raise DelayError(f"{name} must be a non-empty 1-D sequence of finite non-negative delays") from None
+    if arr.ndim != 1 or arr.size == 0 or not np.all(np.isfinite(arr)) or np.any(arr < 0):
+        raise DelayError(f"{name} must be a non-empty 1-D sequence of finite non-negative delays")
+    return arr
 
 
 @validated()
@@ -343,6 +474,11 @@ def jitter_margin_map(
     topology: Topology, P: float, D: float, tau1_values: ArrayLike, tau2_values: ArrayLike
 ) -> JitterMarginMap:
     """:func:`jitter_margin` at every point of a grid of equal delays.
+
+    Which points are nominally stable comes from the exact CTCR map
+    (:func:`~delayform.analysis.ctcr.stability_map.stability_map`, NU = 0): the
+    small-gain bound is computed there only, and a point where it cannot be
+    certified (on a crossing curve, where the loop has an imaginary pole) gets 0.
 
     Parameters
     ----------
@@ -356,18 +492,23 @@ def jitter_margin_map(
     ------
     DelayError
         When an axis is empty, not 1-D, negative or not finite.
+    ResourceLimitError
+        When the grid would take longer than the time budget (checked before any work).
     """
-    axes = []
-    for name, v in (("tau1_values", tau1_values), ("tau2_values", tau2_values)):
-        arr = np.atleast_1d(np.asarray(v, dtype=np.float64))
-        if arr.ndim != 1 or arr.size == 0 or not np.all(np.isfinite(arr)) or np.any(arr < 0):
-            raise DelayError(f"{name} must be a non-empty 1-D sequence of finite non-negative delays")
-        axes.append(arr)
+    from delayform.analysis.ctcr.stability_map import stability_map
+    from delayform.resources import require
+
+    axes = [_map_axis("tau1_values", tau1_values), _map_axis("tau2_values", tau2_values)]
     base = link_team(topology, P, D, 0.0, 0.0)
+    seconds, nbytes = jitter_map_estimate(topology, axes[0].size * axes[1].size)
+    require(what=f"a {axes[0].size} x {axes[1].size} jitter-margin map of {topology.n} agents",
+            setting="the jitter-margin grid", nbytes=nbytes, seconds=seconds)  # fmt: skip
+    # the exact chart decides nominal stability (G must be stable for small gain); its window needs sides > 0
+    smap = stability_map(topology, base.P, base.D, max(float(axes[0].max()), 1e-3), max(float(axes[1].max()), 1e-3))
+    stable = np.asarray(smap.is_stable(axes[0][:, None], axes[1][None, :]))
     out = np.zeros((axes[0].size, axes[1].size))
-    for i, a in enumerate(axes[0]):
-        for j, b in enumerate(axes[1]):
-            team = LinkTeam(base.C, base.P, base.D, base.rows, base.cols, base.weights,
-                            np.full(base.rows.size, a), np.full(base.rows.size, b))  # fmt: skip
-            out[i, j] = margin_of_team(team).delta
+    for i, j in zip(*np.nonzero(stable), strict=True):
+        team = LinkTeam(base.C, base.P, base.D, base.rows, base.cols, base.weights,
+                        np.full(base.rows.size, axes[0][i]), np.full(base.rows.size, axes[1][j]))  # fmt: skip
+        out[i, j] = _certified_delta(team)
     return JitterMarginMap(axes[0], axes[1], out)

@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import scipy.linalg as sla
@@ -69,6 +69,14 @@ class _Lifted:
         """One step of the second-moment recursion (module docstring)."""
         w = self.var * np.einsum("aj,ab,bj->j", self.r, Q, self.r)
         return self.A @ Q @ self.A.T + (self.c * w) @ self.c.T
+
+    def start(self, Q: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The recursion's state for the initial second moment Q (one mode: Q itself)."""
+        return Q
+
+    def total(self, Q: NDArray[np.float64]) -> NDArray[np.float64]:
+        """E[S S^T] from the recursion's state."""
+        return Q
 
 
 def _lift(team: LinkTeam, h: float, m1: NDArray[np.int64], m2: NDArray[np.int64], p: NDArray[np.float64]) -> _Lifted:
@@ -148,7 +156,7 @@ class MeanSquareStability:
     period: float
     lags1: NDArray[np.int64]
     lags2: NDArray[np.int64]
-    _model: _Lifted
+    _model: Any  # _Lifted, or the bursty module's Markov jump-linear model (same step/start/total)
 
     @property
     def stable(self) -> bool:
@@ -187,9 +195,10 @@ class MeanSquareStability:
         ix = model.positions
         out = np.empty(steps + 1)
         centre = np.eye(n) - 1.0 / n
+        state = model.start(Q)
         for m in range(steps + 1):
-            out[m] = float(np.trace(centre @ Q[np.ix_(ix, ix)] @ centre))
-            Q = model.step(Q)
+            out[m] = float(np.trace(centre @ model.total(state)[np.ix_(ix, ix)] @ centre))
+            state = model.step(state)
         return out
 
     def plot(self, ax: Axes | None = None, *, positions: ArrayLike | None = None, steps: int = 200) -> Axes:

@@ -5,7 +5,7 @@
 // runs and downloads take all three.
 "use strict";
 
-const ROBOT_RUN_PATHS = ["/api/simulate", "/download/scenario.toml", "/download/figures.zip"];
+const ROBOT_RUN_PATHS = ["/api/simulate", "/api/guarantees", "/download/scenario.toml", "/download/figures.zip"];
 
 function robotParams(path) {
   const box = document.getElementById("robot-actuation");
