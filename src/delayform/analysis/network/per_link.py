@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from delayform.analysis.network.blas import single_threaded_blas
 from delayform.analysis.network.count import count_right_of, root_radius
 from delayform.analysis.network.discretization import generator_seeds
 from delayform.analysis.network.links import LinkTeam, link_team
@@ -46,6 +47,8 @@ __all__ = ["LinkDominantRoot", "link_dominant_root", "polish_roots", "link_roots
 _STEP_TOL = 1e-13
 #: Singular values of M(s) below this times the largest count towards the kernel.
 _KERNEL_TOL = 1e-7
+#: A seed whose last Newton step is below this times (1 + |s|) is near a (repeated) root.
+_SLOW_TOL = 1e-5
 
 
 @validated()
@@ -113,10 +116,11 @@ class LinkDominantRoot:
 
 
 def _newton(team: LinkTeam, s: NDArray[np.complex128], mult: NDArray[np.float64], steps: int) -> tuple[
-    NDArray[np.complex128], NDArray[np.bool_]
+    NDArray[np.complex128], NDArray[np.bool_], NDArray[np.float64]
 ]:  # fmt: skip
-    """Newton on det M at every point together; returns the points and which ones converged."""
+    """Newton on det M at every point together; the points, which ones converged, and each last step."""
     done = np.zeros(s.shape, dtype=bool)
+    last = np.full(s.shape, np.inf)
     s = s.copy()
     for _ in range(steps):
         act = np.flatnonzero(~done)
@@ -133,8 +137,9 @@ def _newton(team: LinkTeam, s: NDArray[np.complex128], mult: NDArray[np.float64]
             step = mult[act] / tr
         step = np.where(np.isfinite(step), step, 0.0)
         s[act] = sa - step
+        last[act] = np.abs(step)
         done[act] = np.abs(step) <= _STEP_TOL * (1.0 + np.abs(sa))
-    return s, done
+    return s, done, last
 
 
 def _safe_trace(M: NDArray[np.complex128], Md: NDArray[np.complex128]) -> complex:
@@ -147,6 +152,14 @@ def _safe_trace(M: NDArray[np.complex128], Md: NDArray[np.complex128]) -> comple
 def _kernel_dimension(team: LinkTeam, s: NDArray[np.complex128]) -> NDArray[np.int64]:
     sv = np.linalg.svd(team.matrix(s), compute_uv=False)
     return np.sum(sv <= _KERNEL_TOL * sv[:, :1], axis=1).astype(np.int64)
+
+
+def _tidy(s: NDArray[np.complex128]) -> NDArray[np.complex128]:
+    """Real roots made real, the persistent zero snapped to 0, Im >= 0 kept, duplicates merged."""
+    s = np.where(np.abs(s.imag) < 1e-10 * (1.0 + np.abs(s)), s.real + 0j, s)
+    # s = 0 is an exact root (M(0) = P (I - C)); as a double root (the drift) Newton reaches it only to ~1e-8
+    s = np.where(np.abs(s) < 1e-6, 0j, s)
+    return _distinct(s[s.imag >= 0.0])
 
 
 def polish_roots(team: LinkTeam, seeds: ArrayLike) -> tuple[NDArray[np.complex128], NDArray[np.int64]]:
@@ -167,20 +180,23 @@ def polish_roots(team: LinkTeam, seeds: ArrayLike) -> tuple[NDArray[np.complex12
     """
     s0 = np.asarray(seeds, dtype=np.complex128).ravel()
     s0 = np.where(s0.imag < 0, s0.conj(), s0)
-    s, ok = _newton(team, s0, np.ones(s0.size), 40)
-    s = s[ok]
-    # repeated roots: Newton times the kernel dimension, then a few more steps
-    if s.size:
-        m = np.maximum(_kernel_dimension(team, s), 1).astype(np.float64)
-        if np.any(m > 1):
-            s, ok2 = _newton(team, s, m, 20)
-            s = s[ok2]
-    s = np.where(np.abs(s.imag) < 1e-10 * (1.0 + np.abs(s)), s.real + 0j, s)
-    # s = 0 is an exact root (M(0) = P (I - C)); as a double root (the drift) Newton reaches it only to ~1e-8
-    s = np.where(np.abs(s) < 1e-6, 0j, s)
-    s = s[s.imag >= 0.0]
-    roots = _distinct(s)
-    return roots, _kernel_dimension(team, roots) if roots.size else np.zeros(0, np.int64)
+    with single_threaded_blas():
+        s, ok, last = _newton(team, s0, np.ones(s0.size), 40)
+        # a repeated root (symmetric teams) draws Newton in only linearly: kept while its steps are small,
+        # then Newton times the kernel dimension finishes it quadratically
+        slow = ~ok & (last < _SLOW_TOL * (1.0 + np.abs(s)))
+        roots = _tidy(s[ok | slow])
+        if not roots.size:
+            return roots, np.zeros(0, np.int64)
+        m = np.maximum(_kernel_dimension(team, roots), 1)
+        if np.any(m > 1) or slow.any():
+            again = (m > 1) | np.isin(roots, s[slow])
+            r2, ok2, _ = _newton(team, roots[again], m[again].astype(np.float64), 20)
+            roots = _tidy(np.concatenate([roots[~again], r2[ok2]]))
+            if not roots.size:
+                return roots, np.zeros(0, np.int64)
+            m = _kernel_dimension(team, roots)
+        return roots, m
 
 
 def _distinct(s: NDArray[np.complex128]) -> NDArray[np.complex128]:
@@ -259,6 +275,26 @@ def link_dominant_root(topology: Topology, P: float, D: float, tau1: ArrayLike, 
 
 def dominant_of_team(team: LinkTeam) -> LinkDominantRoot:
     """:func:`link_dominant_root` of an already checked :class:`LinkTeam`."""
+    with single_threaded_blas():
+        return _dominant(team)
+
+
+def _window(seeds: NDArray[np.complex128], guess: float, attempt: int) -> NDArray[np.complex128]:
+    """The seeds worth polishing: right of ``guess - 0.5`` and near enough to the rightmost seed.
+
+    The certifying line is sought within 0.3 (1 + |top|) of the rightmost root (:func:`_choose_line`);
+    seeds farther left than that plus a margin (growing with the attempt, as the seeds may be
+    coarse) cannot matter, and Newton on each costs an N x N solve per step.
+    """
+    s = seeds[seeds.real > guess - 0.5]
+    away = s[np.abs(s) > 1e-4]  # the persistent zero's seed does not set the window
+    if away.size == 0:
+        return s
+    top = float(away.real.max())
+    return s[s.real > top - 0.3 * (1.0 + abs(top)) - 0.3 * (attempt + 1)]
+
+
+def _dominant(team: LinkTeam) -> LinkDominantRoot:
     zero_mult = team.zero_multiplicity()
     guess = -0.5
     last: tuple[NDArray[np.complex128], NDArray[np.int64]] | None = None
@@ -266,7 +302,7 @@ def dominant_of_team(team: LinkTeam) -> LinkDominantRoot:
         R = root_radius(team, guess)
         M = _degree(team, R, attempt)
         seeds = generator_seeds(team, M, 1.5 * R)
-        roots, kern = polish_roots(team, seeds[seeds.real > guess - 0.5])
+        roots, kern = polish_roots(team, _window(seeds, guess, attempt))
         nonzero = roots != 0.0
         if not nonzero.any():
             guess -= 1.0
