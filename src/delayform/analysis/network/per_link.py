@@ -47,6 +47,10 @@ __all__ = ["LinkDominantRoot", "link_dominant_root", "polish_roots", "link_roots
 _STEP_TOL = 1e-13
 #: Singular values of M(s) below this times the largest count towards the kernel.
 _KERNEL_TOL = 1e-7
+#: The rightmost seeds polished first (they fix the top and so the line).
+_FIRST = 8
+#: Seeds this far left of the line are still polished (a seed may sit a little off its root).
+_SEED_MARGIN = 0.1
 #: A seed whose last Newton step is below this times (1 + |s|) is near a (repeated) root.
 _SLOW_TOL = 1e-5
 
@@ -207,14 +211,14 @@ def _distinct(s: NDArray[np.complex128]) -> NDArray[np.complex128]:
     return np.array(out, dtype=np.complex128)
 
 
-def _choose_line(reals: NDArray[np.float64], top: float) -> float:
+def _choose_line(reals: NDArray[np.float64], top: float, width: float) -> float:
     """A line Re s = c left of ``top``, as far as possible from every known real part (0 among them).
 
-    The line is sought in (top - 0.3 (1 + |top|), top): the widest gap there, or
-    the window's left end when that is farther from every root; far from roots
-    the certificate needs fewer samples.
+    The line is sought in (top - width, top): the widest gap there, or the window's
+    left end when that is farther from every root; far from roots the certificate
+    needs fewer samples, and a narrow window leaves fewer roots to find right of it.
     """
-    lo = top - 0.3 * (1.0 + abs(top))
+    lo = top - width
     near = np.sort(np.unique(np.concatenate([reals[(reals > lo) & (reals < top)], [top]])))
     cands = np.concatenate([0.5 * (near[1:] + near[:-1]), [lo]])
     dist = np.min(np.abs(cands[:, None] - reals[None, :]), axis=1)
@@ -228,14 +232,21 @@ def link_roots_right_of(team: LinkTeam, c: float, *, degree: int | None = None) 
     """
     R = root_radius(team, c)
     M = degree or _degree(team, R)
-    seeds = generator_seeds(team, M, 1.5 * R)
-    roots, _ = polish_roots(team, seeds[seeds.real > c - 0.5])
+    with single_threaded_blas():
+        seeds = generator_seeds(team, M, 1.5 * R)
+        roots, _ = polish_roots(team, seeds[seeds.real > c - 0.5])
     return roots[roots.real > c]
 
 
 def _degree(team: LinkTeam, radius: float, attempt: int = 1) -> int:
-    # the collocation resolves e^{-tau s} for |s| tau up to about M: seeds need only reach
-    # Newton's basin, so the first attempt is coarse and later ones finer
+    """Chebyshev intervals of the seeds' collocation: coarse first, finer on each retry.
+
+    The collocation resolves e^{-tau s} for |s| tau up to about M, and seeds need only
+    reach Newton's basin (at 100 agents, M = 6 already places the dominant roots to 1e-9),
+    so the first attempt is coarse; a root it misses shows in the certified count.
+    """
+    if attempt == 0:
+        return int(np.clip(math.ceil(0.5 * team.max_delay * radius) + 5, 6, 160))
     return int(np.clip(math.ceil((0.8 + 0.7 * attempt) * team.max_delay * radius) + 8, 8, 160))
 
 
@@ -279,39 +290,44 @@ def dominant_of_team(team: LinkTeam) -> LinkDominantRoot:
         return _dominant(team)
 
 
-def _window(seeds: NDArray[np.complex128], guess: float, attempt: int) -> NDArray[np.complex128]:
-    """The seeds worth polishing: right of ``guess - 0.5`` and near enough to the rightmost seed.
-
-    The certifying line is sought within 0.3 (1 + |top|) of the rightmost root (:func:`_choose_line`);
-    seeds farther left than that plus a margin (growing with the attempt, as the seeds may be
-    coarse) cannot matter, and Newton on each costs an N x N solve per step.
-    """
-    s = seeds[seeds.real > guess - 0.5]
-    away = s[np.abs(s) > 1e-4]  # the persistent zero's seed does not set the window
-    if away.size == 0:
+def _upper_seeds(seeds: NDArray[np.complex128], left: float) -> NDArray[np.complex128]:
+    """Seeds with Im >= 0 right of ``left``, rightmost first, near-duplicates (overlapping shifts) merged."""
+    s = seeds[(seeds.imag >= 0.0) & (seeds.real > left)]
+    s = s[np.argsort(-s.real, kind="stable")]
+    if s.size < 2:
         return s
-    top = float(away.real.max())
-    return s[s.real > top - 0.3 * (1.0 + abs(top)) - 0.3 * (attempt + 1)]
+    # Arnoldi at neighbouring shifts returns the same eigenvalue twice; a seed within 1e-6 of a kept one adds nothing
+    key = np.round(s.real * 1e6) + 1j * np.round(s.imag * 1e6)
+    _, first = np.unique(key, return_index=True)
+    return s[np.sort(first)]
 
 
 def _dominant(team: LinkTeam) -> LinkDominantRoot:
+    """Seeds, a line, Newton on the seeds that matter, the certified count (module docstring)."""
     zero_mult = team.zero_multiplicity()
+    poles = np.roots([1.0, team.D, team.P]).real  # the zeros of p: poles of det(I - K/p), kept off the line
     guess = -0.5
     last: tuple[NDArray[np.complex128], NDArray[np.int64]] | None = None
     for attempt in range(4):
         R = root_radius(team, guess)
-        M = _degree(team, R, attempt)
-        seeds = generator_seeds(team, M, 1.5 * R)
-        roots, kern = polish_roots(team, _window(seeds, guess, attempt))
+        seeds = _upper_seeds(generator_seeds(team, _degree(team, R, attempt), R + 0.5, centre=0.5 * guess,
+                                             nearest=30 + 20 * attempt), guess - 0.5)  # fmt: skip
+        # the rightmost seeds fix the top; the line follows, and only seeds near or right of it are polished
+        roots, _ = polish_roots(team, seeds[:_FIRST])
         nonzero = roots != 0.0
         if not nonzero.any():
             guess -= 1.0
             continue
-        last = (roots, kern)
         top = float(roots[nonzero].real.max())
-        # away from the roots found, from 0, and from the zeros of p (the poles of det(I - K/p))
-        poles = np.roots([1.0, team.D, team.P]).real
-        c = _choose_line(np.concatenate([roots.real, [0.0], poles]), top)
+        width = (0.1 if attempt == 0 else 0.3) * (1.0 + abs(top))
+        c = _choose_line(np.concatenate([roots.real, seeds.real, [0.0], poles]), top, width)
+        rest = seeds[_FIRST:]
+        roots, kern = polish_roots(team, np.concatenate([roots, rest[rest.real > c - _SEED_MARGIN]]))
+        nonzero = roots != 0.0
+        last = (roots, kern)
+        if roots[nonzero].real.max(initial=-np.inf) > top:  # a seed went right of the top: recentre the line
+            top = float(roots[nonzero].real.max())
+            c = _choose_line(np.concatenate([roots.real, seeds.real, [0.0], poles]), top, width)
         count = count_right_of(team, c)
         right = roots.real > c
         weight = np.where(roots.imag > 0.0, 2, 1)  # a conjugate pair counts twice
