@@ -78,16 +78,18 @@ from delayform.analysis.network.links import LinkTeam
 __all__ = ["count_right_of", "root_radius"]
 
 #: Most samples spent on one line before giving up (a root on or very near it), for a team
-#: of ``_BUDGET_AGENTS`` agents or fewer; larger teams get proportionally fewer (an N x N
-#: inverse each, so the budget is one of work, about a minute on one core).
+#: of ``_BUDGET_AGENTS`` agents or fewer; larger teams get fewer (an N x N inverse each):
+#: the budget falls as 1 / N^2, about a minute on one core at 100 or 200 agents.
 MAX_SAMPLES = 200_000
-_BUDGET_AGENTS = 20
+_BUDGET_AGENTS = 40
 #: A piece passes when phi <= this (module docstring): its tail -log(1 - phi) - phi = 1.05 < pi / 2.
 PHI_MAX = 0.85
 
 
 def _p_roots(team: LinkTeam) -> NDArray[np.complex128]:
-    return np.roots([1.0, team.D, team.P]).astype(np.complex128)
+    """The zeros of p(s) = s^2 + D s + P (closed form)."""
+    d = np.sqrt(complex(team.D * team.D - 4.0 * team.P))
+    return np.array([0.5 * (-team.D + d), 0.5 * (-team.D - d)], dtype=np.complex128)
 
 
 def _row_bounds(team: LinkTeam, c: float) -> tuple[float, float]:
@@ -149,7 +151,8 @@ class _Line:
         # Lambda_m^T stacked (4N x N): row m N + k, column j holds Lambda_m[j, k] (link j -> k)
         r = (team.cols[None, :] + n * np.arange(4)[:, None]).ravel()
         self.lamT = sp.csr_array((lam.T.ravel(), (r, np.tile(team.rows, 4))), shape=(4 * n, n))
-        self.chunk = max(16, int(4e6 // max(n * n, 1)))
+        # a few MB per batch: larger batches spend more on fresh memory than they save in calls
+        self.chunk = max(8, int(5e5 // max(n * n, 1)))
 
     def links(self, s: NDArray[np.complex128]) -> NDArray[np.complex128]:
         """X(s) on the links, shape (samples, links)."""
@@ -186,7 +189,8 @@ class _Line:
             # row m N + k, column b N + i of R is (|A_b| Lambda_m)[i, k]: one sparse product for the batch
             R = self.lamT @ absA.reshape(ok.size * n, n).T
             with np.errstate(invalid="ignore", over="ignore"):
-                norms[ok] = np.sqrt((R * R).reshape(4, n, ok.size, n).sum(axis=(1, 3))).T
+                np.square(R, out=R)
+                norms[ok] = np.sqrt(R.reshape(4, n, ok.size, n).sum(axis=(1, 3))).T
             trA[ok] = np.einsum("bii->b", A)
             AT[ok] = A[:, t.cols, t.rows]
         norms = np.where(np.isfinite(norms), norms, np.inf)
@@ -216,7 +220,7 @@ def _phi(norms: NDArray[np.float64], gam: NDArray[np.float64], h: NDArray[np.flo
 
 
 def _budget(n: int) -> int:
-    return int(MAX_SAMPLES * min(1.0, (_BUDGET_AGENTS / max(n, 1)) ** 3)) + 1000
+    return int(MAX_SAMPLES * min(1.0, (_BUDGET_AGENTS / max(n, 1)) ** 2)) + 1000
 
 
 def _phase_change(team: LinkTeam, c: float, R: float) -> float | None:
@@ -234,8 +238,11 @@ def _phase_change(team: LinkTeam, c: float, R: float) -> float | None:
         if not bad.any():
             return _sum_pieces(line, y, f, trA, AT, phi_a <= phi_b)
         # split each failing piece into as many parts as its bound asks for (at most 64)
-        parts = np.where(np.isfinite(phi), np.clip(np.ceil(1.15 * phi / PHI_MAX), 2, 64), 2).astype(np.int64)
-        add = np.concatenate([np.linspace(y[k], y[k + 1], parts[k] + 1)[1:-1] for k in np.flatnonzero(bad)])
+        k = np.flatnonzero(bad)
+        parts = np.where(np.isfinite(phi[k]), np.clip(np.ceil(1.15 * phi[k] / PHI_MAX), 2, 64), 2).astype(np.int64)
+        piece = np.repeat(np.arange(k.size), parts - 1)
+        step = np.arange(piece.size) - np.repeat(np.cumsum(parts - 1) - (parts - 1), parts - 1) + 1  # 1 .. parts - 1
+        add = y[k][piece] + (y[k + 1] - y[k])[piece] * (step / parts[piece])
         if add.size + y.size > budget:
             return None
         new = line.evaluate(add)

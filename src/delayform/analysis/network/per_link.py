@@ -32,7 +32,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from delayform.analysis.network.blas import single_threaded_blas
 from delayform.analysis.network.count import count_right_of, root_radius
-from delayform.analysis.network.discretization import generator_seeds
+from delayform.analysis.network.discretization import band_seeds, generator_seeds
 from delayform.analysis.network.links import LinkTeam, link_team
 from delayform._validation import validated
 from delayform.errors import NotConvergedError
@@ -310,8 +310,8 @@ def _dominant(team: LinkTeam) -> LinkDominantRoot:
     last: tuple[NDArray[np.complex128], NDArray[np.int64]] | None = None
     for attempt in range(4):
         R = root_radius(team, guess)
-        seeds = _upper_seeds(generator_seeds(team, _degree(team, R, attempt), R + 0.5, centre=0.5 * guess,
-                                             nearest=30 + 20 * attempt), guess - 0.5)  # fmt: skip
+        M = _degree(team, R, attempt)
+        seeds = _upper_seeds(generator_seeds(team, M, R + 0.5, nearest=30 + 20 * attempt), guess - 0.5)
         # the rightmost seeds fix the top; the line follows, and only seeds near or right of it are polished
         roots, _ = polish_roots(team, seeds[:_FIRST])
         nonzero = roots != 0.0
@@ -320,9 +320,13 @@ def _dominant(team: LinkTeam) -> LinkDominantRoot:
             continue
         top = float(roots[nonzero].real.max())
         width = (0.1 if attempt == 0 else 0.3) * (1.0 + abs(top))
+        # large teams: the coarse shifts may miss some of a crowded cluster; a band over the
+        # line's whole window (and a little right of the top) is searched for every eigenvalue
+        band = band_seeds(team, M, top - width - _SEED_MARGIN, top + _SEED_MARGIN, root_radius(team, top - width),
+                          nearest=30 + 20 * attempt)  # fmt: skip
+        seeds = _upper_seeds(np.concatenate([seeds, band]), guess - 0.5)
         c = _choose_line(np.concatenate([roots.real, seeds.real, [0.0], poles]), top, width)
-        rest = seeds[_FIRST:]
-        roots, kern = polish_roots(team, np.concatenate([roots, rest[rest.real > c - _SEED_MARGIN]]))
+        roots, kern = polish_roots(team, np.concatenate([roots, seeds[seeds.real > c - _SEED_MARGIN]]))
         nonzero = roots != 0.0
         last = (roots, kern)
         if roots[nonzero].real.max(initial=-np.inf) > top:  # a seed went right of the top: recentre the line
