@@ -3,22 +3,34 @@
 Method
 ------
 1. Seeds: eigenvalues of the Chebyshev-collocated generator of the 2N-state DDE
-   (:mod:`delayform.analysis.network.discretization`).
+   (:mod:`delayform.analysis.network.discretization`), coarse first (a few nodes
+   place the dominant roots to 1e-9 already). Small generators are solved densely;
+   large ones by shift-and-invert Arnoldi along the imaginary axis, then, once the
+   rightmost roots are known, by a band search over the line's window whose shifts
+   advance by the coverage each one proves (``band_seeds``).
 2. Polish: Newton's method on det M(s) itself (:mod:`delayform.analysis.network.links`),
    the step ``1 / tr(M(s)^{-1} M'(s))`` (d log det M / ds), so no determinant is
    ever formed; a root where M has an m-dimensional kernel (symmetric teams give
    repeated roots) takes the step times m, which keeps Newton quadratic there.
-3. Certify: a line Re s = c is placed in a gap left of the dominant root, the
+   The rightmost seeds are polished first; they fix the top and so the line, and
+   only seeds near or right of the line are polished after (an N x N solve a step).
+3. Certify: a line Re s = c is placed in a gap left of the dominant root (within
+   0.1 (1 + |top|) of it on the first attempt, 0.3 (1 + |top|) on retries), the
    roots of det M right of it are counted by the argument principle
    (:mod:`delayform.analysis.network.count`), and the count must equal the sum
    of the *geometric* multiplicities (kernel dimensions of M) of the polished
    roots found there, the persistent zero included. Geometric multiplicity never
-   exceeds algebraic, so equality leaves no room for a missed root right of c.
+   exceeds algebraic, so equality leaves no room for a missed root right of c:
+   the seeds are heuristics (a missed root makes the count larger and the attempt
+   is retried with finer seeds and a wider window), the count is the certificate.
 
-Cost grows with N as the dense or sparse eigen-solve of 2N (M + 1) states for the
-seeds (O(N^3) dense; sparse Arnoldi for large teams), O(N^3) per Newton step and
-per sample of the certificate, and a number of samples growing about linearly
-with N (the phase condition N asin(r) <= pi/2): about O(N^4) for the certificate.
+All of it runs with one BLAS thread (:mod:`delayform.analysis.network.blas`).
+Cost grows with N as the sparse eigen-solves of 2N (M + 1) states for the seeds,
+O(N^3) per Newton step, and, for the certificate, O(N^3) per sample (an N x N
+inverse) times a number of samples that grows slowly with N (the piece rule's
+threshold is N-free; the samples crowd near the roots close to the line, which
+are denser in large teams): measured about N^2.2 from 30 to 200 agents
+(docs/benchmarks.md, "per-link dominant root").
 """
 
 from __future__ import annotations
