@@ -25,7 +25,7 @@ from delayform.analysis.roots.dominant import dominant_root
 from delayform.characteristic import factors
 from delayform.topology import random_digraph
 
-from test_network_per_link import _reference_roots
+from test_network_per_link import _check_against_reference
 
 
 def test_piece_bound_holds_inside_the_piece():
@@ -63,17 +63,7 @@ def test_sparse_seed_path_matches_the_finite_difference_reference(monkeypatch):
     monkeypatch.setattr(disc, "DENSE_STATES", 40)
     rng = np.random.default_rng(11)
     T = random_digraph(5, 0.45, seed=11)
-    C = T.C_sparse.toarray()
-    t1 = rng.uniform(0.1, 1.2, (5, 5))
-    t2 = rng.uniform(0.1, 1.2, (5, 5))
-    P, D = 1.0, 0.8
-    r = link_dominant_root(T, P, D, t1, t2)
-    ref = _reference_roots(C, P, D, t1, t2)
-    ref_right = ref[(ref.real > r.line) & (np.abs(ref) > 1e-9)]
-    ours = r.roots[r.roots != 0]
-    assert ref_right.size == ours.size
-    for z in ref_right:
-        assert np.min(np.abs(ours - z)) < 1e-7
+    _check_against_reference(T, 1.0, 0.8, rng.uniform(0.1, 1.2, (5, 5)), rng.uniform(0.1, 1.2, (5, 5)))
 
 
 def test_band_seeds_cover_the_band(monkeypatch):
