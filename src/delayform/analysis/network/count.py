@@ -240,7 +240,8 @@ def _phase_change(team: LinkTeam, c: float, R: float) -> float | None:
         h = np.diff(y)
         phi_a, phi_b = _phi(norms[:-1], gam, h), _phi(norms[1:], gam, h)
         phi = np.minimum(phi_a, phi_b)
-        bad = ~(phi <= PHI_MAX)
+        valid = np.isfinite(f) & (f != 0.0)  # both ends' f enter the phase: a failed evaluation never passes
+        bad = ~(phi <= PHI_MAX) | ~(valid[:-1] & valid[1:])
         if not bad.any():
             return _sum_pieces(line, y, f, trA, AT, phi_a <= phi_b)
         # split each failing piece into as many parts as its bound asks for (at most 64)
@@ -297,7 +298,7 @@ def _count(team: LinkTeam, c: float) -> int | None:
         return None
     arc = float(np.sum(np.log(1.0 - mu)).imag)
     w = (arc - delta) / math.pi
-    if abs(w - round(w)) > 1e-3:
+    if not math.isfinite(w) or abs(w - round(w)) > 1e-3:
         return None
     poles = int(np.sum(_p_roots(team).real > c))
     return int(round(w)) + team.n * poles

@@ -154,6 +154,23 @@ def band_seeds(team: LinkTeam, M: int, left: float, right: float, height: float,
     cluster; k doubles when the disc does not even span the band) until 0..height
     is covered or :data:`MAX_SHIFTS` is spent. As complete as Arnoldi's convergence;
     the certified count of :mod:`delayform.analysis.network.count` decides.
+
+    Parameters
+    ----------
+    team
+        The team and its per-link delays.
+    M
+        Chebyshev intervals of the collocation.
+    left, right, height
+        The band: ``left <= Re s <= right``, ``0 <= Im s <= height``.
+    nearest
+        Eigenvalues asked of each shift at first (doubled in a crowded band).
+
+    Returns
+    -------
+    NDArray
+        Every eigenvalue found (those of the band and others near it); empty when
+        the generator is small enough for a dense solve.
     """
     if 2 * team.n * (M + 1) <= DENSE_STATES:
         return np.zeros(0, np.complex128)

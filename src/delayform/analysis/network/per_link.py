@@ -29,7 +29,7 @@ Cost grows with N as the sparse eigen-solves of 2N (M + 1) states for the seeds,
 O(N^3) per Newton step, and, for the certificate, O(N^3) per sample (an N x N
 inverse) times a number of samples that grows slowly with N (the piece rule's
 threshold is N-free; the samples crowd near the roots close to the line, which
-are denser in large teams): measured about N^2.2 from 30 to 200 agents
+are denser in large teams): measured about N^2.3 from 30 to 200 agents
 (docs/benchmarks.md, "per-link dominant root").
 """
 
