@@ -4,7 +4,8 @@ Parts
 -----
 1. Per-link dominant root (``link_dominant_root``): the paper's team (goal 20 ms)
    and random sparse teams of 10, 30 and 100 agents with random per-link delays
-   (goal 10 s at 100); the time is split into seeds, Newton and the certified count.
+   (goal 10 s at 100). The growth with N (up to 200 agents), the split into seeds,
+   Newton and the certified count, and the BLAS-thread study: bench_per_link.py.
 2. Box certificate (``robust_stability``) at the paper's points a and b: the
    widest certified half-width (bisection on the certificate) next to the widest
    half-width at which 40 random per-link assignments and the corners are all

@@ -3,22 +3,34 @@
 Method
 ------
 1. Seeds: eigenvalues of the Chebyshev-collocated generator of the 2N-state DDE
-   (:mod:`delayform.analysis.network.discretization`).
+   (:mod:`delayform.analysis.network.discretization`), coarse first (a few nodes
+   place the dominant roots to 1e-9 already). Small generators are solved densely;
+   large ones by shift-and-invert Arnoldi along the imaginary axis, then, once the
+   rightmost roots are known, by a band search over the line's window whose shifts
+   advance by the coverage each one proves (``band_seeds``).
 2. Polish: Newton's method on det M(s) itself (:mod:`delayform.analysis.network.links`),
    the step ``1 / tr(M(s)^{-1} M'(s))`` (d log det M / ds), so no determinant is
    ever formed; a root where M has an m-dimensional kernel (symmetric teams give
    repeated roots) takes the step times m, which keeps Newton quadratic there.
-3. Certify: a line Re s = c is placed in a gap left of the dominant root, the
+   The rightmost seeds are polished first; they fix the top and so the line, and
+   only seeds near or right of the line are polished after (an N x N solve a step).
+3. Certify: a line Re s = c is placed in a gap left of the dominant root (within
+   0.1 (1 + |top|) of it on the first attempt, 0.3 (1 + |top|) on retries), the
    roots of det M right of it are counted by the argument principle
    (:mod:`delayform.analysis.network.count`), and the count must equal the sum
    of the *geometric* multiplicities (kernel dimensions of M) of the polished
    roots found there, the persistent zero included. Geometric multiplicity never
-   exceeds algebraic, so equality leaves no room for a missed root right of c.
+   exceeds algebraic, so equality leaves no room for a missed root right of c:
+   the seeds are heuristics (a missed root makes the count larger and the attempt
+   is retried with finer seeds and a wider window), the count is the certificate.
 
-Cost grows with N as the dense or sparse eigen-solve of 2N (M + 1) states for the
-seeds (O(N^3) dense; sparse Arnoldi for large teams), O(N^3) per Newton step and
-per sample of the certificate, and a number of samples growing about linearly
-with N (the phase condition N asin(r) <= pi/2): about O(N^4) for the certificate.
+All of it runs with one BLAS thread (:mod:`delayform.analysis.network.blas`).
+Cost grows with N as the sparse eigen-solves of 2N (M + 1) states for the seeds,
+O(N^3) per Newton step, and, for the certificate, O(N^3) per sample (an N x N
+inverse) times a number of samples that grows slowly with N (the piece rule's
+threshold is N-free; the samples crowd near the roots close to the line, which
+are denser in large teams): measured about N^2.3 from 30 to 200 agents
+(docs/benchmarks.md, "per-link dominant root").
 """
 
 from __future__ import annotations
@@ -30,8 +42,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from delayform.analysis.network.blas import single_threaded_blas
 from delayform.analysis.network.count import count_right_of, root_radius
-from delayform.analysis.network.discretization import generator_seeds
+from delayform.analysis.network.discretization import band_seeds, generator_seeds
 from delayform.analysis.network.links import LinkTeam, link_team
 from delayform._validation import validated
 from delayform.errors import NotConvergedError
@@ -46,6 +59,12 @@ __all__ = ["LinkDominantRoot", "link_dominant_root", "polish_roots", "link_roots
 _STEP_TOL = 1e-13
 #: Singular values of M(s) below this times the largest count towards the kernel.
 _KERNEL_TOL = 1e-7
+#: The rightmost seeds polished first (they fix the top and so the line).
+_FIRST = 8
+#: Seeds this far left of the line are still polished (a seed may sit a little off its root).
+_SEED_MARGIN = 0.1
+#: A seed whose last Newton step is below this times (1 + |s|) is near a (repeated) root.
+_SLOW_TOL = 1e-5
 
 
 @validated()
@@ -113,10 +132,11 @@ class LinkDominantRoot:
 
 
 def _newton(team: LinkTeam, s: NDArray[np.complex128], mult: NDArray[np.float64], steps: int) -> tuple[
-    NDArray[np.complex128], NDArray[np.bool_]
+    NDArray[np.complex128], NDArray[np.bool_], NDArray[np.float64]
 ]:  # fmt: skip
-    """Newton on det M at every point together; returns the points and which ones converged."""
+    """Newton on det M at every point together; the points, which ones converged, and each last step."""
     done = np.zeros(s.shape, dtype=bool)
+    last = np.full(s.shape, np.inf)
     s = s.copy()
     for _ in range(steps):
         act = np.flatnonzero(~done)
@@ -133,8 +153,9 @@ def _newton(team: LinkTeam, s: NDArray[np.complex128], mult: NDArray[np.float64]
             step = mult[act] / tr
         step = np.where(np.isfinite(step), step, 0.0)
         s[act] = sa - step
+        last[act] = np.abs(step)
         done[act] = np.abs(step) <= _STEP_TOL * (1.0 + np.abs(sa))
-    return s, done
+    return s, done, last
 
 
 def _safe_trace(M: NDArray[np.complex128], Md: NDArray[np.complex128]) -> complex:
@@ -147,6 +168,14 @@ def _safe_trace(M: NDArray[np.complex128], Md: NDArray[np.complex128]) -> comple
 def _kernel_dimension(team: LinkTeam, s: NDArray[np.complex128]) -> NDArray[np.int64]:
     sv = np.linalg.svd(team.matrix(s), compute_uv=False)
     return np.sum(sv <= _KERNEL_TOL * sv[:, :1], axis=1).astype(np.int64)
+
+
+def _tidy(s: NDArray[np.complex128]) -> NDArray[np.complex128]:
+    """Real roots made real, the persistent zero snapped to 0, Im >= 0 kept, duplicates merged."""
+    s = np.where(np.abs(s.imag) < 1e-10 * (1.0 + np.abs(s)), s.real + 0j, s)
+    # s = 0 is an exact root (M(0) = P (I - C)); as a double root (the drift) Newton reaches it only to ~1e-8
+    s = np.where(np.abs(s) < 1e-6, 0j, s)
+    return _distinct(s[s.imag >= 0.0])
 
 
 def polish_roots(team: LinkTeam, seeds: ArrayLike) -> tuple[NDArray[np.complex128], NDArray[np.int64]]:
@@ -167,20 +196,23 @@ def polish_roots(team: LinkTeam, seeds: ArrayLike) -> tuple[NDArray[np.complex12
     """
     s0 = np.asarray(seeds, dtype=np.complex128).ravel()
     s0 = np.where(s0.imag < 0, s0.conj(), s0)
-    s, ok = _newton(team, s0, np.ones(s0.size), 40)
-    s = s[ok]
-    # repeated roots: Newton times the kernel dimension, then a few more steps
-    if s.size:
-        m = np.maximum(_kernel_dimension(team, s), 1).astype(np.float64)
-        if np.any(m > 1):
-            s, ok2 = _newton(team, s, m, 20)
-            s = s[ok2]
-    s = np.where(np.abs(s.imag) < 1e-10 * (1.0 + np.abs(s)), s.real + 0j, s)
-    # s = 0 is an exact root (M(0) = P (I - C)); as a double root (the drift) Newton reaches it only to ~1e-8
-    s = np.where(np.abs(s) < 1e-6, 0j, s)
-    s = s[s.imag >= 0.0]
-    roots = _distinct(s)
-    return roots, _kernel_dimension(team, roots) if roots.size else np.zeros(0, np.int64)
+    with single_threaded_blas():
+        s, ok, last = _newton(team, s0, np.ones(s0.size), 40)
+        # a repeated root (symmetric teams) draws Newton in only linearly: kept while its steps are small,
+        # then Newton times the kernel dimension finishes it quadratically
+        slow = ~ok & (last < _SLOW_TOL * (1.0 + np.abs(s)))
+        roots = _tidy(s[ok | slow])
+        if not roots.size:
+            return roots, np.zeros(0, np.int64)
+        m = np.maximum(_kernel_dimension(team, roots), 1)
+        if np.any(m > 1) or slow.any():
+            again = (m > 1) | np.isin(roots, s[slow])
+            r2, ok2, _ = _newton(team, roots[again], m[again].astype(np.float64), 20)
+            roots = _tidy(np.concatenate([roots[~again], r2[ok2]]))
+            if not roots.size:
+                return roots, np.zeros(0, np.int64)
+            m = _kernel_dimension(team, roots)
+        return roots, m
 
 
 def _distinct(s: NDArray[np.complex128]) -> NDArray[np.complex128]:
@@ -191,14 +223,14 @@ def _distinct(s: NDArray[np.complex128]) -> NDArray[np.complex128]:
     return np.array(out, dtype=np.complex128)
 
 
-def _choose_line(reals: NDArray[np.float64], top: float) -> float:
+def _choose_line(reals: NDArray[np.float64], top: float, width: float) -> float:
     """A line Re s = c left of ``top``, as far as possible from every known real part (0 among them).
 
-    The line is sought in (top - 0.3 (1 + |top|), top): the widest gap there, or
-    the window's left end when that is farther from every root; far from roots
-    the certificate needs fewer samples.
+    The line is sought in (top - width, top): the widest gap there, or the window's
+    left end when that is farther from every root; far from roots the certificate
+    needs fewer samples, and a narrow window leaves fewer roots to find right of it.
     """
-    lo = top - 0.3 * (1.0 + abs(top))
+    lo = top - width
     near = np.sort(np.unique(np.concatenate([reals[(reals > lo) & (reals < top)], [top]])))
     cands = np.concatenate([0.5 * (near[1:] + near[:-1]), [lo]])
     dist = np.min(np.abs(cands[:, None] - reals[None, :]), axis=1)
@@ -212,14 +244,21 @@ def link_roots_right_of(team: LinkTeam, c: float, *, degree: int | None = None) 
     """
     R = root_radius(team, c)
     M = degree or _degree(team, R)
-    seeds = generator_seeds(team, M, 1.5 * R)
-    roots, _ = polish_roots(team, seeds[seeds.real > c - 0.5])
+    with single_threaded_blas():
+        seeds = generator_seeds(team, M, 1.5 * R)
+        roots, _ = polish_roots(team, seeds[seeds.real > c - 0.5])
     return roots[roots.real > c]
 
 
 def _degree(team: LinkTeam, radius: float, attempt: int = 1) -> int:
-    # the collocation resolves e^{-tau s} for |s| tau up to about M: seeds need only reach
-    # Newton's basin, so the first attempt is coarse and later ones finer
+    """Chebyshev intervals of the seeds' collocation: coarse first, finer on each retry.
+
+    The collocation resolves e^{-tau s} for |s| tau up to about M, and seeds need only
+    reach Newton's basin (at 100 agents, M = 6 already places the dominant roots to 1e-9),
+    so the first attempt is coarse; a root it misses shows in the certified count.
+    """
+    if attempt == 0:
+        return int(np.clip(math.ceil(0.5 * team.max_delay * radius) + 5, 6, 160))
     return int(np.clip(math.ceil((0.8 + 0.7 * attempt) * team.max_delay * radius) + 8, 8, 160))
 
 
@@ -259,23 +298,52 @@ def link_dominant_root(topology: Topology, P: float, D: float, tau1: ArrayLike, 
 
 def dominant_of_team(team: LinkTeam) -> LinkDominantRoot:
     """:func:`link_dominant_root` of an already checked :class:`LinkTeam`."""
+    with single_threaded_blas():
+        return _dominant(team)
+
+
+def _upper_seeds(seeds: NDArray[np.complex128], left: float) -> NDArray[np.complex128]:
+    """Seeds with Im >= 0 right of ``left``, rightmost first, near-duplicates (overlapping shifts) merged."""
+    s = seeds[(seeds.imag >= 0.0) & (seeds.real > left)]
+    s = s[np.argsort(-s.real, kind="stable")]
+    if s.size < 2:
+        return s
+    # Arnoldi at neighbouring shifts returns the same eigenvalue twice; a seed within 1e-6 of a kept one adds nothing
+    key = np.round(s.real * 1e6) + 1j * np.round(s.imag * 1e6)
+    _, first = np.unique(key, return_index=True)
+    return s[np.sort(first)]
+
+
+def _dominant(team: LinkTeam) -> LinkDominantRoot:
+    """Seeds, a line, Newton on the seeds that matter, the certified count (module docstring)."""
     zero_mult = team.zero_multiplicity()
+    poles = np.roots([1.0, team.D, team.P]).real  # the zeros of p: poles of det(I - K/p), kept off the line
     guess = -0.5
     last: tuple[NDArray[np.complex128], NDArray[np.int64]] | None = None
     for attempt in range(4):
         R = root_radius(team, guess)
         M = _degree(team, R, attempt)
-        seeds = generator_seeds(team, M, 1.5 * R)
-        roots, kern = polish_roots(team, seeds[seeds.real > guess - 0.5])
+        seeds = _upper_seeds(generator_seeds(team, M, R + 0.5, nearest=30 + 20 * attempt), guess - 0.5)
+        # the rightmost seeds fix the top; the line follows, and only seeds near or right of it are polished
+        roots, _ = polish_roots(team, seeds[:_FIRST])
         nonzero = roots != 0.0
         if not nonzero.any():
             guess -= 1.0
             continue
-        last = (roots, kern)
         top = float(roots[nonzero].real.max())
-        # away from the roots found, from 0, and from the zeros of p (the poles of det(I - K/p))
-        poles = np.roots([1.0, team.D, team.P]).real
-        c = _choose_line(np.concatenate([roots.real, [0.0], poles]), top)
+        width = (0.1 if attempt == 0 else 0.3) * (1.0 + abs(top))
+        # large teams: the coarse shifts may miss some of a crowded cluster; a band over the
+        # line's whole window (and a little right of the top) is searched for every eigenvalue
+        band = band_seeds(team, M, top - width - _SEED_MARGIN, top + _SEED_MARGIN, root_radius(team, top - width),
+                          nearest=30 + 20 * attempt)  # fmt: skip
+        seeds = _upper_seeds(np.concatenate([seeds, band]), guess - 0.5)
+        c = _choose_line(np.concatenate([roots.real, seeds.real, [0.0], poles]), top, width)
+        roots, kern = polish_roots(team, np.concatenate([roots, seeds[seeds.real > c - _SEED_MARGIN]]))
+        nonzero = roots != 0.0
+        last = (roots, kern)
+        if roots[nonzero].real.max(initial=-np.inf) > top:  # a seed went right of the top: recentre the line
+            top = float(roots[nonzero].real.max())
+            c = _choose_line(np.concatenate([roots.real, seeds.real, [0.0], poles]), top, width)
         count = count_right_of(team, c)
         right = roots.real > c
         weight = np.where(roots.imag > 0.0, 2, 1)  # a conjugate pair counts twice
