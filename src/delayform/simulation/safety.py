@@ -238,7 +238,8 @@ def barrier_commands(
     if squeezed.any():
         joint, cluster = _joint_qp(pairs, dp, c, u_hat, squeezed, bad_i | bad_j)
         u[cluster] = joint[cluster]
-        active = np.abs(u - u_hat).max(axis=1) > 0.0
+        # the interior point leaves a robot no constraint binds at u_hat to its own rounding
+        active = np.abs(u - u_hat).max(axis=1) > _FEASIBLE * (1.0 + np.abs(u_hat).max(axis=1))
     return u, active, squeezed
 
 
