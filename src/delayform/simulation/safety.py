@@ -74,6 +74,7 @@ from numpy.typing import NDArray
 
 from delayform._validation import validated
 from delayform.errors import SimulationInputError
+from delayform.simulation.bodies import _complex
 
 __all__ = ["SAFETY_FILTERS", "BarrierFilter", "FilteredAgent", "SafetyReport", "barrier_commands", "check_safety"]
 
@@ -217,19 +218,20 @@ def barrier_commands(
     if n < 2 or pairs.shape[0] == 0:
         return u_hat, np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
     i, j = pairs[:, 0], pairs[:, 1]
-    dp, dv = x[i] - x[j], v[i] - v[j]
-    d = np.maximum(np.hypot(dp[:, 0], dp[:, 1]), 1e-12)
-    nx, ny = dp[:, 0] / d, dp[:, 1] / d  # (1, 0) for robots on the same spot: any direction will do
-    nx = np.where(d > 1e-12, nx, 1.0)
-    dvx, dvy = dv[:, 0], dv[:, 1]
-    along = nx * dvx + ny * dvy
-    c = (dvx * dvx + dvy * dvy - along * along) / d + 2.0 * rate * along + rate * rate * (d - safe)
+    # x + iy: fewer, larger NumPy calls (this runs at every RK4 stage)
+    z, w, q = _complex(x), _complex(v), _complex(u_hat)
+    dz, dw = z[i] - z[j], w[i] - w[j]
+    d = np.abs(dz)
+    apart = d > 1e-12
+    normal = np.where(apart, dz / np.where(apart, d, 1.0), 1.0)  # (1, 0) for robots on the same spot: any will do
+    d = np.maximum(d, 1e-12)
+    back = normal.conjugate()
+    along = (back * dw).real
+    c = ((dw.real**2 + dw.imag**2) - along * along) / d + 2.0 * rate * along + rate * rate * (d - safe)
     half = 0.5 * c
     # robot i: -n.u_i <= c / 2; robot j: +n.u_j <= c / 2
-    ui, uj = u_hat[i], u_hat[j]
-    push_i = nx * ui[:, 0] + ny * ui[:, 1]
-    push_j = nx * uj[:, 0] + ny * uj[:, 1]
-    dp = np.column_stack([nx, ny])  # from here on the constraints' normal
+    push_i, push_j = (back * q[i]).real, (back * q[j]).real
+    dp = np.column_stack([normal.real, normal.imag])  # from here on the constraints' normal
     tol = _FEASIBLE * (1.0 + np.abs(half))
     bad_i, bad_j = half + push_i < -tol, half - push_j < -tol
     if not (bad_i.any() or bad_j.any()):
@@ -485,13 +487,16 @@ class FilteredAgent:
 
     def rhs(self, state: _Array, u: _Array) -> tuple[_Array, _Array, tuple[_Array, ...]]:
         x, v = state[:, :2], self.agent.velocity(state)
-        need = self.neighbours.need(v, u)
-        while True:
-            pairs = self.neighbours(x, need)
-            filtered, active, infeasible = barrier_commands(x, v, u, self.safe, self.safety.rate, pairs)
-            need = self.neighbours.need(v, u, filtered)
-            if self.neighbours.covers(x, need):  # else a pair left out might bind: again, with more pairs
-                break
+        nb = self.neighbours
+        if nb.n <= _ALL_PAIRS:  # small teams: every pair
+            filtered, active, infeasible = barrier_commands(x, v, u, self.safe, self.safety.rate, nb.pairs)
+        else:
+            need = nb.need(v, u)
+            while True:
+                filtered, active, infeasible = barrier_commands(x, v, u, self.safe, self.safety.rate, nb(x, need))
+                need = nb.need(v, u, filtered)
+                if nb.covers(x, need):  # else a pair left out might bind: again, with more pairs
+                    break
         deriv, cart, extra = self.agent.rhs(state, filtered)
         return deriv, cart, tuple(extra) + (active.astype(float), infeasible.astype(float))
 
