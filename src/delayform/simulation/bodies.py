@@ -369,13 +369,13 @@ def closest_approach(
     reach = _reach(positions, velocities, h_all)
     search = _Search(times, h_all, R)
     if n <= _ALL_PAIRS:
-        search.blocks(positions, velocities, reach, _pairs_all(n))
+        search.blocks(0, positions, velocities, reach, _pairs_all(n))
     else:  # short stretches keep the KD-tree radii tight
         for k0 in range(0, T - 1, _STRETCH):
             k1 = min(T - 1, k0 + _STRETCH)  # samples k0..k1, intervals k0..k1-1
             pairs = _pairs_near(positions[k0 : k1 + 1], reach[k0:k1].max(axis=0), search.threshold)
             if pairs.shape[0]:
-                search.stretch(k0, positions[k0 : k1 + 1], velocities[k0 : k1 + 1], reach[k0:k1], pairs)
+                search.blocks(k0, positions[k0 : k1 + 1], velocities[k0 : k1 + 1], reach[k0:k1], pairs)
     search.finish()
     contacts = _contacts(times, search.hits, R) if search.hits else ()
     return Approach(math.sqrt(search.best2), search.best_at, search.best_pair, contacts)
@@ -417,32 +417,14 @@ class _Search:
         """Intervals that may come closer than this matter: the best so far, or a contact."""
         return max(math.sqrt(self.best2), self.R) if self.best2 < math.inf else math.inf
 
-    def stretch(self, k0: int, frames: _Array, vel: _Array, reach: _Array, pairs: _Index) -> None:
-        """Samples ``k0 .. k0 + len(frames) - 1`` of the candidate ``pairs``."""
-        i, j = pairs[:, 0], pairs[:, 1]
-        # x + iy: one gather and one subtraction per pair and sample, not two of each
-        z = _complex(frames)
-        dz = z[:, i] - z[:, j]
-        dist = np.abs(dz)
-        flat = int(np.argmin(dist))
-        if dist.flat[flat] ** 2 < self.best2:
-            kk, pp = divmod(flat, pairs.shape[0])
-            self.best2, self.best_at = float(dist.flat[flat] ** 2), float(self.times[k0 + kk])
-            self.best_pair = (int(i[pp]), int(j[pp]))
-        # |d(s)| >= max(|d_k|, |d_k+1|) - reach_i - reach_j on interval k (_reach)
-        bound = np.maximum(dist[:-1], dist[1:]) - reach[:, i] - reach[:, j]
-        kc, pc = np.nonzero(bound < self.threshold)
-        if kc.size:
-            self._keep(k0, kc, i[pc], j[pc], bound[kc, pc], dz[kc, pc], dz[kc + 1, pc], _complex(vel))
-
     def _keep(self, k0: int, k: _Index, i: _Index, j: _Index, bound: _Array, z0: _Array, z1: _Array,
               w: _Array) -> None:  # fmt: skip
         """Keep intervals ``k0 + k`` of pairs ``(i, j)`` (separations z0, z1; velocities w from k0 on) for :meth:`finish`."""
         w0, w1 = w[k, i] - w[k, j], w[k + 1, i] - w[k + 1, j]
         self.found.append((k0 + k, i, j, bound, z0, z1, w0, w1))
 
-    def blocks(self, positions: _Array, velocities: _Array, reach: _Array, pairs: _Index) -> None:
-        """The whole run of a small team, pruned block by block before any interval is looked at.
+    def blocks(self, k0: int, positions: _Array, velocities: _Array, reach: _Array, pairs: _Index) -> None:
+        """Samples ``k0 ..`` of the candidate ``pairs``, pruned block by block before any interval is looked at.
 
         On a block of :data:`_BLOCK` intervals every robot stays within
         ``spread`` of its position at the block's first sample (its samples'
@@ -459,7 +441,7 @@ class _Search:
         spread = np.maximum(spread, np.abs(z[ends] - z[starts])) + np.maximum.reduceat(reach, starts, axis=0)
         i, j = pairs[:, 0], pairs[:, 1]
         first = np.abs(z[starts][:, i] - z[starts][:, j])
-        self._sample_best(first.ravel(), np.repeat(starts, i.size), np.tile(i, starts.size), np.tile(j, starts.size))
+        self._sample_best(first.ravel(), k0 + np.repeat(starts, i.size), np.tile(i, starts.size), np.tile(j, starts.size))
         b, p = np.nonzero(first - spread[:, i] - spread[:, j] < self.threshold)
         chunk = max(1, _CHUNK_ENTRIES // _BLOCK)
         for c in range(0, b.size, chunk):
@@ -471,12 +453,12 @@ class _Search:
             ii, jj = i[pp], j[pp]
             z0, z1 = z[k, ii] - z[k, jj], z[k + 1, ii] - z[k + 1, jj]
             d0, d1 = np.abs(z0), np.abs(z1)
-            self._sample_best(d0, k, ii, jj)
-            self._sample_best(d1, k + 1, ii, jj)
+            self._sample_best(d0, k0 + k, ii, jj)
+            self._sample_best(d1, k0 + k + 1, ii, jj)
             bound = np.maximum(d0, d1) - reach[k, ii] - reach[k, jj]
             near = np.flatnonzero(bound < self.threshold)
             if near.size:
-                self._keep(0, k[near], ii[near], jj[near], bound[near], z0[near], z1[near], w)
+                self._keep(k0, k[near], ii[near], jj[near], bound[near], z0[near], z1[near], w)
 
     def _sample_best(self, dist: _Array, k: _Index, i: _Index, j: _Index) -> None:
         """The closest saved sample so far, from the distances of pairs ``(i, j)`` at samples ``k``."""
