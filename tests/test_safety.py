@@ -237,3 +237,21 @@ def test_the_neighbour_list_keeps_every_pair_that_can_bind():
         assert agent.neighbours.pairs.shape[0] < n * (n - 1) // 2  # the list did leave pairs out
         assert np.allclose(cart, ref, rtol=0, atol=1e-9) and np.array_equal(extra[-2] > 0.5, active)
         assert active.sum() >= 5
+
+
+@pytest.mark.parametrize("tau", [(0.3, 0.2), (2.0, 1.0)], ids=["point a", "point b"])
+def test_small_teams_linear_path_with_the_filter_is_the_generic_loop(tau, monkeypatch):
+    """The blocked linear path where the filter is idle (simulation.filtered) against the generic
+    RK4 loop filtering every stage: same motion to rounding, same steps at which the filter acted."""
+    import delayform.simulation.runner as runner
+
+    z = named_formation("hexagon", 6, spacing=2.0)
+    kw = dict(duration=40.0, dt=0.02, safety="barrier")
+    fast = simulate(paper_six(), 1.0, 0.5, *tau, z, **kw)
+    monkeypatch.setattr(runner, "integrate_filtered", lambda *a, **k: None)  # the generic loop
+    slow = simulate(paper_six(), 1.0, 0.5, *tau, z, **kw)
+    assert fast.safety.was_active and fast.safety.infeasible.any()  # both kinds of filtered step happened
+    assert np.abs(fast.positions - slow.positions).max() < 1e-9
+    assert np.array_equal(fast.safety.active, slow.safety.active)
+    assert np.array_equal(fast.safety.infeasible, slow.safety.infeasible)
+    assert fast.status == slow.status and not fast.contacts

@@ -190,6 +190,42 @@ class _Neighbours:
         return self.pairs
 
 
+def _pair_terms(
+    x: _Array, v: _Array, u_hat: _Array, pairs: NDArray[np.intp], safe: float, rate: float
+) -> tuple[NDArray[np.complex128], _Array, NDArray[np.bool_], NDArray[np.bool_]]:
+    """Every pair's unit normal (as x + iy), bound ``c`` and whether ``u_hat`` breaks robot i's / j's half.
+
+    ``x, v, u_hat`` are ``(..., n, 2)``: leading axes are a batch of team states
+    (:func:`binds`), the results ``(..., p)``.
+    """
+    i, j = pairs[:, 0], pairs[:, 1]
+    # x + iy: fewer, larger NumPy calls (this runs at every RK4 stage)
+    z, w, q = _complex(x), _complex(v), _complex(u_hat)
+    dz, dw = z[..., i] - z[..., j], w[..., i] - w[..., j]
+    d = np.abs(dz)
+    apart = d > 1e-12
+    normal = np.where(apart, dz / np.where(apart, d, 1.0), 1.0)  # (1, 0) for robots on the same spot: any will do
+    d = np.maximum(d, 1e-12)
+    back = normal.conjugate()
+    along = (back * dw).real
+    c = ((dw.real**2 + dw.imag**2) - along * along) / d + 2.0 * rate * along + rate * rate * (d - safe)
+    half = 0.5 * c
+    # robot i: -n.u_i <= c / 2; robot j: +n.u_j <= c / 2
+    push_i, push_j = (back * q[..., i]).real, (back * q[..., j]).real
+    tol = _FEASIBLE * (1.0 + np.abs(half))
+    return normal, c, half + push_i < -tol, half - push_j < -tol
+
+
+def binds(x: _Array, v: _Array, u_hat: _Array, safe: float, rate: float, pairs: NDArray[np.intp]) -> NDArray[np.bool_]:
+    """For a batch of team states ``(..., n, 2)``: whether the filter would change any command (``(...,)``).
+
+    The same test as :func:`barrier_commands` makes before it solves anything:
+    where it is False the filtered command is ``u_hat`` exactly.
+    """
+    _, _, bad_i, bad_j = _pair_terms(x, v, u_hat, pairs, safe, rate)
+    return (bad_i | bad_j).any(axis=-1)
+
+
 def barrier_commands(
     x: _Array, v: _Array, u_hat: _Array, safe: float, rate: float, pairs: NDArray[np.intp] | None = None
 ) -> tuple[_Array, NDArray[np.bool_], NDArray[np.bool_]]:
@@ -217,25 +253,11 @@ def barrier_commands(
         pairs = np.column_stack(np.triu_indices(n, k=1)).astype(np.intp)
     if n < 2 or pairs.shape[0] == 0:
         return u_hat, np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
-    i, j = pairs[:, 0], pairs[:, 1]
-    # x + iy: fewer, larger NumPy calls (this runs at every RK4 stage)
-    z, w, q = _complex(x), _complex(v), _complex(u_hat)
-    dz, dw = z[i] - z[j], w[i] - w[j]
-    d = np.abs(dz)
-    apart = d > 1e-12
-    normal = np.where(apart, dz / np.where(apart, d, 1.0), 1.0)  # (1, 0) for robots on the same spot: any will do
-    d = np.maximum(d, 1e-12)
-    back = normal.conjugate()
-    along = (back * dw).real
-    c = ((dw.real**2 + dw.imag**2) - along * along) / d + 2.0 * rate * along + rate * rate * (d - safe)
-    half = 0.5 * c
-    # robot i: -n.u_i <= c / 2; robot j: +n.u_j <= c / 2
-    push_i, push_j = (back * q[i]).real, (back * q[j]).real
-    dp = np.column_stack([normal.real, normal.imag])  # from here on the constraints' normal
-    tol = _FEASIBLE * (1.0 + np.abs(half))
-    bad_i, bad_j = half + push_i < -tol, half - push_j < -tol
+    normal, c, bad_i, bad_j = _pair_terms(x, v, u_hat, pairs, safe, rate)
     if not (bad_i.any() or bad_j.any()):
         return u_hat, np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
+    half = 0.5 * c
+    dp = np.column_stack([normal.real, normal.imag])  # from here on the constraints' normal
     u, active, squeezed = _solve_polygons(pairs, dp, half, u_hat, bad_i, bad_j)
     if squeezed.any():
         joint, cluster = _joint_qp(pairs, dp, c, u_hat, squeezed, bad_i | bad_j)
