@@ -61,8 +61,12 @@ _ALL_PAIRS = 64
 #: about this many (interval x pair) entries are handled at once
 _CHUNK_ENTRIES = 400_000
 
-#: samples per stretch (one KD-tree each) in teams above _ALL_PAIRS robots
-_STRETCH = 16
+#: intervals per stretch (one KD-tree each) in teams above _ALL_PAIRS robots: at least, at most
+_STRETCH = 8
+_LONGEST = 512
+
+#: a stretch ends when the fastest robots could have strayed this far (m) in it
+_STRAY = 0.5
 
 #: intervals per block of the small teams' first pruning (:meth:`_Search.blocks`)
 _BLOCK = 32
@@ -370,15 +374,33 @@ def closest_approach(
     search = _Search(times, h_all, R)
     if n <= _ALL_PAIRS:
         search.blocks(0, positions, velocities, reach, _pairs_all(n))
-    else:  # short stretches keep the KD-tree radii tight
-        for k0 in range(0, T - 1, _STRETCH):
-            k1 = min(T - 1, k0 + _STRETCH)  # samples k0..k1, intervals k0..k1-1
+    else:  # stretches in which no robot strays far keep the KD-tree radii tight
+        for k0, k1 in _stretches(reach):  # samples k0..k1, intervals k0..k1-1
             pairs = _pairs_near(positions[k0 : k1 + 1], reach[k0:k1].max(axis=0), search.threshold)
             if pairs.shape[0]:
                 search.blocks(k0, positions[k0 : k1 + 1], velocities[k0 : k1 + 1], reach[k0:k1], pairs)
     search.finish()
     contacts = _contacts(times, search.hits, R) if search.hits else ()
     return Approach(math.sqrt(search.best2), search.best_at, search.best_pair, contacts)
+
+
+def _stretches(reach: _Array) -> list[tuple[int, int]]:
+    """Stretches of samples ``(k0, k1)`` for the KD-tree search of large teams.
+
+    A stretch ends once the fastest robots' strays (:func:`_reach`) add up
+    to :data:`_STRAY` m since its start, but runs at least :data:`_STRETCH`
+    and at most :data:`_LONGEST` intervals: short while the team moves, long
+    once it has settled, so a settled team costs a few KD-trees, not one per
+    sixteen samples.
+    """
+    cum = np.concatenate([[0.0], np.cumsum(reach.max(axis=1))])
+    out, k0, T1 = [], 0, reach.shape[0]
+    while k0 < T1:
+        k1 = int(np.searchsorted(cum, cum[k0] + _STRAY, side="right")) - 1
+        k1 = min(T1, max(k0 + _STRETCH, min(k1, k0 + _LONGEST)))
+        out.append((k0, k1))
+        k0 = k1
+    return out
 
 
 def _reach(positions: _Array, velocities: _Array, h: _Array) -> _Array:
