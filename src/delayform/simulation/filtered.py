@@ -110,10 +110,36 @@ def integrate_filtered(
 ) -> Samples | None:  # fmt: skip
     """Filtered double integrators in a small team (module doc); None where the linear path does not apply.
 
-    ``safe`` and ``rate`` are the filter's distance Ds and k
-    (:class:`~delayform.simulation.safety.BarrierFilter`). The saved extras
-    ``safety_active`` and ``safety_infeasible`` are the filter's stage-1
-    flags, as in the generic loop.
+    Parameters
+    ----------
+    x0, v0
+        ``(n, 2)`` initial positions and velocities (the constant history).
+    C
+        ``(n, n)`` dense weight matrix (eq. protocol).
+    F
+        ``(n, 2)`` forcing of eq. formation.
+    P, D
+        Gains of eq. protocol.
+    tau1, tau2
+        Effective delays (s) on positions and velocities.
+    dt
+        Fixed RK4 step (s).
+    steps
+        Number of steps.
+    save_every
+        Save every this many steps (and the last).
+    safe, rate
+        The filter's distance Ds (m) and its k (1/s)
+        (:class:`~delayform.simulation.safety.BarrierFilter`).
+    progress
+        Called with (steps done, steps in all) every 1000 steps when given.
+
+    Returns
+    -------
+    Samples or None
+        As the generic loop's, with extras ``safety_active`` and
+        ``safety_infeasible`` (the filter's stage-1 flags); None when stage 1
+        would read the current step's acceleration (the generic loop then runs).
     """
     n = F.shape[0]
     look1, look2 = _lookups(tau1, tau2, dt)
