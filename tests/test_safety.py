@@ -176,3 +176,82 @@ def test_cli_safety_filter_reports_its_cost_and_the_scenario_key(tmp_path):
     again = tmp_path / "again.toml"
     again.write_text(scenario_toml(sc))
     assert load_scenario(again).robot_spec == sc.robot_spec
+
+
+def _halves(x, v, r, safe, k):
+    """Robot r's half of every pair's constraint, built from the formula (module doc)."""
+    rows, rhs = [], []
+    for o in range(x.shape[0]):
+        if o != r:
+            a, c = _pair_constraint(x, v, r, o, safe, k)
+            rows.append(a)
+            rhs.append(c / 2)
+    return np.array(rows), np.array(rhs)
+
+
+def test_many_sided_polygons_and_clusters_against_clarabel():
+    """Crowds of 30-60 robots, each facing up to tens of sides: a free robot's command is Clarabel's
+    over all its halves; with squeezed robots (their clusters' joint QP) every pair's constraint holds."""
+    rng = np.random.default_rng(11)
+    safe, k = 0.36, 2.0
+    checked = squeezed_runs = most_sides = 0
+    for trial in range(6):
+        n = int(rng.integers(30, 50))
+        cells = np.array([(a, b) for a in range(7) for b in range(7)], dtype=float)[rng.permutation(49)[:n]]
+        x = (8.0 / 7.0) * cells + rng.uniform(-0.2, 0.2, (n, 2))  # apart, about 1.1 m from each other
+        v = rng.normal(scale=1.0 if trial % 2 else 0.3, size=(n, 2))
+        u_hat = rng.normal(scale=10.0 if trial % 2 else 4.0, size=(n, 2))
+        u, active, infeasible = barrier_commands(x, v, u_hat, safe, k)
+        for r, o in zip(*np.triu_indices(n, k=1)):
+            a, c = _pair_constraint(x, v, r, o, safe, k)
+            assert a @ (u[r] - u[o]) <= c + 1e-6 * (1 + abs(c))
+        assert np.array_equal(np.abs(u - u_hat).max(axis=1) > 1e-9 * (1 + np.abs(u_hat).max(axis=1)), active)
+        if infeasible.any():
+            squeezed_runs += 1
+            continue
+        for r in np.flatnonzero(active):
+            A, b = _halves(x, v, r, safe, k)
+            most_sides = max(most_sides, int((A @ u_hat[r] > b).sum()))
+            ref = _clarabel_qp(u_hat[r], A, b)
+            assert np.allclose(u[r], ref, atol=1e-6 * (1 + np.abs(ref).max())), (r, u[r], ref)
+            checked += 1
+    assert checked > 50 and squeezed_runs > 0 and most_sides >= 6, (checked, squeezed_runs, most_sides)
+
+
+def test_the_neighbour_list_keeps_every_pair_that_can_bind():
+    """Above 64 robots the KD-tree's pairs give the all-pairs filter's commands exactly."""
+    from delayform.simulation.robots import DoubleIntegrator
+    from delayform.simulation.safety import FilteredAgent
+
+    rng = np.random.default_rng(5)
+    n = 90
+    x = np.concatenate([rng.uniform(-25.0, 25.0, (n - 20, 2)), rng.uniform(-2.0, 2.0, (20, 2))])  # a crowd inside
+    v = rng.normal(scale=0.5, size=(n, 2))
+    agent = FilteredAgent(DoubleIntegrator(x, v), BarrierFilter(), R)
+    for step in range(4):
+        xs = x + 0.3 * step * v
+        u_hat = rng.normal(scale=2.0, size=(n, 2))
+        state = np.column_stack([xs, v])
+        _, cart, extra = agent.rhs(state, u_hat)
+        ref, active, _ = barrier_commands(xs, v, u_hat, agent.safe, 2.0)
+        assert agent.neighbours.pairs.shape[0] < n * (n - 1) // 2  # the list did leave pairs out
+        assert np.allclose(cart, ref, rtol=0, atol=1e-9) and np.array_equal(extra[-2] > 0.5, active)
+        assert active.sum() >= 5
+
+
+@pytest.mark.parametrize("tau", [(0.3, 0.2), (2.0, 1.0)], ids=["point a", "point b"])
+def test_small_teams_linear_path_with_the_filter_is_the_generic_loop(tau, monkeypatch):
+    """The blocked linear path where the filter is idle (simulation.filtered) against the generic
+    RK4 loop filtering every stage: same motion to rounding, same steps at which the filter acted."""
+    import delayform.simulation.runner as runner
+
+    z = named_formation("hexagon", 6, spacing=2.0)
+    kw = dict(duration=40.0, dt=0.02, safety="barrier")
+    fast = simulate(paper_six(), 1.0, 0.5, *tau, z, **kw)
+    monkeypatch.setattr(runner, "integrate_filtered", lambda *a, **k: None)  # the generic loop
+    slow = simulate(paper_six(), 1.0, 0.5, *tau, z, **kw)
+    assert fast.safety.was_active and fast.safety.infeasible.any()  # both kinds of filtered step happened
+    assert np.abs(fast.positions - slow.positions).max() < 1e-9
+    assert np.array_equal(fast.safety.active, slow.safety.active)
+    assert np.array_equal(fast.safety.infeasible, slow.safety.infeasible)
+    assert fast.status == slow.status and not fast.contacts

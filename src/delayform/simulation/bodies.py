@@ -23,14 +23,20 @@ steps too, not just the minimum over saved samples (which it never exceeds).
 
 Pruning
 -------
-Only intervals that could come close are solved: on ``[0, 1]``,
-``|d(s)| >= |a0| - |a1| - |a2| - |a3|``, so an interval whose bound is above
-both the best distance found so far and ``R`` cannot matter. Small teams
-(at most :data:`_ALL_PAIRS` robots) test all pairs; larger teams take the
+Only intervals that could come close are solved: on an interval every
+robot stays within ``reach`` of both its end samples (:func:`_reach`), so
+``|d(s)| >= max(|d_k|, |d_k+1|) - reach_i - reach_j``, and an interval whose
+bound is above both the closest saved sample and ``R`` cannot matter.
+Small teams (at most :data:`_ALL_PAIRS` robots) first prune whole blocks of
+:data:`_BLOCK` intervals per pair by the same argument on the block (each
+robot's spread from its first sample), so only the blocks where a pair
+comes near are bounded interval by interval; larger teams take the
 candidate pairs of each stretch of samples from a KD-tree
 (:class:`scipy.spatial.cKDTree`) on the stretch's middle positions, with a
-search radius grown by how far any robot moves within the stretch: a pair
-farther apart than that cannot come within the threshold during it.
+search radius grown by how far any robot moves within the stretch. The
+kept intervals are solved in one batch at the end; where ``|d|^2`` is convex
+on the interval (the usual case) its minimum is found by bisection and
+Newton on the increasing derivative instead of the companion matrix.
 """
 
 from __future__ import annotations
@@ -55,8 +61,15 @@ _ALL_PAIRS = 64
 #: about this many (interval x pair) entries are handled at once
 _CHUNK_ENTRIES = 400_000
 
-#: samples per stretch (one KD-tree each) in teams above _ALL_PAIRS robots
-_STRETCH = 16
+#: intervals per stretch (one KD-tree each) in teams above _ALL_PAIRS robots: at least, at most
+_STRETCH = 8
+_LONGEST = 512
+
+#: a stretch ends when the fastest robots could have strayed this far (m) in it
+_STRAY = 0.5
+
+#: intervals per block of the small teams' first pruning (:meth:`_Search.blocks`)
+_BLOCK = 32
 
 #: Newton steps that polish a companion-matrix root on the polynomial itself
 _NEWTON = 3
@@ -202,14 +215,59 @@ def _separation_squared(a: tuple[_Array, ...], s: _Array) -> _Array:
 
 
 def _interval_minima(sq: _Array) -> tuple[_Array, _Array]:
-    """Smallest ``|d|^2`` over ``[0, 1]`` and where, for squared-length coefficients ``(M, 7)``."""
-    roots, valid = _unit_roots(sq[:, 1:] * np.arange(1, 7))
-    cand = np.concatenate([np.zeros((sq.shape[0], 1)), np.ones((sq.shape[0], 1)), roots], axis=1)
-    values = _polyval(sq, cand)
-    values[:, 2:][~valid] = np.inf
-    best = np.argmin(values, axis=1)
-    rows = np.arange(sq.shape[0])
-    return np.maximum(values[rows, best], 0.0), cand[rows, best]
+    """Smallest ``|d|^2`` over ``[0, 1]`` and where, for squared-length coefficients ``(M, 7)``.
+
+    Where ``|d|^2`` is convex on ``[0, 1]`` (every Bernstein coefficient of its
+    second derivative non-negative, which bounds that derivative from below:
+    the usual case on a short interval) its derivative increases, so the
+    minimum is an end or the derivative's one root, bracketed by bisection
+    and polished by Newton steps kept in the bracket. Elsewhere every real
+    root of the derivative is a candidate (:func:`_unit_roots`).
+    """
+    M = sq.shape[0]
+    d1 = sq[:, 1:] * np.arange(1, 7)  # (M, 6): the derivative
+    d2 = d1[:, 1:] * np.arange(1, 6)  # (M, 5): the second derivative, degree 4
+    convex = (d2 @ _BERNSTEIN4.T).min(axis=1) >= 0.0
+    where = np.zeros(M)
+    rest = np.flatnonzero(~convex)
+    if rest.size:
+        roots, valid = _unit_roots(d1[rest])
+        cand = np.concatenate([np.zeros((rest.size, 1)), np.ones((rest.size, 1)), roots], axis=1)
+        values = _polyval(sq[rest], cand)
+        values[:, 2:][~valid] = np.inf
+        where[rest] = cand[np.arange(rest.size), np.argmin(values, axis=1)]
+    easy = np.flatnonzero(convex)
+    if easy.size:
+        where[easy] = _increasing_root(d1[easy], d2[easy])
+    values = _polyval(sq, where[:, None])[:, 0]
+    return np.maximum(values, 0.0), where
+
+
+#: row i: the Bernstein coefficient i of a quartic from its power-basis coefficients (on [0, 1])
+_BERNSTEIN4 = np.array([[math.comb(i, k) / math.comb(4, k) if k <= i else 0.0 for k in range(5)] for i in range(5)])
+
+#: bisection steps before Newton's (the bracket shrinks to 2^-12)
+_BISECT = 12
+
+
+def _increasing_root(f: _Array, fp: _Array) -> _Array:
+    """Where on ``[0, 1]`` an increasing polynomial ``f`` (coefficients ``(M, m)``, derivative ``fp``) is smallest in size.
+
+    0 where ``f(0) >= 0``, 1 where ``f(1) <= 0``, else its root: bisection
+    brackets it, Newton steps (clipped to the bracket) polish it.
+    """
+    lo, hi = np.zeros(f.shape[0]), np.ones(f.shape[0])
+    for _ in range(_BISECT):
+        mid = 0.5 * (lo + hi)
+        up = _polyval(f, mid[:, None])[:, 0] > 0.0
+        hi, lo = np.where(up, mid, hi), np.where(up, lo, mid)
+    s = 0.5 * (lo + hi)
+    for _ in range(_NEWTON):
+        val, slope = _polyval(f, s[:, None])[:, 0], _polyval(fp, s[:, None])[:, 0]
+        ok = slope > 0.0
+        s = np.clip(np.where(ok, s - val / np.where(ok, slope, 1.0), s), lo, hi)
+    s = np.where(f[:, 0] >= 0.0, 0.0, s)  # increasing from a non-negative start: smallest at 0
+    return np.where(f.sum(axis=1) <= 0.0, 1.0, s)
 
 
 def _crossing(sq: _Array, level: float, lo: _Array, hi: _Array, first: bool) -> _Array:
@@ -314,19 +372,35 @@ def closest_approach(
     h_all = np.diff(times)
     reach = _reach(positions, velocities, h_all)
     search = _Search(times, h_all, R)
-    all_pairs = _pairs_all(n) if n <= _ALL_PAIRS else None
-    # small teams: long stretches (memory-bound); large ones: short stretches keep KD-tree radii tight
-    stretch = max(2, _CHUNK_ENTRIES // max(1, n * (n - 1) // 2)) if all_pairs is not None else _STRETCH
-    for k0 in range(0, T - 1, stretch):
-        k1 = min(T - 1, k0 + stretch)  # samples k0..k1, intervals k0..k1-1
-        if all_pairs is None:
+    if n <= _ALL_PAIRS:
+        search.blocks(0, positions, velocities, reach, _pairs_all(n))
+    else:  # stretches in which no robot strays far keep the KD-tree radii tight
+        for k0, k1 in _stretches(reach):  # samples k0..k1, intervals k0..k1-1
             pairs = _pairs_near(positions[k0 : k1 + 1], reach[k0:k1].max(axis=0), search.threshold)
-        else:
-            pairs = all_pairs
-        if pairs.shape[0]:
-            search.stretch(k0, positions[k0 : k1 + 1], velocities[k0 : k1 + 1], reach[k0:k1], pairs)
+            if pairs.shape[0]:
+                search.blocks(k0, positions[k0 : k1 + 1], velocities[k0 : k1 + 1], reach[k0:k1], pairs)
+    search.finish()
     contacts = _contacts(times, search.hits, R) if search.hits else ()
     return Approach(math.sqrt(search.best2), search.best_at, search.best_pair, contacts)
+
+
+def _stretches(reach: _Array) -> list[tuple[int, int]]:
+    """Stretches of samples ``(k0, k1)`` for the KD-tree search of large teams.
+
+    A stretch ends once the fastest robots' strays (:func:`_reach`) add up
+    to :data:`_STRAY` m since its start, but runs at least :data:`_STRETCH`
+    and at most :data:`_LONGEST` intervals: short while the team moves, long
+    once it has settled, so a settled team costs a few KD-trees, not one per
+    sixteen samples.
+    """
+    cum = np.concatenate([[0.0], np.cumsum(reach.max(axis=1))])
+    out, k0, T1 = [], 0, reach.shape[0]
+    while k0 < T1:
+        k1 = int(np.searchsorted(cum, cum[k0] + _STRAY, side="right")) - 1
+        k1 = min(T1, max(k0 + _STRETCH, min(k1, k0 + _LONGEST)))
+        out.append((k0, k1))
+        k0 = k1
+    return out
 
 
 def _reach(positions: _Array, velocities: _Array, h: _Array) -> _Array:
@@ -337,52 +411,106 @@ def _reach(positions: _Array, velocities: _Array, h: _Array) -> _Array:
     ``|x1 - x0| + h (|v0| + |v1|) / 3`` of both ends.
     """
     step = np.diff(positions, axis=0)
-    speed = np.hypot(velocities[..., 0], velocities[..., 1])
-    return np.hypot(step[..., 0], step[..., 1]) + (h[:, None] / 3.0) * (speed[:-1] + speed[1:])
+    speed = np.sqrt(np.einsum("tnk,tnk->tn", velocities, velocities))  # faster than hypot, as exact here
+    return np.sqrt(np.einsum("tnk,tnk->tn", step, step)) + (h[:, None] / 3.0) * (speed[:-1] + speed[1:])
+
+
+def _complex(xy: _Array) -> NDArray[np.complex128]:
+    """``(..., 2)`` planar points as ``x + iy`` (a view when contiguous)."""
+    return np.ascontiguousarray(xy).view(np.complex128)[..., 0]
 
 
 class _Search:
-    """The running closest approach and the intervals in contact, stretch by stretch."""
+    """The running closest approach, stretch by stretch, and the intervals that may beat it or touch.
+
+    Stretches only prune (against the closest saved sample so far, an upper
+    bound of the closest approach) and keep their candidate intervals;
+    :meth:`finish` solves them all at once (one batch, not one per stretch).
+    """
 
     def __init__(self, times: _Array, h: _Array, R: float) -> None:
         self.times, self.h, self.R = times, h, R
         self.best2, self.best_at, self.best_pair = math.inf, math.nan, (-1, -1)
         self.hits: list[tuple[_Index, _Index, _Index, _Array, _Array, _Array]] = []
+        self.found: list[tuple[_Index, _Index, _Index, _Array, _Array, _Array, _Array, _Array]] = []
 
     @property
     def threshold(self) -> float:
         """Intervals that may come closer than this matter: the best so far, or a contact."""
         return max(math.sqrt(self.best2), self.R) if self.best2 < math.inf else math.inf
 
-    def stretch(self, k0: int, frames: _Array, vel: _Array, reach: _Array, pairs: _Index) -> None:
-        """Samples ``k0 .. k0 + len(frames) - 1`` of the candidate ``pairs``."""
+    def _keep(self, k0: int, k: _Index, i: _Index, j: _Index, bound: _Array, z0: _Array, z1: _Array,
+              w: _Array) -> None:  # fmt: skip
+        """Keep intervals ``k0 + k`` of pairs ``(i, j)`` (separations z0, z1; velocities w from k0 on) for :meth:`finish`."""
+        w0, w1 = w[k, i] - w[k, j], w[k + 1, i] - w[k + 1, j]
+        self.found.append((k0 + k, i, j, bound, z0, z1, w0, w1))
+
+    def blocks(self, k0: int, positions: _Array, velocities: _Array, reach: _Array, pairs: _Index) -> None:
+        """Samples ``k0 ..`` of the candidate ``pairs``, pruned block by block before any interval is looked at.
+
+        On a block of :data:`_BLOCK` intervals every robot stays within
+        ``spread`` of its position at the block's first sample (its samples'
+        farthest excursion plus :func:`_reach`), so a pair whose first-sample
+        distance exceeds the threshold by both spreads cannot matter there;
+        only the other blocks' intervals are bounded one by one.
+        """
+        T = positions.shape[0]
+        z, w = _complex(positions), _complex(velocities)
+        starts = np.arange(0, T - 1, _BLOCK)
+        ends = np.minimum(starts + _BLOCK, T - 1)
+        own = np.minimum(np.arange(T) // _BLOCK, starts.size - 1)
+        spread = np.maximum.reduceat(np.abs(z - z[starts[own]]), starts, axis=0)
+        spread = np.maximum(spread, np.abs(z[ends] - z[starts])) + np.maximum.reduceat(reach, starts, axis=0)
         i, j = pairs[:, 0], pairs[:, 1]
-        d = frames[:, i] - frames[:, j]
-        dist = np.hypot(d[..., 0], d[..., 1])
-        flat = int(np.argmin(dist))
-        if dist.flat[flat] ** 2 < self.best2:
-            kk, pp = divmod(flat, pairs.shape[0])
-            self.best2, self.best_at = float(dist.flat[flat] ** 2), float(self.times[k0 + kk])
-            self.best_pair = (int(i[pp]), int(j[pp]))
-        # |d(s)| >= max(|d_k|, |d_k+1|) - reach_i - reach_j on interval k (_reach)
-        bound = np.maximum(dist[:-1], dist[1:]) - reach[:, i] - reach[:, j]
-        kc, pc = np.nonzero(bound < self.threshold)
-        if not kc.size:
+        first = np.abs(z[starts][:, i] - z[starts][:, j])
+        self._sample_best(first.ravel(), k0 + np.repeat(starts, i.size), np.tile(i, starts.size), np.tile(j, starts.size))
+        b, p = np.nonzero(first - spread[:, i] - spread[:, j] < self.threshold)
+        chunk = max(1, _CHUNK_ENTRIES // _BLOCK)
+        for c in range(0, b.size, chunk):
+            bb, pb = b[c : c + chunk], p[c : c + chunk]
+            k = (starts[bb][:, None] + np.arange(_BLOCK)).ravel()
+            pp = np.repeat(pb, _BLOCK)
+            inside = k < np.repeat(ends[bb], _BLOCK)
+            k, pp = k[inside], pp[inside]
+            ii, jj = i[pp], j[pp]
+            z0, z1 = z[k, ii] - z[k, jj], z[k + 1, ii] - z[k + 1, jj]
+            d0, d1 = np.abs(z0), np.abs(z1)
+            self._sample_best(d0, k0 + k, ii, jj)
+            self._sample_best(d1, k0 + k + 1, ii, jj)
+            bound = np.maximum(d0, d1) - reach[k, ii] - reach[k, jj]
+            near = np.flatnonzero(bound < self.threshold)
+            if near.size:
+                self._keep(k0, k[near], ii[near], jj[near], bound[near], z0[near], z1[near], w)
+
+    def _sample_best(self, dist: _Array, k: _Index, i: _Index, j: _Index) -> None:
+        """The closest saved sample so far, from the distances of pairs ``(i, j)`` at samples ``k``."""
+        e = int(np.argmin(dist))
+        if dist[e] ** 2 < self.best2:
+            self.best2, self.best_at, self.best_pair = float(dist[e] ** 2), float(self.times[k[e]]), (int(i[e]), int(j[e]))
+
+    def finish(self) -> None:
+        """Solve every kept interval that may still matter (module doc): the exact minima and contacts."""
+        if not self.found:
             return
-        w0, w1 = vel[kc, i[pc]] - vel[kc, j[pc]], vel[kc + 1, i[pc]] - vel[kc + 1, j[pc]]
-        h = self.h[k0 + kc]
-        a = _hermite_coefficients(d[kc, pc], d[kc + 1, pc], w0, w1, h)
+        k, i, j, bound, z0, z1, w0, w1 = (np.concatenate(parts) for parts in zip(*self.found))
+        keep = bound < self.threshold  # the best sample of the whole run prunes the early stretches too
+        k, i, j, z0, z1, w0, w1 = k[keep], i[keep], j[keep], z0[keep], z1[keep], w0[keep], w1[keep]
+        if not k.size:
+            return
+        h = self.h[k]
+        pair = [np.stack([c.real, c.imag], axis=-1) for c in (z0, z1, w0, w1)]
+        a = _hermite_coefficients(*pair, h)
         sq = _squared_length(a)
-        low, where = _interval_minima(sq)
+        _, where = _interval_minima(sq)
         low = _separation_squared(a, where)
         m = int(np.argmin(low))
         if low[m] < self.best2:
             self.best2 = float(low[m])
-            self.best_at = float(self.times[k0 + kc[m]] + where[m] * h[m])
-            self.best_pair = (int(i[pc[m]]), int(j[pc[m]]))
+            self.best_at = float(self.times[k[m]] + where[m] * h[m])
+            self.best_pair = (int(i[m]), int(j[m]))
         touch = low < self.R**2
         if np.any(touch):
-            self.hits.append((k0 + kc[touch], i[pc[touch]], j[pc[touch]], low[touch], where[touch], sq[touch]))
+            self.hits.append((k[touch], i[touch], j[touch], low[touch], where[touch], sq[touch]))
 
 
 def _contacts(

@@ -339,6 +339,7 @@ def _linear_step_map(
     look2: list[_Lookup],
     lo: int,
     constant: tuple[bool, ...],
+    stages: list[tuple[Any, Any, Any]] | None = None,
 ) -> tuple[dict[int, _Array], _Array]:
     """One RK4 step of the double integrator as matrices, for one coordinate.
 
@@ -355,7 +356,8 @@ def _linear_step_map(
     look-up j of ``look1 + look2`` still lies in the constant history.
 
     Returns ``({lag: M_lag}, G)``: the ``(3n, 3n)`` increment matrices and
-    the ``(3n, n)`` forcing matrix.
+    the ``(3n, n)`` forcing matrix. A given ``stages`` list receives each
+    stage's ``(X, V, u)`` as ``({lag: (n, 3n)}, (n, n) F part)`` maps of the records.
     """
     n = C.shape[0]
     Lin = tuple[dict[int, _Array], _Array]  # (lag -> (n, 3n), F part (n, n))
@@ -411,6 +413,8 @@ def _linear_step_map(
     u3 = stage(2, X3, V3)
     X4, V4 = add((1, X0), (dt, V3)), add((1, V0), (dt, u3))
     u4 = stage(3, X4, V4)
+    if stages is not None:
+        stages += [(X0, V0, u1), (X2, V2, u2), (X3, V3, u3), (X4, V4, u4)]
     s = dt / 6.0
     dX = add((s, V0), (2 * s, V2), (2 * s, V3), (s, V4))
     dV = add((s, u1), (2 * s, u2), (2 * s, u3), (s, u4))
@@ -441,6 +445,16 @@ def _window_kernel(mats: dict[int, _Array], first: int, last: int, n: int) -> _A
     eye2 = np.eye(2)
     zero = np.zeros((6 * n, 6 * n))
     return np.vstack([np.kron(mats[lag].T, eye2) if lag in mats else zero for lag in range(first, last + 1)])
+
+
+def _records(x0: _Array, v0: _Array, pad: int, rows: int) -> tuple[_Array, _Array]:
+    """The records array ``H[pad + i] = r_i`` (and its flat view); before t = 0 the state is x0, v0, no acceleration."""
+    n = x0.shape[0]
+    H = np.empty((rows, 3 * n, 2))
+    H[: pad + 1, :n] = 0.0
+    H[: pad + 1, n : 2 * n] = x0
+    H[: pad + 1, 2 * n :] = v0
+    return H, H.reshape(-1)
 
 
 def integrate_linear(
@@ -494,12 +508,7 @@ def integrate_linear(
     changes = sorted({0} | {min(max(1 - lk.right, 0), steps + 1) for lk in looks})
     bounds = [k for k in changes if k <= steps] + [steps + 1]
 
-    # H[pad + i] = r_i; before t = 0 the state is x0, v0 and no acceleration.
-    H = np.empty((rows, 3 * n, 2))
-    flat = H.reshape(-1)
-    H[: pad + 1, :n] = 0.0
-    H[: pad + 1, n : 2 * n] = x0
-    H[: pad + 1, 2 * n :] = v0
+    H, flat = _records(x0, v0, pad, rows)
     limit = _blowup_scale(x0, v0)
     done = steps + 1  # steps advanced (the last one only for a_steps)
     for start, stop in zip(bounds[:-1], bounds[1:]):

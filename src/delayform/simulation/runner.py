@@ -83,6 +83,7 @@ from delayform.simulation.robots import (
 )
 from delayform.simulation.assignment import assign_slots, check_assignment
 from delayform.simulation.bodies import closest_approach
+from delayform.simulation.filtered import integrate_filtered
 from delayform.simulation.safety import BarrierFilter, FilteredAgent, SafetyReport
 from delayform.simulation.trajectory import (
     Trajectory,
@@ -368,8 +369,11 @@ def simulate(
     # a delay longer than the run reads only the constant history (integrator doc)
     eff1, eff2 = effective_delay(tau1, dt, steps), effective_delay(tau2, dt, steps)
     filtered = robot.safety is not None
+    # small ideal filtered teams keep the linear path's records (simulation.filtered)
+    hybrid = filtered and network is None and limits is None and ta == 0.0 and n <= _DENSE_AGENTS
     nbytes, seconds, linear = estimate_resources(
-        n, steps, save_every, eff1, eff2, dt, limited=limits is not None or filtered, nnz=topology.C_sparse.nnz
+        n, steps, save_every, eff1, eff2, dt, limited=limits is not None or (filtered and not hybrid),
+        nnz=topology.C_sparse.nnz,
     )
     # a step count past 1e12 said in full would be a line of digits
     count = f"{steps:,}" if steps < 10**12 else f"{float(steps):.3g}"
@@ -379,7 +383,13 @@ def simulate(
     C = topology.C_sparse.toarray() if n <= _DENSE_AGENTS else topology.C_sparse
     F = formation_forcing(topology, P, desired)
     run: Samples | None = None
-    if network is not None or limits is not None or filtered:
+    if hybrid and linear:
+        # small ideal teams: the blocked linear path wherever the filter is idle (simulation.filtered)
+        run = integrate_filtered(x0, v0, C, F, P, D, eff1, eff2, dt, steps, save_every,
+                                 2.0 * robot.body_radius + robot.safety.margin, robot.safety.rate, progress)  # fmt: skip
+    if run is not None:
+        pass
+    elif network is not None or limits is not None or filtered:
         agent: Any = DoubleIntegrator(x0, v0) if limits is None else LimitedUnicycle(x0, th0, speed0, limits)
         if filtered:
             agent = FilteredAgent(agent, robot.safety, robot.body_radius)

@@ -25,28 +25,33 @@ Decentralized, as in Wang et al.: each robot takes half of every pair's
 constraint, ``-n.u_i <= c_ij / 2``, so robot i's command is the closest
 to ``u_hat_i`` in a polygon of half-planes of the plane (the two halves sum
 to the pair's constraint, so the pair is safe whatever the other does within
-its own half). That QP in two variables is solved exactly in closed form:
-its minimiser is ``u_hat_i``, the projection onto one constraint line, or
-the intersection of two lines; every candidate is formed for all robots at
-once (NumPy, padded to the largest neighbour count) and the closest
-feasible one is taken. A polygon can be empty (a robot squeezed from
-opposite sides, its own halves in conflict): then the robots solve the
-pairs' full constraints jointly, ``min sum_i |u_i - u_hat_i|^2`` over all
-commands (a sparse QP solved by Clarabel), which is always feasible for
-``x'' = u``, and the run's safety report counts those steps.
+its own half). That QP in two variables is solved exactly: when ``u_hat``
+is outside the polygon the minimiser lies on an edge, and each side's
+edge is an interval of its line that the other sides cut out in closed
+form, so the closest point of every edge is formed for all robots at once
+(NumPy, padded to the most sides) and the closest taken. An active set
+keeps the polygons small: a robot first takes its two most violated
+sides and adds the most violated of those its answer still breaks (a
+minimiser in the plane rests on at most two sides). A polygon can be
+empty (a robot squeezed from opposite sides, its own halves in
+conflict): then the squeezed robot's cluster (the robots linked to it
+by pairs whose halves ``u_hat`` breaks) solves its pairs' full
+constraints jointly, ``min sum |u_i - u_hat_i|^2`` (a sparse QP solved by
+Clarabel over an active set of constraints), keeping its own half of
+every pair with a robot outside; if that is infeasible the whole team
+solves it, which is always feasible for ``x'' = u``. The run's safety
+report counts those steps.
 
 What each robot knows, and when
 -------------------------------
 Its own position and velocity, and the positions and velocities of the
-robots within its sensing range, **now** (on-board sensing, no delay and no
-network: the formation controller's delays tau1 and tau2 do not enter the
-filter). Teams above 64 robots keep a Verlet list of neighbours from a
-KD-tree, every pair within ``reach = Ds + 2 v_max / k + 1`` m (v_max twice
-the fastest robot when the list was built; it is rebuilt when a robot goes
-faster or has moved half the list's skin). A pair farther apart than
-``reach`` closes at most at ``2 v_max <= k (d - Ds)``, so it still has
-``h' + k h >= 0`` when it enters the list, which is what the barrier needs
-from then on.
+robots near enough that their constraint can bind, **now** (on-board
+sensing, no delay and no network: the formation controller's delays tau1
+and tau2 do not enter the filter). Since ``c_ij >= k^2 (d - Ds) - 2 k |dv|``
+a pair farther apart than ``Ds + 2 u_max / k^2 + 4 v_max / k`` (the largest
+command and speed) meets its halves whatever the robots do, so the filter
+is the filter over all pairs, exactly; teams above 64 robots find the
+nearer pairs with a Verlet list from a KD-tree (:class:`_Neighbours`).
 
 What it guarantees
 ------------------
@@ -81,6 +86,7 @@ from numpy.typing import NDArray
 
 from delayform._validation import validated
 from delayform.errors import SimulationInputError
+from delayform.simulation.bodies import _complex
 
 __all__ = ["SAFETY_FILTERS", "BarrierFilter", "FilteredAgent", "SafetyReport", "barrier_commands", "check_safety"]
 
@@ -92,8 +98,11 @@ SAFETY_FILTERS = ("barrier",)
 #: teams up to this size test every pair; larger ones use a KD-tree per step
 _ALL_PAIRS = 64
 
-#: rounds of the active set before every side of the polygons is taken
-_ROUNDS = 3
+#: each round of the polygons' active set adds up to this many of a robot's most violated sides
+_JOIN = 2
+
+#: and of the joint QP's active set, per robot
+_JOIN_QP = 3
 
 #: a constraint counts as satisfied within this relative tolerance
 _FEASIBLE = 1e-9
@@ -147,37 +156,86 @@ def check_safety(safety: object) -> BarrierFilter | None:
 
 
 class _Neighbours:
-    """Who senses whom: every pair in small teams, a Verlet list from a KD-tree in large ones.
+    """Which pairs can bind: every pair in small teams, a Verlet list from a KD-tree in large ones.
 
-    The list holds the pairs within ``reach + skin`` of the positions it was
-    built at and is rebuilt once any robot has moved ``skin / 2`` from
-    there, so it always contains every pair within ``reach`` (two robots
-    each ``skin / 2`` closer). ``reach = Ds + 2 v_max / k + 1`` m, with
-    v_max the fastest robot when the list was built (module doc).
+    A pair's half can only bind when ``c_ij / 2 < |u_i|``; since
+    ``c_ij >= k^2 (d - Ds) - 2 k |dv|``, no pair farther apart than
+    ``need = Ds + 2 u_max / k^2 + 4 v_max / k`` can (``u_max`` the largest
+    command asked for or given, ``v_max`` the fastest robot). The list holds
+    the pairs within ``radius`` of the positions it was built at, so it
+    holds every pair now within ``radius - 2 moved`` (``moved`` the farthest
+    any robot went since); when that no longer covers ``need`` it is rebuilt
+    with room to spare. The filter is therefore the filter over all pairs,
+    exactly; the list only skips the pairs that provably cannot bind.
     """
 
     def __init__(self, n: int, safe: float, rate: float) -> None:
         self.n, self.safe, self.rate = n, safe, rate
         self.anchor: _Array | None = None
-        self.vmax = 0.0
+        self.radius = 0.0
         self.pairs = np.column_stack(np.triu_indices(n, k=1)).astype(np.intp)
-        self.skin = 0.0
 
-    def __call__(self, x: _Array, v: _Array) -> NDArray[np.intp]:
-        if self.n <= _ALL_PAIRS:
-            return self.pairs
+    def need(self, v: _Array, *commands: _Array) -> float:
+        """Distance within which a pair's constraint can bind (class doc)."""
         vmax = float(np.sqrt((v**2).sum(axis=1)).max())
-        moved = math.inf if self.anchor is None else float(np.abs(x - self.anchor).max()) * math.sqrt(2.0)
-        if moved > 0.5 * self.skin or vmax > self.vmax:
+        umax = max(float(np.sqrt((u**2).sum(axis=1)).max()) for u in commands)
+        return self.safe + 2.0 * umax / self.rate**2 + 4.0 * vmax / self.rate
+
+    def covers(self, x: _Array, need: float) -> bool:
+        """Whether the list holds every pair closer than ``need`` at positions ``x``."""
+        if self.n <= _ALL_PAIRS:
+            return True
+        if self.anchor is None:
+            return False
+        moved = float(np.sqrt(((x - self.anchor) ** 2).sum(axis=1)).max())
+        return need <= self.radius - 2.0 * moved
+
+    def __call__(self, x: _Array, need: float) -> NDArray[np.intp]:
+        """The pairs at positions ``x`` (rebuilt when they do not cover ``need``)."""
+        if not self.covers(x, need):
             from scipy.spatial import cKDTree
 
-            self.vmax = max(2.0 * vmax, 0.1)
-            reach = self.safe + 2.0 * self.vmax / self.rate + 1.0
-            self.skin = 0.5 * reach
+            self.radius = 1.5 * need + 1.0  # room to move before the next rebuild
             self.anchor = x.copy()
-            found = cKDTree(x).query_pairs(reach + self.skin, output_type="ndarray")
+            found = cKDTree(x).query_pairs(self.radius, output_type="ndarray")
             self.pairs = found.astype(np.intp).reshape(-1, 2)
         return self.pairs
+
+
+def _pair_terms(
+    x: _Array, v: _Array, u_hat: _Array, pairs: NDArray[np.intp], safe: float, rate: float
+) -> tuple[NDArray[np.complex128], _Array, NDArray[np.bool_], NDArray[np.bool_]]:
+    """Every pair's unit normal (as x + iy), bound ``c`` and whether ``u_hat`` breaks robot i's / j's half.
+
+    ``x, v, u_hat`` are ``(..., n, 2)``: leading axes are a batch of team states
+    (:func:`binds`), the results ``(..., p)``.
+    """
+    i, j = pairs[:, 0], pairs[:, 1]
+    # x + iy: fewer, larger NumPy calls (this runs at every RK4 stage)
+    z, w, q = _complex(x), _complex(v), _complex(u_hat)
+    dz, dw = z[..., i] - z[..., j], w[..., i] - w[..., j]
+    d = np.abs(dz)
+    apart = d > 1e-12
+    normal = np.where(apart, dz / np.where(apart, d, 1.0), 1.0)  # (1, 0) for robots on the same spot: any will do
+    d = np.maximum(d, 1e-12)
+    back = normal.conjugate()
+    along = (back * dw).real
+    c = ((dw.real**2 + dw.imag**2) - along * along) / d + 2.0 * rate * along + rate * rate * (d - safe)
+    half = 0.5 * c
+    # robot i: -n.u_i <= c / 2; robot j: +n.u_j <= c / 2
+    push_i, push_j = (back * q[..., i]).real, (back * q[..., j]).real
+    tol = _FEASIBLE * (1.0 + np.abs(half))
+    return normal, c, half + push_i < -tol, half - push_j < -tol
+
+
+def binds(x: _Array, v: _Array, u_hat: _Array, safe: float, rate: float, pairs: NDArray[np.intp]) -> NDArray[np.bool_]:
+    """For a batch of team states ``(..., n, 2)``: whether the filter would change any command (``(...,)``).
+
+    The same test as :func:`barrier_commands` makes before it solves anything:
+    where it is False the filtered command is ``u_hat`` exactly.
+    """
+    _, _, bad_i, bad_j = _pair_terms(x, v, u_hat, pairs, safe, rate)
+    return (bad_i | bad_j).any(axis=-1)
 
 
 def barrier_commands(
@@ -207,56 +265,117 @@ def barrier_commands(
         pairs = np.column_stack(np.triu_indices(n, k=1)).astype(np.intp)
     if n < 2 or pairs.shape[0] == 0:
         return u_hat, np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
-    i, j = pairs[:, 0], pairs[:, 1]
-    dp, dv = x[i] - x[j], v[i] - v[j]
-    d = np.maximum(np.hypot(dp[:, 0], dp[:, 1]), 1e-12)
-    nx, ny = dp[:, 0] / d, dp[:, 1] / d  # (1, 0) for robots on the same spot: any direction will do
-    nx = np.where(d > 1e-12, nx, 1.0)
-    dvx, dvy = dv[:, 0], dv[:, 1]
-    along = nx * dvx + ny * dvy
-    c = (dvx * dvx + dvy * dvy - along * along) / d + 2.0 * rate * along + rate * rate * (d - safe)
-    half = 0.5 * c
-    # robot i: -n.u_i <= c / 2; robot j: +n.u_j <= c / 2
-    ui, uj = u_hat[i], u_hat[j]
-    push_i = nx * ui[:, 0] + ny * ui[:, 1]
-    push_j = nx * uj[:, 0] + ny * uj[:, 1]
-    dp = np.column_stack([nx, ny])  # from here on the constraints' normal
-    tol = _FEASIBLE * (1.0 + np.abs(half))
-    bad_i, bad_j = half + push_i < -tol, half - push_j < -tol
+    normal, c, bad_i, bad_j = _pair_terms(x, v, u_hat, pairs, safe, rate)
     if not (bad_i.any() or bad_j.any()):
         return u_hat, np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
+    half = 0.5 * c
+    dp = np.column_stack([normal.real, normal.imag])  # from here on the constraints' normal
     u, active, squeezed = _solve_polygons(pairs, dp, half, u_hat, bad_i, bad_j)
     if squeezed.any():
-        u = _joint_qp(pairs, dp, c, u_hat)
-        active = np.abs(u - u_hat).max(axis=1) > 0.0
+        joint, cluster = _joint_qp(pairs, dp, c, u_hat, squeezed, bad_i | bad_j)
+        u[cluster] = joint[cluster]
+        # the interior point leaves a robot no constraint binds at u_hat to its own rounding
+        active = np.abs(u - u_hat).max(axis=1) > _FEASIBLE * (1.0 + np.abs(u_hat).max(axis=1))
     return u, active, squeezed
 
 
-def _joint_qp(pairs: NDArray[np.intp], normal: _Array, c: _Array, u_hat: _Array) -> _Array:
-    """All commands at once: ``min sum |u_i - u_hat_i|^2`` s.t. ``-n_ij.(u_i - u_j) <= c_ij`` for every pair.
+def _joint_qp(
+    pairs: NDArray[np.intp], normal: _Array, c: _Array, u_hat: _Array, squeezed: NDArray[np.bool_],
+    in_play: NDArray[np.bool_],
+) -> tuple[_Array, NDArray[np.bool_]]:
+    """The squeezed robots' clusters solve their pairs' full constraints jointly (module doc).
 
-    Used when a robot's own halves conflict. Always feasible for
-    ``x'' = u``: pushing every robot away from the centroid,
-    ``u_i = beta (x_i - x_bar)``, makes every left side ``-beta |dp|``,
-    below any ``c_ij`` for beta large. Solved by Clarabel (interior point).
+    A cluster is a connected component, containing a squeezed robot, of the
+    graph whose edges are the pairs ``in_play`` (a half violated by
+    ``u_hat``). Its robots take ``min sum |u_i - u_hat_i|^2`` subject to the
+    full constraint ``-n_ij.(u_i - u_j) <= c_ij`` of every pair inside it and
+    their own half of every pair with a robot outside (which keeps its
+    half, so every pair stays safe). If that is infeasible the whole team
+    solves it, which is always feasible for ``x'' = u``: pushing every
+    robot away from the centroid, ``u_i = beta (x_i - x_bar)``, makes every
+    left side ``-beta |dp|``, below any ``c_ij`` for beta large.
+
+    Returns the cluster's commands (``u_hat`` elsewhere, to be replaced by
+    the polygons' answer) and where the cluster is.
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    n = u_hat.shape[0]
+    p = pairs[in_play]
+    graph = coo_matrix((np.ones(p.shape[0]), (p[:, 0], p[:, 1])), shape=(n, n))
+    _, label = connected_components(graph, directed=False)
+    cluster = np.isin(label, label[squeezed])
+    for members in (cluster, np.ones(n, dtype=bool)):
+        u = _cluster_qp(pairs, normal, c, u_hat, members)
+        if u is not None:
+            return u, members
+    return u_hat, cluster  # cannot happen for x'' = u (see above); the run's contacts would show it
+
+
+def _cluster_qp(
+    pairs: NDArray[np.intp], normal: _Array, c: _Array, u_hat: _Array, members: NDArray[np.bool_]
+) -> _Array | None:
+    """``min sum_members |u_i - u_hat_i|^2`` (:func:`_joint_qp`) by Clarabel, over an active set of constraints.
+
+    Only the constraints violated so far are handed to the solver; when its
+    answer meets every other one it is the answer of the whole problem
+    (the smaller problem's optimum is a lower bound), else the violated ones
+    join. Returns the commands (``u_hat`` outside the members) or None when
+    the problem is infeasible.
     """
     import clarabel
     import scipy.sparse as sp
 
-    n, m = u_hat.shape[0], pairs.shape[0]
+    n = u_hat.shape[0]
     i, j = pairs[:, 0], pairs[:, 1]
-    r = np.repeat(np.arange(m), 4)
-    cols = np.column_stack([2 * i, 2 * i + 1, 2 * j, 2 * j + 1]).ravel()
-    vals = np.column_stack([-normal, normal]).ravel()
-    G = sp.csc_matrix((vals, (r, cols)), shape=(m, 2 * n))
+    take = members[i] | members[j]
+    i, j, normal, c = i[take], j[take], normal[take], c[take]
+    both = members[i] & members[j]
+    # a pair inside: the full constraint; across: the member's half (the other keeps its own)
+    right = np.where(both, c, 0.5 * c)
+    index = np.full(n, -1)
+    index[members] = np.arange(int(members.sum()))
+    m_vars = 2 * int(members.sum())
+    u = u_hat.copy()
+
+    def lhs(cmd: _Array) -> _Array:
+        side_i = np.where(members[i], -(normal * cmd[i]).sum(axis=1), 0.0)
+        side_j = np.where(members[j], (normal * cmd[j]).sum(axis=1), 0.0)
+        return side_i + side_j
+
+    tol = _FEASIBLE * (1.0 + np.abs(right))
+    owner = np.where(members[i], i, j)  # whose constraint it is, for picking a few per robot
+    excess = lhs(u) - right
+    use = _most_violated(owner, excess, excess > tol, _JOIN_QP)
     settings = clarabel.DefaultSettings()
     settings.verbose = False
-    solver = clarabel.DefaultSolver(sp.identity(2 * n, format="csc") * 2.0, -2.0 * u_hat.ravel(), G, c,
-                                    [clarabel.NonnegativeConeT(m)], settings)  # fmt: skip
-    sol = solver.solve()
-    if str(sol.status) not in ("Solved", "AlmostSolved"):
-        return u_hat  # cannot happen for x'' = u (see above); the run's contacts would show it
-    return np.asarray(sol.x, dtype=np.float64).reshape(n, 2)
+    while True:
+        rows = np.flatnonzero(use)
+        ii, jj, nn = i[rows], j[rows], normal[rows]
+        r_parts, c_parts, v_parts = [], [], []
+        for who, sign in ((ii, -1.0), (jj, 1.0)):
+            inside = members[who]
+            k = np.flatnonzero(inside)
+            col = 2 * index[who[k]]
+            r_parts += [k, k]
+            c_parts += [col, col + 1]
+            v_parts += [sign * nn[k, 0], sign * nn[k, 1]]
+        G = sp.csc_matrix((np.concatenate(v_parts), (np.concatenate(r_parts), np.concatenate(c_parts))),
+                          shape=(rows.size, m_vars))  # fmt: skip
+        target = u_hat[members].ravel()
+        solver = clarabel.DefaultSolver(sp.identity(m_vars, format="csc") * 2.0, -2.0 * target, G, right[rows],
+                                        [clarabel.NonnegativeConeT(rows.size)], settings)  # fmt: skip
+        sol = solver.solve()
+        if str(sol.status) not in ("Solved", "AlmostSolved"):
+            return None
+        u[members] = np.asarray(sol.x, dtype=np.float64).reshape(-1, 2)
+        # Clarabel meets its own constraints to its tolerance: only new ones count
+        excess = lhs(u) - right
+        violated = (excess > tol) & ~use
+        if not violated.any():
+            return u
+        use |= _most_violated(owner, excess, violated, _JOIN_QP)
 
 
 def _solve_polygons(
@@ -264,12 +383,14 @@ def _solve_polygons(
 ) -> tuple[_Array, NDArray[np.bool_], NDArray[np.bool_]]:
     """Closest point to ``u_hat`` in each violating robot's polygon (module doc), by an active set.
 
-    The polygon of the constraints violated so far is solved exactly
-    (:func:`_closest_in_polygons`); its minimiser is also the minimiser over
-    all the robot's constraints once it satisfies them all (the smaller
-    problem's optimum is a lower bound), else the newly violated ones join
-    and it is solved again. Dense teams thus solve polygons of a few sides,
-    not of every neighbour.
+    The polygon of a few sides is solved exactly (:func:`_closest_in_polygons`):
+    at first each robot's :data:`_JOIN` most violated sides. Its minimiser is
+    also the minimiser over all the robot's sides once it satisfies them all
+    (the smaller problem's optimum is a lower bound); else the most violated
+    of the sides it breaks join and the robots that broke one solve again.
+    Every round adds a side, so it ends; a 2-D minimiser rests on at most
+    two sides, so a robot facing tens of neighbours solves a polygon of a
+    few sides, not of every neighbour.
     """
     n = u_hat.shape[0]
     moving = np.zeros(n, dtype=bool)
@@ -280,23 +401,40 @@ def _solve_polygons(
     b = np.concatenate([half, half])
     keep = moving[rows]  # a violating robot keeps all its constraints
     rows, A, b = rows[keep], A[keep], b[keep]
-    use = np.concatenate([bad_i, bad_j])[keep]
     tol = _FEASIBLE * (1.0 + np.abs(b))
+    excess = (A * u_hat[rows]).sum(axis=1) - b
+    use = _most_violated(rows, excess, excess > tol)
     u = u_hat.copy()
     squeezed = np.zeros(n, dtype=bool)
-    rounds = 0
+    again = moving.copy()
     while True:
-        u_new, empty = _closest_in_polygons(rows[use], A[use], b[use], u_hat, n)
-        u[moving] = u_new[moving]
-        squeezed |= empty
-        if squeezed.any():  # the joint QP takes over (barrier_commands): no need to go on
-            return u, moving, squeezed
-        violated = ((A * u[rows]).sum(axis=1) - b > tol) & ~use & ~squeezed[rows]
+        sel = use & again[rows]
+        u_new, empty = _closest_in_polygons(rows[sel], A[sel], b[sel], u_hat, n)
+        u[again] = u_new[again]
+        squeezed |= empty  # the joint QP takes those over (barrier_commands)
+        excess = (A * u[rows]).sum(axis=1) - b
+        violated = (excess > tol) & ~use & ~squeezed[rows]
         if not violated.any():
             return u, moving, squeezed
-        rounds += 1
-        # after a few rounds take every side at once: as exact, and the rounds stay bounded
-        use |= violated if rounds < _ROUNDS else np.ones_like(use)
+        use |= _most_violated(rows, excess, violated)
+        again = np.zeros(n, dtype=bool)
+        again[rows[violated]] = True
+
+
+def _most_violated(
+    rows: NDArray[np.intp], excess: _Array, mask: NDArray[np.bool_], join: int = 0
+) -> NDArray[np.bool_]:
+    """Where ``mask``: each robot's ``join`` (default :data:`_JOIN`) rows of largest ``excess`` (unit normals)."""
+    join = join or _JOIN
+    pick = np.zeros(rows.size, dtype=bool)
+    k = np.flatnonzero(mask)
+    order = k[np.lexsort((-excess[k], rows[k]))]
+    r = rows[order]
+    first = np.ones(r.size, dtype=bool)
+    first[1:] = r[1:] != r[:-1]
+    start = np.maximum.accumulate(np.where(first, np.arange(r.size), 0))
+    pick[order[np.arange(r.size) - start < join]] = True
+    return pick
 
 
 def _closest_in_polygons(
@@ -304,9 +442,15 @@ def _closest_in_polygons(
 ) -> tuple[_Array, NDArray[np.bool_]]:
     """For each robot in ``rows``: the point of ``{u : A_k u <= b_k}`` closest to its ``u_hat``.
 
-    The minimiser of a 2-D QP is ``u_hat``, the projection on one line or the
-    intersection of two; all are formed at once (padded to the most sides)
-    and the closest feasible one is taken. Returns the commands (``u_hat``
+    Exact, by the polygon's edges: when ``u_hat`` is outside, the closest point
+    lies on an edge, the part of some side's line that the other sides
+    leave; on line k that part is an interval ``[lo_k, hi_k]`` of the
+    coordinate along the line (each other side bounds it from one end, a
+    parallel side keeps all or nothing of it), and the closest point of the
+    line to ``u_hat``, its projection, clipped to the interval, is the edge's
+    best point. The closest over the edges is the answer; no edge left
+    means an empty polygon. Every robot and side at once (padded to the
+    most sides): ``K^2`` work for K sides. Returns the commands (``u_hat``
     where a robot has no row) and where a polygon is empty.
     """
     order = np.argsort(rows, kind="stable")
@@ -316,39 +460,41 @@ def _closest_in_polygons(
     K = int(counts.max())
     slot = np.arange(rows.size) - np.repeat(np.cumsum(counts) - counts, counts)
     M = movers.size
+    norm = np.hypot(A[:, 0], A[:, 1])
     Ap = np.zeros((M, K, 2))
     bp = np.zeros((M, K))
     real = np.zeros((M, K), dtype=bool)  # padding rows are no constraint
-    Ap[robot_of, slot] = A
-    bp[robot_of, slot] = b
+    Ap[robot_of, slot] = A / norm[:, None]  # unit normals: the coordinate along a line is a length
+    bp[robot_of, slot] = b / norm
     real[robot_of, slot] = True
     uh = u_hat[movers]
-    norm2 = Ap[..., 0] ** 2 + Ap[..., 1] ** 2
-    over = Ap[..., 0] * uh[:, None, 0] + Ap[..., 1] * uh[:, None, 1] - bp
-    t = np.where(real, over / np.where(real, norm2, 1.0), 0.0)
-    cand = [uh[:, None], uh[:, None] - t[..., None] * Ap]
-    valid = [np.ones((M, 1), dtype=bool), real]
-    if K > 1:
-        p, q = np.triu_indices(K, k=1)
-        a1, a2, b1, b2 = Ap[:, p], Ap[:, q], bp[:, p], bp[:, q]
-        det = a1[..., 0] * a2[..., 1] - a1[..., 1] * a2[..., 0]
-        ok = real[:, p] & real[:, q] & (np.abs(det) > 1e-12 * (norm2[:, p] + norm2[:, q]))
-        d = np.where(ok, det, 1.0)
-        vx = (b1 * a2[..., 1] - b2 * a1[..., 1]) / d
-        vy = (a1[..., 0] * b2 - a2[..., 0] * b1) / d
-        cand.append(np.stack([vx, vy], axis=-1))
-        valid.append(ok)
-    C = np.concatenate(cand, axis=1)  # (M, candidates, 2)
-    ok_c = np.concatenate(valid, axis=1)
-    lhs = C[..., 0, None] * Ap[:, None, :, 0] + C[..., 1, None] * Ap[:, None, :, 1]  # (M, cands, K)
-    excess = np.where(real[:, None, :], lhs - bp[:, None, :] - _FEASIBLE * (1.0 + np.abs(bp))[:, None, :], -np.inf)
-    feasible = ok_c & (excess.max(axis=2) <= 0.0)
-    dist = ((C - uh[:, None]) ** 2).sum(axis=2)
-    pick = np.argmin(np.where(feasible, dist, np.inf), axis=1)
+    tol = _FEASIBLE * (1.0 + np.abs(bp))
+    over = Ap[..., 0] * uh[:, None, 0] + Ap[..., 1] * uh[:, None, 1] - bp  # (M, K)
+    inside = ~(real & (over > tol)).any(axis=1)
+    foot = uh[:, None] - over[..., None] * Ap  # projections of u_hat on the lines, (M, K, 2)
+    tx, ty = -Ap[..., 1], Ap[..., 0]  # each line's direction
+    # side l on line k: s (a_l . t_k) <= b_l - a_l . foot_k
+    slope = Ap[:, None, :, 0] * tx[:, :, None] + Ap[:, None, :, 1] * ty[:, :, None]  # (M, k, l)
+    room = bp[:, None, :] - (Ap[:, None, :, 0] * foot[:, :, None, 0] + Ap[:, None, :, 1] * foot[:, :, None, 1])
+    other = real[:, None, :] & ~np.eye(K, dtype=bool)[None]
+    flat = np.abs(slope) <= 1e-12
+    safe_slope = np.where(flat, 1.0, slope)
+    bound = room / safe_slope
+    hi = np.where(other & ~flat & (slope > 0), bound, np.inf).min(axis=2)
+    lo = np.where(other & ~flat & (slope < 0), bound, -np.inf).max(axis=2)
+    shut = (other & flat & (room < -tol[:, None, :])).any(axis=2)  # a parallel side excludes the line
+    # a polygon shrunk to a point may leave lo a rounding above hi
+    slack = 1e-12 * (1.0 + np.abs(np.where(np.isfinite(lo), lo, 0.0)))
+    edge = real & ~shut & (lo <= hi + slack)
+    s = np.clip(0.0, lo, hi)
+    dist = over**2 + s**2
+    pick = np.argmin(np.where(edge, dist, np.inf), axis=1)
+    m = np.arange(M)
+    best = foot[m, pick] + s[m, pick, None] * np.stack([tx[m, pick], ty[m, pick]], axis=-1)
     u = u_hat.copy()
-    u[movers] = C[np.arange(M), pick]
+    u[movers] = np.where(inside[:, None], uh, best)
     empty = np.zeros(n, dtype=bool)
-    empty[movers[~feasible.any(axis=1)]] = True
+    empty[movers[~inside & ~edge.any(axis=1)]] = True
     return u, empty
 
 
@@ -375,7 +521,16 @@ class FilteredAgent:
 
     def rhs(self, state: _Array, u: _Array) -> tuple[_Array, _Array, tuple[_Array, ...]]:
         x, v = state[:, :2], self.agent.velocity(state)
-        filtered, active, infeasible = barrier_commands(x, v, u, self.safe, self.safety.rate, self.neighbours(x, v))
+        nb = self.neighbours
+        if nb.n <= _ALL_PAIRS:  # small teams: every pair
+            filtered, active, infeasible = barrier_commands(x, v, u, self.safe, self.safety.rate, nb.pairs)
+        else:
+            need = nb.need(v, u)
+            while True:
+                filtered, active, infeasible = barrier_commands(x, v, u, self.safe, self.safety.rate, nb(x, need))
+                need = nb.need(v, u, filtered)
+                if nb.covers(x, need):  # else a pair left out might bind: again, with more pairs
+                    break
         deriv, cart, extra = self.agent.rhs(state, filtered)
         return deriv, cart, tuple(extra) + (active.astype(float), infeasible.astype(float))
 
