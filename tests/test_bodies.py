@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 import delayform.simulation.bodies as bodies
@@ -30,6 +30,8 @@ def _straight(d0: np.ndarray, w: np.ndarray, times: np.ndarray) -> tuple[np.ndar
     st.floats(-5, 5), st.floats(-5, 5), st.floats(-3, 3), st.floats(-3, 3),
     st.integers(2, 7), st.floats(0.05, 1.0),
 )  # fmt: skip
+@example(0.5, 0.0, 9.315798751259173e-238, 0.0, 2, 1.0)  # a subnormal-scale motion: Horner overflowed
+@example(0.5, 0.0, 5e-324, 0.0, 2, 1.0)
 def test_straight_lines_match_the_closed_form(x, y, wx, wy, samples, R):
     """|d0 + w t| is smallest at t* = -d0.w / |w|^2; contact between the roots of |d0 + w t| = R."""
     times = np.linspace(0.0, 4.0, samples)

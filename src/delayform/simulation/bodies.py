@@ -164,6 +164,9 @@ def _squared_length(a: tuple[_Array, ...]) -> _Array:
     return out
 
 
+#: iterates of the roots' Newton polish stay within this distance of [0, 1]
+_NEWTON_WINDOW = 1.0
+
 def _polyval(coef: _Array, s: _Array) -> _Array:
     """Evaluate ascending coefficients ``(M, m)`` at ``s`` ``(M, r)`` (Horner)."""
     out = np.zeros_like(s) + coef[:, -1:]
@@ -192,12 +195,19 @@ def _unit_roots(coef: _Array) -> tuple[_Array, _Array]:
     comp[:, :, -1] = -coef[:, :-1] / lead[:, None]
     eig = np.linalg.eigvals(comp)
     real = np.abs(eig.imag) <= 1e-6 * (1.0 + np.abs(eig.real))
-    s = eig.real.copy()
+    # Only roots near [0, 1] matter; the lifted leading coefficient can put the others
+    # near 1e300, where Horner overflows, so every iterate is kept in a bounded window
+    # (a root in [0, 1] that Newton converges to is never moved by it).
+    # An eigenvalue outside the window is no candidate, whatever Newton makes of it.
+    real &= (eig.real >= -_NEWTON_WINDOW) & (eig.real <= 1.0 + _NEWTON_WINDOW)
+    s = np.clip(eig.real, -_NEWTON_WINDOW, 1.0 + _NEWTON_WINDOW)
     deriv = coef[:, 1:] * np.arange(1, m)
     for _ in range(_NEWTON):
         f, fp = _polyval(coef, s), _polyval(deriv, s)
         ok = np.abs(fp) > 0
-        s = np.where(ok, s - f / np.where(ok, fp, 1.0), s)
+        with np.errstate(over="ignore"):  # a step past 1e308 (fp subnormal) ends at the window's edge
+            step = f / np.where(ok, fp, 1.0)
+        s = np.clip(np.where(ok, s - step, s), -_NEWTON_WINDOW, 1.0 + _NEWTON_WINDOW)
     valid = real & (s >= -1e-9) & (s <= 1.0 + 1e-9)
     return np.clip(s, 0.0, 1.0), valid
 
