@@ -130,7 +130,11 @@ def test_derivatives_match_finite_differences(coeffs, s, tau1, tau2):
     qp = TwoDelayQuasiPolynomial([*coeffs[0], 1.0], *coeffs[1:])  # a leading 1 keeps g1 non-zero
     h = 1e-6
     fd_s = (qp.evaluate(s + h, tau1, tau2) - qp.evaluate(s - h, tau1, tau2)) / (2 * h)
-    scale = 1 + np.abs(qp.evaluate(s, tau1, tau2)) + np.abs(fd_s)
+    # Rounding in the central difference is eps x (the size of the terms, not of their sum) / h,
+    # and cancellation can make the sum far smaller than its terms: scale by the terms.
+    terms = sum(np.polynomial.polynomial.polyval(abs(s), np.abs(c)) * (1 + abs(s)) * abs(np.exp(-(a * tau1 + b * tau2) * s))
+                * (1 + a * tau1 + b * tau2) for c, a, b in qp.terms())  # fmt: skip
+    scale = 1 + np.abs(qp.evaluate(s, tau1, tau2)) + np.abs(fd_s) + terms
     assert abs(qp.derivative(s, tau1, tau2) - fd_s) <= 1e-5 * scale
     t1p, t1m = tau1 + h, max(tau1 - h, 0.0)
     fd_t1 = (qp.evaluate(s, t1p, tau2) - qp.evaluate(s, t1m, tau2)) / (t1p - t1m)
