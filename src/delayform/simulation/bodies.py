@@ -280,16 +280,16 @@ def _increasing_root(f: _Array, fp: _Array) -> _Array:
     return np.where(f.sum(axis=1) <= 0.0, 1.0, s)
 
 
-def _crossing(sq: _Array, level: float, lo: _Array, hi: _Array, first: bool) -> _Array:
-    """The first (or last) root of ``|d|^2 = level`` in ``[lo, hi]`` per row; ``lo`` / ``hi`` if none."""
+def _crossing(sq: _Array, level: float, lo: _Array, hi: _Array, first: NDArray[np.bool_]) -> _Array:
+    """Per row the first (where ``first``, else the last) root of ``|d|^2 = level`` in ``[lo, hi]``; ``lo`` / ``hi`` if none."""
     shifted = sq.copy()
     shifted[:, 0] -= level
     roots, valid = _unit_roots(shifted)
     valid &= (roots >= lo[:, None] - 1e-12) & (roots <= hi[:, None] + 1e-12)
-    fill = np.inf if first else -np.inf
-    pick = np.where(valid, roots, fill)
-    out = pick.min(axis=1) if first else pick.max(axis=1)
-    default = lo if first else hi
+    earliest = np.where(valid, roots, np.inf).min(axis=1)
+    latest = np.where(valid, roots, -np.inf).max(axis=1)
+    out = np.where(first, earliest, latest)
+    default = np.where(first, lo, hi)
     return np.where(np.isfinite(out), out, default)
 
 
@@ -420,9 +420,12 @@ def _reach(positions: _Array, velocities: _Array, h: _Array) -> _Array:
     points ``x0, x0 + h v0 / 3, x1 - h v1 / 3, x1``; each is within
     ``|x1 - x0| + h (|v0| + |v1|) / 3`` of both ends.
     """
-    step = np.diff(positions, axis=0)
-    speed = np.sqrt(np.einsum("tnk,tnk->tn", velocities, velocities))  # faster than hypot, as exact here
-    return np.sqrt(np.einsum("tnk,tnk->tn", step, step)) + (h[:, None] / 3.0) * (speed[:-1] + speed[1:])
+    # as complex numbers each length is one abs (hypot); in-place sums spare large temporaries
+    speed = np.abs(_complex(velocities))
+    out = speed[:-1] + speed[1:]
+    out *= h[:, None] / 3.0
+    out += np.abs(np.diff(_complex(positions), axis=0))
+    return out
 
 
 def _complex(xy: _Array) -> NDArray[np.complex128]:
@@ -499,52 +502,87 @@ class _Search:
             self.best2, self.best_at, self.best_pair = float(dist[e] ** 2), float(self.times[k[e]]), (int(i[e]), int(j[e]))
 
     def finish(self) -> None:
-        """Solve every kept interval that may still matter (module doc): the exact minima and contacts."""
+        """Solve every kept interval that may still matter (module doc): the exact minima and contacts.
+
+        An interval with a sample in contact is a contact whatever its
+        minimum, and its minimum matters only where it may fall below its
+        contact episode's closest sample: its lower bound (``bound``, from
+        the samples and :func:`_reach`) decides. The others keep their
+        closer sample as their lowest point, which is exact at that sample
+        and never below the episode's true closest approach, so each
+        episode's and the run's minimum stay exact.
+        """
         if not self.found:
             return
         k, i, j, bound, z0, z1, w0, w1 = (np.concatenate(parts) for parts in zip(*self.found))
         keep = bound < self.threshold  # the best sample of the whole run prunes the early stretches too
-        k, i, j, z0, z1, w0, w1 = k[keep], i[keep], j[keep], z0[keep], z1[keep], w0[keep], w1[keep]
+        k, i, j, bound, z0, z1, w0, w1 = (x[keep] for x in (k, i, j, bound, z0, z1, w0, w1))
         if not k.size:
             return
         h = self.h[k]
         pair = [np.stack([c.real, c.imag], axis=-1) for c in (z0, z1, w0, w1)]
         a = _hermite_coefficients(*pair, h)
         sq = _squared_length(a)
-        _, where = _interval_minima(sq)
+        d0, d1 = np.abs(z0), np.abs(z1)
+        where = (d1 < d0).astype(float)  # the closer sample, until solved
+        inside = np.minimum(d0, d1) < self.R
+        apart = np.flatnonzero(~inside)  # could dip into contact, or below the best sample, between samples
+        if apart.size:
+            where[apart] = _interval_minima(sq[apart])[1]
+        hit = inside.copy()
+        hit[apart] = _separation_squared(_rows(a, apart), where[apart]) < self.R**2
+        if np.any(inside):
+            # each episode's closest sample bounds its closest approach from above
+            order, starts, _ = _runs(k[hit], i[hit], j[hit])
+            rows = np.flatnonzero(hit)[order]
+            closest = np.minimum.reduceat(np.minimum(d0, d1)[rows], starts)
+            episode = np.repeat(closest, np.diff(np.append(starts, rows.size)))
+            margin = 1e-9 * (1.0 + episode)  # the bound's rounding, generously
+            solve = rows[inside[rows] & (bound[rows] < episode + margin)]
+            if solve.size:
+                where[solve] = _interval_minima(sq[solve])[1]
         low = _separation_squared(a, where)
         m = int(np.argmin(low))
         if low[m] < self.best2:
             self.best2 = float(low[m])
             self.best_at = float(self.times[k[m]] + where[m] * h[m])
             self.best_pair = (int(i[m]), int(j[m]))
-        touch = low < self.R**2
-        if np.any(touch):
-            self.hits.append((k[touch], i[touch], j[touch], low[touch], where[touch], sq[touch]))
+        if np.any(hit):
+            self.hits.append((k[hit], i[hit], j[hit], low[hit], where[hit], sq[hit]))
+
+
+def _rows(a: tuple[_Array, ...], rows: _Index) -> tuple[_Array, ...]:
+    return tuple(c[rows] for c in a)
+
+
+def _runs(k: _Index, i: _Index, j: _Index) -> tuple[_Index, _Index, _Index]:
+    """Runs of consecutive intervals ``k`` of one pair ``(i, j)``: the sorting order, and each run's first and last position in it."""
+    order = np.lexsort((k, j, i))
+    k, i, j = k[order], i[order], j[order]
+    new = np.ones(k.size, dtype=bool)
+    new[1:] = (i[1:] != i[:-1]) | (j[1:] != j[:-1]) | (k[1:] != k[:-1] + 1)
+    starts = np.flatnonzero(new)
+    return order, starts, np.append(starts[1:], k.size) - 1
 
 
 def _contacts(
     times: _Array, hits: list[tuple[_Index, _Index, _Index, _Array, _Array, _Array]], R: float
 ) -> tuple[Contact, ...]:
     """Group the intervals in contact into episodes per pair, with exact start and end times."""
-    k = np.concatenate([hh[0] for hh in hits])
-    i = np.concatenate([hh[1] for hh in hits])
-    j = np.concatenate([hh[2] for hh in hits])
-    low = np.concatenate([hh[3] for hh in hits])
-    where = np.concatenate([hh[4] for hh in hits])
-    sq = np.concatenate([hh[5] for hh in hits])
     # each interval belongs to exactly one stretch: no duplicates to remove
-    order = np.lexsort((k, j, i))
+    k, i, j, low, where, sq = (np.concatenate([hh[c] for hh in hits]) for c in range(6))
+    order, starts, ends = _runs(k, i, j)
     k, i, j, low, where, sq = k[order], i[order], j[order], low[order], where[order], sq[order]
-    new = np.ones(k.size, dtype=bool)
-    new[1:] = (i[1:] != i[:-1]) | (j[1:] != j[:-1]) | (k[1:] != k[:-1] + 1)
-    starts = np.flatnonzero(new)
-    ends = np.append(starts[1:], k.size) - 1
     h = np.diff(times)
-    zero, one = np.zeros(starts.size), np.ones(starts.size)
-    R2 = R * R
-    s_in = _crossing(sq[starts], R2, zero, where[starts], first=True)
-    s_out = _crossing(sq[ends], R2, where[ends], one, first=False)
+    n = starts.size
+    # the entries and exits in one batch of roots: first crossing before each episode's
+    # lowest point in its first interval, last one after it in its last interval
+    s = _crossing(
+        np.concatenate([sq[starts], sq[ends]]), R * R,
+        np.concatenate([np.zeros(n), where[ends]]), np.concatenate([where[starts], np.ones(n)]),
+        np.arange(2 * n) < n,
+    )  # fmt: skip
+    s_in, s_out = s[:n], s[n:]
     out = []
     for e, (a, b) in enumerate(zip(starts, ends)):
         span = slice(a, b + 1)
