@@ -505,12 +505,14 @@ class _Search:
         """Solve every kept interval that may still matter (module doc): the exact minima and contacts.
 
         An interval with a sample in contact is a contact whatever its
-        minimum, and its minimum matters only where it may fall below its
-        contact episode's closest sample: its lower bound (``bound``, from
-        the samples and :func:`_reach`) decides. The others keep their
-        closer sample as their lowest point, which is exact at that sample
-        and never below the episode's true closest approach, so each
-        episode's and the run's minimum stay exact.
+        minimum, and its minimum matters only where it may fall below the
+        closest sample of its run of such intervals (which bounds its
+        contact episode's closest approach from above: sound, if more than
+        needed where an episode holds several runs): its lower bound
+        (``bound``, from the samples and :func:`_reach`) decides. The others
+        keep their closer sample as their lowest point, which is exact at
+        that sample and never below the episode's true closest approach, so
+        each episode's and the run's minimum stay exact.
         """
         if not self.found:
             return
@@ -523,36 +525,30 @@ class _Search:
         pair = [np.stack([c.real, c.imag], axis=-1) for c in (z0, z1, w0, w1)]
         a = _hermite_coefficients(*pair, h)
         sq = _squared_length(a)
-        d0, d1 = np.abs(z0), np.abs(z1)
-        where = (d1 < d0).astype(float)  # the closer sample, until solved
-        inside = np.minimum(d0, d1) < self.R
-        apart = np.flatnonzero(~inside)  # could dip into contact, or below the best sample, between samples
-        if apart.size:
-            where[apart] = _interval_minima(sq[apart])[1]
-        hit = inside.copy()
-        hit[apart] = _separation_squared(_rows(a, apart), where[apart]) < self.R**2
+        near = np.minimum(np.abs(z0), np.abs(z1))
+        where = (np.abs(z1) < np.abs(z0)).astype(float)  # the closer sample, unless solved
+        inside = near < self.R
+        # apart at both samples: could dip into contact, or below the best sample, between them
+        solve = ~inside
         if np.any(inside):
-            # each episode's closest sample bounds its closest approach from above
-            order, starts, _ = _runs(k[hit], i[hit], j[hit])
-            rows = np.flatnonzero(hit)[order]
-            closest = np.minimum.reduceat(np.minimum(d0, d1)[rows], starts)
-            episode = np.repeat(closest, np.diff(np.append(starts, rows.size)))
-            margin = 1e-9 * (1.0 + episode)  # the bound's rounding, generously
-            solve = rows[inside[rows] & (bound[rows] < episode + margin)]
-            if solve.size:
-                where[solve] = _interval_minima(sq[solve])[1]
+            rows = np.flatnonzero(inside)
+            order, starts, _ = _runs(k[rows], i[rows], j[rows])
+            rows = rows[order]
+            closest = np.repeat(np.minimum.reduceat(near[rows], starts), np.diff(np.append(starts, rows.size)))
+            margin = 1e-9 * (1.0 + closest)  # the bound's rounding, generously
+            solve[rows[bound[rows] < closest + margin]] = True
+        solve = np.flatnonzero(solve)
+        if solve.size:
+            where[solve] = _interval_minima(sq[solve])[1]
         low = _separation_squared(a, where)
         m = int(np.argmin(low))
         if low[m] < self.best2:
             self.best2 = float(low[m])
             self.best_at = float(self.times[k[m]] + where[m] * h[m])
             self.best_pair = (int(i[m]), int(j[m]))
+        hit = inside | (low < self.R**2)
         if np.any(hit):
             self.hits.append((k[hit], i[hit], j[hit], low[hit], where[hit], sq[hit]))
-
-
-def _rows(a: tuple[_Array, ...], rows: _Index) -> tuple[_Array, ...]:
-    return tuple(c[rows] for c in a)
 
 
 def _runs(k: _Index, i: _Index, j: _Index) -> tuple[_Index, _Index, _Index]:
