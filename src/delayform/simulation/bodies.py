@@ -263,34 +263,61 @@ _BISECT = 12
 def _increasing_root(f: _Array, fp: _Array) -> _Array:
     """Where on ``[0, 1]`` an increasing polynomial ``f`` (coefficients ``(M, m)``, derivative ``fp``) is smallest in size.
 
-    0 where ``f(0) >= 0``, 1 where ``f(1) <= 0``, else its root: bisection
-    brackets it, Newton steps (clipped to the bracket) polish it.
+    0 where ``f(0) >= 0``, 1 where ``f(1) <= 0``, else its root (:func:`_bracketed_root`).
     """
-    lo, hi = np.zeros(f.shape[0]), np.ones(f.shape[0])
-    for _ in range(_BISECT):
-        mid = 0.5 * (lo + hi)
-        up = _polyval(f, mid[:, None])[:, 0] > 0.0
-        hi, lo = np.where(up, mid, hi), np.where(up, lo, mid)
-    s = 0.5 * (lo + hi)
-    for _ in range(_NEWTON):
-        val, slope = _polyval(f, s[:, None])[:, 0], _polyval(fp, s[:, None])[:, 0]
-        ok = slope > 0.0
-        s = np.clip(np.where(ok, s - val / np.where(ok, slope, 1.0), s), lo, hi)
+    s = _bracketed_root(f, fp, np.zeros(f.shape[0]), np.ones(f.shape[0]))
     s = np.where(f[:, 0] >= 0.0, 0.0, s)  # increasing from a non-negative start: smallest at 0
     return np.where(f.sum(axis=1) <= 0.0, 1.0, s)
 
 
+def _bracketed_root(f: _Array, fp: _Array, lo: _Array, hi: _Array) -> _Array:
+    """A root of ``f`` (coefficients ``(M, m)``, derivative ``fp``) in ``[lo, hi]``, where ``f`` changes sign.
+
+    Bisection keeps the sign change bracketed (to ``2^-12`` of the
+    bracket), Newton steps clipped to the bracket polish the root.
+    """
+    lo, hi = lo.copy(), hi.copy()
+    above = _polyval(f, lo[:, None])[:, 0] > 0.0  # the sign at lo, kept at lo
+    for _ in range(_BISECT):
+        mid = 0.5 * (lo + hi)
+        same = (_polyval(f, mid[:, None])[:, 0] > 0.0) == above
+        lo, hi = np.where(same, mid, lo), np.where(same, hi, mid)
+    s = 0.5 * (lo + hi)
+    for _ in range(_NEWTON):
+        val, slope = _polyval(f, s[:, None])[:, 0], _polyval(fp, s[:, None])[:, 0]
+        ok = slope != 0.0
+        s = np.clip(np.where(ok, s - val / np.where(ok, slope, 1.0), s), lo, hi)
+    return s
+
+
 def _crossing(sq: _Array, level: float, lo: _Array, hi: _Array, first: NDArray[np.bool_]) -> _Array:
-    """Per row the first (where ``first``, else the last) root of ``|d|^2 = level`` in ``[lo, hi]``; ``lo`` / ``hi`` if none."""
+    """Per row the first (where ``first``, else the last) root of ``|d|^2 = level`` in ``[lo, hi]``; ``lo`` / ``hi`` if none.
+
+    Where ``|d|^2`` is convex on ``[0, 1]`` (:func:`_interval_minima`'s test)
+    the set where it is below the level is one interval, so with the entry's
+    ``hi`` (the exit's ``lo``) below the level the crossing is the one sign
+    change in ``[lo, hi]``, or none (:func:`_bracketed_root`); every other row
+    takes every real root as a candidate (:func:`_unit_roots`).
+    """
     shifted = sq.copy()
     shifted[:, 0] -= level
-    roots, valid = _unit_roots(shifted)
-    valid &= (roots >= lo[:, None] - 1e-12) & (roots <= hi[:, None] + 1e-12)
-    earliest = np.where(valid, roots, np.inf).min(axis=1)
-    latest = np.where(valid, roots, -np.inf).max(axis=1)
-    out = np.where(first, earliest, latest)
-    default = np.where(first, lo, hi)
-    return np.where(np.isfinite(out), out, default)
+    out = np.where(first, lo, hi)  # no crossing in [lo, hi]
+    f_lo, f_hi = _polyval(shifted, lo[:, None])[:, 0], _polyval(shifted, hi[:, None])[:, 0]
+    d1 = shifted[:, 1:] * np.arange(1, 7)
+    convex = ((d1[:, 1:] * np.arange(1, 6)) @ _BERNSTEIN4.T).min(axis=1) >= 0.0
+    easy = convex & np.where(first, f_hi < 0.0, f_lo < 0.0)
+    change = np.flatnonzero(easy & np.where(first, f_lo >= 0.0, f_hi >= 0.0))
+    if change.size:
+        out[change] = _bracketed_root(shifted[change], d1[change], lo[change], hi[change])
+    rest = np.flatnonzero(~easy)
+    if rest.size:
+        roots, valid = _unit_roots(shifted[rest])
+        valid &= (roots >= lo[rest, None] - 1e-12) & (roots <= hi[rest, None] + 1e-12)
+        earliest = np.where(valid, roots, np.inf).min(axis=1)
+        latest = np.where(valid, roots, -np.inf).max(axis=1)
+        found = np.where(first[rest], earliest, latest)
+        out[rest] = np.where(np.isfinite(found), found, out[rest])
+    return out
 
 
 # --------------------------------------------------------------- search
