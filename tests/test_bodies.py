@@ -151,6 +151,7 @@ def test_long_contacts_skip_exact_minima_and_match_brute_force(seed, monkeypatch
         at = np.argmin(np.abs(t - c.closest_at))
         assert dist[at, col] == pytest.approx(c.closest, abs=1e-5)
         assert np.all(dist[during, col] < R + 1e-9)  # in contact throughout
+        assert c == bodies.Contact(**vars(c)) and repr(c) == repr(bodies.Contact(**vars(c)))  # built unchecked
         in_contact += int(np.count_nonzero((times[:-1] < c.end) & (times[1:] > c.start)))
     # outside the contacts the bodies are apart, up to the dense grid's step at the ends
     outside = np.ones_like(dist, dtype=bool)

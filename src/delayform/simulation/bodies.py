@@ -606,15 +606,26 @@ def _contacts(
         np.arange(2 * n) < n,
     )  # fmt: skip
     s_in, s_out = s[:n], s[n:]
-    out = []
-    for e, (a, b) in enumerate(zip(starts, ends)):
-        span = slice(a, b + 1)
-        m = a + int(np.argmin(low[span]))
-        start = float(times[k[a]] + s_in[e] * h[k[a]])
-        end = float(times[k[b]] + s_out[e] * h[k[b]])
-        out.append(Contact(
-            agents=(int(i[a]), int(j[a])), start=start, end=end, closest=float(math.sqrt(low[m])),
-            closest_at=float(times[k[m]] + where[m] * h[k[m]]), contact_distance=R,
-        ))  # fmt: skip
+    # each episode's lowest interval: the first of its lowest in (episode, low) order, as argmin picks
+    lowest = np.lexsort((low, np.repeat(np.arange(n), ends - starts + 1)))[starts]
+    start, end = times[k[starts]] + s_in * h[k[starts]], times[k[ends]] + s_out * h[k[ends]]
+    at = times[k[lowest]] + where[lowest] * h[k[lowest]]
+    rows = zip(i[starts].tolist(), j[starts].tolist(), start.tolist(), end.tolist(),
+               np.sqrt(low[lowest]).tolist(), at.tolist())  # fmt: skip
+    out = [_contact((a, b), t0, t1, c, c_at, R) for a, b, t0, t1, c, c_at in rows]
     out.sort(key=lambda c: (c.start, c.agents))
     return tuple(out)
+
+
+def _contact(agents: tuple[int, int], start: float, end: float, closest: float, closest_at: float, R: float) -> Contact:
+    """A :class:`Contact` of this module's own numbers, without the argument check.
+
+    A crowded run has thousands of contacts, and checking each one's fields
+    cost more than the search that found them; these are Python ints and
+    finite floats by construction.
+    """
+    contact = object.__new__(Contact)
+    for name, value in (("agents", agents), ("start", start), ("end", end), ("closest", closest),
+                        ("closest_at", closest_at), ("contact_distance", R)):  # fmt: skip
+        object.__setattr__(contact, name, value)  # a frozen dataclass's own way to set its fields
+    return contact
