@@ -162,6 +162,22 @@ def test_long_contacts_skip_exact_minima_and_match_brute_force(seed, monkeypatch
     assert sum(solved) < in_contact / 2  # the shortcut skipped most intervals in contact
 
 
+_coords = st.floats(-3, 3)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(_coords, min_size=8, max_size=8))
+def test_hull_bound_never_exceeds_the_dense_minimum(c):
+    """The Bezier-hull lower bound of an interval's separation against the cubic evaluated densely."""
+    z0, z1, m0, m1 = (np.array([complex(c[2 * q], c[2 * q + 1])]) for q in range(4))
+    s = np.linspace(0.0, 1.0, 2001)
+    d = (2 * s**3 - 3 * s**2 + 1) * z0 + (s**3 - 2 * s**2 + s) * m0 + (-2 * s**3 + 3 * s**2) * z1 + (s**3 - s**2) * m1
+    bound = float(bodies._hull_bound(z0, z1, m0, m1)[0])
+    assert 0.0 <= bound <= np.abs(d).min() + 1e-12
+    if abs(z0 - z1)[0] + abs(m0)[0] + abs(m1)[0] < 1e-3 * abs(z0)[0]:
+        assert bound == pytest.approx(abs(z0)[0], rel=1e-2)  # a pair moving together: tight
+
+
 def test_the_papers_ideal_robots_collide_and_say_so():
     a, _ = paper_simulations(duration=40.0, dt=0.05)
     assert a.collided and a.radius == IROBOT_CREATE.radius

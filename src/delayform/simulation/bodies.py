@@ -34,9 +34,16 @@ comes near are bounded interval by interval; larger teams take the
 candidate pairs of each stretch of samples from a KD-tree
 (:class:`scipy.spatial.cKDTree`) on the stretch's middle positions, with a
 search radius grown by how far any robot moves within the stretch. The
-kept intervals are solved in one batch at the end; where ``|d|^2`` is convex
-on the interval (the usual case) its minimum is found by bisection and
-Newton on the increasing derivative instead of the companion matrix.
+kept intervals are solved in one batch at the end, after a second, tighter
+bound from the pair's own Bezier control points (:func:`_hull_bound`);
+where ``|d|^2`` is convex on the interval (the usual case) its minimum is
+found by bisection and Newton on the increasing derivative, and a
+contact's entry and exit as the one sign change of ``|d|^2 - R^2``, instead
+of the companion matrix. An interval with a sample in contact is a contact
+whatever its minimum, so its minimum is solved only where its bound lets
+it fall below the closest sample of its run in contact
+(:meth:`_Search.finish`): the contacts' and the run's closest approach stay
+exact.
 """
 
 from __future__ import annotations
@@ -544,6 +551,7 @@ class _Search:
         if not self.found:
             return
         k, i, j, bound, z0, z1, w0, w1 = (np.concatenate(parts) for parts in zip(*self.found))
+        bound = np.maximum(bound, _hull_bound(z0, z1, w0 * self.h[k], w1 * self.h[k]))
         keep = bound < self.threshold  # the best sample of the whole run prunes the early stretches too
         k, i, j, bound, z0, z1, w0, w1 = (x[keep] for x in (k, i, j, bound, z0, z1, w0, w1))
         if not k.size:
@@ -576,6 +584,29 @@ class _Search:
         hit = inside | (low < self.R**2)
         if np.any(hit):
             self.hits.append((k[hit], i[hit], j[hit], low[hit], where[hit], sq[hit]))
+
+
+def _hull_bound(z0: NDArray[np.complex128], z1: NDArray[np.complex128], m0: NDArray[np.complex128],
+                m1: NDArray[np.complex128]) -> _Array:  # fmt: skip
+    """A lower bound of ``|d(s)|`` on each interval, from the separation's own Bezier control points.
+
+    The cubic Hermite separation (ends ``z0``, ``z1``, tangents ``m0``,
+    ``m1`` = velocity times step) is the Bezier curve of ``z0``,
+    ``z0 + m0 / 3``, ``z1 - m1 / 3``, ``z1`` and lies in their convex hull;
+    along the unit direction ``u`` of ``z0 + z1`` every point of the hull
+    is at least the smallest control point's component, so ``|d(s)| >=
+    min_k Re(P_k conj(u))``. Much tighter than the robots' separate reaches
+    (:func:`_reach`) where a pair moves together or slides past. 0 where the
+    direction is undefined; a hair below the bound for its rounding.
+    """
+    mid = z0 + z1
+    size = np.abs(mid)
+    u = np.where(size > 0.0, mid / np.where(size > 0.0, size, 1.0), 0.0)
+    c0, c3 = (z0 * u.conj()).real, (z1 * u.conj()).real
+    c1, c2 = c0 + (m0 * u.conj()).real / 3.0, c3 - (m1 * u.conj()).real / 3.0
+    low = np.minimum(np.minimum(c0, c1), np.minimum(c2, c3))
+    scale = np.abs(z0) + np.abs(z1) + np.abs(m0) + np.abs(m1)
+    return np.maximum(low - 1e-12 * scale, 0.0)
 
 
 def _runs(k: _Index, i: _Index, j: _Index) -> tuple[_Index, _Index, _Index]:
