@@ -102,6 +102,82 @@ def test_large_team_kd_tree_search_equals_all_pairs(monkeypatch):
     assert tree.min_distance <= sample_min_distance(traj.positions)
 
 
+def _dense_hermite(times: np.ndarray, pos: np.ndarray, vel: np.ndarray, per: int) -> tuple[np.ndarray, np.ndarray]:
+    """The cubic Hermite interpolant evaluated at ``per`` points per interval (brute force)."""
+    s = np.linspace(0.0, 1.0, per, endpoint=False)
+    h = np.diff(times)[:, None, None, None]
+    h00, h10, h01, h11 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, -2 * s**3 + 3 * s**2, s**3 - s**2
+    b = [c[None, :, None, None] for c in (h00, h10, h01, h11)]
+    x = b[0] * pos[:-1, None] + b[1] * h * vel[:-1, None] + b[2] * pos[1:, None] + b[3] * h * vel[1:, None]
+    t = times[:-1, None] + np.diff(times)[:, None] * s
+    return np.append(t.ravel(), times[-1]), np.concatenate([x.reshape(-1, *pos.shape[1:]), pos[-1:]])
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_long_contacts_skip_exact_minima_and_match_brute_force(seed, monkeypatch):
+    """Robots circling through each other, in contact for many samples: most intervals in contact
+    skip their exact minimum (:meth:`_Search.finish`), yet every contact's closest approach, its time
+    and the run's minimum match the interpolant evaluated densely, and the contacts' spans match the
+    dense samples in contact."""
+    rng = np.random.default_rng(seed)
+    n, R = 4, 0.8
+    times = np.sort(np.concatenate([[0.0, 6.0], rng.uniform(0.0, 6.0, 398)]))
+    centre, radius = rng.uniform(-0.5, 0.5, (n, 2)), rng.uniform(0.3, 1.0, n)
+    omega, phase = rng.uniform(0.5, 2.0, n) * rng.choice([-1, 1], n), rng.uniform(0, 2 * np.pi, n)
+    angle = omega * times[:, None] + phase
+    pos = centre + radius[:, None] * np.stack([np.cos(angle), np.sin(angle)], axis=-1)
+    vel = (radius * omega)[:, None] * np.stack([-np.sin(angle), np.cos(angle)], axis=-1)
+    solved = []
+    real = bodies._interval_minima
+
+    def spy(sq: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        # rows in contact at a sample: |d(0)|^2 or |d(1)|^2 (the sum of the coefficients) below R^2
+        solved.append(int(np.count_nonzero(np.minimum(sq[:, 0], sq.sum(axis=1)) < R * R)))
+        return real(sq)
+
+    monkeypatch.setattr(bodies, "_interval_minima", spy)
+    got = closest_approach(times, pos, vel, R)
+    t, x = _dense_hermite(times, pos, vel, 400)
+    (i, j), _ = _fine_brute_force(type("T", (), {"positions": x}))
+    dist = np.linalg.norm(x[:, i] - x[:, j], axis=-1)
+    # exact minima never exceed the dense ones, and the dense grid is within (step)^2 of them
+    assert 0.0 <= dist.min() - got.min_distance <= 1e-6
+    assert len(got.contacts) > 0
+    in_contact = 0
+    for c in got.contacts:
+        col = int(np.flatnonzero((i == c.agents[0]) & (j == c.agents[1]))[0])
+        during = (t >= c.start) & (t <= c.end)
+        assert 0.0 <= dist[during, col].min() - c.closest <= 1e-6
+        at = np.argmin(np.abs(t - c.closest_at))
+        assert dist[at, col] == pytest.approx(c.closest, abs=1e-5)
+        assert np.all(dist[during, col] < R + 1e-9)  # in contact throughout
+        assert c == bodies.Contact(**vars(c)) and repr(c) == repr(bodies.Contact(**vars(c)))  # built unchecked
+        in_contact += int(np.count_nonzero((times[:-1] < c.end) & (times[1:] > c.start)))
+    # outside the contacts the bodies are apart, up to the dense grid's step at the ends
+    outside = np.ones_like(dist, dtype=bool)
+    for c in got.contacts:
+        col = int(np.flatnonzero((i == c.agents[0]) & (j == c.agents[1]))[0])
+        outside[(t >= c.start - 1e-3) & (t <= c.end + 1e-3), col] = False
+    assert np.all(dist[outside] >= R)
+    assert sum(solved) < in_contact / 2  # the shortcut skipped most intervals in contact
+
+
+_coords = st.floats(-3, 3)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(_coords, min_size=8, max_size=8))
+def test_hull_bound_never_exceeds_the_dense_minimum(c):
+    """The Bezier-hull lower bound of an interval's separation against the cubic evaluated densely."""
+    z0, z1, m0, m1 = (np.array([complex(c[2 * q], c[2 * q + 1])]) for q in range(4))
+    s = np.linspace(0.0, 1.0, 2001)
+    d = (2 * s**3 - 3 * s**2 + 1) * z0 + (s**3 - 2 * s**2 + s) * m0 + (-2 * s**3 + 3 * s**2) * z1 + (s**3 - s**2) * m1
+    bound = float(bodies._hull_bound(z0, z1, m0, m1)[0])
+    assert 0.0 <= bound <= np.abs(d).min() + 1e-12
+    if abs(z0 - z1)[0] + abs(m0)[0] + abs(m1)[0] < 1e-3 * abs(z0)[0]:
+        assert bound == pytest.approx(abs(z0)[0], rel=1e-2)  # a pair moving together: tight
+
+
 def test_the_papers_ideal_robots_collide_and_say_so():
     a, _ = paper_simulations(duration=40.0, dt=0.05)
     assert a.collided and a.radius == IROBOT_CREATE.radius

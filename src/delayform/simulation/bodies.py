@@ -34,9 +34,16 @@ comes near are bounded interval by interval; larger teams take the
 candidate pairs of each stretch of samples from a KD-tree
 (:class:`scipy.spatial.cKDTree`) on the stretch's middle positions, with a
 search radius grown by how far any robot moves within the stretch. The
-kept intervals are solved in one batch at the end; where ``|d|^2`` is convex
-on the interval (the usual case) its minimum is found by bisection and
-Newton on the increasing derivative instead of the companion matrix.
+kept intervals are solved in one batch at the end, after a second, tighter
+bound from the pair's own Bezier control points (:func:`_hull_bound`);
+where ``|d|^2`` is convex on the interval (the usual case) its minimum is
+found by bisection and Newton on the increasing derivative, and a
+contact's entry and exit as the one sign change of ``|d|^2 - R^2``, instead
+of the companion matrix. An interval with a sample in contact is a contact
+whatever its minimum, so its minimum is solved only where its bound lets
+it fall below the closest sample of its run in contact
+(:meth:`_Search.finish`): the contacts' and the run's closest approach stay
+exact.
 """
 
 from __future__ import annotations
@@ -263,34 +270,61 @@ _BISECT = 12
 def _increasing_root(f: _Array, fp: _Array) -> _Array:
     """Where on ``[0, 1]`` an increasing polynomial ``f`` (coefficients ``(M, m)``, derivative ``fp``) is smallest in size.
 
-    0 where ``f(0) >= 0``, 1 where ``f(1) <= 0``, else its root: bisection
-    brackets it, Newton steps (clipped to the bracket) polish it.
+    0 where ``f(0) >= 0``, 1 where ``f(1) <= 0``, else its root (:func:`_bracketed_root`).
     """
-    lo, hi = np.zeros(f.shape[0]), np.ones(f.shape[0])
-    for _ in range(_BISECT):
-        mid = 0.5 * (lo + hi)
-        up = _polyval(f, mid[:, None])[:, 0] > 0.0
-        hi, lo = np.where(up, mid, hi), np.where(up, lo, mid)
-    s = 0.5 * (lo + hi)
-    for _ in range(_NEWTON):
-        val, slope = _polyval(f, s[:, None])[:, 0], _polyval(fp, s[:, None])[:, 0]
-        ok = slope > 0.0
-        s = np.clip(np.where(ok, s - val / np.where(ok, slope, 1.0), s), lo, hi)
+    s = _bracketed_root(f, fp, np.zeros(f.shape[0]), np.ones(f.shape[0]))
     s = np.where(f[:, 0] >= 0.0, 0.0, s)  # increasing from a non-negative start: smallest at 0
     return np.where(f.sum(axis=1) <= 0.0, 1.0, s)
 
 
-def _crossing(sq: _Array, level: float, lo: _Array, hi: _Array, first: bool) -> _Array:
-    """The first (or last) root of ``|d|^2 = level`` in ``[lo, hi]`` per row; ``lo`` / ``hi`` if none."""
+def _bracketed_root(f: _Array, fp: _Array, lo: _Array, hi: _Array) -> _Array:
+    """A root of ``f`` (coefficients ``(M, m)``, derivative ``fp``) in ``[lo, hi]``, where ``f`` changes sign.
+
+    Bisection keeps the sign change bracketed (to ``2^-12`` of the
+    bracket), Newton steps clipped to the bracket polish the root.
+    """
+    lo, hi = lo.copy(), hi.copy()
+    above = _polyval(f, lo[:, None])[:, 0] > 0.0  # the sign at lo, kept at lo
+    for _ in range(_BISECT):
+        mid = 0.5 * (lo + hi)
+        same = (_polyval(f, mid[:, None])[:, 0] > 0.0) == above
+        lo, hi = np.where(same, mid, lo), np.where(same, hi, mid)
+    s = 0.5 * (lo + hi)
+    for _ in range(_NEWTON):
+        val, slope = _polyval(f, s[:, None])[:, 0], _polyval(fp, s[:, None])[:, 0]
+        ok = slope != 0.0
+        s = np.clip(np.where(ok, s - val / np.where(ok, slope, 1.0), s), lo, hi)
+    return s
+
+
+def _crossing(sq: _Array, level: float, lo: _Array, hi: _Array, first: NDArray[np.bool_]) -> _Array:
+    """Per row the first (where ``first``, else the last) root of ``|d|^2 = level`` in ``[lo, hi]``; ``lo`` / ``hi`` if none.
+
+    Where ``|d|^2`` is convex on ``[0, 1]`` (:func:`_interval_minima`'s test)
+    the set where it is below the level is one interval, so with the entry's
+    ``hi`` (the exit's ``lo``) below the level the crossing is the one sign
+    change in ``[lo, hi]``, or none (:func:`_bracketed_root`); every other row
+    takes every real root as a candidate (:func:`_unit_roots`).
+    """
     shifted = sq.copy()
     shifted[:, 0] -= level
-    roots, valid = _unit_roots(shifted)
-    valid &= (roots >= lo[:, None] - 1e-12) & (roots <= hi[:, None] + 1e-12)
-    fill = np.inf if first else -np.inf
-    pick = np.where(valid, roots, fill)
-    out = pick.min(axis=1) if first else pick.max(axis=1)
-    default = lo if first else hi
-    return np.where(np.isfinite(out), out, default)
+    out = np.where(first, lo, hi)  # no crossing in [lo, hi]
+    f_lo, f_hi = _polyval(shifted, lo[:, None])[:, 0], _polyval(shifted, hi[:, None])[:, 0]
+    d1 = shifted[:, 1:] * np.arange(1, 7)
+    convex = ((d1[:, 1:] * np.arange(1, 6)) @ _BERNSTEIN4.T).min(axis=1) >= 0.0
+    easy = convex & np.where(first, f_hi < 0.0, f_lo < 0.0)
+    change = np.flatnonzero(easy & np.where(first, f_lo >= 0.0, f_hi >= 0.0))
+    if change.size:
+        out[change] = _bracketed_root(shifted[change], d1[change], lo[change], hi[change])
+    rest = np.flatnonzero(~easy)
+    if rest.size:
+        roots, valid = _unit_roots(shifted[rest])
+        valid &= (roots >= lo[rest, None] - 1e-12) & (roots <= hi[rest, None] + 1e-12)
+        earliest = np.where(valid, roots, np.inf).min(axis=1)
+        latest = np.where(valid, roots, -np.inf).max(axis=1)
+        found = np.where(first[rest], earliest, latest)
+        out[rest] = np.where(np.isfinite(found), found, out[rest])
+    return out
 
 
 # --------------------------------------------------------------- search
@@ -420,9 +454,12 @@ def _reach(positions: _Array, velocities: _Array, h: _Array) -> _Array:
     points ``x0, x0 + h v0 / 3, x1 - h v1 / 3, x1``; each is within
     ``|x1 - x0| + h (|v0| + |v1|) / 3`` of both ends.
     """
-    step = np.diff(positions, axis=0)
-    speed = np.sqrt(np.einsum("tnk,tnk->tn", velocities, velocities))  # faster than hypot, as exact here
-    return np.sqrt(np.einsum("tnk,tnk->tn", step, step)) + (h[:, None] / 3.0) * (speed[:-1] + speed[1:])
+    # as complex numbers each length is one abs (hypot); in-place sums spare large temporaries
+    speed = np.abs(_complex(velocities))
+    out = speed[:-1] + speed[1:]
+    out *= h[:, None] / 3.0
+    out += np.abs(np.diff(_complex(positions), axis=0))
+    return out
 
 
 def _complex(xy: _Array) -> NDArray[np.complex128]:
@@ -499,61 +536,127 @@ class _Search:
             self.best2, self.best_at, self.best_pair = float(dist[e] ** 2), float(self.times[k[e]]), (int(i[e]), int(j[e]))
 
     def finish(self) -> None:
-        """Solve every kept interval that may still matter (module doc): the exact minima and contacts."""
+        """Solve every kept interval that may still matter (module doc): the exact minima and contacts.
+
+        An interval with a sample in contact is a contact whatever its
+        minimum, and its minimum matters only where it may fall below the
+        closest sample of its run of such intervals (which bounds its
+        contact episode's closest approach from above: sound, if more than
+        needed where an episode holds several runs): its lower bound
+        (``bound``, from the samples and :func:`_reach`) decides. The others
+        keep their closer sample as their lowest point, which is exact at
+        that sample and never below the episode's true closest approach, so
+        each episode's and the run's minimum stay exact.
+        """
         if not self.found:
             return
         k, i, j, bound, z0, z1, w0, w1 = (np.concatenate(parts) for parts in zip(*self.found))
+        bound = np.maximum(bound, _hull_bound(z0, z1, w0 * self.h[k], w1 * self.h[k]))
         keep = bound < self.threshold  # the best sample of the whole run prunes the early stretches too
-        k, i, j, z0, z1, w0, w1 = k[keep], i[keep], j[keep], z0[keep], z1[keep], w0[keep], w1[keep]
+        k, i, j, bound, z0, z1, w0, w1 = (x[keep] for x in (k, i, j, bound, z0, z1, w0, w1))
         if not k.size:
             return
         h = self.h[k]
         pair = [np.stack([c.real, c.imag], axis=-1) for c in (z0, z1, w0, w1)]
         a = _hermite_coefficients(*pair, h)
         sq = _squared_length(a)
-        _, where = _interval_minima(sq)
+        near = np.minimum(np.abs(z0), np.abs(z1))
+        where = (np.abs(z1) < np.abs(z0)).astype(float)  # the closer sample, unless solved
+        inside = near < self.R
+        # apart at both samples: could dip into contact, or below the best sample, between them
+        solve = ~inside
+        if np.any(inside):
+            rows = np.flatnonzero(inside)
+            order, starts, _ = _runs(k[rows], i[rows], j[rows])
+            rows = rows[order]
+            closest = np.repeat(np.minimum.reduceat(near[rows], starts), np.diff(np.append(starts, rows.size)))
+            margin = 1e-9 * (1.0 + closest)  # the bound's rounding, generously
+            solve[rows[bound[rows] < closest + margin]] = True
+        solve = np.flatnonzero(solve)
+        if solve.size:
+            where[solve] = _interval_minima(sq[solve])[1]
         low = _separation_squared(a, where)
         m = int(np.argmin(low))
         if low[m] < self.best2:
             self.best2 = float(low[m])
             self.best_at = float(self.times[k[m]] + where[m] * h[m])
             self.best_pair = (int(i[m]), int(j[m]))
-        touch = low < self.R**2
-        if np.any(touch):
-            self.hits.append((k[touch], i[touch], j[touch], low[touch], where[touch], sq[touch]))
+        hit = inside | (low < self.R**2)
+        if np.any(hit):
+            self.hits.append((k[hit], i[hit], j[hit], low[hit], where[hit], sq[hit]))
+
+
+def _hull_bound(z0: NDArray[np.complex128], z1: NDArray[np.complex128], m0: NDArray[np.complex128],
+                m1: NDArray[np.complex128]) -> _Array:  # fmt: skip
+    """A lower bound of ``|d(s)|`` on each interval, from the separation's own Bezier control points.
+
+    The cubic Hermite separation (ends ``z0``, ``z1``, tangents ``m0``,
+    ``m1`` = velocity times step) is the Bezier curve of ``z0``,
+    ``z0 + m0 / 3``, ``z1 - m1 / 3``, ``z1`` and lies in their convex hull;
+    along the unit direction ``u`` of ``z0 + z1`` every point of the hull
+    is at least the smallest control point's component, so ``|d(s)| >=
+    min_k Re(P_k conj(u))``. Much tighter than the robots' separate reaches
+    (:func:`_reach`) where a pair moves together or slides past. 0 where the
+    direction is undefined; a hair below the bound for its rounding.
+    """
+    mid = z0 + z1
+    size = np.abs(mid)
+    u = np.where(size > 0.0, mid / np.where(size > 0.0, size, 1.0), 0.0)
+    c0, c3 = (z0 * u.conj()).real, (z1 * u.conj()).real
+    c1, c2 = c0 + (m0 * u.conj()).real / 3.0, c3 - (m1 * u.conj()).real / 3.0
+    low = np.minimum(np.minimum(c0, c1), np.minimum(c2, c3))
+    scale = np.abs(z0) + np.abs(z1) + np.abs(m0) + np.abs(m1)
+    return np.maximum(low - 1e-12 * scale, 0.0)
+
+
+def _runs(k: _Index, i: _Index, j: _Index) -> tuple[_Index, _Index, _Index]:
+    """Runs of consecutive intervals ``k`` of one pair ``(i, j)``: the sorting order, and each run's first and last position in it."""
+    order = np.lexsort((k, j, i))
+    k, i, j = k[order], i[order], j[order]
+    new = np.ones(k.size, dtype=bool)
+    new[1:] = (i[1:] != i[:-1]) | (j[1:] != j[:-1]) | (k[1:] != k[:-1] + 1)
+    starts = np.flatnonzero(new)
+    return order, starts, np.append(starts[1:], k.size) - 1
 
 
 def _contacts(
     times: _Array, hits: list[tuple[_Index, _Index, _Index, _Array, _Array, _Array]], R: float
 ) -> tuple[Contact, ...]:
     """Group the intervals in contact into episodes per pair, with exact start and end times."""
-    k = np.concatenate([hh[0] for hh in hits])
-    i = np.concatenate([hh[1] for hh in hits])
-    j = np.concatenate([hh[2] for hh in hits])
-    low = np.concatenate([hh[3] for hh in hits])
-    where = np.concatenate([hh[4] for hh in hits])
-    sq = np.concatenate([hh[5] for hh in hits])
     # each interval belongs to exactly one stretch: no duplicates to remove
-    order = np.lexsort((k, j, i))
+    k, i, j, low, where, sq = (np.concatenate([hh[c] for hh in hits]) for c in range(6))
+    order, starts, ends = _runs(k, i, j)
     k, i, j, low, where, sq = k[order], i[order], j[order], low[order], where[order], sq[order]
-    new = np.ones(k.size, dtype=bool)
-    new[1:] = (i[1:] != i[:-1]) | (j[1:] != j[:-1]) | (k[1:] != k[:-1] + 1)
-    starts = np.flatnonzero(new)
-    ends = np.append(starts[1:], k.size) - 1
     h = np.diff(times)
-    zero, one = np.zeros(starts.size), np.ones(starts.size)
-    R2 = R * R
-    s_in = _crossing(sq[starts], R2, zero, where[starts], first=True)
-    s_out = _crossing(sq[ends], R2, where[ends], one, first=False)
-    out = []
-    for e, (a, b) in enumerate(zip(starts, ends)):
-        span = slice(a, b + 1)
-        m = a + int(np.argmin(low[span]))
-        start = float(times[k[a]] + s_in[e] * h[k[a]])
-        end = float(times[k[b]] + s_out[e] * h[k[b]])
-        out.append(Contact(
-            agents=(int(i[a]), int(j[a])), start=start, end=end, closest=float(math.sqrt(low[m])),
-            closest_at=float(times[k[m]] + where[m] * h[k[m]]), contact_distance=R,
-        ))  # fmt: skip
+    n = starts.size
+    # the entries and exits in one batch of roots: first crossing before each episode's
+    # lowest point in its first interval, last one after it in its last interval
+    s = _crossing(
+        np.concatenate([sq[starts], sq[ends]]), R * R,
+        np.concatenate([np.zeros(n), where[ends]]), np.concatenate([where[starts], np.ones(n)]),
+        np.arange(2 * n) < n,
+    )  # fmt: skip
+    s_in, s_out = s[:n], s[n:]
+    # each episode's lowest interval: the first of its lowest in (episode, low) order, as argmin picks
+    lowest = np.lexsort((low, np.repeat(np.arange(n), ends - starts + 1)))[starts]
+    start, end = times[k[starts]] + s_in * h[k[starts]], times[k[ends]] + s_out * h[k[ends]]
+    at = times[k[lowest]] + where[lowest] * h[k[lowest]]
+    rows = zip(i[starts].tolist(), j[starts].tolist(), start.tolist(), end.tolist(),
+               np.sqrt(low[lowest]).tolist(), at.tolist())  # fmt: skip
+    out = [_contact((a, b), t0, t1, c, c_at, R) for a, b, t0, t1, c, c_at in rows]
     out.sort(key=lambda c: (c.start, c.agents))
     return tuple(out)
+
+
+def _contact(agents: tuple[int, int], start: float, end: float, closest: float, closest_at: float, R: float) -> Contact:
+    """A :class:`Contact` of this module's own numbers, without the argument check.
+
+    A crowded run has thousands of contacts, and checking each one's fields
+    cost more than the search that found them; these are Python ints and
+    finite floats by construction.
+    """
+    contact = object.__new__(Contact)
+    for name, value in (("agents", agents), ("start", start), ("end", end), ("closest", closest),
+                        ("closest_at", closest_at), ("contact_distance", R)):  # fmt: skip
+        object.__setattr__(contact, name, value)  # a frozen dataclass's own way to set its fields
+    return contact
