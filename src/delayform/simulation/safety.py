@@ -363,9 +363,14 @@ def _cluster_qp(
     m_vars = 2 * int(members.sum())
     u = u_hat.copy()
 
+    # the left sides by columns: a row-wise sum over an axis of two is several times slower
+    n0, n1 = normal[:, 0].copy(), normal[:, 1].copy()
+    in_i, in_j = members[i], members[j]
+
     def lhs(cmd: _Array) -> _Array:
-        side_i = np.where(members[i], -(normal * cmd[i]).sum(axis=1), 0.0)
-        side_j = np.where(members[j], (normal * cmd[j]).sum(axis=1), 0.0)
+        c0, c1 = cmd[:, 0], cmd[:, 1]
+        side_i = np.where(in_i, -(n0 * c0[i] + n1 * c1[i]), 0.0)
+        side_j = np.where(in_j, n0 * c0[j] + n1 * c1[j], 0.0)
         return side_i + side_j
 
     tol = _FEASIBLE * (1.0 + np.abs(right))
@@ -467,7 +472,12 @@ def _solve_polygons(
     keep = moving[rows]  # a violating robot keeps all its constraints
     rows, A, b = rows[keep], A[keep], b[keep]
     tol = _FEASIBLE * (1.0 + np.abs(b))
-    excess = (A * u_hat[rows]).sum(axis=1) - b
+    a0, a1 = A[:, 0].copy(), A[:, 1].copy()
+
+    def excess_at(cmd: _Array) -> _Array:  # by columns, as in _cluster_qp
+        return a0 * cmd[:, 0][rows] + a1 * cmd[:, 1][rows] - b
+
+    excess = excess_at(u_hat)
     use = _most_violated(rows, excess, excess > tol)
     u = u_hat.copy()
     squeezed = np.zeros(n, dtype=bool)
@@ -477,7 +487,7 @@ def _solve_polygons(
         u_new, empty = _closest_in_polygons(rows[sel], A[sel], b[sel], u_hat, n)
         u[again] = u_new[again]
         squeezed |= empty  # the joint QP takes those over (barrier_commands)
-        excess = (A * u[rows]).sum(axis=1) - b
+        excess = excess_at(u)
         violated = (excess > tol) & ~use & ~squeezed[rows]
         if not violated.any():
             return u, moving, squeezed
