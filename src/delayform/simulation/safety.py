@@ -105,8 +105,11 @@ _JOIN = 2
 #: and of the joint QP's active set, per robot
 _JOIN_QP = 3
 
-#: a joint-QP constraint whose multiplier exceeds this (relative to the largest) bound the answer
-_BINDING = 1e-6
+#: rounds of the joint QP's polish (:func:`_polish`) that may drop rows of negative multipliers
+_POLISH_ROUNDS = 4
+
+#: rounds of the joint QP's warm guess (its last binding rows and those violated since) before Clarabel
+_GUESS_ROUNDS = 3
 
 #: a constraint counts as satisfied within this relative tolerance
 _FEASIBLE = 1e-9
@@ -375,27 +378,57 @@ def _cluster_qp(
 
     tol = _FEASIBLE * (1.0 + np.abs(right))
     owner = np.where(members[i], i, j)  # whose constraint it is, for picking a few per robot
-    excess = lhs(u) - right
-    use = _most_violated(owner, excess, excess > tol, _JOIN_QP)
+    target = u_hat[members].ravel()
     codes = np.minimum(i, j).astype(np.int64) * n + np.maximum(i, j)
-    if memory is not None and memory.codes.size:
-        use |= np.isin(codes, memory.codes)
-    settings = clarabel.DefaultSettings()
-    settings.verbose = False
-    while True:
-        rows = np.flatnonzero(use)
+
+    def matrix(rows: NDArray[np.intp]) -> Any:
+        """The rows' left sides in the members' variables (sparse, two robots a row at most)."""
         ii, jj, nn = i[rows], j[rows], normal[rows]
         r_parts, c_parts, v_parts = [], [], []
         for who, sign in ((ii, -1.0), (jj, 1.0)):
-            inside = members[who]
-            k = np.flatnonzero(inside)
+            k = np.flatnonzero(members[who])
             col = 2 * index[who[k]]
             r_parts += [k, k]
             c_parts += [col, col + 1]
             v_parts += [sign * nn[k, 0], sign * nn[k, 1]]
-        G = sp.csc_matrix((np.concatenate(v_parts), (np.concatenate(r_parts), np.concatenate(c_parts))),
-                          shape=(rows.size, m_vars))  # fmt: skip
-        target = u_hat[members].ravel()
+        return sp.csc_matrix((np.concatenate(v_parts), (np.concatenate(r_parts), np.concatenate(c_parts))),
+                             shape=(rows.size, m_vars))  # fmt: skip
+
+    def certified(rows: NDArray[np.intp]) -> tuple[_Array | None, _Array]:
+        """The polish on ``rows`` where it meets every constraint (then the KKT conditions hold: the
+        answer), else None; and the excess of every constraint at the polish (``inf`` if none)."""
+        found = _polish(matrix(rows).tocsr(), target, right[rows])
+        if found is None:
+            return None, np.full(right.size, np.inf)
+        trial = u_hat.copy()
+        trial[members] = found[0].reshape(-1, 2)
+        excess = lhs(trial) - right
+        if (excess > tol).any():
+            return None, excess
+        if memory is not None:
+            memory.codes = codes[rows[found[1]]]
+        return trial, excess
+
+    excess = lhs(u) - right
+    use = _most_violated(owner, excess, excess > tol, _JOIN_QP)
+    if memory is not None and memory.codes.size:
+        # the last answer's binding rows, polished: most often they, and a few that the motion
+        # since made binding, are this answer's; the KKT check decides, else Clarabel does
+        known = np.isin(codes, memory.codes)
+        for _ in range(_GUESS_ROUNDS):
+            guess, excess = certified(np.flatnonzero(known))
+            if guess is not None:
+                return guess
+            violated = excess > tol
+            if not np.isfinite(excess).all() or not violated.any():
+                break
+            known |= _most_violated(owner, excess, violated, _JOIN_QP)
+        use |= known
+    settings = clarabel.DefaultSettings()
+    settings.verbose = False
+    while True:
+        rows = np.flatnonzero(use)
+        G = matrix(rows)
         solver = clarabel.DefaultSolver(sp.identity(m_vars, format="csc") * 2.0, -2.0 * target, G, right[rows],
                                         [clarabel.NonnegativeConeT(rows.size)], settings)  # fmt: skip
         sol = solver.solve()
@@ -406,21 +439,16 @@ def _cluster_qp(
         excess = lhs(u) - right
         violated = (excess > tol) & ~use
         if not violated.any():
-            dual = np.asarray(sol.z, dtype=np.float64)
-            binding = dual > _BINDING * (1.0 + dual.max(initial=0.0))
-            polished = _polish(G.tocsr()[binding], target, right[rows[binding]])
-            if polished is not None:
-                trial = u.copy()
-                trial[members] = polished.reshape(-1, 2)
-                if not (lhs(trial) - right > tol).any():
-                    u = trial
-            if memory is not None:
+            # the interior point's own indicator: a binding row's multiplier outgrows its slack
+            binding = np.asarray(sol.z, dtype=np.float64) > np.asarray(sol.s, dtype=np.float64)
+            exact, _ = certified(rows[binding])
+            if exact is None and memory is not None:
                 memory.codes = codes[rows[binding]]
-            return u
+            return u if exact is None else exact
         use |= _most_violated(owner, excess, violated, _JOIN_QP)
 
 
-def _polish(G: Any, target: _Array, h: _Array) -> _Array | None:
+def _polish(G: Any, target: _Array, h: _Array) -> tuple[_Array, NDArray[np.bool_]] | None:
     """The exact minimiser of ``|u - target|^2`` with the binding rows ``G u = h`` as equalities, or None.
 
     The interior point meets its tolerances only (its answer moves by about
@@ -429,23 +457,31 @@ def _polish(G: Any, target: _Array, h: _Array) -> _Array | None:
     ``G G^T lam = G target - h``, solved by a sparse LU. The answer stands
     only where every multiplier is non-negative (the caller checks every
     constraint): then it is the QP's minimiser to rounding, whatever the
-    warm start. None when the rows are dependent (a degenerate vertex: the
-    interior point's answer is kept) or a multiplier is negative.
+    warm start. Returns it and which rows it kept. None when the rows are dependent (a degenerate vertex: the
+    interior point's answer is kept), or when rows of negative multipliers,
+    dropped for :data:`_POLISH_ROUNDS` rounds, keep appearing.
     """
     import scipy.sparse.linalg as spla
 
-    if G.shape[0] == 0:
-        return target.copy()
-    normal = (G @ G.T).tocsc()
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("error")  # a singular factor warns: treat it as dependent rows
-            lam = spla.splu(normal).solve(G @ target - h)
-    except (RuntimeError, Warning):
-        return None
-    if not np.isfinite(lam).all() or (lam < -_FEASIBLE * (1.0 + np.abs(lam).max())).any():
-        return None
-    return np.asarray(target - G.T @ lam, dtype=np.float64)
+    kept = np.ones(G.shape[0], dtype=bool)
+    for _ in range(_POLISH_ROUNDS):
+        if G.shape[0] == 0:
+            return target.copy(), kept
+        normal = (G @ G.T).tocsc()
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("error")  # a singular factor warns: treat it as dependent rows
+                lam = spla.splu(normal).solve(G @ target - h)
+        except (RuntimeError, Warning):
+            return None
+        if not np.isfinite(lam).all():
+            return None
+        keep = lam >= -_FEASIBLE * (1.0 + np.abs(lam).max())
+        if keep.all():
+            return np.asarray(target - G.T @ lam, dtype=np.float64), kept
+        G, h = G[keep], h[keep]  # a row taken for binding that pulls the wrong way: let it go
+        kept[np.flatnonzero(kept)[~keep]] = False
+    return None
 
 
 def _solve_polygons(
