@@ -42,6 +42,20 @@ every pair with a robot outside; if that is infeasible the whole team
 solves it, which is always feasible for ``x'' = u``. The run's safety
 report counts those steps.
 
+The joint QP is solved at every RK4 stage, not once a step: holding one
+stage's answer over the step would make the command a sample-and-hold
+and the guarantee below only first order in dt. What makes it cheap is
+that consecutive stages' answers rest on nearly the same constraints.
+Each answer is polished exactly (:func:`_polish`): on the rows whose
+multipliers outgrow their slacks the KKT conditions are linear, solved by
+a sparse LU, and the result is kept only if its multipliers are
+non-negative and it meets every constraint (then it is the minimiser, to
+rounding, not to Clarabel's tolerance). The next stage first polishes
+the rows that bound this answer (and a few it then breaks,
+:data:`_GUESS_ROUNDS`); where the KKT check passes Clarabel is not
+called, else Clarabel starts its active set from those rows. The answer
+is the same either way (the strictly convex QP has one minimiser).
+
 What each robot knows, and when
 -------------------------------
 Its own position and velocity, and the positions and velocities of the
@@ -348,8 +362,14 @@ def _cluster_qp(
     Only the constraints violated so far are handed to the solver; when its
     answer meets every other one it is the answer of the whole problem
     (the smaller problem's optimum is a lower bound), else the violated ones
-    join. Returns the commands (``u_hat`` outside the members) or None when
-    the problem is infeasible.
+    join. Clarabel's answer is then polished exactly (:func:`_polish`).
+    With ``memory`` (:class:`_ActiveSet`) the rows that bound the previous
+    answer are polished first, with those the polish breaks joining for
+    :data:`_GUESS_ROUNDS` rounds; an answer that passes the KKT check (every
+    constraint met, multipliers non-negative) is the minimiser and Clarabel
+    is not called; else Clarabel's active set starts from those rows.
+    Returns the commands (``u_hat`` outside the members) or None when the
+    problem is infeasible.
     """
     import clarabel
     import scipy.sparse as sp
@@ -457,9 +477,11 @@ def _polish(G: Any, target: _Array, h: _Array) -> tuple[_Array, NDArray[np.bool_
     ``G G^T lam = G target - h``, solved by a sparse LU. The answer stands
     only where every multiplier is non-negative (the caller checks every
     constraint): then it is the QP's minimiser to rounding, whatever the
-    warm start. Returns it and which rows it kept. None when the rows are dependent (a degenerate vertex: the
-    interior point's answer is kept), or when rows of negative multipliers,
-    dropped for :data:`_POLISH_ROUNDS` rounds, keep appearing.
+    warm start. A row of negative multiplier (taken for binding, pulling
+    the wrong way) is dropped and the rest solved again, for up to
+    :data:`_POLISH_ROUNDS` rounds. Returns the minimiser and which rows it
+    kept; None when the rows are dependent (a degenerate vertex: the
+    interior point's answer is kept) or the rounds run out.
     """
     import scipy.sparse.linalg as spla
 
