@@ -294,3 +294,11 @@ def test_the_whole_teams_joint_qp_against_clarabel_over_every_constraint_warm_or
             assert (A @ warm.ravel() - b <= 1e-9 * (1 + np.abs(b))).all()
             assert (A @ us.ravel() > b).sum() > 20  # the jam: many constraints break at u_hat
     assert warm_hits >= 8
+
+
+def test_a_large_team_with_an_actuation_delay_filters_over_its_neighbour_list():
+    """Above 64 robots the delayed-command path takes the KD-tree's pairs as the undelayed one does."""
+    team = random_digraph(70, 0.1, seed=1)
+    kw = dict(model="double_integrator", actuation_delay=0.05, duration=1.0, dt=0.05, safety="barrier")
+    tr = simulate(team, 1.0, 0.5, 0.3, 0.2, "block", **kw)
+    assert np.isfinite(tr.positions).all() and not tr.contacts

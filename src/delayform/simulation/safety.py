@@ -653,20 +653,20 @@ class FilteredAgent:
     def velocity(self, state: _Array) -> _Array:
         return self.agent.velocity(state)
 
-    def rhs(self, state: _Array, u: _Array) -> tuple[_Array, _Array, tuple[_Array, ...]]:
-        x, v = state[:, :2], self.agent.velocity(state)
+    def _filter(self, x: _Array, v: _Array, u: _Array) -> tuple[_Array, NDArray[np.bool_], NDArray[np.bool_]]:
+        """:func:`barrier_commands` over every pair that can bind (:class:`_Neighbours`)."""
         nb = self.neighbours
         if nb.n <= _ALL_PAIRS:  # small teams: every pair
-            filtered, active, infeasible = barrier_commands(x, v, u, self.safe, self.safety.rate, nb.pairs,
-                                                            self.memory)  # fmt: skip
-        else:
-            need = nb.need(v, u)
-            while True:
-                filtered, active, infeasible = barrier_commands(x, v, u, self.safe, self.safety.rate, nb(x, need),
-                                                                self.memory)  # fmt: skip
-                need = nb.need(v, u, filtered)
-                if nb.covers(x, need):  # else a pair left out might bind: again, with more pairs
-                    break
+            return barrier_commands(x, v, u, self.safe, self.safety.rate, nb.pairs, self.memory)
+        need = nb.need(v, u)
+        while True:
+            found = barrier_commands(x, v, u, self.safe, self.safety.rate, nb(x, need), self.memory)
+            need = nb.need(v, u, found[0])
+            if nb.covers(x, need):  # else a pair left out might bind: again, with more pairs
+                return found
+
+    def rhs(self, state: _Array, u: _Array) -> tuple[_Array, _Array, tuple[_Array, ...]]:
+        filtered, active, infeasible = self._filter(state[:, :2], self.agent.velocity(state), u)
         deriv, cart, extra = self.agent.rhs(state, filtered)
         return deriv, cart, tuple(extra) + (active.astype(float), infeasible.astype(float))
 
@@ -686,8 +686,7 @@ class FilteredAgent:
     def command(self, state: _Array, u: _Array) -> _Array:
         """The filtered command, made now and executed tau_a later, at the predicted state then."""
         x, v = self._buffer.predict(state[:, :2], self.agent.velocity(state))
-        filtered, active, infeasible = barrier_commands(x, v, u, self.safe, self.safety.rate, self.neighbours(x, v),
-                                                        self.memory)  # fmt: skip
+        filtered, active, infeasible = self._filter(x, v, u)
         self._flags = (active.astype(float), infeasible.astype(float))
         return self.agent.command(state, filtered)  # type: ignore[no-any-return]
 
