@@ -28,7 +28,7 @@ def _clarabel_qp(u_hat: np.ndarray, A: np.ndarray, b: np.ndarray) -> np.ndarray:
     """min |u - u_hat|^2 s.t. A u <= b, by the Clarabel interior-point solver (independent of ours)."""
     import clarabel
 
-    P = sp.csc_matrix(2.0 * np.eye(2))
+    P = sp.csc_matrix(2.0 * np.eye(u_hat.size))
     q = -2.0 * u_hat
     cones = [clarabel.NonnegativeConeT(A.shape[0])]
     settings = clarabel.DefaultSettings()
@@ -255,3 +255,50 @@ def test_small_teams_linear_path_with_the_filter_is_the_generic_loop(tau, monkey
     assert np.array_equal(fast.safety.active, slow.safety.active)
     assert np.array_equal(fast.safety.infeasible, slow.safety.infeasible)
     assert fast.status == slow.status and not fast.contacts
+
+
+def test_the_whole_teams_joint_qp_against_clarabel_over_every_constraint_warm_or_cold():
+    """The joint QP (active set, exact polish, warm guess from a nearby state) against Clarabel given
+    every pair's full constraint at once (built here from the formula); warm and cold agree to rounding."""
+    from delayform.simulation.safety import _ActiveSet, _cluster_qp, _pair_terms
+
+    rng = np.random.default_rng(12)
+    safe, k = 0.36, 2.0
+    warm_hits = 0
+    for trial in range(4):
+        n = 40
+        cells = np.array([(a, b) for a in range(7) for b in range(7)], dtype=float)[rng.permutation(49)[:n]]
+        x = 0.45 * cells + rng.uniform(-0.03, 0.03, (n, 2))  # a jam: many constraints bind
+        v = rng.normal(scale=0.5, size=(n, 2))
+        u_hat = rng.normal(scale=4.0, size=(n, 2))
+        pairs = np.column_stack(np.triu_indices(n, k=1)).astype(np.intp)
+        everyone = np.ones(n, dtype=bool)
+        memory = _ActiveSet()
+        for step in range(3):  # the state moves a little: the memory is the previous step's
+            xs, us = x + 0.01 * step * v, u_hat + 0.05 * step
+            normal, c, _, _ = _pair_terms(xs, v, us, pairs, safe, k)
+            dp = np.column_stack([normal.real, normal.imag])
+            had = memory.codes.size
+            warm = _cluster_qp(pairs, dp, c, us, everyone, memory)
+            cold = _cluster_qp(pairs, dp, c, us, everyone)
+            assert warm is not None and cold is not None
+            assert np.abs(warm - cold).max() <= 1e-9 * (1 + np.abs(cold).max())
+            warm_hits += had > 0
+            A = np.zeros((pairs.shape[0], 2 * n))
+            b = np.zeros(pairs.shape[0])
+            for row, (r, o) in enumerate(pairs):
+                a, b[row] = _pair_constraint(xs, v, r, o, safe, k)
+                A[row, 2 * r : 2 * r + 2], A[row, 2 * o : 2 * o + 2] = a, -a
+            ref = _clarabel_qp(us.ravel(), A, b).reshape(n, 2)
+            assert np.allclose(warm, ref, atol=1e-6 * (1 + np.abs(ref).max())), np.abs(warm - ref).max()
+            assert (A @ warm.ravel() - b <= 1e-9 * (1 + np.abs(b))).all()
+            assert (A @ us.ravel() > b).sum() > 20  # the jam: many constraints break at u_hat
+    assert warm_hits >= 8
+
+
+def test_a_large_team_with_an_actuation_delay_filters_over_its_neighbour_list():
+    """Above 64 robots the delayed-command path takes the KD-tree's pairs as the undelayed one does."""
+    team = random_digraph(70, 0.1, seed=1)
+    kw = dict(model="double_integrator", actuation_delay=0.05, duration=1.0, dt=0.05, safety="barrier")
+    tr = simulate(team, 1.0, 0.5, 0.3, 0.2, "block", **kw)
+    assert np.isfinite(tr.positions).all() and not tr.contacts

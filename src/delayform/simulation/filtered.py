@@ -44,7 +44,7 @@ from delayform.simulation.integrator import (
     _records,
     _window_kernel,
 )
-from delayform.simulation.safety import barrier_commands, binds
+from delayform.simulation.safety import _ActiveSet, barrier_commands, binds
 
 __all__ = ["integrate_filtered"]
 
@@ -152,6 +152,7 @@ def integrate_filtered(
     H, flat = _records(x0, v0, pad, rows)
     limit = _blowup_scale(x0, v0)
     pairs = np.column_stack(np.triu_indices(n, k=1)).astype(np.intp)
+    memory = _ActiveSet()  # the joint QP's warm start from stage to stage
     active = np.zeros((steps + 1, n), dtype=bool)
     squeezed = np.zeros((steps + 1, n), dtype=bool)
 
@@ -206,7 +207,7 @@ def integrate_filtered(
                     if j == 1:
                         mid[pos] = reads[-1]
             u_hat = P * (reads[0] - X) + D * (reads[1] - V) + F
-            u, on, empty = barrier_commands(X, V, u_hat, safe, rate, pairs)
+            u, on, empty = barrier_commands(X, V, u_hat, safe, rate, pairs, memory)
             acted |= bool(on.any())
             if j == 0:
                 active[k], squeezed[k] = on, empty
