@@ -44,7 +44,7 @@ from numpy.typing import NDArray
 from delayform.analysis.roots.family.polish import _scatter
 from delayform.analysis.roots.family.rows import _at, _Rows
 from delayform.analysis.roots.family.seeds import _eigvals, _rightmost_k
-from delayform.analysis.roots.family.walk import _chord_ok, _quad2
+from delayform.analysis.roots.family.walk import _chord_ok, _drop_crowded, _quad2
 from delayform.analysis.roots.generator import _chebyshev, _lagrange_rows
 from delayform.analysis.roots.problem import MAX_DEGREE, RESIDUAL_TOL, UNIT_DELAYS, _problem_of_quasi
 from delayform.analysis.roots.rightmost import _pick_rightmost, _solve_rightmost
@@ -257,11 +257,7 @@ def actuated_count(rows: _Rows, c: _Array, *, max_segments: int = 4096) -> _Arra
         for _ in range(_HALVINGS):
             if line.size == 0:
                 break
-            crowded = np.bincount(line, minlength=n) > max_segments
-            if crowded.any():
-                failed |= crowded
-                keep = ~crowded[line]
-                line, wa, hh, qa, qb = line[keep], wa[keep], hh[keep], qa[keep], qb[keep]
+            line, wa, hh, qa, qb = _drop_crowded(line, failed, max_segments, wa, hh, qa, qb)
             hh = 0.5 * hh
             wm = wa + hh
             qm = _on_line(c[line], wm, rows, line)

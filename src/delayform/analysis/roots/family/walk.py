@@ -50,6 +50,21 @@ def _chord_ok(
     return good, turn
 
 
+def _drop_crowded(line: NDArray[np.intp], failed: NDArray[np.bool_], max_segments: int,
+                  *per_segment: NDArray[Any]) -> tuple[NDArray[Any], ...]:  # fmt: skip
+    """Drop the segments of lines that hold more than ``max_segments`` of them, marking those lines failed.
+
+    ``line`` names each pending segment's line; ``per_segment`` are the segments' other
+    arrays, filtered alike. Returns ``(line, *per_segment)``; ``failed`` is updated in place.
+    """
+    crowded = np.bincount(line, minlength=failed.size) > max_segments
+    if not crowded.any():
+        return (line, *per_segment)
+    failed |= crowded
+    keep = ~crowded[line]
+    return (line[keep], *(a[keep] for a in per_segment))
+
+
 def _quad2(
     rho: NDArray[np.float64], h: Any, m2_slope: Any, m2_offset: Any
 ) -> NDArray[np.float64]:
@@ -88,11 +103,7 @@ class _Walk:
         for _ in range(52):
             if line.size == 0:
                 return
-            too_many = np.bincount(line, minlength=n) > max_segments
-            if too_many.any():
-                failed |= too_many
-                keep = ~too_many[line]
-                line, wa, qa, qb, ka, kb = line[keep], wa[keep], qa[keep], qb[keep], ka[keep], kb[keep]
+            line, wa, qa, qb, ka, kb = _drop_crowded(line, failed, max_segments, wa, qa, qb, ka, kb)
             step = 0.5 * step
             take = partial(np.take, indices=line)  # 1-D gathers: np.take beats fancy indexing
             wm = wa + take(step)
