@@ -201,12 +201,8 @@ class DelayBox:
         return L + (g + np.hypot(1.0, wb[..., 0]) * dg)[..., :, None] * np.abs(self.u)
 
     def lipschitz(self, wb: float) -> NDArray[np.float64]:
-        """Entrywise bound of |d Mh_tau(iw) / dw| for w <= wb over the box."""
-        t = self.t
-        L = self.plain_lipschitz(wb)
-        g = wb + t.D + self._rows(t.P * self.hi1 + t.D)
-        dg = 1.0 + self._rows(0.5 * t.P * self.hi1**2 + t.D * self.hi2)
-        return L + np.outer(g + abs(1.0 - 1j * wb) * dg, np.abs(self.u))
+        """Entrywise bound of |d Mh_tau(iw) / dw| for w <= wb over the box (one frequency of :meth:`lipschitz_stack`)."""
+        return self.lipschitz_stack(np.asarray(wb, dtype=np.float64))
 
 
 def _spectral_radius(X: NDArray[np.float64]) -> NDArray[np.float64]:
