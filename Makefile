@@ -37,8 +37,10 @@ browser:
 demo: install
 	$(BIN)/delayform paper --out $(OUT)
 
+# across the cores (pytest-xdist; `make test PYTEST_WORKERS=0` runs in one process)
+PYTEST_WORKERS ?= auto
 test: install-test browser
-	$(BIN)/python -m pytest -q src tests
+	$(BIN)/python -m pytest -q -n $(PYTEST_WORKERS) src tests
 
 # The documentation site (Sphinx + numpydoc + MyST-NB, docs/conf.py says why): warnings are errors,
 # the tutorials in docs/tutorials/ are executed; tests/test_site.py runs the same build.
