@@ -122,12 +122,34 @@ def check_delay_array(name: str, value: ArrayLike) -> NDArray[np.float64]:
     return arr
 
 
+def check_non_negative(name: str, value: object, error: type[InputError] = InputError) -> float:
+    """Return a finite float >= 0, or raise ``error``."""
+    out = _real_scalar(name, value, error)
+    if out < 0.0:
+        raise error(f"{name} must be non-negative, got {out}")
+    return out
+
+
 def check_positive(name: str, value: object, error: type[InputError] = InputError) -> float:
     """Return a finite positive float, or raise ``error``."""
     out = _real_scalar(name, value, error)
     if out <= 0.0:
         raise error(f"{name} must be positive, got {out}")
     return out
+
+
+def check_shaped(name: str, value: ArrayLike, shape: tuple[int | None, ...],
+                 error: type[InputError] = InputError) -> NDArray[np.float64]:  # fmt: skip
+    """Finite real numbers of the given ``shape`` (None: any length) as float64, or raise ``error`` naming both shapes.
+
+    >>> check_shaped("x0", [[0.0, 1.0]], (None, 2)).shape
+    (1, 2)
+    """
+    arr = check_real_array(name, value, error)
+    if arr.ndim != len(shape) or any(want is not None and got != want for got, want in zip(arr.shape, shape)):
+        wanted = "(" + ", ".join("any" if d is None else str(d) for d in shape) + ("," if len(shape) == 1 else "") + ")"
+        raise error(f"{name} must have shape {wanted}, got {arr.shape}")
+    return arr
 
 
 def check_count(name: str, value: object, minimum: int = 0, error: type[InputError] = InputError) -> int:
