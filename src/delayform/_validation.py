@@ -76,15 +76,40 @@ def check_delay(name: str, value: object) -> float:
     return out
 
 
+#: what a numpy dtype holds, for messages naming what the user gave
+_KIND_NAMES = {"b": "booleans", "c": "complex numbers", "U": "strings", "S": "bytes", "O": "objects"}
+
+
 def _numbers(name: str, value: ArrayLike, dtype: type, what: str, error: type[InputError]) -> NDArray[Any]:
-    """``np.asarray(value, dtype)`` for numbers only: numpy would also parse the string "0.5"."""
+    """``np.asarray(value, dtype)`` for numbers only.
+
+    numpy would parse the string "0.5", read True as 1 and, for a real
+    ``dtype``, drop an imaginary part with only a warning: each is refused
+    here, naming what was given.
+    """
+    allowed = "iuf" if np.dtype(dtype).kind == "f" else "iufc"
     try:
         raw = np.asarray(value)
-        if raw.dtype.kind not in "biufc":
-            raise TypeError(raw.dtype)
-        return np.asarray(raw, dtype=dtype)
-    except (TypeError, ValueError) as exc:
+    except (TypeError, ValueError, OverflowError) as exc:  # ragged lists
         raise error(f"{name} must be {what}, got {type(value).__name__}") from exc
+    if raw.dtype.kind not in allowed:
+        given = _KIND_NAMES.get(raw.dtype.kind, f"dtype {raw.dtype}")
+        raise error(f"{name} must be {what}, got {given}" + (f" ({_short(value)})" if raw.ndim == 0 else ""))
+    return np.asarray(raw, dtype=dtype)
+
+
+def real_numbers(name: str, value: ArrayLike, error: type[InputError] = InputError,
+                 what: str = "real numbers") -> NDArray[np.float64]:  # fmt: skip
+    """``value`` as a float64 array of any shape, NaN and infinity kept; booleans, complex numbers and strings refused."""
+    return _numbers(name, value, np.float64, what, error)
+
+
+def check_real_array(name: str, value: ArrayLike, error: type[InputError] = InputError) -> NDArray[np.float64]:
+    """Return finite real numbers as a float64 array, or raise ``error`` (no booleans, complex numbers, strings)."""
+    arr = real_numbers(name, value, error)
+    if not np.all(np.isfinite(arr)):
+        raise error(f"{name} must be finite")
+    return arr
 
 
 def check_delay_array(name: str, value: ArrayLike) -> NDArray[np.float64]:
@@ -97,6 +122,14 @@ def check_delay_array(name: str, value: ArrayLike) -> NDArray[np.float64]:
     return arr
 
 
+def check_non_negative(name: str, value: object, error: type[InputError] = InputError) -> float:
+    """Return a finite float >= 0, or raise ``error``."""
+    out = _real_scalar(name, value, error)
+    if out < 0.0:
+        raise error(f"{name} must be non-negative, got {out}")
+    return out
+
+
 def check_positive(name: str, value: object, error: type[InputError] = InputError) -> float:
     """Return a finite positive float, or raise ``error``."""
     out = _real_scalar(name, value, error)
@@ -105,9 +138,38 @@ def check_positive(name: str, value: object, error: type[InputError] = InputErro
     return out
 
 
+def check_shaped(name: str, value: ArrayLike, shape: tuple[int | None, ...],
+                 error: type[InputError] = InputError) -> NDArray[np.float64]:  # fmt: skip
+    """Finite real numbers of the given ``shape`` (None: any length) as float64, or raise ``error`` naming both shapes.
+
+    >>> check_shaped("x0", [[0.0, 1.0]], (None, 2)).shape
+    (1, 2)
+    """
+    arr = check_real_array(name, value, error)
+    if arr.ndim != len(shape) or any(want is not None and got != want for got, want in zip(arr.shape, shape)):
+        wanted = "(" + ", ".join("any" if d is None else str(d) for d in shape) + ("," if len(shape) == 1 else "") + ")"
+        raise error(f"{name} must have shape {wanted}, got {arr.shape}")
+    return arr
+
+
+def check_count(name: str, value: object, minimum: int = 0, error: type[InputError] = InputError) -> int:
+    """Return a whole number >= ``minimum`` as int, or raise ``error`` (booleans and floats refused)."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (numbers.Integral, np.integer)):
+        raise error(f"{name} must be a whole number, got {value!r}")
+    if int(value) < minimum:
+        raise error(f"{name} must be at least {minimum}, got {int(value)}")
+    return int(value)
+
+
+def check_numbers(name: str, value: ArrayLike, error: type[InputError] = InputError,
+                  what: str = "a sequence of numbers") -> NDArray[np.complex128]:  # fmt: skip
+    """``value`` as a complex128 array (NaN kept); booleans, strings and other objects refused, naming them."""
+    return _numbers(name, value, np.complex128, what, error)
+
+
 def check_complex_array(name: str, value: ArrayLike) -> NDArray[np.complex128]:
     """Return finite complex values as a complex128 array, or raise InputError."""
-    arr = _numbers(name, value, np.complex128, "complex numbers", InputError)
+    arr = check_numbers(name, value, InputError, "complex numbers")
     if not np.all(np.isfinite(arr)):
         raise InputError(f"{name} must be finite")
     return arr

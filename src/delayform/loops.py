@@ -62,7 +62,7 @@ from numpy.typing import NDArray
 from delayform._display import FigureRepr
 from delayform.analysis.roots import count_roots_right_of
 from delayform.characteristic import TwoDelayQuasiPolynomial
-from delayform._validation import validated
+from delayform._validation import check_delay, validated
 from delayform.errors import LoopError, NotConvergedError, UnstableLoopError
 from delayform.quasipolynomial import QuasiPolynomial
 
@@ -437,8 +437,8 @@ class DelayMargin(FigureRepr):
     quasi_polynomial: TwoDelayQuasiPolynomial = field(repr=False)
 
     def is_stable(self, tau: float) -> bool:
-        """True when the closed loop with delay ``tau`` is below the margin (stable)."""
-        return 0.0 <= tau < self.tau
+        """True when the closed loop with delay ``tau`` is below the margin (stable); DelayError for a negative delay."""
+        return check_delay("tau", tau) < self.tau
 
     def _repr_html_(self) -> str:
         rows = "".join(

@@ -44,7 +44,7 @@ import numpy as np
 import numpy.polynomial.polynomial as npoly
 from numpy.typing import ArrayLike, NDArray
 
-from delayform._validation import check_complex_array, check_delay_array, validated
+from delayform._validation import check_complex_array, check_delay_array, check_numbers, validated
 from delayform.characteristic import (
     DELAY_MULTIPLES,
     CharacteristicFactor,
@@ -80,12 +80,8 @@ def _exponents(key: object) -> Exponents:
 
 
 def _coefficients(key: Exponents, value: object) -> NDArray[np.complex128]:
-    try:
-        arr = np.atleast_1d(np.asarray(value, dtype=np.complex128))
-    except (TypeError, ValueError) as exc:
-        raise QuasiPolynomialError(
-            f"the coefficients of the term {key} must be a sequence of numbers"
-        ) from exc
+    # numbers only: numpy would parse the strings "1", "2" (or read True as 1) without a word
+    arr = np.atleast_1d(check_numbers(f"the coefficients of the term {key}", value, QuasiPolynomialError))
     if arr.ndim != 1:
         raise QuasiPolynomialError(
             f"the coefficients of the term {key} must be a 1-D sequence (ascending powers of s), "

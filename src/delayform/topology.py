@@ -546,6 +546,7 @@ def grid(rows: int, cols: int) -> Topology:
     c = _check_count(cols, 1, "grid cols")
     if r * c < 2:
         raise TopologyError("grid needs at least 2 agents")
+    _require_edges(4.0 * r * c, f"a {r} x {c} grid")
     idx = np.arange(r * c).reshape(r, c)
     pairs = [np.column_stack([idx[:, :-1].ravel(), idx[:, 1:].ravel()]),
              np.column_stack([idx[:-1, :].ravel(), idx[1:, :].ravel()])]

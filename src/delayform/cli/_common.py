@@ -358,18 +358,39 @@ def _out_dir(out: Path | None, scenario: Scenario) -> Path:
     Only ``--out`` (or ``out/<scenario name>``) is ever written to; the name
     becomes a single path component, so ``name = "../../evil"`` stays inside.
     """
-    import tempfile
-
     if out is not None and str(out).strip() == "":
         raise click.BadParameter("expected a folder, got an empty path", param_hint="--out")
     path = out if out is not None else Path("out") / _safe_name(scenario.name)
+    return writable_folder(path, "the output folder", "--out")
+
+
+def refuse_file_in_the_way(path: Path, what: str, hint: str) -> None:
+    """Refuse a folder ``path`` that cannot be created because it, or one of its parents, is a file."""
+    try:
+        blocker = next((p for p in (path, *path.parents) if p.exists() and not p.is_dir()), None)
+    except (OSError, ValueError):  # a NUL byte, a name too long: mkdir says which
+        return
+    if blocker is not None:
+        raise click.BadParameter(f"cannot write into {what} {path}: {blocker} is a file, not a folder", param_hint=hint)
+
+
+def writable_folder(path: Path, what: str, hint: str) -> Path:
+    """``path`` created with its parents (as every output of the command line is) and proven writable.
+
+    One rule for ``--out`` and the folder of ``--mcap``: a missing folder is
+    created, a file in its place is named as a file, and an unwritable one is
+    refused, all before anything is computed.
+    """
+    import tempfile
+
+    refuse_file_in_the_way(path, what, hint)
     try:
         path.mkdir(parents=True, exist_ok=True)
         with tempfile.TemporaryFile(dir=path):
             pass
-    except OSError as exc:
-        reason = exc.strerror or type(exc).__name__
-        raise click.BadParameter(f"cannot write into the output folder {path}: {reason}", param_hint="--out")
+    except (OSError, ValueError) as exc:  # ValueError: a NUL byte in the name
+        reason = getattr(exc, "strerror", None) or str(exc) or type(exc).__name__
+        raise click.BadParameter(f"cannot write into {what} {path}: {reason}", param_hint=hint)
     return path
 
 

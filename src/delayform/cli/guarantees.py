@@ -33,10 +33,16 @@ def _matrix_file(path: Path | None, name: str) -> Any:
         arr = np.load(path) if path.suffix == ".npy" else np.loadtxt(path, delimiter=",", ndmin=2)
     except (ValueError, OSError, EOFError) as exc:
         raise DelayError(f"{name}: {path} is not a matrix of numbers ({str(exc).splitlines()[0]})") from None
-    return np.asarray(arr, dtype=np.float64)
+    from delayform._validation import real_numbers
+
+    # a .npy of booleans (True read as 1 s) or of complex numbers (the imaginary part dropped) is refused
+    return real_numbers(f"{name} {path}", arr, DelayError, "a matrix of real delays (seconds)")
 
 
 def _delays(overrides: dict[str, Any], tau1_file: Path | None, tau2_file: Path | None) -> tuple[Any, Any, Any]:
+    for name, file in (("tau1", tau1_file), ("tau2", tau2_file)):
+        if file is not None and overrides.get(name) is not None:  # one of the two would be ignored
+            raise click.UsageError(f"--{name} and --{name}-file are two values of the same delays: give one")
     sc = _scenario(None if overrides.get("scenario") is None else overrides["scenario"],
                    **{k: v for k, v in overrides.items() if k != "scenario"})  # fmt: skip
     sc = without_actuation(sc, "the per-link and jitter certificates")
@@ -114,7 +120,11 @@ def jitter_command(scenario: Path | None, as_json: bool, tau1_file: Path | None,
         raise DelayError(f"the nominal delays are unstable (dominant root {m.nominal_root.real:.4g} "
                          f"{m.nominal_root.imag:+.4g}j): there is no jitter margin to certify")  # fmt: skip
     if as_json:
-        click.echo(json.dumps({"delta_s": m.delta, "gain": m.gain, "peak_frequency": m.peak_frequency,
-                               "scaled": m.scaled, "method": m.method}, indent=2))  # fmt: skip
+        click.echo(json.dumps({"delta_s": m.delta, "gain": None if m.reason else m.gain,
+                               "peak_frequency": m.peak_frequency, "scaled": m.scaled, "method": m.method,
+                               "reason": m.reason}, indent=2))  # fmt: skip
+        return
+    if m.reason:
+        click.echo(f"jitter margin delta = 0 s: {m.reason}")
         return
     click.echo(f"jitter margin delta = {m.delta:.4g} s ({m.method}; loop gain <= {m.gain:.4g})")

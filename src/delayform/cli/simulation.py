@@ -9,6 +9,8 @@ from typing import Any
 import click
 
 from delayform.cli._common import (
+    refuse_file_in_the_way,
+    writable_folder,
     POSITIVE,
     _emit,
     _inner_progress,
@@ -24,6 +26,9 @@ from delayform.cli._common import (
     with_actuation,
     scenario_options,
 )
+
+_MCAP_FOLDER = "the folder of the MCAP file"
+
 
 @cli.command("simulate")
 @scenario_options
@@ -68,7 +73,10 @@ def simulate_command(scenario: Path | None, model: str | None, duration: float |
 
         if sim.model != "unicycle":
             raise click.UsageError("--mcap records robots: use --model unicycle")
-        check_mcap_path(mcap)
+        # its folder is created with --out's, below; what can be refused without creating it is refused now
+        refuse_file_in_the_way(mcap.parent, _MCAP_FOLDER, "--mcap")
+        if mcap.parent.is_dir():
+            check_mcap_path(mcap)
     sc = replace(_with_robot(sc, use_limits, given, sim.model), simulation=sim,
                  radius=sc.radius if radius is None else radius,
                  safety=sc.safety if safety is None else (None if safety == "none" else safety),
@@ -78,6 +86,9 @@ def simulate_command(scenario: Path | None, model: str | None, duration: float |
 
     check_actuation(sc.robot_spec, sc.network, sim.dt)  # an actuation delay this run cannot model: before writing
     directory = _out_dir(out, sc)
+    if mcap is not None:
+        writable_folder(mcap.parent, _MCAP_FOLDER, "--mcap")  # created as --out is
+        check_mcap_path(mcap)
     with _inner_progress(f"simulate {sim.model}, {sim.duration:g} s (steps)") as callback:
         section = simulation_section(sc, directory, gif=gif, csv=csv, mcap=mcap, progress=callback)
     _emit(section, directory, as_json=as_json)

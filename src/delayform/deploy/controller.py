@@ -60,6 +60,9 @@ __all__ = ["FormationController", "NeighbourMessage", "Command"]
 #: (the stamps and the tick times are sums of rounded periods)
 STAMP_TOLERANCE = 1e-9
 
+#: how far from 1 the sum of a robot's weights may be (a row of C, rounded)
+_WEIGHT_SUM_TOL = 1e-9
+
 #: a neighbour's inbox is pruned when this many messages older than the ones in use pile up
 _PRUNE = 256
 
@@ -151,7 +154,9 @@ class FormationController:
         The design's delays (s) on positions and velocities.
     weights
         Neighbour number (from 1) -> ``C_ik``, the row of ``C = Delta^-1 A``
-        that robot i receives (non-zero entries only).
+        that robot i receives (non-zero entries only). They must sum to 1
+        (to 1e-9): other weights are not the designed protocol, and no
+        stability certificate covers them, so they are refused, not rescaled.
     forcing
         ``F_i`` of eq. formation, ``P (z_i - sum_k C_ik z_k)`` (m/s^2).
     limits
@@ -203,12 +208,17 @@ class FormationController:
         for k, w in dict(weights).items():
             if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1 or k == self.robot:
                 raise ControllerInputError(f"weights are keyed by neighbour numbers from 1 other than {self.robot}, got {k!r}")
-            w = float(w)
-            if not (math.isfinite(w) and w > 0):
-                raise ControllerInputError(f"weight of neighbour {k} must be finite and positive, got {w!r}")
-            clean[int(k)] = w
+            if not _is_number(w) or not (math.isfinite(w) and w > 0):
+                raise ControllerInputError(f"weight of neighbour {k} must be a finite positive number, got {w!r}")
+            clean[int(k)] = float(w)
         if not clean:
             raise ControllerInputError(f"robot {self.robot} hears no neighbour: the protocol needs at least one")
+        total = math.fsum(clean.values())
+        if abs(total - 1.0) > _WEIGHT_SUM_TOL:
+            # a row of C = Delta^-1 A sums to 1; other weights are another protocol, which no certificate covers
+            raise ControllerInputError(
+                f"the weights of robot {self.robot} must sum to 1 (a row of C = Delta^-1 A, eq. protocol), "
+                f"got {total:.6g}; divide each by {total:.6g} for the designed protocol")  # fmt: skip
         self.weights = clean
         F = np.asarray(forcing, dtype=np.float64)
         if F.shape != (2,) or not np.all(np.isfinite(F)):
@@ -297,7 +307,11 @@ class FormationController:
 
     def receive_all(self, messages: Iterable[NeighbourMessage]) -> None:
         """:meth:`receive` each message."""
-        for m in messages:
+        try:
+            it = iter(messages)
+        except TypeError:
+            raise ControllerInputError(f"messages must be an iterable of NeighbourMessage, got {type(messages).__name__}") from None
+        for m in it:
             self.receive(m)
 
     # ------------------------------------------------------------ the tick
@@ -365,7 +379,16 @@ class FormationController:
             turn, accel, ideal_turn, ideal_accel = self._limited(c, s, v, ux, uy)
         geo = self.geometry
         half = 0.5 * geo.axle_length * turn
-        return Command(t, v, turn, accel, (v - half) / geo.wheel_radius, (v + half) / geo.wheel_radius,
+        left, right = (v - half) / geo.wheel_radius, (v + half) / geo.wheel_radius
+        # never a non-finite command: the ideal model divides by the speed, and huge states overflow
+        if not (math.isfinite(left) and math.isfinite(right) and math.isfinite(accel) and math.isfinite(ideal_turn)):
+            raise ControllerInputError(
+                f"robot {self.robot} at t = {t!r}: the command is not finite (u = ({ux:.3g}, {uy:.3g}) m/s^2, "
+                f"speed {v:.3g} m/s, turn rate {ideal_turn:.3g} rad/s); "
+                + ("the ideal model turns at (u across) / speed: give the robot limits"
+                   if self.limits is None and math.isfinite(ux) and math.isfinite(uy)
+                   else "the state or the neighbours' messages are too large"))  # fmt: skip
+        return Command(t, v, turn, accel, left, right,
                        ideal_turn, ideal_accel, ux, uy, lag - STAMP_TOLERANCE if lag > 2 * STAMP_TOLERANCE else 0.0)  # fmt: skip
 
     def _ideal(self, c: float, s: float, v: float, ux: float, uy: float) -> tuple[float, float, float, float]:

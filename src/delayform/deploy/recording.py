@@ -75,11 +75,16 @@ def check_mcap_path(path: str | Path) -> Path:
     """
     if not isinstance(path, (str, os.PathLike)) or not str(path).strip():
         raise RecordingError(f"the MCAP path must be a file name, got {path!r}")
+    if "\x00" in os.fspath(path):  # pathlib and the OS would raise their own ValueError
+        raise RecordingError(f"the MCAP path {path!r} contains a NUL character, which no file name can hold")
     path = Path(path)
     if path.is_dir():
         raise RecordingError(f"the MCAP path {path} is a folder; give a file name such as {path / 'run.mcap'}")
     folder = path.parent
     if not folder.is_dir():
+        blocker = next((p for p in (folder, *folder.parents) if p.exists()), None)
+        if blocker is not None and not blocker.is_dir():
+            raise RecordingError(f"cannot write the MCAP file {path}: {blocker} is a file, not a folder")
         raise RecordingError(f"cannot write the MCAP file {path}: the folder {folder} does not exist")
     try:
         with tempfile.TemporaryFile(dir=folder):

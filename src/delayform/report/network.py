@@ -56,6 +56,23 @@ def _predicted(scenario: Scenario, tau1: float, tau2: float) -> float:
     return _LN50 / abs(re) if re < 0 else math.inf
 
 
+def _delays_phrase(scenario: Scenario, net: Any) -> str:
+    """The delays the runs use: the scenario's two, or the per-link ones (a matrix's range over the links, a spread)."""
+    delays = None if net is None else net.delays
+    if delays is None or delays.is_uniform:
+        return f"at (tau1, tau2) = ({scenario.tau1:g}, {scenario.tau2:g}) s"
+    links = np.asarray(scenario.topology.adjacency) != 0
+    parts = []
+    for name, matrix, scalar in (("tau1", delays.tau1, scenario.tau1), ("tau2", delays.tau2, scenario.tau2)):
+        if matrix is None:
+            around = f" (1 +- {delays.spread:g})" if delays.spread else ""
+            parts.append(f"{name} = {scalar:g} s{around}")
+        else:
+            on = np.asarray(matrix)[links]
+            parts.append(f"{name} from {on.min():g} to {on.max():g} s")
+    return "with per-link delays: " + ", ".join(parts)
+
+
 def montecarlo_section(
     scenario: Scenario,
     out: Path,
@@ -116,7 +133,7 @@ def montecarlo_section(
     table, summary, bugs = _beside_guarantees(scenario, net, mc)
     return Section(
         key="montecarlo",
-        title=f"Monte Carlo over the network: {runs} runs at (tau1, tau2) = ({scenario.tau1:g}, {scenario.tau2:g}) s",
+        title=f"Monte Carlo over the network: {runs} runs {_delays_phrase(scenario, net)}",
         text=(
             f"{runs} runs of the {scenario.topology.n} agents ({sim.model}, {sim.duration:g} s, step {sim.dt:g} s) "
             f"from {where} initial positions, each with its own draw of the network "

@@ -143,7 +143,9 @@ def highlights(sections: Sequence[Section]) -> tuple[tuple[str, str], ...]:
             (f"point {p['label']} ({p['tau1']:g}, {p['tau2']:g})", "stable" if p["stable"] else f"unstable, NU = {p['unstable_roots']}")
             for p in chart["points"]
         )  # fmt: skip
-    if "region" in by_key:
+    if "region" in by_key and by_key["region"].get("computed", True) is False:  # e.g. with an actuation delay
+        rows.append(("eigenvalue plane", "not computed (see its section)"))
+    elif "region" in by_key:
         reg = by_key["region"]
         rows.append((f"safe at ({reg['tau1']:g}, {reg['tau2']:g}) for every undirected team",
                      "yes" if reg["safe_for_every_undirected_team"] else "no"))  # fmt: skip

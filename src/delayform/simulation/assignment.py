@@ -42,9 +42,9 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import linear_sum_assignment
 
-from delayform._validation import validated
+from delayform._validation import check_shaped, validated
 from delayform.errors import FormationError, SimulationInputError
-from delayform.formation import centroid_weights, final_centroid
+from delayform.formation import centroid_weights, check_formation, final_centroid
 from delayform.topology import Topology
 
 __all__ = ["ASSIGNMENTS", "SlotAssignment", "assign_slots", "assignment_cost"]
@@ -141,7 +141,10 @@ def assign_slots(
     >>> a.slots.tolist(), a.certified
     ([1, 0], True)
     """
-    n = desired.shape[0]
+    n = topology.n
+    desired = check_formation(desired, n)
+    x0 = check_shaped("x0", x0, (n, 2), SimulationInputError)
+    v0 = check_shaped("v0", v0, (n, 2), SimulationInputError)
     w = centroid_weights(topology)
     try:
         m = final_centroid(topology, P, D, tau1, tau2, x0, v0)

@@ -54,7 +54,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from delayform._validation import validated
+from delayform._validation import check_non_negative, check_shaped, validated
 from delayform.errors import SimulationInputError
 
 __all__ = ["Contact", "Approach", "closest_approach", "sample_min_distance"]
@@ -405,10 +405,10 @@ def closest_approach(
     >>> round(a.min_distance, 12), a.at, len(a.contacts)
     (0.1, 0.5, 1)
     """
+    times, positions, velocities, R = _check_run(times, positions, velocities, contact_distance)
     T, n, _ = positions.shape
     if n < 2:
         return Approach(math.inf, math.nan, (-1, -1), ())
-    R = float(contact_distance)
     if T == 1:
         d2 = ((positions[0][:, None] - positions[0][None]) ** 2).sum(axis=2) + np.diag(np.full(n, np.inf))
         a, b = sorted(divmod(int(np.argmin(d2)), n))
@@ -426,6 +426,22 @@ def closest_approach(
     search.finish()
     contacts = _contacts(times, search.hits, R) if search.hits else ()
     return Approach(math.sqrt(search.best2), search.best_at, search.best_pair, contacts)
+
+
+def _check_run(times: object, positions: object, velocities: object, contact_distance: object) -> tuple[
+    _Array, _Array, _Array, float
+]:  # fmt: skip
+    """The arguments of :func:`closest_approach` as finite float arrays of matching shapes, times increasing."""
+    E = SimulationInputError
+    t = check_shaped("times", times, (None,), E)  # type: ignore[arg-type]
+    if t.size == 0:
+        raise E("times must hold at least one saved time")
+    if np.any(np.diff(t) <= 0.0):
+        k = int(np.flatnonzero(np.diff(t) <= 0.0)[0])
+        raise E(f"times must increase, got {t[k]:g} then {t[k + 1]:g} (entries {k} and {k + 1})")
+    x = check_shaped("positions", positions, (t.size, None, 2), E)  # type: ignore[arg-type]
+    v = check_shaped("velocities", velocities, x.shape, E)  # type: ignore[arg-type]
+    return t, x, v, check_non_negative("contact_distance", contact_distance, E)
 
 
 def _stretches(reach: _Array) -> list[tuple[int, int]]:

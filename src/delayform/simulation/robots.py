@@ -209,7 +209,12 @@ class Robot:
         return IROBOT_CREATE.radius if self.model == "unicycle" else 0.0
 
     def check_slots(self, desired: _Array) -> None:
-        """Refuse a formation whose slots are closer than two body radii (the bodies would overlap).
+        """Refuse a formation whose slots are closer than two body radii, or than the safety filter's distance.
+
+        With a safety filter (:attr:`safety`) the robots are kept at least
+        two radii plus its margin apart, so slots closer than that could
+        never be reached: the run would end far from the formation and look
+        unstable although the delays are stable.
 
         Parameters
         ----------
@@ -222,20 +227,31 @@ class Robot:
             Naming the closest two slots.
         """
         r = self.body_radius
+        margin = 0.0 if self.safety is None else self.safety.margin
         n = desired.shape[0]
-        if r == 0.0 or n < 2:
+        if r + margin == 0.0 or n < 2:
             return
         from scipy.spatial import cKDTree
 
         dist, idx = cKDTree(desired).query(desired, k=2)
         i = int(np.argmin(dist[:, 1]))
-        if dist[i, 1] < 2.0 * r * (1.0 - 1e-9):  # touching slots are allowed
-            a, b = sorted((i, int(idx[i, 1])))
+        d = float(dist[i, 1])
+        if d >= (2.0 * r + margin) * (1.0 - 1e-9):  # touching slots (and slots at the safe distance) are allowed
+            return
+        # for two slots at the same place the tree may list i itself second: name the other one
+        other = int(idx[i, 1]) if int(idx[i, 1]) != i else int(idx[i, 0])
+        a, b = sorted((i, other))
+        if d < 2.0 * r * (1.0 - 1e-9):
             raise SimulationInputError(
-                f"formation slots {a + 1} and {b + 1} are {dist[i, 1]:.3g} m apart, closer than two robot "
+                f"formation slots {a + 1} and {b + 1} are {d:.3g} m apart, closer than two robot "
                 f"radii ({2.0 * r:.3g} m): the bodies would overlap in formation; spread the formation "
                 f"or give a smaller radius"
             )
+        raise SimulationInputError(
+            f"formation slots {a + 1} and {b + 1} are {d:.3g} m apart, closer than the safety filter keeps "
+            f"the robots (two radii plus its margin: {2.0 * r + margin:.3g} m): the formation could never be "
+            f"reached; spread the formation or give a smaller safety margin"
+        )
 
 
 def wheel_speeds(v: _Array, omega: _Array, robot: RobotLimits) -> tuple[_Array, _Array]:

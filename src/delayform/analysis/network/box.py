@@ -51,8 +51,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from delayform.analysis.network.links import LinkTeam, link_team
-from delayform.analysis.network.per_link import dominant_of_team
-from delayform._validation import FloatOrNaN, validated
+from delayform.analysis.network.per_link import dominant_of_team, require_seed_search
+from delayform._validation import FloatOrNaN, check_count, validated
 from delayform.errors import DelayError, NotConvergedError
 from delayform.topology import Topology
 
@@ -313,6 +313,9 @@ def robust_stability(
     for name, a, b in (("tau1", low.tau1, high.tau1), ("tau2", low.tau2, high.tau2)):
         if np.any(a > b):
             raise DelayError(f"{name}: the box has lo > hi on a link ({a[a > b][0]:g} > {b[a > b][0]:g})")
+    samples = check_count("samples", samples)
+    # the corners of the box are solved exactly when it is not certified: the longest delays decide
+    require_seed_search(high, -0.5)
     centre = replace(low, tau1=0.5 * (low.tau1 + high.tau1), tau2=0.5 * (low.tau2 + high.tau2))
     ends1, ends2 = (low.tau1, high.tau1), (low.tau2, high.tau2)
     nominal = dominant_of_team(centre)

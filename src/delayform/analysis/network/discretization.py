@@ -97,8 +97,12 @@ def generator_matrix(team: LinkTeam, M: int) -> sp.csr_array:
     return sp.coo_array((v, (r, c)), shape=(size, size)).tocsr()
 
 
+#: distance between the shifts of :func:`generator_seeds` along the imaginary axis
+SHIFT_SPACING = 0.75
+
+
 def generator_seeds(team: LinkTeam, M: int, radius: float, *, centre: float = 0.0, nearest: int = 40,
-                    spacing: float = 0.75) -> NDArray[np.complex128]:  # fmt: skip
+                    spacing: float = SHIFT_SPACING) -> NDArray[np.complex128]:  # fmt: skip
     """Eigenvalues of the generator of ``team`` collocated at M + 1 points, with |s| <= radius (conjugates included).
 
     Dense for small problems; otherwise shift-and-invert Arnoldi (sparse LU of the

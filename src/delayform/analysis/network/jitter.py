@@ -94,6 +94,9 @@ class JitterMargin:
         The dominant root at the nominal delays.
     method
         The certificate used.
+    reason
+        Why ``delta`` is 0 without a gain computed (an unstable nominal point,
+        or the centroid's double zero at tau1 = 0); empty otherwise.
     """
 
     delta: float
@@ -102,6 +105,7 @@ class JitterMargin:
     scaled: bool
     nominal_root: complex
     method: str = "small gain, Kao-Lincoln delay-difference bound, constant diagonal scaling"
+    reason: str = ""
 
     @property
     def nominal_stable(self) -> bool:
@@ -302,7 +306,13 @@ def margin_of_team(team: LinkTeam) -> JitterMargin:
     """:func:`jitter_margin` of a checked :class:`LinkTeam` (0 where the nominal point is unstable)."""
     nominal = dominant_of_team(team)
     if not nominal.is_stable:
-        return JitterMargin(0.0, math.inf, float("nan"), False, nominal.root)
+        return JitterMargin(0.0, math.inf, float("nan"), False, nominal.root, reason="the nominal delays are unstable")
+    if nominal.drift:
+        # every position delay the centroid weighs is 0: s = 0 is a double root (the drift of eq. factor1),
+        # the loop's gain is unbounded as w -> 0 and no jitter is certified (rounding would print ~1e-17 s)
+        return JitterMargin(0.0, math.inf, 0.0, False, nominal.root, reason=(
+            "tau1 = 0 on every link the centroid weighs: the centroid's zero is double (the team drifts), "
+            "the loop's gain is unbounded at w = 0 and no jitter of the delays is certified"))  # fmt: skip
     bound, wpk, scaled = _scaled_bound(team)
     if not math.isfinite(bound):
         raise NotConvergedError("the H-infinity bound of the jitter loop did not converge", partial=bound)

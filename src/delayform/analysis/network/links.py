@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from delayform._validation import check_gains
+from delayform._validation import check_gains, real_numbers
 from delayform.errors import DelayError, InputError
 from delayform.topology import Topology
 
@@ -115,17 +115,11 @@ class LinkTeam:
 
 
 def _per_link(name: str, value: ArrayLike, n: int, mask: NDArray[np.bool_]) -> NDArray[np.float64]:
-    if np.ndim(value) == 0:
-        try:
-            v = float(value)  # type: ignore[arg-type]
-        except (TypeError, ValueError):
-            raise DelayError(f"{name} must be a delay or a {n} x {n} array of delays") from None
-        arr = np.full((n, n), v)
+    # booleans (True read as 1 s) and complex delays (the imaginary part dropped) are refused
+    arr = real_numbers(name, value, DelayError, f"a delay or a {n} x {n} array of delays (real numbers)")
+    if arr.ndim == 0:
+        arr = np.full((n, n), float(arr))
     else:
-        try:
-            arr = np.array(value, dtype=np.float64)
-        except (TypeError, ValueError):
-            raise DelayError(f"{name} must be a delay or a {n} x {n} array of delays") from None
         if arr.shape != (n, n):
             raise DelayError(f"{name} must be a {n} x {n} array of per-link delays, got shape {arr.shape}")
     links = arr[mask]

@@ -281,8 +281,23 @@ def mean_square_stability(
     if not np.all(np.isfinite(lp)) or np.any(lp < 0.0) or np.any(lp >= 1.0):
         raise InputError("loss probabilities must lie in [0, 1) (a link that loses everything never converges)")
     m1, m2 = _lags("tau1", team.tau1, h), _lags("tau2", team.tau2, h)
+    _require_lift(team, m1, m2, rate)
     model = _lift(team, h, m1, m2, lp)
     return MeanSquareStability(_quotient_radius(model), h, m1, m2, model)
+
+
+def _require_lift(team: LinkTeam, m1: NDArray[np.int64], m2: NDArray[np.int64], rate: float) -> None:
+    """Refuse, before it is built, a lifted model beyond the machine's memory or time budget.
+
+    The state holds the buffers of the longest lags (2N + N (b1 + b2) + 2L entries, :func:`_lift`);
+    its dense matrices take a few copies of size^2 doubles, and the Arnoldi iteration on the
+    second moments costs about 100 products of size^3 flops.
+    """
+    from delayform.resources import require
+
+    size = 2.0 * team.n + team.n * (float(m1.max(initial=0)) + float(m2.max(initial=0))) + 2.0 * team.rows.size
+    require(what=f"the mean-square model at {rate:g} packets/s ({size:.3g} states: one per sample of the longest delay)",
+            setting="the rate (rate, --rate) or the delays", nbytes=6 * 8.0 * size**2, seconds=100 * size**3 / 1e9)  # fmt: skip
 
 
 def _quotient_radius(model: _Lifted) -> float:

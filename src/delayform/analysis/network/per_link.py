@@ -44,7 +44,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from delayform.analysis.network.blas import single_threaded_blas
 from delayform.analysis.network.count import count_right_of, root_radius
-from delayform.analysis.network.discretization import band_seeds, generator_seeds
+from delayform.analysis.network.discretization import DENSE_STATES, SHIFT_SPACING, band_seeds, generator_seeds
 from delayform.analysis.network.links import LinkTeam, link_team
 from delayform._validation import validated
 from delayform.errors import NotConvergedError
@@ -242,6 +242,7 @@ def link_roots_right_of(team: LinkTeam, c: float, *, degree: int | None = None) 
 
     ``degree`` is the number of Chebyshev intervals (default: from the delays and the root radius).
     """
+    require_seed_search(team, c)
     R = root_radius(team, c)
     M = degree or _degree(team, R)
     with single_threaded_blas():
@@ -298,8 +299,50 @@ def link_dominant_root(topology: Topology, P: float, D: float, tau1: ArrayLike, 
 
 def dominant_of_team(team: LinkTeam) -> LinkDominantRoot:
     """:func:`link_dominant_root` of an already checked :class:`LinkTeam`."""
+    require_seed_search(team, _FIRST_GUESS)
     with single_threaded_blas():
         return _dominant(team)
+
+
+#: the first line the seeds are sought right of (:func:`_dominant`)
+_FIRST_GUESS = -0.5
+#: seconds of one shift-and-invert Arnoldi solve per state of the generator (measured on 2 shared cores,
+#: 0.2-1.4 s at 1932 states and 8 s at 9660: rough, the guard is for orders of magnitude)
+_SECONDS_PER_STATE = 5e-4
+
+
+def require_seed_search(team: LinkTeam, c: float) -> None:
+    """Refuse, before any work, a team whose seed search right of Re s = ``c`` overflows or would take too long.
+
+    The root bound of :func:`~delayform.analysis.network.count.root_radius` grows like
+    e^{-tau c} with the longest delay tau, and the seeds need one Arnoldi solve per
+    0.75 of it along the imaginary axis: delays of a few tens of seconds already need
+    hours, and at 10^3 s the bound is no float.
+
+    Raises
+    ------
+    DelayError
+        When the bound is not a finite number (the delays are too long to analyse).
+    ResourceLimitError
+        When the solves would exceed the time budget (:mod:`delayform.resources`).
+    """
+    from delayform.errors import DelayError
+    from delayform.resources import require
+
+    with np.errstate(over="ignore"):
+        R = root_radius(team, c)
+    longest = team.max_delay
+    if not math.isfinite(R):
+        raise DelayError(f"delays up to {longest:.4g} s are too long for the per-link root finder: its bound on "
+                         f"the roots, which grows like e^(tau/2), is no longer a finite number; choose shorter delays")  # fmt: skip
+    size = 2 * team.n * (_degree(team, R, 0) + 1)
+    if size <= DENSE_STATES:
+        return  # one dense eigenvalue problem, no shifts
+    shifts = R / SHIFT_SPACING + 1.0
+    require(what=f"the per-link root finder for delays up to {longest:.4g} s ({shifts:.3g} Arnoldi solves of "
+                 f"{size} states along the imaginary axis)",
+            setting="the delays (--tau1, --tau2, the delay files) or the team",
+            seconds=shifts * size * _SECONDS_PER_STATE)  # fmt: skip
 
 
 def _upper_seeds(seeds: NDArray[np.complex128], left: float) -> NDArray[np.complex128]:
@@ -318,7 +361,7 @@ def _dominant(team: LinkTeam) -> LinkDominantRoot:
     """Seeds, a line, Newton on the seeds that matter, the certified count (module docstring)."""
     zero_mult = team.zero_multiplicity()
     poles = np.roots([1.0, team.D, team.P]).real  # the zeros of p: poles of det(I - K/p), kept off the line
-    guess = -0.5
+    guess = _FIRST_GUESS
     last: tuple[NDArray[np.complex128], NDArray[np.int64]] | None = None
     for attempt in range(4):
         R = root_radius(team, guess)

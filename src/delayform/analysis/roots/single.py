@@ -95,7 +95,7 @@ from delayform.analysis.roots.rightmost import _BATCH_SEEDS, _certify, _pick_rig
 from delayform.analysis.roots.argument_principle import _count_right_single, _region_count
 from delayform.analysis.roots.multiple import distinct_roots
 from delayform.characteristic import CharacteristicFactor, TwoDelayQuasiPolynomial
-from delayform.errors import InputError, NotConvergedError
+from delayform.errors import InputError, NotConvergedError, QuasiPolynomialError
 from delayform.quasipolynomial import QuasiPolynomial
 
 __all__ = ["RESIDUAL_TOL", "roots_in", "rightmost_root", "count_roots_right_of", "relative_residual",
@@ -216,6 +216,8 @@ def _call(qp: object, args: tuple[object, ...], after: tuple[str, ...], func: st
         wanted = ", ".join(("qp",) + names + after)
         raise InputError(f"{func}({wanted}): got {len(args)} argument(s) after qp, expected {m + len(after)}")
     taus = tuple(check_delay(name, v) for name, v in zip(names, args[:m], strict=True))
+    if getattr(qp, "degree", None) == 0:  # retarded of degree 0: no delayed term can remain, a non-zero constant
+        raise QuasiPolynomialError(f"{func}: the quasi-polynomial is a non-zero constant, which has no roots")
     where = f"({', '.join(names)}) = ({', '.join(f'{v:g}' for v in taus)})"
     if isinstance(qp, QuasiPolynomial):
         t1, t2 = UNIT_DELAYS
