@@ -153,10 +153,10 @@ def relative_residual(
 def _check_reach(prob: _Problem, t1: float, t2: float) -> None:
     """Refuse, in one line, delays whose discretization exceeds the machine's memory or time budget.
 
-    There is no fixed reach: the robust path raises the discretization's
-    degree with the delay (:func:`~delayform.analysis.roots.generator._degree_cap`),
-    and only a problem too large for the machine is refused
-    (:class:`~delayform.errors.ResourceLimitError`).
+    For the paths that discretize at every pair (maps, gain design): there is
+    no fixed reach, the degree grows with the delay, and only a problem too
+    large for the machine is refused (:class:`~delayform.errors.DelayError`).
+    The single-pair finder checks its own budget only after the root chains.
     """
     h = max([a * t1 + b * t2 for _, a, b in prob.delayed] + [0.0])
     N = _needed_degree(h, _root_scale(prob))
@@ -223,11 +223,14 @@ def _box_reach(prob: _Problem) -> float:
 
 @validated()
 def delay_reach(fs: tuple[CharacteristicFactor, ...]) -> float:
-    """The delays the dominant-root finder handles for these factors: every pair in [0, X]^2, X returned.
+    """The delays the discretization handles for these factors: every pair in [0, X]^2, X returned.
 
-    The one source of the finder's reach: :func:`_check_reach` refuses with the
-    same rule, so a table built on this (the explorer's) can never allow a
-    delay the finder then refuses. ``math.inf`` when the finder has no limit.
+    The one source of the discretization's reach: :func:`_check_reach` (the
+    dominant-root maps, gain design) refuses with the same rule, so a table
+    built on this (the explorer's) can never allow a delay those then refuse.
+    The single-pair finder (:func:`rightmost_root`, ``dominant_root``)
+    reaches further: at long delays it solves on the root chains
+    (:mod:`~delayform.analysis.roots.long_delay`). ``math.inf`` when there is no limit.
 
     Parameters
     ----------
