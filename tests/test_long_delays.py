@@ -172,3 +172,33 @@ def test_large_roots_are_refused_for_their_size_not_for_long_delays() -> None:
     prob = _problem_of_quasi(QuasiPolynomial({(0,): [1e6, 2e3, 1.0], (1,): [5e5]}), (2.0,))
     with pytest.raises(DelayError, match="characteristic roots are large .* smaller gains or shorter delays"):
         _require_degrees(prob, (10**5,), 2.0)
+
+
+def test_huge_gains_in_a_map_are_refused_for_large_roots() -> None:
+    """A map at P = 1e4: refused up front, the message naming the roots' size and the gains."""
+    from delayform.analysis.roots.dominant import dominant_root_map
+
+    with pytest.raises(DelayError, match="characteristic roots are large") as info:
+        dominant_root_map(paper_six(), 1e4, 100.0, np.linspace(0.0, 30.0, 3), np.linspace(0.0, 30.0, 3))
+    assert "smaller gains" in str(info.value) and "\n" not in str(info.value)
+
+
+def test_jitter_at_large_gains_and_long_delays_answers_unstable_at_once() -> None:
+    """P = 20, D = 0.01 at 17 s: unstable, which a certified count confirms (a root right of 0)."""
+    from delayform.analysis.network import jitter_margin
+
+    m = jitter_margin(paper_six(), 20.0, 0.01, 17.0, 17.0)
+    assert m.delta == 0.0 and m.nominal_root.real > 0.0
+    fs = factors(paper_six(), 20.0, 0.01)
+    assert sum(count_roots_right_of(f, 17.0, 17.0, 0.0) for f in fs if not f.is_centroid) >= 1
+
+
+def test_jitter_nominal_root_from_the_factors_matches_the_per_link_finder() -> None:
+    """Scalar delays take the factorized dominant root; the per-link matrix finder is independent."""
+    from delayform.analysis.network import jitter_margin
+    from delayform.analysis.network.links import link_team
+    from delayform.analysis.network.per_link import dominant_of_team
+
+    m = jitter_margin(paper_six(), 1.0, 0.5, 0.3, 0.2)
+    per_link = dominant_of_team(link_team(paper_six(), 1.0, 0.5, 0.3, 0.2)).root
+    assert abs(m.nominal_root - per_link) <= 1e-10 and m.delta > 0.0

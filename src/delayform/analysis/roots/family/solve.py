@@ -396,13 +396,19 @@ def family_rightmost(
     lam, real, centroid = _lams(tuple(fs))
     F = lam.size
     rows = _Rows(lam, np.full(F, float(tau1)), np.full(F, float(tau2)), real, centroid, P, D)
-    if is_long(max(tau1, tau2), float(family_reach_scales(tuple(fs)).min())):  # every factor on its chains
+    if is_long(max(tau1, tau2), _smallest_scale(lam.tobytes(), float(P), float(D))):  # every factor on its chains
         return np.array([_generic_rightmost(f, rows.t1[:1], rows.t2[:1])[0][0] for f in fs])
     seeds = _without_persistent_zero(_family_seeds(lam, P, D, float(tau1), float(tau2), _BATCH_SEEDS), centroid)
     right, ok, _ = _certify_rows(rows, seeds)
     for k in np.flatnonzero(~ok):
         right[k] = _generic_rightmost(fs[k], rows.t1[k : k + 1], rows.t2[k : k + 1])[0][0]
     return right
+
+
+@lru_cache(maxsize=16)
+def _smallest_scale(lam_bytes: bytes, P: float, D: float) -> float:
+    """The smallest root scale of the factors (cached on lam's bytes: one lookup per single-pair call)."""
+    return float(_root_scales(np.frombuffer(lam_bytes, dtype=np.complex128), P, D).min())
 
 
 def _axis_levels(n: int) -> list[NDArray[np.int64]]:
