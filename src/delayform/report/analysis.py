@@ -195,10 +195,6 @@ def _curve_rows(smap: Any) -> tuple[list[tuple[Any, ...]], dict[str, np.ndarray]
     }
 
 
-#: the roots table's rectangle when none is given (its left edge moves to twice the dominant root's real part)
-_DEFAULT_REGION = (-2.0, 1.0, -0.01, 10.0)
-
-
 def roots_section(
     scenario: Scenario, out: Path, *, region: tuple[float, float, float, float] | None = None,
     progress: MapProgress | None = None,
@@ -220,20 +216,13 @@ def roots_section(
     """
     from delayform.analysis.roots.team_roots import factor_roots_in
     from delayform.analysis.roots.dominant import dominant_root
-    from delayform.analysis.roots.generator import _require_resolvable
-    from delayform.analysis.roots.problem import _TINY_DELAY
 
     team, P, D = scenario.topology, scenario.P, scenario.D
     ta = scenario.actuation_delay  # [robot] actuation_delay: every factor with its delayed own-state terms
-    hmax = max(scenario.tau1, scenario.tau2)
-    if not ta and hmax >= _TINY_DELAY:
-        # a rectangle too far out for these delays is refused before the dominant root is sought;
-        # the default one reaches at least as far as (-2, 1, -0.01, 10), whatever that root is
-        _require_resolvable(region or _DEFAULT_REGION, hmax)
     dom = dominant_root(team, P, D, scenario.tau1, scenario.tau2, actuation_delay=ta)
     s_dom = complex(dom.root)
     # Im from just below 0, so real roots lie inside and not on the boundary
-    region = region or (min(_DEFAULT_REGION[0], 2.0 * s_dom.real), *_DEFAULT_REGION[1:])
+    region = region or (min(-2.0, 2.0 * s_dom.real), 1.0, -0.01, 10.0)
     # one batched solve for all factors (a rectangle too far out is refused before it starts)
     per_factor = factor_roots_in(team, P, D, scenario.tau1, scenario.tau2, region, progress=progress,
                                  actuation_delay=ta)  # fmt: skip

@@ -28,7 +28,9 @@ the curve ``Re s ~ ln |p_i(s) / p_j(s)| / (h_j - h_i)``. For one delay every
 root is such a fixed point (for one k). The roots of the principal and of the
 delay-free polynomial seed the roots far right of the chains (where e^{-H s}
 is small). Newton's method on q itself polishes every seed
-(:func:`~delayform.analysis.roots.problem._polish`).
+(:func:`~delayform.analysis.roots.problem._polish`); for a real q the mirror
+image of every root found is added (a seed next to a zero of p_i, where the
+map contracts least, may reach a root whose conjugate's seed went elsewhere).
 
 Certificate: the line Re s = c is placed in the widest gap between the real
 parts of the roots found within ``2 / H`` of the rightmost one (so that
@@ -202,6 +204,7 @@ def long_delay_roots(
     window = _WINDOW / H
     a1, a2 = np.asarray(t1, dtype=float), np.asarray(t2, dtype=float)
     polynomial = polynomial_seeds(groups)
+    real = all(np.all(p.imag == 0.0) for _, p in groups)
     # the chains' reach: first up to the Cauchy radius of Re s = 0 (every root right of 0 lies
     # within it), then up to that of the line the certificate may use, left of the roots found
     c_lo, covered = 0.0, -1.0
@@ -213,7 +216,10 @@ def long_delay_roots(
         if omega > covered:
             seeds = np.concatenate([polynomial, chain_seeds(groups, omega)])
             polished, ok = _polish(prob, seeds, a1, a2)
-            roots = distinct(polished[ok])
+            roots = polished[ok]
+            if real:  # q(conj s) = conj q(s): a root's mirror image is one too, with the same residual
+                roots = np.concatenate([roots, np.conj(roots)])
+            roots = distinct(roots)
             covered = omega
         if roots.size == 0:
             c_lo -= 4.0 * window  # no root within reach yet: look further left
