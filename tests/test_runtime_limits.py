@@ -17,10 +17,10 @@ import pytest
 
 from delayform.analysis.ctcr.stability_map import stability_map
 from delayform.analysis.roots.dominant import dominant_root, dominant_root_map
-from delayform.analysis.roots.single import delay_reach
+from delayform.analysis.roots.single import count_roots_right_of, delay_reach
 from delayform.app import Explorer
 from delayform.characteristic import factors
-from delayform.errors import DelayError, InputError, NetworkError, SimulationInputError
+from delayform.errors import InputError, NetworkError, SimulationInputError
 from delayform.scenario import paper_scenario
 from delayform.simulation import simulate
 from delayform.simulation.montecarlo import make_setup, monte_carlo, run_quantile
@@ -187,9 +187,11 @@ def test_the_explorer_table_says_what_the_root_finder_accepts() -> None:
     reach = delay_reach(tuple(factors(paper_six(), 20.0, 0.01)))
     assert limits["roots"] == limits["chart"] == pytest.approx(4.7397, rel=1e-4)
     assert limits["chart"] < reach
-    # the finder refuses by the same rule, up front and in one line, just past the reach it reports
-    with pytest.raises(DelayError, match="too long for the certified root finder"):
-        dominant_root(paper_six(), 20.0, 0.01, 1.01 * reach, 1.01 * reach)
+    # past the discretization's reach the point finder answers on the root chains, certified by
+    # the argument-principle count: no root of any factor right of the answer
+    past = dominant_root(paper_six(), 20.0, 0.01, 1.01 * reach, 1.01 * reach)
+    assert all(count_roots_right_of(f, 1.01 * reach, 1.01 * reach, past.root.real + 1e-9) == 0
+               for f in factors(paper_six(), 20.0, 0.01))  # fmt: skip
     tau = 0.99 * limits["roots"]
     report = explorer.point(20.0, 0.01, tau, tau)
     assert np.isclose(report.dominant.root, dominant_root(paper_six(), 20.0, 0.01, tau, tau).root)

@@ -302,21 +302,29 @@ def _perron_scaling(G: NDArray[np.complex128]) -> NDArray[np.float64] | None:
     return np.sqrt(y / x)
 
 
-def margin_of_team(team: LinkTeam) -> JitterMargin:
-    """:func:`jitter_margin` of a checked :class:`LinkTeam` (0 where the nominal point is unstable)."""
-    nominal = dominant_of_team(team)
-    if not nominal.is_stable:
-        return JitterMargin(0.0, math.inf, float("nan"), False, nominal.root, reason="the nominal delays are unstable")
-    if nominal.drift:
+def margin_of_team(team: LinkTeam, nominal_root: complex | None = None) -> JitterMargin:
+    """:func:`jitter_margin` of a checked :class:`LinkTeam` (0 where the nominal point is unstable).
+
+    ``nominal_root``: the team's dominant root when already known (its
+    persistent zero excluded, never on the drift); else the per-link finder computes it.
+    """
+    if nominal_root is None:
+        nominal = dominant_of_team(team)
+        root, drift = nominal.root, nominal.drift
+    else:
+        root, drift = complex(nominal_root), False
+    if not root.real < 0.0:
+        return JitterMargin(0.0, math.inf, float("nan"), False, root, reason="the nominal delays are unstable")
+    if drift:
         # every position delay the centroid weighs is 0: s = 0 is a double root (the drift of eq. factor1),
         # the loop's gain is unbounded as w -> 0 and no jitter is certified (rounding would print ~1e-17 s)
-        return JitterMargin(0.0, math.inf, 0.0, False, nominal.root, reason=(
+        return JitterMargin(0.0, math.inf, 0.0, False, root, reason=(
             "tau1 = 0 on every link the centroid weighs: the centroid's zero is double (the team drifts), "
             "the loop's gain is unbounded at w = 0 and no jitter of the delays is certified"))  # fmt: skip
     bound, wpk, scaled = _scaled_bound(team)
     if not math.isfinite(bound):
         raise NotConvergedError("the H-infinity bound of the jitter loop did not converge", partial=bound)
-    return JitterMargin(_delta_of_gain(bound, _longest(team)), bound, wpk, scaled, nominal.root)
+    return JitterMargin(_delta_of_gain(bound, _longest(team)), bound, wpk, scaled, root)
 
 
 def _longest(team: LinkTeam) -> float:
@@ -370,7 +378,16 @@ def jitter_margin(topology: Topology, P: float, D: float, tau1: ArrayLike, tau2:
     >>> 0.0 < m.delta < 0.3
     True
     """
-    return margin_of_team(link_team(topology, P, D, tau1, tau2))
+    team = link_team(topology, P, D, tau1, tau2)
+    nominal = None
+    if np.ndim(tau1) == 0 and np.ndim(tau2) == 0 and float(tau1) > 0.0:  # type: ignore[arg-type]
+        # one delay pair for every link: the nominal team factorizes (eq. factorized), and its
+        # dominant root comes from the factors at once (long delays and large gains included)
+        # instead of the per-link matrix discretization; tau1 = 0 (the drift) stays per link
+        from delayform.analysis.roots.dominant import dominant_root  # roots imports network: not at the top
+
+        nominal = complex(dominant_root(topology, P, D, float(tau1), float(tau2)).root)  # type: ignore[arg-type]
+    return margin_of_team(team, nominal)
 
 
 #: seconds of one certified margin on the paper's six agents (12 links; a 13 x 13 map, benchmarks/bench_jitter_map.py)

@@ -52,7 +52,6 @@ from delayform.analysis.roots.problem import (
 )
 from delayform.analysis.roots.single import (  # noqa: F401 - the roots of one quasi-polynomial, re-exported
     _check_reach,
-    _family_reach,
     _rightmost,
     count_roots_right_of,
     relative_residual,
@@ -272,8 +271,8 @@ def dominant_root(
     fs = _checked_factors(topology, P, D)
     if ta > 0.0:
         return _actuated_dominant(fs, t1, t2, ta)
-    # all factors in one batch (one stacked discretization, one vectorized certificate)
-    _family_reach(fs, t1, t2)
+    # all factors in one batch (one stacked discretization, one vectorized certificate); long delays
+    # go to the root chains, and the discretization's budget is checked before it would start
     right = family_rightmost(fs, fs[0].P, fs[0].D, t1, t2)
     k0 = next(k for k, f in enumerate(fs) if f.is_centroid)
     centroid = fs[k0]

@@ -143,23 +143,56 @@ def _largest_degree(prob: _Problem) -> int:
 
 
 def _require_degree(prob: _Problem, N: int, hmax: float) -> None:
-    """Refuse, in one line, a discretization of degree N beyond the machine's memory or time budget.
+    """Refuse, in one line, a discretization of degree N beyond the machine's memory or time budget."""
+    _require_degrees(prob, (N,), hmax)
 
-    Raises DelayError (the delays are what to change): dense nonsymmetric
-    eigenvalues cost about 25 n^3 flops (at ~1 GFlop/s on a shared core)
-    and ~4 n^2 complex words for n = d (N + 1).
+
+def _doublings(N: int, cap: int) -> tuple[int, ...]:
+    """The degrees the robust path may solve: N, 2N, 4N, ... up to ``cap`` (the last one capped)."""
+    out = [N]
+    while out[-1] < cap:
+        out.append(min(cap, 2 * out[-1]))
+    return tuple(out)
+
+
+#: root scale above which a refusal names the size of the roots (the coefficients, e.g. large gains)
+_LARGE_ROOTS = 4.0
+
+
+def _require_degrees(prob: _Problem, degrees: tuple[int, ...], hmax: float) -> None:
+    """Refuse, in one line and before any of them is solved, discretizations beyond the machine's budget.
+
+    The memory needed is that of the largest degree, the time that of all
+    of them (the robust path may double through each). Raises DelayError
+    (the delays, or the size of the roots times the delays, are what to
+    change): dense nonsymmetric eigenvalues cost about 25 n^3 flops (at
+    ~1 GFlop/s on a shared core) and ~4 n^2 complex words for
+    n = d (N + 1). The message names the right cause: the degree grows with
+    the delay *times* the size of the roots, and roots are large when the
+    coefficients are (large gains), not only when delays are long.
     """
-    size = float(prob.d * (N + 1))
-    nbytes, seconds = _cost(size)
+    sizes = [float(prob.d * (N + 1)) for N in degrees]
+    nbytes = _cost(max(sizes))[0]
+    seconds = sum(_cost(n)[1] for n in sizes)
     limit, budget = memory_limit(), time_budget()
     if nbytes <= limit and seconds <= budget:
         return
+    size, N = max(sizes), max(degrees)
+    upto = "up to " if len(degrees) > 1 else ""
     need = (f"about {format_bytes(nbytes)} of memory (limit {format_bytes(limit)})" if not nbytes <= limit
-            else f"about {format_seconds(seconds)} (time budget {format_seconds(budget)})")  # fmt: skip
+            else f"{upto}about {format_seconds(seconds)} (time budget {format_seconds(budget)})")  # fmt: skip
+    work = (f"its discretization of degree {upto}{N} (a {size:.0f} x {size:.0f} eigenvalue problem) "
+            f"would need {need}")
+    scale = _root_scale(prob)
+    if scale > _LARGE_ROOTS:
+        raise DelayError(
+            f"the characteristic roots are large (about {scale:.3g}, set by the coefficients: large gains "
+            f"make large roots) for delays up to {hmax:.4g} s, too many for the certified root finder on "
+            f"this machine: {work}; choose smaller gains or shorter delays (the stability chart has no such limit)"
+        )
     raise DelayError(
-        f"delays up to {hmax:.4g} s are too long for the certified root finder on this machine: its "
-        f"discretization of degree {N} (a {size:.0f} x {size:.0f} eigenvalue problem) would need {need}; "
-        "choose shorter delays (the stability chart has no such limit)"
+        f"delays up to {hmax:.4g} s are too long for the certified root finder on this machine: "
+        f"{work}; choose shorter delays (the stability chart has no such limit)"
     )
 
 

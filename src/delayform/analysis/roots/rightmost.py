@@ -11,10 +11,12 @@ from delayform.analysis.roots.generator import (
     _degree_cap,
     _eigenvalues_at,
     _max_delay,
+    _doublings,
     _needed_degree,
-    _require_degree,
+    _require_degrees,
     _root_scale,
 )
+from delayform.analysis.roots.long_delay import is_long, long_delay_roots
 from delayform.analysis.roots.multiple import distinct_roots
 from delayform.analysis.roots.problem import _polish, _Problem
 from delayform.analysis.roots.argument_principle import (
@@ -44,7 +46,9 @@ class _SolveResult:
     """Roots right of the certified line Re s = ``line`` at discretization ``degree``.
 
     ``roots`` are roots of the solved q (no mirror images; the persistent zero
-    of eq. factor1 deflated), ``mult`` their multiplicities.
+    of eq. factor1 deflated), ``mult`` their multiplicities; ``degree`` is 0
+    when the roots come from the long-delay chains
+    (:mod:`~delayform.analysis.roots.long_delay`).
     """
 
     roots: NDArray[np.complex128]
@@ -56,17 +60,25 @@ class _SolveResult:
 def _solve_rightmost(prob: _Problem, t1: float, t2: float, *, where: str | None = None) -> _SolveResult:
     """All roots right of a certified line, for one delay pair (the robust path).
 
-    The discretization's degree starts where the root scale needs it and
-    doubles up to :func:`_degree_cap` (no fixed reach: long delays get the
-    degree they need, within the machine's budget). ``where`` names the
+    Long delays (delay x root scale above
+    :data:`~delayform.analysis.roots.long_delay.LONG_REACH`) are first solved
+    on the root chains, with no discretization. Otherwise, or when that is not
+    certified, the discretization's degree starts where the root scale needs it and
+    doubles up to :func:`_degree_cap`; the cost of every degree it may reach
+    is checked against the machine's budget before the first one is solved. ``where`` names the
     delays in messages (default ``(tau1, tau2) = (t1, t2)``).
     """
     where = where or f"(tau1, tau2) = ({t1:g}, {t2:g})"
     hmax = _max_delay(prob, t1, t2)
+    if is_long(hmax, _root_scale(prob)):  # long delays: the root chains, linear in the delay
+        found = long_delay_roots(prob, float(t1), float(t2))
+        if found is not None:
+            return _SolveResult(found[0], found[1], found[2], 0)
     a1, a2 = np.asarray(t1), np.asarray(t2)
     N = min(_needed_degree(hmax, _root_scale(prob)), _degree_cap(prob, hmax))
     cap = _degree_cap(prob, hmax)
-    _require_degree(prob, N, hmax)
+    # up front, the whole path: every degree it may double through, not only the first
+    _require_degrees(prob, _doublings(N, cap), hmax)
     partial: NDArray[np.complex128] = np.zeros(0, dtype=np.complex128)
     while True:
         eig = _eigenvalues_at(prob, N, hmax, float(t1), float(t2))
@@ -90,7 +102,6 @@ def _solve_rightmost(prob: _Problem, t1: float, t2: float, *, where: str | None 
                 partial=partial,
             )
         N = min(cap, 2 * N)
-        _require_degree(prob, N, hmax)
 
 
 

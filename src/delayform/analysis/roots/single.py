@@ -57,13 +57,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from functools import lru_cache
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from delayform._validation import check_delay, validated
-from delayform.analysis.roots.family.solve import family_reach_scales, family_rightmost
+from delayform.analysis.roots.family.solve import family_rightmost
 from delayform.analysis.roots.generator import (
     _eigenvalues_at,
     _igd_seeds,
@@ -91,6 +90,7 @@ from delayform.analysis.roots.problem import (
     _problem_of_factor,
     _problem_of_quasi,
 )
+from delayform.analysis.roots.long_delay import is_long
 from delayform.analysis.roots.rightmost import _BATCH_SEEDS, _certify, _pick_rightmost, _solve_rightmost
 from delayform.analysis.roots.argument_principle import _count_right_single, _region_count
 from delayform.analysis.roots.multiple import distinct_roots
@@ -150,30 +150,13 @@ def relative_residual(
 
 
 # =====================================================================
-#: below this (delay x root scale) the discretization needs no more than MAX_DEGREE and no
-#: budget check is made (measured on the paper's factors: about 30 s at scale 1.2)
-_SHORT_REACH = 40.0
-
-
-@lru_cache(maxsize=16)
-def _largest_reach_scale(fs: tuple[CharacteristicFactor, ...]) -> float:
-    return float(family_reach_scales(fs).max())
-
-
-def _family_reach(fs: tuple[CharacteristicFactor, ...], t1: float, t2: float) -> None:
-    """:func:`_check_reach` of every factor at once (skipped for short delays, the common case)."""
-    if max(t1, t2) * _largest_reach_scale(fs) > _SHORT_REACH:
-        for f in sorted(fs, key=lambda f: f.is_centroid):
-            _check_reach(_problem_of_factor(f), t1, t2)
-
-
 def _check_reach(prob: _Problem, t1: float, t2: float) -> None:
     """Refuse, in one line, delays whose discretization exceeds the machine's memory or time budget.
 
-    There is no fixed reach: the robust path raises the discretization's
-    degree with the delay (:func:`~delayform.analysis.roots.generator._degree_cap`),
-    and only a problem too large for the machine is refused
-    (:class:`~delayform.errors.ResourceLimitError`).
+    For the paths that discretize at every pair (maps, gain design): there is
+    no fixed reach, the degree grows with the delay, and only a problem too
+    large for the machine is refused (:class:`~delayform.errors.DelayError`).
+    The single-pair finder checks its own budget only after the root chains.
     """
     h = max([a * t1 + b * t2 for _, a, b in prob.delayed] + [0.0])
     N = _needed_degree(h, _root_scale(prob))
@@ -242,11 +225,14 @@ def _box_reach(prob: _Problem) -> float:
 
 @validated()
 def delay_reach(fs: tuple[CharacteristicFactor, ...]) -> float:
-    """The delays the dominant-root finder handles for these factors: every pair in [0, X]^2, X returned.
+    """The delays the discretization handles for these factors: every pair in [0, X]^2, X returned.
 
-    The one source of the finder's reach: :func:`_check_reach` refuses with the
-    same rule, so a table built on this (the explorer's) can never allow a
-    delay the finder then refuses. ``math.inf`` when the finder has no limit.
+    The one source of the discretization's reach: :func:`_check_reach` (the
+    dominant-root maps, gain design) refuses with the same rule, so a table
+    built on this (the explorer's) can never allow a delay those then refuse.
+    The single-pair finder (:func:`rightmost_root`, ``dominant_root``)
+    reaches further: at long delays it solves on the root chains
+    (:mod:`~delayform.analysis.roots.long_delay`). ``math.inf`` when there is no limit.
 
     Parameters
     ----------
@@ -521,7 +507,6 @@ def rightmost_root(qp: QuasiPolynomial | TwoDelayQuasiPolynomial | Characteristi
     call = _call(qp, delays, (), "rightmost_root")
     t1, t2 = call.t1, call.t2
     if isinstance(qp, CharacteristicFactor):  # a factor of eq. factorized: the vectorized family path
-        _family_reach((qp,), t1, t2)
         return complex(family_rightmost((qp,), float(qp.P), float(qp.D), t1, t2)[0])
     return _rightmost(call.prob, t1, t2, where=call.where)
 
@@ -545,7 +530,9 @@ def _polynomial_seeds(prob: _Problem) -> NDArray[np.complex128]:
 
 
 def _rightmost(prob: _Problem, t1: float, t2: float, *, where: str | None = None) -> complex:
-    _check_reach(prob, t1, t2)
+    if is_long(_max_delay(prob, t1, t2), _root_scale(prob)):
+        # long delays: the root chains first, then (budget checked up front) the discretization
+        return _pick_rightmost(prob, _solve_rightmost(prob, t1, t2, where=where).roots)
     a1, a2 = np.array([t1]), np.array([t2])
     if prob.scale > 0.0:
         # roots far right of the others see e^{-h s} small: the polynomials' roots seed them without

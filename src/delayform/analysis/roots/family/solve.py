@@ -47,7 +47,8 @@ from delayform.analysis.roots.family.actuated import (
     actuated_seeds,
     actuated_slopes,
 )
-from delayform.analysis.roots.generator import _igd_seeds
+from delayform.analysis.roots.generator import _igd_seeds, _root_scale
+from delayform.analysis.roots.long_delay import is_long
 from delayform.analysis.roots.problem import _problem_of_factor
 from delayform.analysis.roots.rightmost import (
     _BATCH_SEEDS,
@@ -326,7 +327,10 @@ def _generic_rightmost(
         roots = _delay_free_roots(complex(f.lam), float(f.P), float(f.D), f.is_centroid)
         out[free] = roots[np.argmax(roots.real)]
         known[free] = _pad(roots[None, :], _KEEP)[0]
-    left = np.flatnonzero(~free)
+    # long delays: no low-degree seeds (too coarse for chains of spacing 2 pi / tau), the root chains
+    # of the robust path at once
+    longs = is_long(np.maximum(t1, t2), _root_scale(prob)) & ~free
+    left = np.flatnonzero(~free & ~longs)
     for scale, k in ((1.0, _BATCH_SEEDS), (2.0, 2 * _BATCH_SEEDS)):
         if left.size == 0:
             break
@@ -337,7 +341,7 @@ def _generic_rightmost(
             roots = np.where(roots.imag >= 0.0, roots, np.nan)
         known[left[ok]] = _pad(roots[ok], _KEEP)
         left = left[~ok]
-    for i in left:
+    for i in np.concatenate([left, np.flatnonzero(longs)]):
         res = _solve_rightmost(prob, float(t1[i]), float(t2[i]))
         out[i] = _pick_rightmost(prob, res.roots)
         known[i] = _pad(res.roots[None, :], _KEEP)[0]
@@ -392,11 +396,19 @@ def family_rightmost(
     lam, real, centroid = _lams(tuple(fs))
     F = lam.size
     rows = _Rows(lam, np.full(F, float(tau1)), np.full(F, float(tau2)), real, centroid, P, D)
+    if is_long(max(tau1, tau2), _smallest_scale(lam.tobytes(), float(P), float(D))):  # every factor on its chains
+        return np.array([_generic_rightmost(f, rows.t1[:1], rows.t2[:1])[0][0] for f in fs])
     seeds = _without_persistent_zero(_family_seeds(lam, P, D, float(tau1), float(tau2), _BATCH_SEEDS), centroid)
     right, ok, _ = _certify_rows(rows, seeds)
     for k in np.flatnonzero(~ok):
         right[k] = _generic_rightmost(fs[k], rows.t1[k : k + 1], rows.t2[k : k + 1])[0][0]
     return right
+
+
+@lru_cache(maxsize=16)
+def _smallest_scale(lam_bytes: bytes, P: float, D: float) -> float:
+    """The smallest root scale of the factors (cached on lam's bytes: one lookup per single-pair call)."""
+    return float(_root_scales(np.frombuffer(lam_bytes, dtype=np.complex128), P, D).min())
 
 
 def _axis_levels(n: int) -> list[NDArray[np.int64]]:
