@@ -492,8 +492,12 @@ class NeutralSpectrum:
         lines = [f"{'neutral' if self.is_neutral else 'retarded'} quasi-polynomial at ({names}) = ({at})"]
         root = "none right of the essential spectrum" if self.rightmost is None else _fmt(self.rightmost)
         if self.is_neutral:
-            kind = (f"commensurate delays, base h = {self.base_delay:g}" if self.base_delay is not None
-                    else "delays taken as rationally independent")
+            if self.base_delay is None:
+                kind = "delays taken as rationally independent"
+            elif self.nominal_abscissa == -np.inf:
+                kind = "the neutral terms cancel at these delays: retarded there"
+            else:
+                kind = f"commensurate delays, base h = {self.base_delay:g}"
             lines += [
                 f"  essential abscissa at these delays: {self.nominal_abscissa:.6g} ({kind})",
                 f"  rightmost root at these delays: {root}",
