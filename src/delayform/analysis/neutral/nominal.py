@@ -114,6 +114,13 @@ def nominal_abscissa(D: DifferenceOperator, taus: tuple[float, ...]) -> float:
     quasi-polynomial is then retarded there); for rationally independent
     delays the robust :meth:`DifferenceOperator.essential_abscissa` (NaN when
     not computed).
+
+    Parameters
+    ----------
+    D
+        The difference operator.
+    taus
+        All delays of the quasi-polynomial.
     """
     t = tuple(float(x) for x in taus)
     if D.is_trivial:
@@ -136,6 +143,13 @@ def disk_min_modulus(poly: NDArray[np.complex128], rho: float) -> float:
     samples and ``L 2 pi / M <= |P|/2`` at every sample each arg increment is
     below pi/6, so the winding is exact, and ``|P| >= min |P(w_i)| - L pi / M``.
     M doubles until that holds (at most :data:`_MAX_CIRCLE_SAMPLES`).
+
+    Parameters
+    ----------
+    poly
+        P's coefficients, ascending.
+    rho
+        The disk's radius.
     """
     a = np.asarray(poly, complex)
     if a.size == 1:
@@ -172,6 +186,15 @@ def nominal_min_modulus(D: DifferenceOperator, taus: tuple[float, ...], r0: floa
     Returns the bound (<= 0 when none was found) and the commensurate form
     (None for rationally independent delays: the robust bound of
     :func:`~delayform.analysis.neutral.difference.certified_min_modulus`).
+
+    Parameters
+    ----------
+    D
+        The difference operator.
+    taus
+        All delays of the quasi-polynomial.
+    r0
+        The half-plane's edge.
     """
     t = np.array([float(x) for x in taus])
     com = commensurate(D, tuple(t))
@@ -188,6 +211,13 @@ def nominally_essentially_stable(D: DifferenceOperator, taus: tuple[float, ...])
     Certified: ``|P| > 0`` on the closed unit disk (commensurate delays, taken
     as exactly ``n_i h``: module docstring) or ``|D| > 0`` on
     ``{r >= 0} x torus`` (independent).
+
+    Parameters
+    ----------
+    D
+        The difference operator.
+    taus
+        All delays of the quasi-polynomial.
     """
     t = tuple(float(x) for x in taus)
     if D.is_trivial:
