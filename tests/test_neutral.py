@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.optimize import brentq, minimize_scalar
 
@@ -21,7 +21,7 @@ from delayform.analysis.neutral import (
     neutral_roots_in,
     neutral_spectrum,
 )
-from delayform.analysis.neutral.nominal import commensurate, disk_min_modulus
+from delayform.analysis.neutral.nominal import commensurate, disk_min_modulus, nominal_abscissa
 from delayform.analysis.roots import relative_residual, rightmost_root
 from delayform.errors import DelayError, EssentialSpectrumError, FragileNeutralWarning, InputError
 from delayform.quasipolynomial import QuasiPolynomial
@@ -395,3 +395,25 @@ def test_disk_min_modulus_is_a_lower_bound(roots, rho):
         assert bound == 0.0
     elif np.all(np.abs(np.asarray(roots)) > rho * 1.1):
         assert bound > 0.0
+
+
+@settings(max_examples=40)
+@given(st.lists(st.floats(-1.2, 1.2), min_size=3, max_size=3), st.integers(1, 3), st.integers(1, 4))
+def test_nominal_abscissa_never_exceeds_the_robust_one(c, n1, n2):
+    """The points e^{-s tau} lie on the torus of radii e^{-Re s tau_i}: C_nom <= C_D (two algorithms)."""
+    q = QuasiPolynomial({(0, 0): [1.0, 1.0], (1, 0): [0.0, c[0]], (0, 1): [0.0, c[1]], (1, 1): [0.0, c[2]]})
+    D = difference_operator(q)
+    taus = (float(n1), float(n2))
+    assert nominal_abscissa(D, taus) <= D.essential_abscissa(*taus) + 1e-8
+
+
+def test_robust_abscissa_where_one_elimination_misses_the_zeros():
+    """Found by the property above. D = (1 + z2)(1 + 0.5 z1): z2 = -1 is a zero for every z1, so
+    C_D = max(0, -ln 2) = 0 (closed form); D = 1 + z2 + z1 z2 / 32 at (1, 2): the phases are free, so C_D
+    is the Hale bound (brentq), reached only in a window of r narrower than the first scan's step."""
+    D = difference_operator(QuasiPolynomial({(0, 0): [1.0, 1.0], (1, 0): [0, 0.5], (0, 1): [0, 1.0], (1, 1): [0, 0.5]}))
+    assert D.essential_abscissa(1.0, 1.0) == pytest.approx(0.0, abs=1e-9)
+    assert D.strongly_stable(1.0, 1.0) is False
+    D = difference_operator(QuasiPolynomial({(0, 0): [1.0, 1.0], (0, 1): [0, 1.0], (1, 1): [0, 0.03125]}))
+    ref = brentq(lambda r: np.exp(-2 * r) + 0.03125 * np.exp(-3 * r) - 1.0, -1, 1, xtol=1e-15)
+    assert D.essential_abscissa(1.0, 2.0) == pytest.approx(ref, abs=1e-8)

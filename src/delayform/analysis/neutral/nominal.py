@@ -38,7 +38,7 @@ from fractions import Fraction
 import numpy as np
 from numpy.typing import NDArray
 
-from delayform.analysis.neutral.difference import DifferenceOperator, certified_min_modulus
+from delayform.analysis.neutral.difference import DifferenceOperator, abscissa_rounding, certified_min_modulus
 
 __all__ = ["MAX_NOMINAL_DEGREE", "Commensurate", "commensurate", "disk_min_modulus", "nominal_abscissa",
            "nominal_min_modulus", "nominally_essentially_stable"]
@@ -68,10 +68,6 @@ class Commensurate:
     base: float
     multiples: tuple[int, ...]
     polynomial: NDArray[np.complex128]
-
-    def roots(self) -> NDArray[np.complex128]:
-        """P's roots in w (none when P is constant)."""
-        return np.roots(self.polynomial[::-1]) if self.polynomial.size > 1 else np.zeros(0, complex)
 
 
 def commensurate(D: DifferenceOperator, taus: tuple[float, ...]) -> Commensurate | None:
@@ -128,10 +124,13 @@ def nominal_abscissa(D: DifferenceOperator, taus: tuple[float, ...]) -> float:
     com = commensurate(D, t)
     if com is None:
         return D.essential_abscissa(*t)
-    w = com.roots()
-    if w.size == 0:
+    if com.polynomial.size == 1:
         return -np.inf
-    return float(np.max(-np.log(np.abs(w))) / com.base)
+    # the roots u = 1/w of the reversed polynomial u^K P(1/u), which is monic (P(0) = 1): a tiny
+    # leading coefficient of P then gives a tiny u (a far-left chain) instead of an overflowing w
+    u = np.roots(com.polynomial)
+    with np.errstate(divide="ignore"):
+        return float(np.max(np.log(np.abs(u))) / com.base)
 
 
 def disk_min_modulus(poly: NDArray[np.complex128], rho: float) -> float:
@@ -223,7 +222,7 @@ def nominally_essentially_stable(D: DifferenceOperator, taus: tuple[float, ...])
     if D.is_trivial:
         return True
     c = nominal_abscissa(D, t)
-    if np.isfinite(c) and c >= -1e-9 * max(1.0, 1.0 / min(t[i] for i in D.involved)):
+    if np.isfinite(c) and c >= -abscissa_rounding(D, t):
         return False
     bound, _ = nominal_min_modulus(D, t, 0.0)
     return True if bound > 0.0 else None

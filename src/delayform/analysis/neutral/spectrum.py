@@ -50,7 +50,12 @@ import numpy as np
 import numpy.polynomial.polynomial as npoly
 from numpy.typing import NDArray
 
-from delayform.analysis.neutral.difference import DifferenceOperator, as_general, difference_operator
+from delayform.analysis.neutral.difference import (
+    DifferenceOperator,
+    abscissa_rounding,
+    as_general,
+    difference_operator,
+)
 from delayform.analysis.neutral.nominal import (
     commensurate,
     nominal_abscissa,
@@ -397,7 +402,8 @@ def neutral_count_right_of(qp: QuasiPolynomial | TwoDelayQuasiPolynomial, *taus:
     Raises
     ------
     EssentialSpectrumError
-        When c is not right of the essential abscissa at these delays: right
+        When c is not right of the essential abscissa at these delays (by
+        more than its rounding, 1e-9 of the scale): right
         of such a line lie infinitely many roots (a chain of the essential
         spectrum), or arbitrarily close to it.
     NotConvergedError
@@ -408,7 +414,8 @@ def neutral_count_right_of(qp: QuasiPolynomial | TwoDelayQuasiPolynomial, *taus:
     taus = tuple(float(x) for x in taus)
     D = difference_operator(g)
     cN = _abscissa_for_search(D, taus)
-    if not float(c) > cN:
+    # the abscissa is a root modulus's logarithm: a line within its rounding is not right of it
+    if not float(c) > cN + abscissa_rounding(D, taus):
         raise EssentialSpectrumError(
             f"Re s > {float(c):g} holds infinitely many roots or roots arbitrarily close to the essential "
             f"spectrum: its abscissa at these delays, {cN:.12g}, is not left of the line", abscissa=cN,
