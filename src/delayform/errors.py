@@ -30,6 +30,9 @@ The tree::
     |       +-- UnstableLoopError          a loop unstable at tau = 0 asked for a delay margin
     +-- NotConvergedError (RuntimeError)   carries the partial result
     +-- EssentialSpectrumError (RuntimeError)  neutral: no root right of the essential spectrum
+
+    FragileNeutralWarning (UserWarning)    neutral: an answer at the delays given that is not
+                                           strongly stable (small delay changes destabilize it)
 """
 
 from __future__ import annotations
@@ -58,6 +61,7 @@ __all__ = [
     "ControllerInputError",
     "RecordingError",
     "EssentialSpectrumError",
+    "FragileNeutralWarning",
     "LoopError",
     "UnstableLoopError",
 ]
@@ -171,25 +175,45 @@ class NoStableGainsError(GainError):
 class EssentialSpectrumError(DelayformError, RuntimeError):
     """A neutral system whose rightmost root does not lie right of its essential spectrum.
 
-    The supremum of the real parts of the roots is then the essential
-    abscissa C_D of the difference operator (or a root lies within the
-    search margin of it), so there is no rightmost root to return.
+    The supremum of the real parts of the roots is then the abscissa of the
+    essential spectrum at the delays given (or a root lies within the search
+    margin of it), so there is no rightmost root to return.
 
     Parameters
     ----------
     message
-        What was asked and the abscissa.
+        What was asked and the abscissae.
     abscissa
-        C_D, the robust abscissa of the essential spectrum.
+        The essential abscissa at the delays given (nominal): for commensurate
+        delays that of the difference equation at exactly these delays, for
+        rationally independent ones the robust C_D.
     line
-        The abscissa right of which no root was certified to lie (C_D plus
-        the search margin); None when the question was about a line left of C_D.
+        The abscissa right of which no root was certified to lie (the nominal
+        abscissa plus the search margin); None when the question was about a
+        line left of it.
+    robust_abscissa
+        C_D, the robust (strong) essential abscissa, reached under arbitrarily
+        small changes of the delays (equal to ``abscissa`` when not given).
     """
 
-    def __init__(self, message: str, abscissa: float, line: float | None = None) -> None:
+    def __init__(
+        self, message: str, abscissa: float, line: float | None = None, robust_abscissa: float | None = None
+    ) -> None:
         super().__init__(message)
         self.abscissa = abscissa
         self.line = line
+        self.robust_abscissa = abscissa if robust_abscissa is None else robust_abscissa
+
+
+class FragileNeutralWarning(UserWarning):
+    """An answer for a neutral system at its delays as given that is not strongly stable.
+
+    The robust essential abscissa C_D is >= 0: an arbitrarily small change of
+    the delays moves the essential spectrum to Re s = C_D, so a system stable
+    at the delays given is destabilized by it (Hale and Verduyn Lunel 2002).
+    """
+
+
 class LoopError(InputError):
     """A feedback loop that :mod:`delayform.loops` cannot turn into a quasi-polynomial.
 

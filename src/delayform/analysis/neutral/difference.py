@@ -33,7 +33,9 @@ How it is computed
 * With two, for each phase theta_2 on a grid the largest r with a root z_1 of
   ``D(., e^{-r tau_2 + j theta_2})`` of modulus ``e^{-r tau_1}`` is bracketed
   below the Hale bound ``sum_k |c_k| e^{-r k.tau} = 1`` (no zero above it) and
-  bisected; the best phase is then refined (golden section). Accurate to
+  bisected; the best phase is then refined (golden section). The same with
+  the roles of the two delays swapped, and the larger value kept (a factor
+  of D in one variable alone is seen only by one of the two). Accurate to
   ~1e-9, but a sampled maximum over theta_2: it is a value, not a proof.
 * The proofs are separate: *strongly stable* is claimed only when a certified
   lower bound of ``|D|`` over ``r >= 0`` and the whole torus is positive
@@ -58,7 +60,7 @@ from delayform._validation import validated
 from delayform.errors import DelayError, QuasiPolynomialError
 from delayform.quasipolynomial import QuasiPolynomial
 
-__all__ = ["DifferenceOperator", "difference_operator", "as_general", "certified_min_modulus", "certified_polydisk_min"]
+__all__ = ["DifferenceOperator", "difference_operator", "abscissa_rounding", "as_general", "certified_min_modulus", "certified_polydisk_min"]
 
 #: Phases of theta_2 sampled before refining the best one.
 _PHASES = 256
@@ -189,7 +191,7 @@ class DifferenceOperator:
         if self.is_trivial:
             return True
         c = self.essential_abscissa(*taus)
-        if np.isfinite(c) and c >= -1e-9 * max(1.0, 1.0 / min(t[i] for i in self.involved)):
+        if np.isfinite(c) and c >= -abscissa_rounding(self, taus):
             return False
         if certified_min_modulus(self, t, 0.0) > 0.0:
             return True
@@ -227,10 +229,27 @@ def difference_operator(qp: QuasiPolynomial | TwoDelayQuasiPolynomial) -> Differ
 
 
 # ===================================================================== helpers
+def abscissa_rounding(D: DifferenceOperator, taus: tuple[float, ...]) -> float:
+    """How far from a line an essential abscissa must be to count as on one side: 1e-9 of the scale.
+
+    The abscissa is ``ln|u| / h`` of a computed root; a value within this of 0
+    (or of a line) is taken as on it, so it is never called left of it.
+
+    Parameters
+    ----------
+    D
+        The difference operator (not trivial).
+    taus
+        All delays of the quasi-polynomial.
+    """
+    return 1e-9 * max(1.0, 1.0 / min(float(taus[i]) for i in D.involved))
+
+
 def _decreasing_root(a: NDArray[np.float64], h: NDArray[np.float64], level: float) -> float:
     """r with ``sum a_i e^{-r h_i} = level`` (h_i > 0: strictly decreasing in r), by bisection."""
     def f(r: float) -> float:
-        return float(np.sum(a * np.exp(-r * h))) - level
+        with np.errstate(over="ignore"):  # a tiny coefficient puts the root far left: inf only says "above"
+            return float(np.sum(a * np.exp(-r * h))) - level
 
     lo, hi = -1.0, 1.0
     while f(lo) < 0.0:
@@ -275,7 +294,10 @@ def _largest_r(D: DifferenceOperator, t: NDArray, inv: tuple[int, int], th2: NDA
     """Per phase, the largest r <= top with g(r) = 0 (g = _z1_moduli), NaN when none above the scan's end."""
     # 40 e-foldings of the shorter delay below the Hale bound, but never where e^{-r tau} overflows
     bottom = max(top - 40.0 / min(t[i] for i in inv), -600.0 / max(t[i] for i in inv))
-    rs = np.linspace(top, bottom, 801)
+    # denser in the first e-folding below the bound: a zero set can be a narrow window in r there
+    # (e.g. D = 1 + z2 + 0.03125 z1 z2, where |1 + z2| is small only for r in (0, 0.015))
+    near = max(bottom, top - 1.0 / min(t[i] for i in inv))
+    rs = np.concatenate([np.linspace(top, near, 801, endpoint=False), np.linspace(near, bottom, 801)])
     with np.errstate(all="ignore"):  # a vanishing leading coefficient sends a root to infinity (NaN, skipped)
         g = _z1_moduli(D, t, inv, rs[:, None], th2[None, :])  # (nr, nth)
     pos = g >= 0.0
@@ -299,7 +321,17 @@ def _largest_r(D: DifferenceOperator, t: NDArray, inv: tuple[int, int], th2: NDA
 
 
 def _two_delay_abscissa(D: DifferenceOperator, t: NDArray, inv: tuple[int, ...]) -> float:
-    pair = (inv[0], inv[1])
+    """C_D by eliminating each variable in turn, the larger of the two.
+
+    One elimination misses a factor of D in the other variable alone: with
+    ``D = (1 + z2)(1 + 0.5 z1)`` the polynomial in z1 vanishes identically at
+    ``z2 = -1`` and has no roots there, while the other sees ``|z2| = 1``.
+    """
+    return max(_eliminated_abscissa(D, t, (inv[0], inv[1])), _eliminated_abscissa(D, t, (inv[1], inv[0])))
+
+
+def _eliminated_abscissa(D: DifferenceOperator, t: NDArray, pair: tuple[int, int]) -> float:
+    """C_D from the roots in the first delay's z of D at the second's phases (module docstring)."""
     top = D.hale_bound(*t)
     th = np.linspace(0.0, 2 * np.pi, _PHASES, endpoint=False)
     r = _largest_r(D, t, pair, th, top)

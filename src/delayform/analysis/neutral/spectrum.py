@@ -14,20 +14,35 @@ discretization of a retarded DDE:
   multiplicity m, polished on ``q^(m-1)`` (accuracy about eps^(1/m) for the
   root itself, as double precision allows). Each box's count is certified,
   so none is lost; a split line that passes through a root is moved.
-* **the rightmost root** -- right of ``sigma0 = C_D + margin`` (C_D the robust
-  essential abscissa) the roots are finitely many and lie in a rectangle:
-  with a certified lower bound ``delta0`` of ``|D|`` on ``Re s >= sigma0``,
+* **the rightmost root** -- of the system as stated, at exactly the delays
+  given. Right of ``sigma0 = C_nom + margin`` (C_nom the *nominal* essential
+  abscissa of :mod:`delayform.analysis.neutral.nominal`: the roots of a
+  polynomial in ``w = e^{-h s}`` for commensurate delays, the robust C_D for
+  rationally independent ones) the roots are finitely many and lie in a
+  rectangle: with a certified lower bound ``delta0`` of ``|D(e^{-s tau})|`` on
+  ``Re s >= sigma0`` (of ``|P|`` on a disk, or of |D| on the torus),
   ``q(s) = p_0[n] s^n D(e^{-s tau}) + sum_{i<n} s^i (...)`` cannot vanish for
   ``|s| > max(1, sum_i B_i / (|p_0[n]| delta0))`` with ``B_i = sum_k |p_k[i]| e^{-sigma0 h_k}``.
-  All roots there are found; the one of largest real part is the answer.
-  When none lies right of ``sigma0`` for margins down to 1e-3 of the scale,
-  the rightmost root does not lie (separably) right of the essential
-  spectrum and :class:`~delayform.errors.EssentialSpectrumError` gives C_D.
+  All roots there are found by the certified count on q itself; the one of
+  largest real part is the answer. When none lies right of ``sigma0`` for
+  margins down to 1e-3 of the scale, the rightmost root does not lie
+  (separably) right of the essential spectrum and
+  :class:`~delayform.errors.EssentialSpectrumError` gives C_nom and C_D.
+* **strong stability** -- the robust abscissa C_D (reached under arbitrarily
+  small changes of the delays) is reported beside the nominal answer. When
+  ``C_D >= 0`` the system is *fragile*: an arbitrarily small change of the
+  delays destabilizes it, even when it is exponentially stable at the delays
+  given (``C_nom`` and every root left of the axis). :func:`neutral_rightmost_root`
+  then warns (:class:`~delayform.errors.FragileNeutralWarning`) and
+  :class:`NeutralSpectrum` says so in ``fragile`` and :meth:`NeutralSpectrum.describe`.
 """
 
 from __future__ import annotations
 
 import math
+import os
+import sys
+import warnings
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -37,15 +52,27 @@ from numpy.typing import NDArray
 
 from delayform.analysis.neutral.difference import (
     DifferenceOperator,
+    abscissa_rounding,
     as_general,
-    certified_min_modulus,
     difference_operator,
+)
+from delayform.analysis.neutral.nominal import (
+    commensurate,
+    nominal_abscissa,
+    nominal_min_modulus,
+    nominally_essentially_stable,
 )
 from delayform.analysis.roots.argument_principle import _region_count
 from delayform.analysis.roots.problem import _evaluate, _Problem
 from delayform.characteristic import TwoDelayQuasiPolynomial
 from delayform._validation import validated
-from delayform.errors import EssentialSpectrumError, InputError, NotConvergedError, QuasiPolynomialError
+from delayform.errors import (
+    EssentialSpectrumError,
+    FragileNeutralWarning,
+    InputError,
+    NotConvergedError,
+    QuasiPolynomialError,
+)
 from delayform.quasipolynomial import QuasiPolynomial
 
 if TYPE_CHECKING:
@@ -224,14 +251,14 @@ def _check_region(region: object) -> tuple[float, float, float, float]:
 
 
 def _abscissa_for_search(D: DifferenceOperator, taus: tuple[float, ...]) -> float:
-    c = D.essential_abscissa(*taus)
+    """The nominal essential abscissa, or its Hale bound where it is not computed."""
+    c = nominal_abscissa(D, taus)
     return D.hale_bound(*taus) if np.isnan(c) else c
 
 
 def _search_box(qp: QuasiPolynomial, D: DifferenceOperator, taus: tuple[float, ...], sigma0: float) -> tuple[float, float, float, float] | None:
     """A rectangle holding every root with Re s >= sigma0 (module docstring), None without a bound of |D|."""
-    t = np.array(taus, float)
-    delta0 = certified_min_modulus(D, t, sigma0)
+    delta0, _ = nominal_min_modulus(D, taus, sigma0)
     if delta0 <= 0.0:
         return None
     n = qp.degree
@@ -247,31 +274,23 @@ def _search_box(qp: QuasiPolynomial, D: DifferenceOperator, taus: tuple[float, .
     return (sigma0, omega * 1.0001 + 1.0, -omega * 1.0001 - 0.9871, omega * 1.0001 + 1.0123)
 
 
-@validated(QuasiPolynomialError)
-def neutral_rightmost_root(qp: QuasiPolynomial | TwoDelayQuasiPolynomial, *taus: float) -> complex:
-    """The rightmost root of a neutral quasi-polynomial, when it lies right of the essential spectrum.
+def _search_lines(cN: float) -> list[float]:
+    """Left edges tried for the rightmost root: just right of the nominal abscissa, ever closer.
 
-    Parameters
-    ----------
-    qp
-        A QuasiPolynomial (any number of delays) or TwoDelayQuasiPolynomial.
-    *taus
-        Its delays (s), non-negative; those in the difference operator positive.
-
-    Raises
-    ------
-    EssentialSpectrumError
-        When no root lies right of C_D + margin (margins down to 1e-3 of the
-        scale): the supremum of the real parts is then the essential abscissa
-        (or a root within the margin of it), which the error gives.
+    When D's terms cancel at these delays (``C_nom = -inf``: retarded there) a
+    descending sequence of lines instead, until one's rectangle holds a root.
     """
-    g = as_general(qp)
-    taus = tuple(float(x) for x in taus)
+    if np.isfinite(cN):
+        return [cN + margin * max(1.0, abs(cN)) for margin in _MARGINS]
+    return [1.0, 0.0, -1.0, -2.0, -4.0, -8.0, -16.0]
+
+
+def _rightmost(g: QuasiPolynomial, taus: tuple[float, ...]) -> complex:
+    """:func:`neutral_rightmost_root` without its warning (the report carries the flag instead)."""
     D = difference_operator(g)
-    cD = _abscissa_for_search(D, taus)
+    cN = _abscissa_for_search(D, taus)
     searched = None
-    for margin in _MARGINS:
-        sigma0 = cD + margin * max(1.0, abs(cD))
+    for sigma0 in _search_lines(cN):
         box = _search_box(g, D, taus, sigma0)
         if box is None:
             continue
@@ -289,16 +308,82 @@ def neutral_rightmost_root(qp: QuasiPolynomial | TwoDelayQuasiPolynomial, *taus:
                 return complex(best.real, 0.0 if im <= 1e-12 * max(1.0, abs(best)) else im)
             return best
         searched = sigma0
+    cD = D.essential_abscissa(*taus)
     if searched is None:
         raise NotConvergedError(
-            f"cannot bound the roots right of the essential abscissa C_D = {cD:.12g}: |D| is not certified "
-            "away from 0 there, or the region it gives is too large to search"
+            f"cannot bound the roots right of the essential abscissa {cN:.12g} at these delays: |D| is not "
+            "certified away from 0 there, or the region it gives is too large to search"
+        )
+    if not np.isfinite(cN):
+        raise NotConvergedError(
+            f"the neutral terms cancel at these delays (the quasi-polynomial is retarded there) and no root "
+            f"lies right of Re s = {searched:g}; the rightmost root lies further left than searched"
         )
     raise EssentialSpectrumError(
-        f"no root lies right of Re s = {searched:.12g}, just right of the essential spectrum, whose abscissa "
-        f"is C_D = {cD:.12g}: the supremum of the real parts of the roots is C_D (or a root between the two)",
-        abscissa=cD, line=searched,
+        f"no root lies right of Re s = {searched:.12g}, just right of the essential spectrum at these delays, "
+        f"whose abscissa is {cN:.12g}: the supremum of the real parts of the roots is that abscissa (or a root "
+        f"between the two); under arbitrarily small changes of the delays the essential abscissa becomes "
+        f"C_D = {cD:.12g} (robust)",
+        abscissa=cN, line=searched, robust_abscissa=cD,
     )
+
+
+def _fragility(D: DifferenceOperator, taus: tuple[float, ...]) -> str:
+    """Why the answer at these delays is fragile, or '' when D is not certified to be (C_D >= 0)."""
+    if D.strongly_stable(*taus) is not False:
+        return ""
+    return (f"not strongly stable: the robust essential abscissa C_D = {D.essential_abscissa(*taus):.6g} >= 0, "
+            "so an arbitrarily small change of the delays destabilizes the system")
+
+
+@validated(QuasiPolynomialError)
+def neutral_rightmost_root(qp: QuasiPolynomial | TwoDelayQuasiPolynomial, *taus: float) -> complex:
+    """The rightmost root of a neutral quasi-polynomial at its delays as given, right of its essential spectrum.
+
+    The essential spectrum is the one at exactly these delays (nominal: for
+    commensurate delays the difference equation's own, module docstring), so
+    a system stable only at the delays given gets its answer; see
+    :func:`neutral_spectrum` for the robust abscissa beside it.
+
+    Parameters
+    ----------
+    qp
+        A QuasiPolynomial (any number of delays) or TwoDelayQuasiPolynomial.
+    *taus
+        Its delays (s), non-negative; those in the difference operator positive.
+
+    Warns
+    -----
+    FragileNeutralWarning
+        When the difference operator is not strongly stable (``C_D >= 0``):
+        the root is right for the delays given, but an arbitrarily small
+        change of the delays destabilizes the system.
+
+    Raises
+    ------
+    EssentialSpectrumError
+        When no root lies right of the nominal essential abscissa + margin
+        (margins down to 1e-3 of the scale): the supremum of the real parts
+        is then that abscissa (or a root within the margin of it), which the
+        error gives, with the robust C_D.
+    """
+    g = as_general(qp)
+    taus = tuple(float(x) for x in taus)
+    root = _rightmost(g, taus)
+    why = _fragility(difference_operator(g), taus)
+    if why:
+        warnings.warn(FragileNeutralWarning(f"rightmost root {root:.6g} at the delays given, but {why}"),
+                      stacklevel=_user_level())
+    return root
+
+
+def _user_level() -> int:
+    """The stacklevel of the first caller outside delayform (the warning points at the user's line)."""
+    package = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    frame, level = sys._getframe(1), 2  # 1: the caller of warnings.warn, here neutral_rightmost_root
+    while frame.f_back is not None and os.path.abspath(frame.f_code.co_filename).startswith(package):
+        frame, level = frame.f_back, level + 1
+    return level - 1
 
 
 @validated(QuasiPolynomialError)
@@ -317,8 +402,10 @@ def neutral_count_right_of(qp: QuasiPolynomial | TwoDelayQuasiPolynomial, *taus:
     Raises
     ------
     EssentialSpectrumError
-        When ``c <= C_D``: right of such a line lie infinitely many roots (a
-        chain of the essential spectrum), or arbitrarily close to it.
+        When c is not right of the essential abscissa at these delays (by
+        more than its rounding, 1e-9 of the scale): right
+        of such a line lie infinitely many roots (a chain of the essential
+        spectrum), or arbitrarily close to it.
     NotConvergedError
         When the roots right of c cannot be bounded (|D| not certified away
         from 0 there) or a root lies on the line.
@@ -326,15 +413,17 @@ def neutral_count_right_of(qp: QuasiPolynomial | TwoDelayQuasiPolynomial, *taus:
     g = as_general(qp)
     taus = tuple(float(x) for x in taus)
     D = difference_operator(g)
-    cD = _abscissa_for_search(D, taus)
-    if not float(c) > cD:
+    cN = _abscissa_for_search(D, taus)
+    # the abscissa is a root modulus's logarithm: a line within its rounding is not right of it
+    if not float(c) > cN + abscissa_rounding(D, taus):
         raise EssentialSpectrumError(
             f"Re s > {float(c):g} holds infinitely many roots or roots arbitrarily close to the essential "
-            f"spectrum: its abscissa C_D = {cD:.12g} is not left of the line", abscissa=cD,
+            f"spectrum: its abscissa at these delays, {cN:.12g}, is not left of the line", abscissa=cN,
+            robust_abscissa=D.essential_abscissa(*taus),
         )
     box = _search_box(g, D, taus, float(c))
     if box is None:
-        raise NotConvergedError(f"cannot bound the roots right of Re s = {float(c):g} (C_D = {cD:.12g})")
+        raise NotConvergedError(f"cannot bound the roots right of Re s = {float(c):g} (essential abscissa {cN:.12g})")
     n = _count(_problem_at(g, taus), box)
     if n is None:
         raise NotConvergedError(f"a root lies on (or within rounding of) the line Re s = {float(c):g}")
@@ -345,6 +434,11 @@ def neutral_count_right_of(qp: QuasiPolynomial | TwoDelayQuasiPolynomial, *taus:
 @dataclass(frozen=True)
 class NeutralSpectrum:
     """What is known of a quasi-polynomial's spectrum through its difference operator.
+
+    Two questions, both answered: the system *as stated* (its delays exactly
+    as given, ``nominal_*``, ``rightmost``, ``nominally_stable``) and the system
+    under arbitrarily small changes of its delays (``essential_abscissa`` C_D,
+    ``strongly_stable``, ``stable``, ``fragile``).
 
     Attributes
     ----------
@@ -359,11 +453,30 @@ class NeutralSpectrum:
     strongly_stable
         True / False when certified, None when it cannot be decided.
     rightmost
-        The rightmost root when it lies right of the essential spectrum, else None.
+        The rightmost root at the delays given when it lies right of the
+        essential spectrum at these delays, else None.
     stable
-        True only when the difference operator is certified strongly stable and
-        the rightmost root (found) has Re s < 0; False when either is certified
-        to fail; None otherwise. Never True when C_D >= 0.
+        Robust stability: True only when the difference operator is certified
+        strongly stable and the rightmost root (found) has Re s < 0; False when
+        either is certified to fail; None otherwise. Never True when C_D >= 0.
+    delays
+        The delays the spectrum is of.
+    nominal_abscissa
+        The essential abscissa at exactly these delays (for commensurate delays
+        from the difference equation's polynomial in ``w = e^{-h s}``; equal to
+        C_D for rationally independent ones; ``-inf`` when retarded).
+    base_delay
+        h when the delays in D are commensurate (``tau_i = n_i h``), else None.
+    nominally_stable
+        Exponential stability at the delays given: True when the essential
+        abscissa at these delays is certified < 0 and the rightmost root (or
+        the line right of which none lies) is left of the axis; False when
+        either is certified to fail; None otherwise. An essential spectrum
+        that reaches Re s = 0 at these delays is never called stable.
+    fragile
+        True when the difference operator is certified not strongly stable
+        (``C_D >= 0``): an arbitrarily small change of the delays destabilizes
+        the system, whatever ``nominally_stable`` says.
     """
 
     is_neutral: bool
@@ -373,15 +486,63 @@ class NeutralSpectrum:
     strongly_stable: bool | None
     rightmost: complex | None
     stable: bool | None
+    delays: tuple[float, ...] = ()
+    nominal_abscissa: float = float("nan")
+    base_delay: float | None = None
+    nominally_stable: bool | None = None
+    fragile: bool = False
+
+    def describe(self) -> str:
+        """Both answers in a few lines: the system at its delays as given, and under small delay changes."""
+        at = ", ".join(f"{t:g}" for t in self.delays)
+        names = ", ".join(f"tau{i + 1}" for i in range(len(self.delays)))
+        lines = [f"{'neutral' if self.is_neutral else 'retarded'} quasi-polynomial at ({names}) = ({at})"]
+        root = "none right of the essential spectrum" if self.rightmost is None else _fmt(self.rightmost)
+        if self.is_neutral:
+            if self.base_delay is None:
+                kind = "delays taken as rationally independent"
+            elif self.nominal_abscissa == -np.inf:
+                kind = "the neutral terms cancel at these delays: retarded there"
+            else:
+                kind = f"commensurate delays, base h = {self.base_delay:g}"
+            lines += [
+                f"  essential abscissa at these delays: {self.nominal_abscissa:.6g} ({kind})",
+                f"  rightmost root at these delays: {root}",
+                f"  robust (strong) essential abscissa C_D = {self.essential_abscissa:.6g} "
+                "(reached under arbitrarily small changes of the delays)",
+            ]
+        else:
+            lines.append(f"  rightmost root: {root}")
+        lines.append(f"  verdict: {self._verdict()}")
+        return "\n".join(lines)
+
+    def _verdict(self) -> str:
+        if self.nominally_stable is True:
+            if self.strongly_stable is True:
+                return "exponentially stable, and strongly stable (robust to small changes of the delays)"
+            if self.fragile:
+                return ("FRAGILE: exponentially stable at the delays given, but not strongly stable "
+                        f"(C_D = {self.essential_abscissa:.6g} >= 0): an arbitrarily small change of the "
+                        "delays destabilizes it")
+            return "exponentially stable at the delays given; strong stability could not be decided"
+        if self.nominally_stable is False:
+            tail = " (and not strongly stable)" if self.fragile else ""
+            if self.rightmost is not None and self.rightmost.real >= 0.0:
+                return f"unstable at the delays given: a root has Re s >= 0{tail}"
+            return f"not stable at the delays given: the essential spectrum reaches Re s = 0 or beyond{tail}"
+        tail = "; not strongly stable either (fragile)" if self.fragile else ""
+        return f"stability at the delays given could not be decided{tail}"
 
     def plot(self, ax: Axes | None = None) -> Axes:
-        """The rightmost root and the essential abscissa C_D in the complex plane."""
+        """The rightmost root, the essential abscissa at these delays and the robust C_D in the complex plane."""
         import matplotlib.pyplot as plt
 
         if ax is None:
             _, ax = plt.subplots()
         if np.isfinite(self.essential_abscissa):
-            ax.axvline(self.essential_abscissa, color="tab:red", ls="--", label="essential abscissa $C_D$")
+            ax.axvline(self.essential_abscissa, color="tab:red", ls="--", label="robust essential abscissa $C_D$")
+        if np.isfinite(self.nominal_abscissa) and self.nominal_abscissa != self.essential_abscissa:
+            ax.axvline(self.nominal_abscissa, color="tab:purple", ls=":", label="essential abscissa at these delays")
         if self.rightmost is not None:
             ax.plot([self.rightmost.real], [self.rightmost.imag], "o", label="rightmost root")
         ax.axvline(0.0, color="0.5", lw=0.8)
@@ -391,9 +552,24 @@ class NeutralSpectrum:
         return ax
 
 
+def _fmt(s: complex) -> str:
+    return f"{s.real:.6g} {'+' if s.imag >= 0 else '-'} {abs(s.imag):.6g}j"
+
+
+def _verdict_of(essential: bool | None, right: complex | None, line: float | None) -> bool | None:
+    """Stable when the essential part is certified and the rightmost root (or the line searched) is left of 0."""
+    if essential is False or (right is not None and right.real >= 0.0):
+        return False
+    if essential is True:
+        # the rightmost root when found; otherwise every root lies left of the line searched
+        bound = right.real if right is not None else line
+        return True if (bound is not None and bound < 0.0) else None
+    return None
+
+
 @validated(QuasiPolynomialError)
 def neutral_spectrum(qp: QuasiPolynomial | TwoDelayQuasiPolynomial, *taus: float) -> NeutralSpectrum:
-    """Detect neutrality, the essential abscissa, strong stability and the rightmost root.
+    """The spectrum at the delays given beside the robust essential abscissa and strong stability.
 
     Parameters
     ----------
@@ -418,17 +594,14 @@ def neutral_spectrum(qp: QuasiPolynomial | TwoDelayQuasiPolynomial, *taus: float
     cD = D.essential_abscissa(*taus)
     line: float | None = None  # no root right of it (certified), when no rightmost root is found
     try:
-        right: complex | None = neutral_rightmost_root(g, *taus)
+        right: complex | None = _rightmost(g, taus)
     except EssentialSpectrumError as err:
         right, line = None, err.line
     except NotConvergedError:
         right = None
-    if strong is False or (right is not None and right.real >= 0.0):
-        stable: bool | None = False
-    elif strong is True:
-        # the rightmost root when found; otherwise every root lies left of the line searched
-        bound = right.real if right is not None else line
-        stable = True if (bound is not None and bound < 0.0) else None
-    else:
-        stable = None
-    return NeutralSpectrum(g.is_neutral, D, cD, D.hale_bound(*taus), strong, right, stable)
+    com = commensurate(D, taus)
+    return NeutralSpectrum(
+        g.is_neutral, D, cD, D.hale_bound(*taus), strong, right, _verdict_of(strong, right, line),
+        delays=taus, nominal_abscissa=nominal_abscissa(D, taus), base_delay=None if com is None else com.base,
+        nominally_stable=_verdict_of(nominally_essentially_stable(D, taus), right, line), fragile=strong is False,
+    )
