@@ -155,6 +155,8 @@ def roots_command(scenario: Path | None, region: tuple[float, float, float, floa
     if region is not None and (region[0] >= region[1] or region[2] >= region[3]):
         raise click.BadParameter("expected RE_MIN < RE_MAX and IM_MIN < IM_MAX", param_hint="--region")
     sc = with_actuation(_scenario(scenario, **overrides), actuation_delay)
+    sc.require_uniform_delays("roots (the roots of every factor at the operating delays)",
+                              "delayform links for the certified per-link dominant root")
     directory = _out_dir(out, sc)
     with _inner_progress("roots of every factor") as callback:
         section = roots_section(sc, directory, region=region, progress=callback)

@@ -79,7 +79,7 @@ def simulate_command(scenario: Path | None, model: str | None, duration: float |
     check_actuation(sc.robot_spec, sc.network, sim.dt)  # an actuation delay this run cannot model: before writing
     directory = _out_dir(out, sc)
     with _inner_progress(f"simulate {sim.model}, {sim.duration:g} s (steps)") as callback:
-        section = simulation_section(sc, directory, gif=gif, csv=csv, mcap=mcap, progress=callback)
+        section = simulation_section(sc, directory, gif=gif, csv=csv, mcap=mcap, progress=callback, network=True)
     _emit(section, directory, as_json=as_json)
     for warning in section.summary["warnings"]:
         # a run that diverged, or whose robots collided, is said plainly

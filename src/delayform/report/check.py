@@ -198,8 +198,9 @@ def robot_check(scenario: Scenario, robot: str | RobotProfile) -> RobotCheck:
     common = dict(initial_positions=scenario.initial_positions(), initial_headings=scenario.initial_headings(),
                   initial_speed=scenario.initial.speed, seed=scenario.initial.seed, duration=sim.duration, dt=sim.dt)  # fmt: skip
     args = (scenario.topology, scenario.P, scenario.D, scenario.tau1, scenario.tau2, desired)
-    limited = simulate(*args, limits=profile.limits, **common)
-    ideal = simulate(*args, **common)
+    # the robot as the scenario configures it: its safety filter too (a filtered run keeps bodies apart)
+    limited = simulate(*args, limits=profile.limits, safety=scenario.safety, **common)
+    ideal = simulate(*args, safety=scenario.safety, **common)
     verdicts = (
         _limits_verdict(profile, limited, ideal),
         _radius_verdict(profile, desired, limited),

@@ -35,6 +35,7 @@ def simulation_section(
     csv: bool | None = None,
     mcap: Path | None = None,
     progress: MapProgress | None = None,
+    network: bool = False,
 ) -> Section:
     """Simulate the team at one delay pair: paths, x/y versus time, commands, NPZ (and CSV), optional GIF.
 
@@ -66,6 +67,9 @@ def simulation_section(
         (:func:`delayform.deploy.recording.write_mcap`; robots only).
     progress
         Optional callback ``(steps done, steps)`` while the run is integrated.
+    network
+        Run over the scenario's ``[network]`` (per-link delays, jitter, loss,
+        ...) instead of the ideal one: what ``delayform simulate`` asks.
     """
     from delayform.simulation import simulate
 
@@ -80,7 +84,7 @@ def simulation_section(
         robot=robot, initial_positions=scenario.initial_positions(),
         initial_headings=scenario.initial_headings(), initial_speed=scenario.initial.speed,
         seed=scenario.initial.seed, duration=sim.duration, dt=sim.dt, progress=progress,
-        assignment=sim.assignment,
+        assignment=sim.assignment, network=scenario.network if network else None,
     )  # fmt: skip
     stem = f"sim_{label}"
     files: list[str] = []
@@ -164,6 +168,8 @@ def simulation_section(
         settled_text = f"no: {traj.status}"
     table = [
         ("delays (tau1, tau2)", f"({tau1:g}, {tau2:g}) s"),
+        *([("network", scenario.network.describe(scenario.topology.adjacency))]
+          if network and scenario.network is not None else []),
         ("model", sim.model + ("" if commands is None else (", with limits" if commands.limited else ", ideal robots"))),
         ("settling time (2 %)", settled_text),
         ("final formation error", f"{_fmt(summary['final_error'])} m"),

@@ -249,6 +249,51 @@ class Scenario:
     actuation_delay: float = 0.0
 
     @property
+    def link_delays(self) -> tuple[float | np.ndarray, float | np.ndarray]:
+        """(tau1, tau2) as every link sees them: ``[network] tau1 / tau2`` matrices where given, else ``[delays]``.
+
+        A matrix entry ``[i, k]`` is what agent i hears from k (entries off
+        the links are ignored by the analyses). ``[network] delay_spread``
+        draws other delays per run: :attr:`link_spread` says so.
+        """
+        d = self.network.delays if self.network is not None else None
+        t1 = self.tau1 if d is None or d.tau1 is None else np.asarray(d.tau1, dtype=np.float64)
+        t2 = self.tau2 if d is None or d.tau2 is None else np.asarray(d.tau2, dtype=np.float64)
+        return t1, t2
+
+    @property
+    def link_spread(self) -> float:
+        """``[network] delay_spread`` of the streams without a delay matrix (0: every run has the same delays)."""
+        d = self.network.delays if self.network is not None else None
+        return 0.0 if d is None or (d.tau1 is not None and d.tau2 is not None) else float(d.spread)
+
+    def per_link_description(self) -> str | None:
+        """One phrase naming the scenario's per-link delays, or None when every link has ``[delays]``."""
+        t1, t2 = self.link_delays
+        parts = [f"network.{name} (per-link, {np.min(t):g} to {np.max(t):g} s)"
+                 for name, t in (("tau1", t1), ("tau2", t2)) if np.ndim(t)]  # fmt: skip
+        if self.link_spread:
+            parts.append(f"network.delay_spread = {self.link_spread:g} (per-link delays drawn per run)")
+        return ", ".join(parts) if parts else None
+
+    def require_uniform_delays(self, what: str, instead: str) -> None:
+        """Refuse (ScenarioError, one line) when ``what`` would answer for ``[delays]`` on every link instead of the per-link ones.
+
+        Parameters
+        ----------
+        what
+            The computation whose theory is one delay pair on every link (eq. factorized).
+        instead
+            The commands that do take per-link delays.
+        """
+        described = self.per_link_description()
+        if described is not None:
+            raise ScenarioError(
+                f"{what} takes one delay pair shared by every link, and the scenario has {described}; "
+                f"answering for [delays] ({self.tau1:g}, {self.tau2:g}) s would be another question: use {instead}"
+            )
+
+    @property
     def robot_spec(self) -> Robot:
         """The ``[robot]`` table (and ``simulation.model``) as one :class:`~delayform.simulation.robots.Robot`."""
         limits = self.robot if self.simulation.model == "unicycle" else None  # limits apply to robots only
