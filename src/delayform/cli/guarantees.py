@@ -137,10 +137,9 @@ def _require_inside(sc: Any, tau1_box: tuple[float, float], tau2_box: tuple[floa
     """Refuse a box that leaves out the scenario's own per-link delays: its certificate would not be about them."""
     from delayform.errors import ScenarioError
 
-    mask = sc.topology.adjacency.toarray() != 0 if hasattr(sc.topology.adjacency, "toarray") else np.asarray(sc.topology.adjacency) != 0
     for name, t, (lo, hi) in zip(("tau1", "tau2"), sc.link_delays, (tau1_box, tau2_box), strict=True):
         if np.ndim(t):
-            on_links = np.asarray(t)[mask]
+            on_links = sc.link_values(t, name)
             if on_links.size and (on_links.min() < lo or on_links.max() > hi):
                 raise ScenarioError(
                     f"the scenario's per-link network.{name} ({on_links.min():g} to {on_links.max():g} s) is not "
