@@ -262,3 +262,24 @@ def test_explorer_point_report_uses_the_scenarios_actuation_delay(tmp_path) -> N
     assert report["unstable_count"] == _certified_nu(paper_six(), 1.0, 0.5, 0.3, 0.2, 0.3) == 2
     ref = dominant_root(paper_six(), 1.0, 0.5, 0.3, 0.2, actuation_delay=0.3).root
     assert complex(*report["dominant_root"]) == pytest.approx(ref)
+
+
+def test_per_link_arrays_keep_the_actuation_delay() -> None:
+    # N x N arrays equal on every link: the same question as scalar delays, actuation delay included
+    # (once answered -0.1664 + 1.0772j, stable, the actuation delay silently dropped)
+    top = paper_six()
+    r = dominant_root(top, 1.0, 0.5, np.full((6, 6), 0.3), np.full((6, 6), 0.2), actuation_delay=0.3)
+    ref = _reference_rightmost(top, 1.0, 0.5, 0.3, 0.2, 0.3)
+    assert abs(r.root - ref) <= 1e-8 * (1.0 + abs(ref))
+    assert r.root == pytest.approx(0.02519 + 1.13035j, abs=1e-5) and not r.is_stable
+    assert r.actuation_delay == 0.3
+
+
+def test_per_link_delays_that_differ_refuse_an_actuation_delay() -> None:
+    t1 = np.full((6, 6), 0.3)
+    t1[0, 1] = 0.4  # a link of paper_six
+    with pytest.raises(DelayError, match="actuation_delay with per-link tau1 that differs"):
+        dominant_root(paper_six(), 1.0, 0.5, t1, 0.2, actuation_delay=0.3)
+    t1[0, 5] = 0.9  # no link: ignored, as without the actuation delay
+    t1[0, 1] = 0.3
+    assert dominant_root(paper_six(), 1.0, 0.5, t1, 0.2, actuation_delay=0.3).actuation_delay == 0.3

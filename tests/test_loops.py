@@ -19,6 +19,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.optimize import brentq
+from scipy.special import lambertw
 
 import delayform as df
 from delayform.errors import LoopError, UnstableLoopError
@@ -294,3 +295,72 @@ def test_one_delay_characteristic_changes_stability_at_the_margin() -> None:
 def test_zero_loop_has_no_crossover() -> None:
     m = delay_margin(([0.0], [1.0, 2.0]))
     assert m.tau == math.inf and m.certified
+
+
+# ------------------------------------------------------------------ answers that must not be lost
+def _lambert_root(c: complex, tau: float) -> complex:
+    """The rightmost root of s + 1 + c e^{-tau s}: s = -1 + W0(-c tau e^tau) / tau (Lambert W, a closed form)."""
+    return -1.0 + complex(lambertw(-c * tau * math.exp(tau), 0)) / tau
+
+
+@settings(max_examples=25, deadline=None)
+@given(log_gain=st.floats(0.5, 12.0), a=st.floats(-0.5, 2.0))
+def test_high_gain_first_order_margin_is_exact(log_gain: float, a: float) -> None:
+    # s + a + K e^{-tau s}: tau* = arccos(-a / K) / sqrt(K^2 - a^2) (Hayes 1950); the coefficients of
+    # |D|^2 - |N|^2 span K^2 here, which once lost the crossover and answered "infinite, certified"
+    k = 10.0**log_gain
+    m = delay_margin(control.tf([k], [1.0, a]))
+    assert m.tau == pytest.approx(math.acos(-a / k) / math.sqrt(k * k - a * a), rel=1e-9)
+    assert m.omega == pytest.approx(math.sqrt(k * k - a * a), rel=1e-9)
+
+
+@pytest.mark.parametrize("k", [3e7, 1e8, 1e10])
+def test_high_gain_margin_is_where_the_lambert_root_crosses(k: float) -> None:
+    w = math.sqrt(k * k - 1.0)
+    tau = (math.pi - math.atan(w)) / w
+    m = delay_margin(control.tf([k], [1.0, 1.0]))
+    assert m.tau == pytest.approx(tau, rel=1e-10) and m.certified
+    # the closed-form root of s + 1 + K e^{-tau s} on either side of the margin (Lambert W, principal branch)
+    assert _lambert_root(k, tau * (1 - 1e-6)).real < 0.0 < _lambert_root(k, tau * (1 + 1e-6)).real
+
+
+def _two_channels(c: np.ndarray) -> control.StateSpace:
+    eye = np.eye(2)
+    return control.ss(-eye, eye, c, np.zeros((2, 2)))
+
+
+def test_two_identical_channels_keep_the_single_channel_margin() -> None:
+    # det(I + L e^{-tau s}) = (s + 1 + 2 e^{-tau s})^2: a repeated factor, every crossing a fourfold
+    # root of the resultant; the margin is that of 2 / (s + 1), 2 pi / (3 sqrt 3) (Hayes 1950)
+    m = delay_margin(_two_channels(2.0 * np.eye(2)))
+    assert m.tau == pytest.approx(2 * math.pi / (3 * math.sqrt(3)), rel=1e-10)
+    assert m.omega == pytest.approx(math.sqrt(3.0), rel=1e-10) and m.certified
+    assert m.crossovers[0].root_tendency == 1
+    root = _lambert_root(2.0, 1.25)  # beyond the margin: unstable
+    assert root == pytest.approx(0.0125 + 1.6887j, abs=1e-4) and root.real > 0
+    assert df.rightmost_root(m.quasi_polynomial, 1.25, 0.0).real == pytest.approx(root.real, abs=1e-8)
+
+
+def test_rotation_loop_without_a_single_delay_term_has_its_margin() -> None:
+    # L = [[0, 2], [-2, 0]] / (s + 1): det = (s + 1 + 2j e^{-tau s})(s + 1 - 2j e^{-tau s}), no e^{-tau s}
+    # term; crossing at sqrt 3 with phase margin pi / 6: tau* = pi / (6 sqrt 3)
+    m = delay_margin(_two_channels(np.array([[0.0, 2.0], [-2.0, 0.0]])))
+    tau = math.pi / (6 * math.sqrt(3))
+    assert m.tau == pytest.approx(tau, rel=1e-10) and m.certified
+    assert _lambert_root(2j, tau * (1 - 1e-6)).real < 0.0 < _lambert_root(2j, tau * (1 + 1e-6)).real
+
+
+@pytest.mark.parametrize("loop", [([], [1.0, 1.0]), ([1.0], [])])
+def test_empty_coefficients_are_refused_not_certified(loop: tuple[list[float], list[float]]) -> None:
+    with pytest.raises(LoopError, match="is empty"):
+        delay_margin(loop)
+
+
+def test_infinite_margin_is_refused_when_a_crossing_was_lost(monkeypatch: pytest.MonkeyPatch) -> None:
+    # the guard behind "infinite": if the elimination drops a crossover, the unit-circle test catches it
+    import delayform.loops as loops
+
+    monkeypatch.setattr(loops, "_siso_crossings", lambda g1, g2: [])
+    with pytest.raises(df.errors.NotConvergedError, match="lost a crossover"):
+        delay_margin(control.tf([2.0], [1.0, 1.0]))
+    assert delay_margin(control.tf([0.7], [1.0, 1.0])).tau == math.inf  # a true infinite margin stands

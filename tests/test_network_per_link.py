@@ -167,3 +167,27 @@ def test_count_of_a_larger_team_matches_the_factorized_count(c):
     T = random_digraph(14, 0.15, seed=5)
     expected = sum(f.multiplicity * count_roots_right_of(f, 1.0, 0.8, c) for f in factors(T, 1.0, 0.5))
     assert count_right_of(link_team(T, 1.0, 0.5, 1.0, 0.8), c) == expected
+
+
+# ------------------------------------------------------------ every option reaches the answer
+def test_every_per_link_entry_point_option_changes_its_answer():
+    # one changed keyword, one changed answer: no option of these entry points is dropped on the way
+    from delayform.analysis.network import jitter_margin, mean_square_stability
+    from delayform.analysis.network.bursty import bursty_mean_square_stability
+    from delayform.analysis.roots.dominant import dominant_root
+
+    top = paper_six()
+    t1 = np.full((6, 6), 0.3)
+    t1b = t1.copy()
+    t1b[0, 1] = 0.9  # a link of paper_six
+    assert jitter_margin(top, 1.0, 0.5, t1, 0.2).delta != jitter_margin(top, 1.0, 0.5, t1b, 0.2).delta
+    ms = [mean_square_stability(top, 1.0, 0.5, 0.3, 0.2, rate=10.0, loss=p).rho for p in (0.1, 0.4)]
+    assert ms[0] != ms[1]
+    assert mean_square_stability(top, 1.0, 0.5, 0.4, 0.2, rate=5.0, loss=0.1).rho != mean_square_stability(top, 1.0, 0.5, 0.4, 0.2, rate=10.0, loss=0.1).rho
+    from delayform.topology import ring
+
+    bursty = [bursty_mean_square_stability(ring(3), 1.0, 1.0, 0.2, 0.1, rate=10.0, p_good_to_bad=0.1, p_bad_to_good=q).rho
+              for q in (0.3, 0.8)]  # fmt: skip
+    assert bursty[0] != bursty[1]
+    with_ta = dominant_root(top, 1.0, 0.5, t1, np.full((6, 6), 0.2), actuation_delay=0.3).root
+    assert with_ta != dominant_root(top, 1.0, 0.5, t1, np.full((6, 6), 0.2)).root

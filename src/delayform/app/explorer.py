@@ -101,10 +101,16 @@ class Explorer:
     ------
     InputError
         When the team is larger than ``limits.max_agents``.
+    ScenarioError
+        When the scenario's per-link ``[network]`` delays differ between links.
     """
 
     def __init__(self, scenario: Scenario, *, out_dir: str | Path, limits: ExplorerLimits | None = None) -> None:
-        self.scenario = scenario
+        # the page is the plane of one delay pair on every link: a click runs the robots at that pair,
+        # so per-link delays that differ are refused (a delay_spread follows the click)
+        self.scenario = scenario.at_one_delay_pair(
+            "the explorer (a click runs the robots there)",
+            "delayform links / box, or simulate / montecarlo", spread=False)  # fmt: skip
         self.limits = limits or ExplorerLimits()
         self.out_dir = Path(out_dir).resolve()
         n = scenario.topology.n

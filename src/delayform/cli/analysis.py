@@ -28,6 +28,9 @@ if TYPE_CHECKING:
     pass
 
 
+#: what to use instead when a scenario's per-link delays differ between links
+PER_LINK = "links (the certified per-link root), box, or simulate / montecarlo (runs over [network])"
+
 #: above this many agents C is summarised, not printed
 _PRINT_C_UP_TO = 12
 #: factors listed in the text output (all of them are in --json)
@@ -107,6 +110,7 @@ def chart_command(scenario: Path | None, tau1_max: float | None, tau2_max: float
     from delayform.report.jitter_overlay import check_overlay
 
     sc = with_actuation(_scenario(scenario, **overrides), actuation_delay)
+    sc = sc.at_one_delay_pair("chart (the plane of equal delays on every link, its operating point marked)", PER_LINK)
     chart = replace(
         sc.chart,
         tau1_max=sc.chart.tau1_max if tau1_max is None else tau1_max,
@@ -155,6 +159,7 @@ def roots_command(scenario: Path | None, region: tuple[float, float, float, floa
     if region is not None and (region[0] >= region[1] or region[2] >= region[3]):
         raise click.BadParameter("expected RE_MIN < RE_MAX and IM_MIN < IM_MAX", param_hint="--region")
     sc = with_actuation(_scenario(scenario, **overrides), actuation_delay)
+    sc = sc.at_one_delay_pair("roots (every factor's roots at the operating delays)", PER_LINK)
     directory = _out_dir(out, sc)
     with _inner_progress("roots of every factor") as callback:
         section = roots_section(sc, directory, region=region, progress=callback)

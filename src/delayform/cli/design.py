@@ -18,6 +18,7 @@ from delayform.cli._common import (
     scenario_options,
     with_actuation,
 )
+from delayform.cli.analysis import PER_LINK
 
 if TYPE_CHECKING:
     pass
@@ -43,7 +44,9 @@ def schedule_command(scenario: Path | None, tau_min: tuple[float, float] | None,
     from delayform.report import schedule_section
     from delayform.scenario import ScheduleSpec
 
+    # the hardware delays are one pair on every link: the schedule adds the same delay to every link
     sc = with_actuation(_scenario(scenario, **overrides), actuation_delay)
+    sc = sc.at_one_delay_pair("schedule (one delay pair added on every link)", PER_LINK)
     lo = tau_min or sc.schedule.tau_min
     # the default upper bound follows the lower one given (ScheduleSpec.starting_at)
     hi = tau_max or sc.schedule.starting_at(lo).tau_max

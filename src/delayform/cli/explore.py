@@ -38,8 +38,9 @@ def explore_command(scenario: Path | None, port: int, host: str, no_browser: boo
     sc = _scenario(scenario, topology_name=None, n=None, P=None, D=None, tau1=None, tau2=None)
     # proven writable before the page is served (a download must not be the first to find out);
     # the scenario's name becomes one harmless path component, as for every other command
-    folder = _out_dir(out if out is not None else Path("out") / _safe_name(sc.name) / "explore", sc)
-    explorer = Explorer(sc, out_dir=folder)
+    folder = out if out is not None else Path("out") / _safe_name(sc.name) / "explore"
+    explorer = Explorer(sc, out_dir=folder)  # a scenario it cannot explore is refused before anything is written
+    _out_dir(folder, sc)
 
     def ready(url: str) -> None:
         click.echo(f"delayform explorer: {url} (Ctrl-C stops it); downloads go to {explorer.out_dir}")

@@ -58,6 +58,8 @@ def gains_command(scenario: Path | None, tau1_box: tuple[float, float] | None,
     box1, box2 = _box(tau1_box, "--tau1-box"), _box(tau2_box, "--tau2-box")
     pb, db = _gain_bounds(P_bounds, "--P-bounds"), _gain_bounds(D_bounds, "--D-bounds")
     sc = without_actuation(_scenario(scenario, **overrides), "gain design")
+    if box1 is None or box2 is None:  # the design is then at the scenario's own delays
+        sc = sc.at_one_delay_pair("the gain design at the scenario's delays", "--tau1-box and --tau2-box for a box of delays")
     directory = _out_dir(out, sc)
     section = gains_section(sc, directory, tau1=box1, tau2=box2, P_bounds=pb, D_bounds=db, grid=grid)
     _emit(section, directory, as_json=as_json)

@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 import click
+import numpy as np
 
 from delayform.cli._common import NON_NEGATIVE, FloatTuple, _scenario, cli, team_options, without_actuation
 
@@ -40,15 +41,44 @@ def _matrix_file(path: Path | None, name: str) -> Any:
 
 
 def _delays(overrides: dict[str, Any], tau1_file: Path | None, tau2_file: Path | None) -> tuple[Any, Any, Any]:
+    """The scenario and the delays each link has: a file, else --tau1 / --tau2, else the scenario's per-link ones."""
     for name, file in (("tau1", tau1_file), ("tau2", tau2_file)):
         if file is not None and overrides.get(name) is not None:  # one of the two would be ignored
             raise click.UsageError(f"--{name} and --{name}-file are two values of the same delays: give one")
     sc = _scenario(None if overrides.get("scenario") is None else overrides["scenario"],
                    **{k: v for k, v in overrides.items() if k != "scenario"})  # fmt: skip
     sc = without_actuation(sc, "the per-link and jitter certificates")
-    t1 = _matrix_file(tau1_file, "--tau1-file")
-    t2 = _matrix_file(tau2_file, "--tau2-file")
-    return sc, sc.tau1 if t1 is None else t1, sc.tau2 if t2 is None else t2
+    files = (_matrix_file(tau1_file, "--tau1-file"), _matrix_file(tau2_file, "--tau2-file"))
+    scenario_links = sc.link_delays
+    out = []
+    for k, name in enumerate(("tau1", "tau2")):
+        if files[k] is not None:
+            out.append(files[k])
+        elif overrides.get(name) is not None:  # --tau1 puts one delay on every link
+            out.append(overrides[name])
+        else:
+            out.append(scenario_links[k])
+    spread_streams = [name for k, name in enumerate(("tau1", "tau2"))
+                      if files[k] is None and overrides.get(name) is None and not np.ndim(scenario_links[k])]  # fmt: skip
+    if sc.link_spread and spread_streams:
+        from delayform.errors import ScenarioError
+
+        raise ScenarioError(
+            f"the scenario has network.delay_spread = {sc.link_spread:g}: its per-link {' and '.join(spread_streams)} "
+            "are drawn per run, not one constant matrix; certify the whole spread with delayform box, or give "
+            "--tau1-file / --tau2-file"
+        )
+    return sc, out[0], out[1]
+
+
+def _not_covered(sc: Any) -> str | None:
+    """What the scenario's network does beyond constant per-link delays (which these certificates do not model)."""
+    net = sc.network
+    if net is None or not (net.packets or (net.variation is not None and not net.variation.is_off)):
+        return None
+    from dataclasses import replace
+
+    return replace(net, delays=None).describe(sc.topology.adjacency)
 
 
 def _delay_options(func: Any) -> Any:
@@ -72,14 +102,17 @@ def links_command(scenario: Path | None, as_json: bool, tau1_file: Path | None, 
 
     sc, t1, t2 = _delays({"scenario": scenario, **overrides}, tau1_file, tau2_file)
     r = link_dominant_root(sc.topology, sc.P, sc.D, t1, t2)
+    extra = _not_covered(sc)
     summary = {"dominant_root": [r.root.real, r.root.imag], "stable": r.is_stable, "time_constant_s": r.time_constant if r.is_stable else None,
-               "certified_line": r.line, "roots_right_of_line": r.count, "drift": r.drift}  # fmt: skip
+               "certified_line": r.line, "roots_right_of_line": r.count, "drift": r.drift, "not_covered": extra}  # fmt: skip
     if as_json:
         click.echo(json.dumps(summary, indent=2))
         return
     verdict = "stable" if r.is_stable else "UNSTABLE"
     click.echo(f"dominant root {r.root.real:.6f} {r.root.imag:+.6f}j: {verdict} "
                f"(certified: {r.count} roots right of Re s = {r.line:.4f}, the centroid's zero included)")  # fmt: skip
+    if extra is not None:
+        click.echo(f"for constant delays only: the scenario's network also has {extra} (see delayform montecarlo)")
 
 
 @cli.command("box")
@@ -95,6 +128,7 @@ def box_command(scenario: Path | None, as_json: bool, tau1_box: tuple[float, flo
     for name, (lo, hi) in (("--tau1-box", tau1_box), ("--tau2-box", tau2_box)):
         if lo > hi:
             raise click.BadParameter(f"LO = {lo:g} > HI = {hi:g}", param_hint=name)
+    _require_inside(sc, tau1_box, tau2_box)
     r = robust_stability(sc.topology, sc.P, sc.D, tau1_box, tau2_box)
     if as_json:
         click.echo(json.dumps({"status": r.status, "method": r.method, "reason": r.reason, "margin": r.margin,
@@ -103,6 +137,20 @@ def box_command(scenario: Path | None, as_json: bool, tau1_box: tuple[float, flo
                               indent=2))  # fmt: skip
         return
     click.echo(f"{r.status}: {r.method}" + (f"; {r.reason}" if r.reason else ""))
+
+
+def _require_inside(sc: Any, tau1_box: tuple[float, float], tau2_box: tuple[float, float]) -> None:
+    """Refuse a box that leaves out the scenario's own per-link delays: its certificate would not be about them."""
+    from delayform.errors import ScenarioError
+
+    for name, t, (lo, hi) in zip(("tau1", "tau2"), sc.link_delays, (tau1_box, tau2_box), strict=True):
+        if np.ndim(t):
+            on_links = sc.link_values(t, name)
+            if on_links.size and (on_links.min() < lo or on_links.max() > hi):
+                raise ScenarioError(
+                    f"the scenario's per-link network.{name} ({on_links.min():g} to {on_links.max():g} s) is not "
+                    f"inside --{name}-box [{lo:g}, {hi:g}]: that box's certificate would not be about this scenario"
+                )
 
 
 @cli.command("jitter")
@@ -119,12 +167,15 @@ def jitter_command(scenario: Path | None, as_json: bool, tau1_file: Path | None,
     if not m.nominal_stable:
         raise DelayError(f"the nominal delays are unstable (dominant root {m.nominal_root.real:.4g} "
                          f"{m.nominal_root.imag:+.4g}j): there is no jitter margin to certify")  # fmt: skip
+    extra = _not_covered(sc)
     if as_json:
         click.echo(json.dumps({"delta_s": m.delta, "gain": None if m.reason else m.gain,
                                "peak_frequency": m.peak_frequency, "scaled": m.scaled, "method": m.method,
-                               "reason": m.reason}, indent=2))  # fmt: skip
+                               "reason": m.reason, "not_covered": extra}, indent=2))  # fmt: skip
         return
     if m.reason:
         click.echo(f"jitter margin delta = 0 s: {m.reason}")
         return
     click.echo(f"jitter margin delta = {m.delta:.4g} s ({m.method}; loop gain <= {m.gain:.4g})")
+    if extra is not None:
+        click.echo(f"the margin is around the constant per-link delays; the scenario's network has {extra}")

@@ -17,6 +17,7 @@ from delayform.cli._common import (
     scenario_options,
     without_actuation,
 )
+from delayform.cli.analysis import PER_LINK
 
 
 @cli.command("region")
@@ -34,6 +35,7 @@ def region_command(scenario: Path | None, out: Path | None, as_json: bool, **ove
     from delayform.report import region_section
 
     sc = without_actuation(_scenario(scenario, **overrides), "the eigenvalue plane")
+    sc = sc.at_one_delay_pair("region (the eigenvalue plane at one delay pair)", PER_LINK)
     directory = _out_dir(out, sc)
     _emit(region_section(sc, directory), directory, as_json=as_json)
 

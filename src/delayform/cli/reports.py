@@ -106,6 +106,9 @@ def report_command(scenario: Path | None, actuation_delay: float | None, jitter_
     from delayform.simulation.runner import check_actuation
 
     sc = with_actuation(_scenario(scenario, **overrides), actuation_delay)
+    from delayform.report.page import report_scenario
+
+    sc = report_scenario(sc)  # per-link delays that differ between links: refused before anything is written
     sc.desired_positions()  # the simulation needs a formation that fits the team: say so before computing
     sc.initial_positions()
     check_actuation(sc.robot_spec, sc.network, sc.simulation.dt)  # a run the report cannot make: before computing

@@ -90,7 +90,7 @@ def simulate_command(scenario: Path | None, model: str | None, duration: float |
         writable_folder(mcap.parent, _MCAP_FOLDER, "--mcap")  # created as --out is
         check_mcap_path(mcap)
     with _inner_progress(f"simulate {sim.model}, {sim.duration:g} s (steps)") as callback:
-        section = simulation_section(sc, directory, gif=gif, csv=csv, mcap=mcap, progress=callback)
+        section = simulation_section(sc, directory, gif=gif, csv=csv, mcap=mcap, progress=callback, network=True)
     _emit(section, directory, as_json=as_json)
     for warning in section.summary["warnings"]:
         # a run that diverged, or whose robots collided, is said plainly

@@ -62,7 +62,10 @@ def sweep_command(scenario: Path | None, tau1_values: tuple[float, ...], tau2_va
         if overrides.get(name) is not None:
             raise click.UsageError(f"--{name} sets one delay; the sweep takes --{name}-values")
     given = _limits_given(overrides)
-    sc = _scenario(scenario, seed=seed, **overrides)
+    # every point of the grid is one delay pair on every link (a delay_spread follows it): a matrix cannot be swept
+    sc = _scenario(scenario, seed=seed, **overrides).at_one_delay_pair(
+        "sweep (one delay pair on every link at each point of its grid)", "montecarlo for runs at the per-link delays",
+        spread=False)  # fmt: skip
     sim = _simulation_spec(sc, model=model, duration=duration, dt=dt)
     sc = replace(_with_robot(sc, use_limits, given, sim.model), simulation=sim)
     # every input, the budget and the cluster are checked before anything is started or written

@@ -120,7 +120,8 @@ class RobotCheck:
         lines = [
             f"Check of {sc.name} on {p.title}",
             f"  design: {sc.topology.n} robots, P = {sc.P:g}, D = {sc.D:g}, (tau1, tau2) = ({sc.tau1:g}, {sc.tau2:g}) s, "
-            f"{sc.formation.describe()}",
+            f"{sc.formation.describe()}"
+            + ("" if sc.network is None else f", network: {sc.network.describe(sc.topology.adjacency)}"),
             f"  robot:  {p.limits.describe()}, radius {p.limits.radius:g} m"
             + (f", arena {p.arena.describe()}" if p.arena is not None else ""),
         ]  # fmt: skip
@@ -136,6 +137,7 @@ class RobotCheck:
         """JSON-ready: the profile, whether it fits, and every verdict with its numbers."""
         return {
             "scenario": self.scenario.name, "robot": self.profile.name, "fits": self.fits,
+            "network": "ideal" if self.scenario.network is None else self.scenario.network.describe(self.scenario.topology.adjacency),
             "verdicts": {v.key: {"fits": v.fits, "text": v.text, **v.numbers} for v in self.verdicts},
         }  # fmt: skip
 
@@ -174,7 +176,8 @@ def robot_check(scenario: Scenario, robot: str | RobotProfile) -> RobotCheck:
     Parameters
     ----------
     scenario
-        The design and its run settings (simulation duration and step, initial state).
+        The design and its run settings (simulation duration and step, initial
+        state, ``[robot] safety``); both runs go over its ``[network]``.
     robot
         A profile or its name (:data:`delayform.deploy.PROFILES`).
 
@@ -188,18 +191,25 @@ def robot_check(scenario: Scenario, robot: str | RobotProfile) -> RobotCheck:
         For an unknown profile.
     SimulationInputError, ScenarioError
         For a scenario that cannot be simulated on that robot (e.g. a
-        formation that does not fit the team).
+        formation that does not fit the team), or whose per-link delays
+        differ between links (:meth:`~delayform.scenario.Scenario.at_one_delay_pair`).
     """
     from delayform.simulation import simulate
 
     profile = robot_profile(robot)
+    # the runs go over the scenario's [network]; the certificates need one delay pair on every link
+    scenario = scenario.at_one_delay_pair("check (its CTCR box and jitter margin)",
+                                          "delayform links / jitter / box, or simulate")
     desired = scenario.desired_positions()
     sim = scenario.simulation
     common = dict(initial_positions=scenario.initial_positions(), initial_headings=scenario.initial_headings(),
-                  initial_speed=scenario.initial.speed, seed=scenario.initial.seed, duration=sim.duration, dt=sim.dt)  # fmt: skip
+                  initial_speed=scenario.initial.speed, seed=scenario.initial.seed, duration=sim.duration, dt=sim.dt,
+                  network=scenario.network)  # fmt: skip
     args = (scenario.topology, scenario.P, scenario.D, scenario.tau1, scenario.tau2, desired)
-    limited = simulate(*args, limits=profile.limits, **common)
-    ideal = simulate(*args, **common)
+    # the robot as the scenario configures it: its safety filter too (a filtered run keeps bodies apart),
+    # over the scenario's [network] (jitter, loss, ...), the run `delayform simulate` makes
+    limited = simulate(*args, limits=profile.limits, safety=scenario.safety, **common)
+    ideal = simulate(*args, safety=scenario.safety, **common)
     verdicts = (
         _limits_verdict(profile, limited, ideal),
         _radius_verdict(profile, desired, limited),

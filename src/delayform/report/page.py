@@ -35,6 +35,24 @@ from delayform.report._common import (
 
 
 # ------------------------------------------------------------ whole reports
+def report_scenario(scenario: Scenario) -> Scenario:
+    """The scenario as :func:`scenario_sections` answers it: one delay pair on every link.
+
+    Its chart, roots, map and schedule are of one delay pair on every link
+    (eq. factorized): per-link ``[network]`` delays equal on every link are that
+    pair; delays that differ between links (or are drawn per run) are refused
+    (:meth:`~delayform.scenario.Scenario.at_one_delay_pair`). The simulation
+    and the Monte Carlo run over the rest of the ``[network]``.
+
+    Raises
+    ------
+    ScenarioError
+        Per-link delays that differ between links.
+    """
+    return scenario.at_one_delay_pair("report (its chart, roots, map and schedule)",
+                                      "links / box for the certificates, simulate / montecarlo for runs over [network]")
+
+
 def scenario_sections(
     scenario: Scenario, out: Path, *, progress: Progress | None = None, map_progress: MapProgress | None = None,
     jitter_grid: int | None = None,
@@ -58,6 +76,7 @@ def scenario_sections(
     """
     from delayform.report.jitter_overlay import auto_grid
 
+    scenario = report_scenario(scenario)
     jitter_grid = auto_grid(scenario) if jitter_grid is None else jitter_grid
     steps: list[tuple[str, Callable[[], Section]]] = [
         ("factors", lambda: factors_section(scenario, out)),
@@ -66,7 +85,8 @@ def scenario_sections(
         ("roots", lambda: roots_section(scenario, out)),
         ("dominant-root map", lambda: map_section(scenario, out, progress=map_progress)),
         ("delay scheduling", lambda: schedule_section(scenario, out, report_failure=True)),
-        ("simulation", lambda: simulation_section(scenario, out)),
+        # the run over the scenario's [network], as `delayform simulate` makes it
+        ("simulation", lambda: simulation_section(scenario, out, network=True)),
     ]
     sections = []
     for text, run in steps:

@@ -11,6 +11,7 @@ from delayform._validation import validated
 from delayform.errors import ScenarioError
 from delayform.scenario._reader import _check_sizes, _Reader
 from delayform.simulation.network import (
+    LinkDelays,
     Network,
 )
 from delayform.simulation.robots import Robot, RobotLimits
@@ -187,6 +188,20 @@ class ScheduleSpec:
         return ScheduleSpec(tau_min=tau_min, tau_max=(hi[0], hi[1]))
 
 
+def _without_matrices(net: Network, *, tau1: bool, tau2: bool) -> Network | None:
+    """``net`` without its per-link delay matrix of the named streams (None when nothing else is left).
+
+    What a single delay on every link replaces: ``--tau1`` on the command line,
+    or a matrix equal on every link said as one number.
+    """
+    d = net.delays
+    if d is None:
+        return net
+    kept = LinkDelays(tau1=None if tau1 else d.tau1, tau2=None if tau2 else d.tau2, spread=d.spread)
+    out = replace(net, delays=None if kept.is_uniform else kept)
+    return None if out.is_ideal else out
+
+
 @validated(ScenarioError, methods=False)  # with_changes checks overrides like the file, naming its keys
 @dataclass(frozen=True, eq=False)
 class Scenario:
@@ -247,6 +262,108 @@ class Scenario:
     radius: float | None = None
     safety: str | None = None
     actuation_delay: float = 0.0
+
+    @property
+    def link_delays(self) -> tuple[float | np.ndarray, float | np.ndarray]:
+        """(tau1, tau2) as every link sees them: ``[network] tau1 / tau2`` matrices where given, else ``[delays]``.
+
+        A matrix entry ``[i, k]`` is what agent i hears from k (entries off
+        the links are ignored by the analyses). ``[network] delay_spread``
+        draws other delays per run: :attr:`link_spread` says so.
+        """
+        d = self.network.delays if self.network is not None else None
+        t1 = self.tau1 if d is None or d.tau1 is None else np.asarray(d.tau1, dtype=np.float64)
+        t2 = self.tau2 if d is None or d.tau2 is None else np.asarray(d.tau2, dtype=np.float64)
+        return t1, t2
+
+    @property
+    def link_spread(self) -> float:
+        """``[network] delay_spread`` of the streams without a delay matrix (0: every run has the same delays)."""
+        d = self.network.delays if self.network is not None else None
+        return 0.0 if d is None or (d.tau1 is not None and d.tau2 is not None) else float(d.spread)
+
+    def link_values(self, matrix: np.ndarray, name: str) -> np.ndarray:
+        """The entries of a per-link ``(n, n)`` matrix on the team's links (``[i, k]``: what i hears from k).
+
+        Raises
+        ------
+        ScenarioError
+            When the matrix is not n x n for this team (e.g. after ``--topology``).
+        """
+        n = self.topology.n
+        if np.shape(matrix) != (n, n):
+            raise ScenarioError(f"{self.source}: network.{name} is {np.shape(matrix)[0]} x {np.shape(matrix)[-1]}, "
+                                f"the team has {n} agents: one entry per pair of agents")  # fmt: skip
+        rows, cols = self.topology.adjacency_sparse.nonzero()
+        keep = rows != cols  # no agent hears itself over the network
+        return np.asarray(matrix, dtype=np.float64)[rows[keep], cols[keep]]
+
+    def per_link_description(self, *, spread: bool = True) -> str | None:
+        """One phrase naming the per-link delays that differ between links, or None when every link has one pair.
+
+        Parameters
+        ----------
+        spread
+            Count ``[network] delay_spread`` (delays drawn per run) as delays
+            that differ; False for a command that sets the delays itself (the
+            spread is relative to them).
+        """
+        parts = []
+        for name, t in zip(("tau1", "tau2"), self.link_delays, strict=True):
+            if np.ndim(t):
+                on = self.link_values(t, name)
+                if on.size and np.ptp(on) > 0.0:
+                    parts.append(f"network.{name} (per-link, {on.min():g} to {on.max():g} s)")
+        if spread and self.link_spread:
+            parts.append(f"network.delay_spread = {self.link_spread:g} (per-link delays drawn per run)")
+        return ", ".join(parts) if parts else None
+
+    def at_one_delay_pair(self, what: str, instead: str, *, spread: bool = True) -> Scenario:
+        """The scenario as one delay pair on every link, for a command whose theory is eq. factorized.
+
+        ``[network] tau1 / tau2`` matrices with the same delay on every link of
+        the team are that delay: it becomes ``tau1`` / ``tau2`` and the matrix
+        leaves the network (the same system, said once). Matrices that differ
+        between links (and ``delay_spread``, with ``spread``) are another
+        system: refused rather than answered for ``[delays]``.
+
+        Parameters
+        ----------
+        what
+            The command or computation, for the message.
+        instead
+            The commands that do take per-link delays.
+        spread
+            Refuse ``[network] delay_spread`` too (default); False where the
+            command sets the delays and the spread follows them (sweeps, the explorer).
+
+        Raises
+        ------
+        ScenarioError
+            One line naming the per-link keys, the ``[delays]`` that would
+            otherwise be answered for, and ``instead``.
+        """
+        described = self.per_link_description(spread=spread)
+        if described is not None:
+            raise ScenarioError(
+                f"the scenario's [network] sets per-link delays, {described}; {what} takes one delay pair on every "
+                f"link, and answering for [delays] ({self.tau1:g}, {self.tau2:g}) s would be another question: use {instead}"
+            )
+        return self.with_uniform_links_folded()
+
+    def with_uniform_links_folded(self) -> Scenario:
+        """The scenario with each per-link delay matrix equal on every link said as its one delay.
+
+        The matrix's delay becomes ``tau1`` / ``tau2`` (as ``--tau1`` / ``--tau2``
+        would say it: the matrix leaves the network and scheduling starts
+        there); a matrix that differs between links is kept.
+        """
+        pair: dict[str, float] = {}
+        for name, t in zip(("tau1", "tau2"), self.link_delays, strict=True):
+            on = self.link_values(t, name) if np.ndim(t) else None
+            if on is not None and (not on.size or np.ptp(on) == 0.0):  # a team without links: [delays] stands
+                pair[name] = float(on[0]) if on.size else getattr(self, name)
+        return self.with_changes(**pair) if pair else self
 
     @property
     def robot_spec(self) -> Robot:
@@ -322,6 +439,8 @@ class Scenario:
             tau2=self.tau2 if tau2 is None else reader.non_negative("delays.tau2", tau2),
         )
         if tau1 is not None or tau2 is not None:
+            if new.network is not None:  # one delay on every link: it replaces that stream's per-link matrix
+                new = replace(new, network=_without_matrices(new.network, tau1=tau1 is not None, tau2=tau2 is not None))
             # the hardware delays are the operating ones: schedule from what the user gave
             new = replace(new, schedule=new.schedule.starting_at((new.tau1, new.tau2)))
             if not new.simulation.dt_given:  # a default step follows the new delays too
