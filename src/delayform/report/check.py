@@ -51,6 +51,7 @@ from delayform._validation import validated
 from delayform.deploy.fit import formation_fit
 from delayform.deploy.profiles import RobotProfile, robot_profile
 from delayform.errors import RobotProfileError
+from delayform.resources import sized_by
 from delayform.scenario import Scenario
 from delayform.simulation.trajectory import Trajectory  # loaded by the scenario already
 
@@ -198,13 +199,17 @@ def robot_check(scenario: Scenario, robot: str | RobotProfile) -> RobotCheck:
     common = dict(initial_positions=scenario.initial_positions(), initial_headings=scenario.initial_headings(),
                   initial_speed=scenario.initial.speed, seed=scenario.initial.seed, duration=sim.duration, dt=sim.dt)  # fmt: skip
     args = (scenario.topology, scenario.P, scenario.D, scenario.tau1, scenario.tau2, desired)
+    # the delay verdicts first: a chart too large for the machine is refused before the runs, and named
+    # by the delays that set its window (the check has no window of its own)
+    with sized_by("the delays (delays.tau1, delays.tau2, --tau1, --tau2)"):
+        delay_verdicts = _delay_verdicts(scenario, profile)
     limited = simulate(*args, limits=profile.limits, **common)
     ideal = simulate(*args, **common)
     verdicts = (
         _limits_verdict(profile, limited, ideal),
         _radius_verdict(profile, desired, limited),
         _arena_verdict(profile, desired, limited),
-        *_delay_verdicts(scenario, profile),
+        *delay_verdicts,
     )
     return RobotCheck(scenario=replace(scenario, robot=profile.limits, robot_profile=profile.name),
                       profile=profile, verdicts=verdicts, trajectory=limited)  # fmt: skip
