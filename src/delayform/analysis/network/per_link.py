@@ -329,7 +329,8 @@ def require_dominant(team: LinkTeam, *, times: int = 1, what: str | None = None)
     nbytes, seconds = dominant_cost(team)
     longest = team.max_delay
     job = what or f"the certified per-link root of {team.n:,} agents (longest delay {longest:g} s)"
-    require(what=job, setting="the number of agents (topology.n, --n) or the delays",
+    require(what=job, setting="the number of agents (topology.n, --n) or the delays (delays.tau1, delays.tau2, "
+                                    "--tau1, --tau2, --tau1-box, --tau2-box)",
             nbytes=nbytes, seconds=times * seconds)  # fmt: skip
 
 
