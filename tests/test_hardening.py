@@ -483,3 +483,33 @@ def test_nearest_coarse_point_without_a_distance_table(n: int) -> None:
     coarse = np.unique(np.append(np.arange(0, n, 5), n - 1))
     brute = coarse[np.abs(axis[:, None] - axis[coarse][None, :]).argmin(axis=1)]
     np.testing.assert_array_equal(_nearest(np.arange(n), coarse, axis), brute)
+
+
+# ================================================================ every size a user gives is budgeted
+BIG_RING = '[topology]\nname = "ring"\nn = 1000000000\n[gains]\nP = 1.0\nD = 0.5\n[delays]\ntau1 = 0.3\ntau2 = 0.2\n'
+
+
+@pytest.mark.parametrize(
+    ("args", "needle", "absent"),
+    [
+        (("factors", "big.toml"), "topology.n", None),
+        (("box", "--tau1-box", "0,100", "--tau2-box", "0,100"), "--tau1-box", None),
+        (("simulate", "--topology", "ring", "--n", "100000", "--formation", "polygon"), "100,000 agents", None),
+        (("jitter", "--topology", "ring", "--n", "100000"), "--n", None),
+        (("links", "--topology", "ring", "--n", "5000"), "would take about", None),
+        (("check", "--robot", "create3", "--tau1", "1e6", "--tau2", "1e6"), "--tau1", "chart."),
+    ],
+    ids=["scenario ring 1e9", "box 0-100 s", "simulate ring 1e5", "jitter ring 1e5", "links ring 5000", "check 1e6 s"],
+)
+def test_cli_budget_refuses_in_one_line(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str],
+                                        args: tuple[str, ...], needle: str, absent: str | None) -> None:  # fmt: skip
+    from test_resources import alarm
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "big.toml").write_text(BIG_RING)
+    with alarm(20):  # the command line's imports under load, then a refusal before any work
+        line = one_line_error(capsys, *args)
+    assert ("would need about" in line or "would take about" in line) and "reduce" in line and needle in line
+    assert absent is None or absent not in line
+    assert "--tau1-max" not in line  # no option of another command
+    assert not list(tmp_path.glob("out/**/*.png"))  # refused before anything was written

@@ -16,7 +16,15 @@ The limits:
   ``DELAYFORM_TIME_BUDGET`` (seconds).
 
 Estimates are deliberately rough (a factor of two either way): the guard is
-for jobs that are off by orders of magnitude, not for tuning.
+for jobs that are off by orders of magnitude, not for tuning. Each estimate
+sits at the library entry point of its computation (building a team, the
+per-link root, a simulation, a chart, a loss model, a sweep), so the command
+line, a scenario file and the explorer, which all call the library, share it:
+a team of 10^9 agents from a file is refused as ``--n`` would be.
+
+A job whose size follows from other inputs (the ``check`` command charts a
+window twice its delays) names those inputs with :func:`sized_by`, so the
+message tells the user what they can actually change.
 
 Examples
 --------
@@ -29,6 +37,9 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
 
 from delayform.errors import ResourceLimitError
 
@@ -38,6 +49,7 @@ __all__ = [
     "memory_limit",
     "time_budget",
     "require",
+    "sized_by",
     "format_bytes",
     "format_seconds",
 ]
@@ -47,6 +59,9 @@ MEMORY_FRACTION = 0.75
 
 #: seconds a single command may plan to run before it is refused (one hour)
 DEFAULT_TIME_BUDGET = 3600.0
+
+#: the setting named by a refusal inside :func:`sized_by` (None: the job's own)
+_SIZED_BY: ContextVar[str | None] = ContextVar("delayform_sized_by", default=None)
 
 _SUFFIX = {"": 1, "K": 2**10, "M": 2**20, "G": 2**30, "T": 2**40}
 
@@ -137,6 +152,31 @@ def format_seconds(seconds: float) -> str:
     return f"{seconds:.3g} s"
 
 
+@contextmanager
+def sized_by(setting: str) -> Iterator[None]:
+    """Name ``setting`` in every refusal of :func:`require` inside the block.
+
+    For a job whose size is derived from other inputs: ``check`` charts the
+    window ``[0, 2 tau1] x [0, 2 tau2]``, so a refused chart must say "reduce
+    the delays (--tau1, --tau2)", not name chart options ``check`` has not.
+
+    Parameters
+    ----------
+    setting
+        What the user changes, e.g. ``"the delays (delays.tau1, delays.tau2, --tau1, --tau2)"``.
+
+    Examples
+    --------
+    >>> with sized_by("the delays (--tau1)"):
+    ...     require(what="a chart", setting="the window (--tau1-max)", seconds=1.0)
+    """
+    token = _SIZED_BY.set(setting)
+    try:
+        yield
+    finally:
+        _SIZED_BY.reset(token)
+
+
 def require(*, what: str, setting: str, nbytes: float = 0.0, seconds: float = 0.0) -> None:
     """Refuse a job, in one line, when its estimate exceeds the machine's memory or the time budget.
 
@@ -156,6 +196,7 @@ def require(*, what: str, setting: str, nbytes: float = 0.0, seconds: float = 0.
     ResourceLimitError
         ``<what> would need about <x> of memory (limit <y> ...); reduce <setting>``.
     """
+    setting = _SIZED_BY.get() or setting
     limit = memory_limit()
     if not nbytes <= limit:  # also catches NaN
         raise ResourceLimitError(

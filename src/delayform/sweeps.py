@@ -652,8 +652,30 @@ def gain_sweep(
                  runs=runs, seed=seed, workers=workers, scheduler=scheduler, progress=progress)  # fmt: skip
 
 
+#: bytes of one grid point while the points are listed (pair, change, label, setup)
+_BYTES_PER_POINT = 2_000.0
+
+
+def _guard_grid(setup: Setup, rows: int, cols: int, options: Mapping[str, Any]) -> None:
+    """Refuse a grid beyond the budget before its points are listed (each base point's cost, times the count).
+
+    :func:`check_sweep` estimates every point once they are listed; a 10^5 x 10^5
+    grid would fill the memory listing them, so the base point stands for all first.
+    """
+    runs, workers = options.get("runs"), options.get("workers")
+    if isinstance(runs, bool) or not isinstance(runs, int) or runs < 1:
+        return  # check_sweep names the problem
+    count = float(rows) * float(cols)
+    nbytes, seconds = estimate_cost(setup, runs)
+    w = 1 if not isinstance(workers, int) or isinstance(workers, bool) or workers < 1 else workers
+    require(what=f"a {rows:,} x {cols:,} grid of sweeps ({count * runs:.3g} runs)",
+            setting="the points of the grid, runs, duration or dt (or add workers)",
+            nbytes=_BYTES_PER_POINT * count + nbytes * min(w, count * runs), seconds=seconds * count / w)  # fmt: skip
+
+
 def _grid(setup: Setup, fields: tuple[str, str], first: Sequence[float], second: Sequence[float],
           label: str, parameter: str, **options: Any) -> SweepResult:  # fmt: skip
+    _guard_grid(setup, len(first), len(second), options)
     pairs = [(float(a), float(b)) for a, b in product(first, second)]
     changes = [dict(zip(fields, pair, strict=True)) for pair in pairs]
     return sweep(setup, changes, labels=[label.format(*p) for p in pairs], parameter=parameter, values=pairs, **options)

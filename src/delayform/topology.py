@@ -445,23 +445,41 @@ def _check_count(n: object, minimum: int, what: str) -> int:
 def ring(n: int) -> Topology:
     """Directed cycle: agent i receives from agent i-1 (mod n)."""
     n = _check_count(n, 2, "ring")
+    _require_team(n, n, f"a ring of {n} agents")
     idx = np.arange(n)
-    return Topology.from_edges(zip((idx - 1) % n, idx, strict=True), n, name=f"ring({n})")
+    return Topology.from_adjacency(_sparse_edges((idx - 1) % n, idx, n), name=f"ring({n})")
 
 
-def _require_edges(count: float, what: str) -> None:
-    """Refuse a graph whose edge list would not fit in memory (~100 bytes per edge while building)."""
+def _sparse_edges(informer: NDArray[np.int64], receiver: NDArray[np.int64], n: int) -> sp.csr_array:
+    """The adjacency of the edges ``informer -> receiver``, built in NumPy (no Python loop over edges)."""
+    return sp.csr_array((np.ones(receiver.size), (receiver, informer)), shape=(n, n))
+
+
+#: measured while building 10^6 agents under load (ring, star, grid: 148, 219, 332 bytes and 2.4, 3.4,
+#: 2.8 microseconds per agent): the labels, degrees and C per agent, the index arrays per edge
+_BYTES_PER_AGENT, _BYTES_PER_EDGE = 150.0, 40.0
+_SECONDS_PER_AGENT, _SECONDS_PER_EDGE = 2e-6, 5e-7
+
+
+def _require_team(n: float, edges: float, what: str, setting: str | None = None) -> None:
+    """Refuse, before anything is allocated, a team whose building would not fit the machine.
+
+    The one estimate for a team's size, whoever asked for it: ``--n``, ``topology.n`` in a
+    scenario file or a library call (:mod:`delayform.resources`).
+    """
     from delayform.resources import require
 
-    require(what=f"{what} (about {count:.3g} edges)", setting="the number of agents or the edge probability",
-            nbytes=100.0 * count)  # fmt: skip
+    require(what=f"{what} (about {edges:.3g} edges)",
+            setting=setting or "the number of agents (topology.n, --n)",
+            nbytes=_BYTES_PER_AGENT * n + _BYTES_PER_EDGE * edges,
+            seconds=_SECONDS_PER_AGENT * n + _SECONDS_PER_EDGE * edges)  # fmt: skip
 
 
 @validated(TopologyError)
 def complete(n: int) -> Topology:
     """Every agent receives from every other; C has eigenvalues 1 and -1/(n-1)."""
     n = _check_count(n, 2, "complete")
-    _require_edges(float(n) * (n - 1), f"a complete graph of {n} agents")
+    _require_team(n, float(n) * (n - 1), f"a complete graph of {n} agents")
     A = np.ones((n, n)) - np.eye(n)
     return Topology.from_adjacency(A, name=f"complete({n})")
 
@@ -470,9 +488,11 @@ def complete(n: int) -> Topology:
 def star(n: int) -> Topology:
     """Hub 0 linked both ways with each of the leaves 1..n-1."""
     n = _check_count(n, 2, "star")
+    _require_team(n, 2.0 * (n - 1), f"a star of {n} agents")
     leaves = np.arange(1, n)
-    edges = [(0, int(k)) for k in leaves] + [(int(k), 0) for k in leaves]
-    return Topology.from_edges(edges, n, name=f"star({n})")
+    hub = np.zeros_like(leaves)
+    informer, receiver = np.concatenate([hub, leaves]), np.concatenate([leaves, hub])
+    return Topology.from_adjacency(_sparse_edges(informer, receiver, n), name=f"star({n})")
 
 
 @validated(TopologyError)
@@ -500,7 +520,8 @@ def random_digraph(n: int, p: float, seed: int | np.random.Generator | None = No
     """
     n = _check_count(n, 2, "random_digraph")
     if not isinstance(p, (bool, np.bool_)) and isinstance(p, (int, float, np.floating)):
-        _require_edges(n + float(n) * (n - 1) * float(p), f"a random digraph of {n} agents with p = {float(p):g}")
+        _require_team(n, n + float(n) * (n - 1) * float(p), f"a random digraph of {n} agents with p = {float(p):g}",
+                      "the number of agents (topology.n, --n) or the edge probability (topology.p, --p)")  # fmt: skip
     if isinstance(p, (bool, np.bool_)) or not (isinstance(p, (int, float, np.floating)) and 0.0 <= float(p) <= 1.0):
         raise TopologyError(f"random_digraph needs a probability 0 <= p <= 1, got {p!r}")
     rng = np.random.default_rng(seed)
@@ -546,7 +567,7 @@ def grid(rows: int, cols: int) -> Topology:
     c = _check_count(cols, 1, "grid cols")
     if r * c < 2:
         raise TopologyError("grid needs at least 2 agents")
-    _require_edges(4.0 * r * c, f"a {r} x {c} grid")
+    _require_team(float(r) * c, 4.0 * r * c, f"a {r} x {c} grid of agents", "the grid size (rows, cols)")
     idx = np.arange(r * c).reshape(r, c)
     pairs = [np.column_stack([idx[:, :-1].ravel(), idx[:, 1:].ravel()]),
              np.column_stack([idx[:-1, :].ravel(), idx[1:, :].ravel()])]

@@ -51,6 +51,7 @@ from delayform._validation import validated
 from delayform.deploy.fit import formation_fit
 from delayform.deploy.profiles import RobotProfile, robot_profile
 from delayform.errors import RobotProfileError
+from delayform.resources import sized_by
 from delayform.scenario import Scenario
 from delayform.simulation.trajectory import Trajectory  # loaded by the scenario already
 
@@ -206,6 +207,10 @@ def robot_check(scenario: Scenario, robot: str | RobotProfile) -> RobotCheck:
                   initial_speed=scenario.initial.speed, seed=scenario.initial.seed, duration=sim.duration, dt=sim.dt,
                   network=scenario.network)  # fmt: skip
     args = (scenario.topology, scenario.P, scenario.D, scenario.tau1, scenario.tau2, desired)
+    # the delay verdicts first: a chart too large for the machine is refused before the runs, and named
+    # by the delays that set its window (the check has no window of its own)
+    with sized_by("the delays (delays.tau1, delays.tau2, --tau1, --tau2)"):
+        delay_verdicts = _delay_verdicts(scenario, profile)
     # the robot as the scenario configures it: its safety filter too (a filtered run keeps bodies apart),
     # over the scenario's [network] (jitter, loss, ...), the run `delayform simulate` makes
     limited = simulate(*args, limits=profile.limits, safety=scenario.safety, **common)
@@ -214,7 +219,7 @@ def robot_check(scenario: Scenario, robot: str | RobotProfile) -> RobotCheck:
         _limits_verdict(profile, limited, ideal),
         _radius_verdict(profile, desired, limited),
         _arena_verdict(profile, desired, limited),
-        *_delay_verdicts(scenario, profile),
+        *delay_verdicts,
     )
     return RobotCheck(scenario=replace(scenario, robot=profile.limits, robot_profile=profile.name),
                       profile=profile, verdicts=verdicts, trajectory=limited)  # fmt: skip

@@ -12,7 +12,7 @@ import numpy as np
 
 from delayform._validation import validated
 from delayform.deploy.profiles import PROFILES, robot_profile
-from delayform.errors import InputError, NetworkError, RobotProfileError, ScenarioError
+from delayform.errors import InputError, NetworkError, ResourceLimitError, RobotProfileError, ScenarioError
 from delayform.scenario._reader import _Reader
 from delayform.scenario.model import (
     MODELS,
@@ -68,6 +68,9 @@ def _topology(reader: _Reader, data: Mapping[str, Any]) -> tuple[Topology, Topol
         return topo, spec
     except ScenarioError:
         raise
+    except ResourceLimitError as exc:
+        # a team too large for the machine stays a budget refusal, with the file in front
+        raise ResourceLimitError(f"{reader.source}: topology: {exc}") from None
     except InputError as exc:
         # The topology module names the problem; we add the file and the key.
         raise ScenarioError(f"{reader.source}: topology.{kind}: {exc}") from None

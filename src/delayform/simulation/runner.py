@@ -82,7 +82,7 @@ from delayform.simulation.robots import (
     ideal_commands,
 )
 from delayform.simulation.assignment import assign_slots, check_assignment
-from delayform.simulation.bodies import closest_approach
+from delayform.simulation.bodies import approach_cost, closest_approach
 from delayform.simulation.filtered import integrate_filtered
 from delayform.simulation.safety import BarrierFilter, FilteredAgent, SafetyReport
 from delayform.simulation.trajectory import (
@@ -195,7 +195,9 @@ def estimate_resources(
         # per step about 80 microseconds of overhead (300 with limits: more NumPy calls per
         # stage) and 1.6 (2.5) microseconds per agent (docs/benchmarks.md)
         seconds = steps * ((3e-4 + 2.5e-6 * n) if limited else (8e-5 + 1.6e-6 * n))
-    return nbytes, seconds, linear
+    # after the run: the exact closest approach between saved samples, quadratic in the team
+    approach_bytes, approach_seconds = approach_cost(n, saved)
+    return nbytes + approach_bytes, seconds + approach_seconds, linear
 
 
 # ------------------------------------------------------------------- core

@@ -53,7 +53,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from delayform._validation import validated
 from delayform.analysis.network.links import link_team
-from delayform.analysis.network.loss import MeanSquareStability, _lags, _lift, _Lifted
+from delayform.analysis.network.loss import MeanSquareStability, _lags, _lift, _Lifted, lifted_size, require_lift
 from delayform.errors import InputError, ResourceLimitError
 from delayform.topology import Topology
 
@@ -166,8 +166,7 @@ def bursty_mean_square_stability(
     if stationary_loss >= 1.0 or (moving and lg >= 1.0 and lb >= 1.0):
         raise InputError("this chain loses every packet for ever: the team never converges")
     chains = 2 * L if moving else 0
-    base = _lift(team, h, m1, m2, np.zeros(L))  # q = 1: A_full = A_0 + sum_j c_j r_j^T
-    size = base.A.shape[0]
+    size = lifted_size(team, m1, m2)
     if chains > MAX_CHAINS:
         raise ResourceLimitError(
             f"Gilbert-Elliott loss is exact on the joint state of the {chains} link chains "
@@ -176,8 +175,10 @@ def bursty_mean_square_stability(
             "or Bernoulli loss (mean_square_stability)"
         )  # fmt: skip
     modes = 2**chains
+    require_lift(size, what="the Gilbert-Elliott mean-square recursion", modes=modes)
     require(what=f"the Gilbert-Elliott mean-square recursion ({modes} modes of {size} x {size})",
             setting="the team, the delays or the sampling rate", nbytes=16.0 * modes * size * size * 8)  # fmt: skip
+    base = _lift(team, h, m1, m2, np.zeros(L))  # q = 1: A_full = A_0 + sum_j c_j r_j^T
     A0 = base.A - base.c @ base.r.T
     if chains:
         state = (np.arange(modes)[:, None] >> np.arange(chains - 1, -1, -1)[None, :]) & 1  # 1 = bad, axis order

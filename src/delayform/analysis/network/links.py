@@ -118,16 +118,30 @@ def _per_link(name: str, value: ArrayLike, n: int, mask: NDArray[np.bool_]) -> N
     # booleans (True read as 1 s) and complex delays (the imaginary part dropped) are refused
     arr = real_numbers(name, value, DelayError, f"a delay or a {n} x {n} array of delays (real numbers)")
     if arr.ndim == 0:
-        arr = np.full((n, n), float(arr))
+        # one delay for every link: only the links need it (an N x N array would cost seconds for 5,000 agents)
+        links = np.full(int(np.count_nonzero(mask)), float(arr))
     else:
         if arr.shape != (n, n):
             raise DelayError(f"{name} must be a {n} x {n} array of per-link delays, got shape {arr.shape}")
-    links = arr[mask]
+        links = arr[mask]
     if not np.all(np.isfinite(links)):
         raise DelayError(f"{name} must be finite on every link")
     if np.any(links < 0.0):
         raise DelayError(f"{name} must be non-negative on every link, found {links.min():g}")
     return links
+
+
+def _require_dense(n: int) -> None:
+    """Refuse a team whose N x N link matrices would not fit the machine (:mod:`delayform.resources`).
+
+    Per-link analyses keep C dense (eight bytes an entry) beside the link mask (one);
+    N x N delays given by the caller are the caller's memory.
+    """
+    from delayform.resources import require
+
+    require(what=f"the per-link matrices of {n:,} agents ({n:,} x {n:,})",
+            setting="the number of agents (topology.n, --n)", nbytes=9.0 * float(n) ** 2,
+            seconds=2e-8 * float(n) ** 2)  # fmt: skip
 
 
 def link_team(topology: Topology, P: float, D: float, tau1: ArrayLike, tau2: ArrayLike) -> LinkTeam:
@@ -152,6 +166,7 @@ def link_team(topology: Topology, P: float, D: float, tau1: ArrayLike, tau2: Arr
         raise InputError(f"topology must be a Topology, got {type(topology).__name__}")
     topology.require_spanning_tree()
     P, D = check_gains(P, D)
+    _require_dense(topology.n)
     C = np.asarray(topology.C_sparse.toarray(), dtype=np.float64)
     mask = C > 0.0
     rows, cols = np.nonzero(mask)

@@ -79,6 +79,37 @@ class _Lifted:
         return Q
 
 
+def lifted_size(team: LinkTeam, m1: NDArray[np.int64], m2: NDArray[np.int64]) -> int:
+    """States of the lifted model (:func:`_lift`): x, v, the buffers of the longest lags, the held values."""
+    b1, b2 = int(m1.max(initial=0)), int(m2.max(initial=0))
+    return 2 * team.n + team.n * (b1 + b2) + 2 * team.rows.size
+
+
+def require_lift(size: int, *, what: str, modes: int = 1) -> None:
+    """Refuse, before the lifted model is built, a recursion beyond the budget (:mod:`delayform.resources`).
+
+    The model holds a few dense ``size x size`` matrices (A, its update, the quotient
+    basis and A in it) per mode, and the quotient's change of basis costs about
+    4 size^3 flops; the second-moment operator then acts on ``size^2`` entries: an
+    Arnoldi run of up to :data:`_PRODUCTS` products, each about
+    :data:`_SECONDS_PER_CUBE` size^3 seconds (measured: the paper's team at 20
+    packets per second, 98 and 158 states: 642 and 2,932 products in 9.9 and 218 s under load).
+    The message names the sampling rate first: the buffers hold (delay x rate) periods.
+    """
+    from delayform.resources import require
+
+    cube = float(size) ** 3
+    arnoldi = _PRODUCTS * _SECONDS_PER_CUBE * cube if size * size > 900 else 0.0
+    require(what=f"{what} ({modes} mode(s) of {size:,} x {size:,} states)",
+            setting="the sampling rate (rate, network.rate, --rate), the delays or the team",
+            nbytes=(modes * 6 + 25) * 8.0 * float(size) ** 2, seconds=modes * (4.0 * cube / 5e9 + arnoldi))  # fmt: skip
+
+
+#: products of the second-moment operator one Arnoldi run may take, and seconds per size^3 of one
+_PRODUCTS = 3000
+_SECONDS_PER_CUBE = 2e-8
+
+
 def _lift(team: LinkTeam, h: float, m1: NDArray[np.int64], m2: NDArray[np.int64], p: NDArray[np.float64]) -> _Lifted:
     n, L = team.n, team.rows.size
     A0 = np.array([[0.0, 1.0], [-team.P, -team.D]])
@@ -281,23 +312,9 @@ def mean_square_stability(
     if not np.all(np.isfinite(lp)) or np.any(lp < 0.0) or np.any(lp >= 1.0):
         raise InputError("loss probabilities must lie in [0, 1) (a link that loses everything never converges)")
     m1, m2 = _lags("tau1", team.tau1, h), _lags("tau2", team.tau2, h)
-    _require_lift(team, m1, m2, rate)
+    require_lift(lifted_size(team, m1, m2), what="the mean-square recursion under packet loss")
     model = _lift(team, h, m1, m2, lp)
     return MeanSquareStability(_quotient_radius(model), h, m1, m2, model)
-
-
-def _require_lift(team: LinkTeam, m1: NDArray[np.int64], m2: NDArray[np.int64], rate: float) -> None:
-    """Refuse, before it is built, a lifted model beyond the machine's memory or time budget.
-
-    The state holds the buffers of the longest lags (2N + N (b1 + b2) + 2L entries, :func:`_lift`);
-    its dense matrices take a few copies of size^2 doubles, and the Arnoldi iteration on the
-    second moments costs about 100 products of size^3 flops.
-    """
-    from delayform.resources import require
-
-    size = 2.0 * team.n + team.n * (float(m1.max(initial=0)) + float(m2.max(initial=0))) + 2.0 * team.rows.size
-    require(what=f"the mean-square model at {rate:g} packets/s ({size:.3g} states: one per sample of the longest delay)",
-            setting="the rate (rate, --rate) or the delays", nbytes=6 * 8.0 * size**2, seconds=100 * size**3 / 1e9)  # fmt: skip
 
 
 def _quotient_radius(model: _Lifted) -> float:

@@ -53,7 +53,8 @@ from delayform.topology import Topology
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from matplotlib.axes import Axes
 
-__all__ = ["LinkDominantRoot", "link_dominant_root", "polish_roots", "link_roots_right_of"]
+__all__ = ["LinkDominantRoot", "link_dominant_root", "polish_roots", "link_roots_right_of", "dominant_cost",
+           "require_dominant"]
 
 #: Newton stops when the step is below this times (1 + |s|).
 _STEP_TOL = 1e-13
@@ -297,9 +298,55 @@ def link_dominant_root(topology: Topology, P: float, D: float, tau1: ArrayLike, 
     return dominant_of_team(team)
 
 
+#: seconds of one certified per-link root per N^2.5 (random digraphs and rings of 30-200 agents,
+#: delays near 0.3 s, root radius near 2.8: 0.1-10.7 s under load, docs/benchmarks.md)
+_SECONDS_PER_N25 = 2e-5
+#: the root radius of those measurements (more shifts and count samples above it)
+_MEASURED_RADIUS = 3.3
+
+
+def dominant_cost(team: LinkTeam) -> tuple[float, float]:
+    """Estimated peak bytes and seconds of :func:`dominant_of_team` (module docstring, "Cost").
+
+    Time: the measured N^2.5 growth, times how far the root radius R (which grows
+    like e^{tau |c|} with the delays) exceeds the measured one, since the
+    seeds' Arnoldi shifts along the imaginary axis and the certificate's samples
+    both grow with R. Memory: a few N x N complex matrices (Newton, the count),
+    the shifts and their eigenvalues, and the sparse LU of the 2N (M + 1) states.
+    """
+    n = float(team.n)
+    R = root_radius(team, -0.5)
+    shifts = (R + 0.5) / 0.75 + 1.0
+    states = 2.0 * n * (_degree(team, R, 3) + 1.0)
+    nbytes = 64.0 * n * n + 500.0 * shifts + 400.0 * states
+    seconds = _SECONDS_PER_N25 * n**2.5 * max(1.0, (R + 0.5) / _MEASURED_RADIUS)
+    return nbytes, seconds
+
+
+def require_dominant(team: LinkTeam, *, times: int = 1, what: str | None = None) -> None:
+    """Refuse, before any work, ``times`` certified per-link roots beyond the budget (:mod:`delayform.resources`)."""
+    from delayform.resources import require
+
+    nbytes, seconds = dominant_cost(team)
+    longest = team.max_delay
+    job = what or f"the certified per-link root of {team.n:,} agents (longest delay {longest:g} s)"
+    require(what=job, setting="the number of agents (topology.n, --n) or the delays (delays.tau1, delays.tau2, "
+                                    "--tau1, --tau2, --tau1-box, --tau2-box)",
+            nbytes=nbytes, seconds=times * seconds)  # fmt: skip
+
+
 def dominant_of_team(team: LinkTeam) -> LinkDominantRoot:
-    """:func:`link_dominant_root` of an already checked :class:`LinkTeam`."""
+    """:func:`link_dominant_root` of an already checked :class:`LinkTeam`.
+
+    Raises
+    ------
+    DelayError
+        When the delays make the root bound overflow (no seed search is possible).
+    ResourceLimitError
+        When the estimate (:func:`dominant_cost`) exceeds the machine's memory or time budget.
+    """
     require_seed_search(team, _FIRST_GUESS)
+    require_dominant(team)
     with single_threaded_blas():
         return _dominant(team)
 
