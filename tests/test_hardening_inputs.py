@@ -66,7 +66,7 @@ def test_too_big_refused_by_the_budget() -> None:
     from delayform.analysis.network.loss import mean_square_stability
     from delayform.topology import grid
 
-    with pytest.raises(ResourceLimitError, match="mean-square model"):
+    with pytest.raises(ResourceLimitError, match="mean-square"):
         mean_square_stability(paper_six(), 1.0, 0.5, 0.3, 0.2, rate=1e6, loss=0.1)
     with pytest.raises(ResourceLimitError, match="grid"):
         grid(100000, 100000)

@@ -305,6 +305,11 @@ _SECONDS_PER_N25 = 2e-5
 _MEASURED_RADIUS = 3.3
 
 
+#: what a user changes when a per-link root is refused
+_DOMINANT_SETTING = ("the number of agents (topology.n, --n) or the delays (delays.tau1, delays.tau2, "
+                     "--tau1, --tau2, --tau1-box, --tau2-box, the delay files)")
+
+
 def dominant_cost(team: LinkTeam) -> tuple[float, float]:
     """Estimated peak bytes and seconds of :func:`dominant_of_team` (module docstring, "Cost").
 
@@ -330,9 +335,7 @@ def require_dominant(team: LinkTeam, *, times: int = 1, what: str | None = None)
     nbytes, seconds = dominant_cost(team)
     longest = team.max_delay
     job = what or f"the certified per-link root of {team.n:,} agents (longest delay {longest:g} s)"
-    require(what=job, setting="the number of agents (topology.n, --n) or the delays (delays.tau1, delays.tau2, "
-                                    "--tau1, --tau2, --tau1-box, --tau2-box)",
-            nbytes=nbytes, seconds=times * seconds)  # fmt: skip
+    require(what=job, setting=_DOMINANT_SETTING, nbytes=nbytes, seconds=times * seconds)
 
 
 def dominant_of_team(team: LinkTeam) -> LinkDominantRoot:
@@ -388,8 +391,7 @@ def require_seed_search(team: LinkTeam, c: float) -> None:
     shifts = R / SHIFT_SPACING + 1.0
     require(what=f"the per-link root finder for delays up to {longest:.4g} s ({shifts:.3g} Arnoldi solves of "
                  f"{size} states along the imaginary axis)",
-            setting="the delays (--tau1, --tau2, the delay files) or the team",
-            seconds=shifts * size * _SECONDS_PER_STATE)  # fmt: skip
+            setting=_DOMINANT_SETTING, seconds=shifts * size * _SECONDS_PER_STATE)  # fmt: skip
 
 
 def _upper_seeds(seeds: NDArray[np.complex128], left: float) -> NDArray[np.complex128]:
