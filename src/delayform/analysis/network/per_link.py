@@ -329,7 +329,17 @@ def dominant_cost(team: LinkTeam) -> tuple[float, float]:
 
 
 def require_dominant(team: LinkTeam, *, times: int = 1, what: str | None = None) -> None:
-    """Refuse, before any work, ``times`` certified per-link roots beyond the budget (:mod:`delayform.resources`)."""
+    """Refuse, before any work, ``times`` certified per-link roots beyond the budget (:mod:`delayform.resources`).
+
+    Parameters
+    ----------
+    team
+        The checked per-link team (:class:`~delayform.analysis.network.links.LinkTeam`).
+    times
+        How many such roots the job computes (a box's corners, a map's cells).
+    what
+        The job as the user asked for it, for the message; default: the certified per-link root.
+    """
     from delayform.resources import require
 
     nbytes, seconds = dominant_cost(team)

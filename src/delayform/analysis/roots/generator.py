@@ -184,7 +184,11 @@ def _require_degrees(prob: _Problem, degrees: tuple[int, ...], hmax: float) -> N
     work = (f"its discretization of degree {upto}{N} (a {size:.0f} x {size:.0f} eigenvalue problem) "
             f"would need {need}")
     scale = _root_scale(prob)
-    if scale > _LARGE_ROOTS:
+    # the roots are the cause only when roots of ordinary size would fit at these delays (the degree
+    # grows with delay times root size); else the delays are too long whatever the gains
+    ordinary = [n * _LARGE_ROOTS / scale for n in sizes] if scale > _LARGE_ROOTS else sizes
+    fits = _cost(max(ordinary))[0] <= limit and sum(_cost(n)[1] for n in ordinary) <= budget
+    if scale > _LARGE_ROOTS and fits:
         raise DelayError(
             f"the characteristic roots are large (about {scale:.3g}, set by the coefficients: large gains "
             f"make large roots) for delays up to {hmax:.4g} s, too many for the certified root finder on "
