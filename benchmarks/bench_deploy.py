@@ -15,6 +15,9 @@ for docs/benchmarks.md.
    Goal: under 20 s. Peer: the plain way with the same libraries, one
    ``Typestore.serialize_cdr`` and one ``Writer.add_message`` per message,
    timed on the first 500 steps and scaled (it is linear in the messages).
+3. ``write_mcap`` of the paper's six robots (Create 3 limits) over 60 s at dt = 0.01 and 0.03
+   (6,001 and 2,001 saved steps) with the topology: Odometry, Twist, PoseStamped, /tf, the
+   markers and the metadata; best and median of 5, and the file size. ``--paper`` runs only this.
 """
 
 from __future__ import annotations
@@ -88,6 +91,26 @@ def bench_mcap() -> dict[str, float]:
     return {"seconds": seconds, "bytes": float(size), "steps": float(traj.times.size), "peer_seconds": _peer(traj)}
 
 
+def bench_mcap_paper(repeats: int = 5) -> list[dict[str, float]]:
+    from delayform.topology import paper_six
+
+    out = []
+    for dt in (0.01, 0.03):
+        traj = simulate(paper_six(), 1.0, 0.5, 0.3, 0.2, "hexagon", limits=robot_profile("create3").limits,
+                        duration=60.0, dt=dt, seed=0)  # fmt: skip
+        with tempfile.TemporaryDirectory() as folder:
+            path = os.path.join(folder, "run.mcap")
+            times = []
+            for _ in range(repeats):
+                a = time.perf_counter()
+                write_mcap(traj, path, topology=paper_six())
+                times.append(time.perf_counter() - a)
+            size = os.path.getsize(path)
+        out.append({"dt": dt, "steps": float(traj.times.size), "best": min(times), "median": statistics.median(times),
+                    "bytes": float(size)})  # fmt: skip
+    return out
+
+
 def _peer(traj, steps: int = 500) -> float:
     """The plain way: one serialize_cdr and one add_message per message; scaled to the whole run."""
     from mcap.writer import Writer
@@ -123,10 +146,17 @@ def _peer(traj, steps: int = 500) -> float:
 
 
 def main() -> None:
+    import sys
+
     when = time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())
     load = os.getloadavg()[0]
     print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
           f"Python {platform.python_version()}, {when}, load average {load:.1f} (shared machine)")  # fmt: skip
+    print("\n| paper's six robots, 60 s | saved steps | best (s) | median (s) | size (MiB) |\n|---|---|---|---|---|")
+    for r in bench_mcap_paper():
+        print(f"| dt = {r['dt']:g} | {r['steps']:.0f} | {r['best']:.2f} | {r['median']:.2f} | {r['bytes'] / 2**20:.2f} |")
+    if "--paper" in sys.argv:
+        return
     tick = bench_tick()
     print("\n| what | median | goal |\n|---|---|---|")
     print(f"| `tick` (10 neighbours, Create 3 limits) | {tick['tick'] * 1e6:.1f} us (99 %: {tick['tick_p99'] * 1e6:.1f} us) | < 50 us |")

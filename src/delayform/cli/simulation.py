@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import replace
+from datetime import datetime, timedelta, timezone
 from pathlib import Path
 from typing import Any
 
@@ -43,11 +44,15 @@ _MCAP_FOLDER = "the folder of the MCAP file"
               help="Also write the trajectory and commands as CSV [default: only when under 20 MiB; NPZ always].")
 @click.option("--gif/--no-gif", default=False, show_default=True, help="Also write an animated GIF.")
 @click.option("--mcap", type=click.Path(dir_okay=False, path_type=Path),
-              help="Also write the run as a ROS 2 recording (MCAP: Twist, PoseStamped, /tf; docs/deploy.md).")
+              help="Also write the run as a ROS 2 recording (MCAP: Odometry, Twist, /tf, /tf_static, markers, "
+                   "the scenario as metadata; docs/deploy.md).")
+@click.option("--mcap-start", metavar="TIME",
+              help="When t = 0 is in the recording: 'now', ISO 8601 with a zone (2026-12-03T10:00:00Z) or "
+                   "seconds since 1970 [default: 1970-01-01, stamps = simulated time].")
 def simulate_command(scenario: Path | None, model: str | None, duration: float | None, dt: float | None,
                      seed: int | None, use_limits: bool | None, radius: float | None, assignment: str | None,
                      safety: str | None, actuation_delay: float | None,
-                     csv: bool | None, gif: bool, mcap: Path | None,
+                     csv: bool | None, gif: bool, mcap: Path | None, mcap_start: str | None,
                      out: Path | None, as_json: bool, **overrides: Any) -> None:  # fmt: skip
     """Simulate the team at the scenario's delays into its formation.
 
@@ -65,6 +70,7 @@ def simulate_command(scenario: Path | None, model: str | None, duration: float |
     """
     from delayform.report import simulation_section
 
+    start = _mcap_start(mcap, mcap_start)  # a bad time is refused before the run
     given = _limits_given(overrides)
     sc = with_actuation(_scenario(scenario, seed=seed, **overrides), actuation_delay)
     sim = _simulation_spec(sc, model=model, duration=duration, dt=dt, assignment=assignment)
@@ -90,9 +96,26 @@ def simulate_command(scenario: Path | None, model: str | None, duration: float |
         writable_folder(mcap.parent, _MCAP_FOLDER, "--mcap")  # created as --out is
         check_mcap_path(mcap)
     with _inner_progress(f"simulate {sim.model}, {sim.duration:g} s (steps)") as callback:
-        section = simulation_section(sc, directory, gif=gif, csv=csv, mcap=mcap, progress=callback, network=True)
+        section = simulation_section(sc, directory, gif=gif, csv=csv, mcap=mcap, mcap_start=start,
+                                     progress=callback, network=True)  # fmt: skip
     _emit(section, directory, as_json=as_json)
     for warning in section.summary["warnings"]:
         # a run that diverged, or whose robots collided, is said plainly
         if section.summary["status"] in ("diverging", "stopped") or warning.startswith("the robots collided"):
             click.echo(f"delayform: note: {warning}", err=True)
+
+
+def _mcap_start(mcap: Path | None, text: str | None) -> datetime | None:
+    """``--mcap-start`` as the instant it names (fixed now, so 'now' is when the command started)."""
+    if text is None:
+        return None
+    if mcap is None:
+        raise click.UsageError("--mcap-start sets the start of the recording: give --mcap FILE too")
+    from delayform.deploy.recording import recording_start
+    from delayform.errors import RecordingError
+
+    try:
+        ns = recording_start(text)
+    except RecordingError as exc:
+        raise click.BadParameter(str(exc), param_hint="--mcap-start") from None
+    return datetime.fromtimestamp(ns // 10**9, tz=timezone.utc) + timedelta(microseconds=(ns % 10**9) // 1000)

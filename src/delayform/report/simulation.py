@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import json
 from collections.abc import Sequence
 from dataclasses import replace
+from datetime import datetime
 from pathlib import Path
 
 import numpy as np
@@ -34,6 +36,7 @@ def simulation_section(
     gif: bool = False,
     csv: bool | None = None,
     mcap: Path | None = None,
+    mcap_start: datetime | float | str | None = None,
     progress: MapProgress | None = None,
     network: bool = False,
 ) -> Section:
@@ -64,7 +67,11 @@ def simulation_section(
         the trajectory's CSV would be below :data:`CSV_AUTO_LIMIT`.
     mcap
         Also write the run as a ROS 2 recording there
-        (:func:`delayform.deploy.recording.write_mcap`; robots only).
+        (:func:`delayform.deploy.recording.write_mcap`; robots only), with
+        the scenario and the analysis verdict as metadata (:func:`mcap_records`).
+    mcap_start
+        The recording's start time (:func:`delayform.deploy.recording.recording_start`;
+        default 1970-01-01, stamps = simulated time).
     progress
         Optional callback ``(steps done, steps)`` while the run is integrated.
     network
@@ -135,7 +142,9 @@ def simulation_section(
     if mcap is not None:
         from delayform.deploy.recording import write_mcap
 
-        files.append(str(write_mcap(traj, mcap).resolve()))
+        net = scenario.network if network and scenario.network is not None and not scenario.network.is_ideal else None
+        files.append(str(write_mcap(traj, mcap, topology=scenario.topology, start_time=mcap_start,
+                                    metadata=mcap_records(scenario, tau1, tau2), network=net).resolve()))
     if gif:
         traj.save_gif(out / f"{stem}.gif")
         files.append(f"{stem}.gif")
@@ -227,6 +236,38 @@ def simulation_section(
         summary=summary,
         files=tuple(files),
     )
+
+
+def mcap_records(scenario: Scenario, tau1: float, tau2: float) -> dict[str, dict[str, str]]:
+    """The metadata a recording of the scenario's run carries: the scenario and the analysis verdict.
+
+    ``delayform/scenario``: the run's parameters as JSON (command-line
+    overrides applied) and, for a scenario file, its TOML text as written.
+    ``delayform/analysis``: the dominant root of the team at (tau1, tau2)
+    (:func:`~delayform.analysis.roots.dominant.dominant_root`, milliseconds
+    for small teams) and the verdict, for constant delays on every link.
+    """
+    from delayform.analysis.roots.dominant import dominant_root
+    from delayform.errors import DelayformError
+
+    scene = {"name": scenario.name, "source": scenario.source,
+             "parameters": json.dumps(scenario.summary(), default=str)}  # fmt: skip
+    source = Path(scenario.source)
+    if source.suffix == ".toml" and source.is_file():
+        scene["toml"] = source.read_text(encoding="utf-8")
+    covers = f"constant delays ({tau1:g}, {tau2:g}) s on every link"
+    if scenario.actuation_delay > 0:
+        covers += f", actuation delay {scenario.actuation_delay:g} s"
+    if scenario.network is not None and not scenario.network.is_ideal:
+        covers += "; the run's [network] is not covered (delayform links, box, montecarlo)"
+    try:
+        dom = dominant_root(scenario.topology, scenario.P, scenario.D, tau1, tau2, actuation_delay=scenario.actuation_delay)
+    except DelayformError as exc:  # the recording still holds the run; the verdict says why it is missing
+        return {"delayform/scenario": scene, "delayform/analysis": {"verdict": "not computed", "reason": str(exc), "covers": covers}}
+    root = complex(dom.root)
+    analysis = {"verdict": "stable" if dom.is_stable else "unstable", "dominant_root": repr(root),
+                "dominant_root_re": repr(root.real), "dominant_root_im": repr(root.imag), "covers": covers}  # fmt: skip
+    return {"delayform/scenario": scene, "delayform/analysis": analysis}
 
 
 def settling_section(sims: Sequence[Section]) -> Section:
