@@ -124,7 +124,7 @@ def loop_polynomials(loop: object, *, name: str = "loop") -> tuple[NDArray[np.fl
         if type(loop).__name__ == "DelayLTI" or hasattr(loop, "tau") or hasattr(loop, "delays"):
             raise LoopError(
                 f"{name} carries time delays of its own ({type(loop).__name__}), which cannot be read "
-                "as one loop gain; pass the delay-free loop and give the delay to delay_margin"
+                "as one loop gain; pass the delay-free loop and its dead time as delay_margin(loop, delay=theta)"
             )
         if isinstance(loop, control.TransferFunction):
             _check_continuous(loop, name)

@@ -29,15 +29,21 @@ REAL_ROOT_TOL = 1e-6
 class Crossover:
     """One gain crossover |L(j omega)| = 1 and the delays at which it puts a root on the axis.
 
+    Phase margins are in degrees, as python-control's ``margin`` and
+    ``stability_margins`` give them; ``phase_margin_rad`` is the same angle
+    in radians.
+
     Attributes
     ----------
     omega
         Crossover frequency (rad/s), a positive root of
         |D(j omega)|^2 - |N(j omega)|^2.
     phase_margin
-        pi + arg L(j omega) wrapped to (-pi, pi] (rad).
+        180 + arg L(j omega) in degrees, wrapped to [-180, 180], of the loop
+        with its own dead time (if one was given to :func:`delay_margin`).
     tau
-        The first delay (s) with the root j omega: (phase_margin mod 2 pi) / omega.
+        The first extra delay (s) with the root j omega:
+        (phase_margin_rad mod 2 pi) / omega.
     root_tendency
         Sign of Re ds/dtau there: +1 the root moves right (destabilizing),
         -1 left, 0 it only touches the axis (Definition "Root Tendency").
@@ -49,12 +55,17 @@ class Crossover:
     root_tendency: int
 
     @property
+    def phase_margin_rad(self) -> float:
+        """The phase margin in radians, in [-pi, pi]."""
+        return math.radians(self.phase_margin)
+
+    @property
     def period(self) -> float:
         """2 pi / omega: the same root returns every period of delay."""
         return 2.0 * math.pi / self.omega
 
     def delays(self, tau_max: float) -> NDArray[np.float64]:
-        """Every delay in [0, tau_max] at which this crossover puts j omega on the axis."""
+        """Every extra delay in [0, tau_max] at which this crossover puts j omega on the axis."""
         if tau_max < self.tau:
             return np.zeros(0)
         return self.tau + self.period * np.arange(int((tau_max - self.tau) // self.period) + 1)
@@ -279,7 +290,14 @@ def _trim_complex(c: list[complex]) -> NDArray[np.complex128]:
     return arr[: nz[-1] + 1] if nz.size else arr[:1]
 
 
-def _crossovers(qp: TwoDelayQuasiPolynomial) -> tuple[Crossover, ...]:
+def _crossovers(qp: TwoDelayQuasiPolynomial, delay: float = 0.0) -> tuple[Crossover, ...]:
+    """Every crossover of the loop with its own dead time ``delay``, sorted by the first extra delay.
+
+    The crossings of the delay-free loop do not depend on ``delay``: each
+    (omega, tau0) recurs every 2 pi / omega, so the first one at or beyond
+    ``delay`` is ``delay + ((tau0 - delay) mod 2 pi / omega)``, and the
+    phase margin of L e^{-delay s} there is omega times that extra delay.
+    """
     factor = _square_factor(qp) if qp.g4.size else qp
     if factor is None:
         pairs = _quadratic_crossings(qp)
@@ -287,8 +305,9 @@ def _crossovers(qp: TwoDelayQuasiPolynomial) -> tuple[Crossover, ...]:
     else:
         pairs = _siso_crossings(factor.g1, factor.g2)
     out = []
-    for w, tau in pairs:
-        pm = math.remainder(w * tau, 2.0 * math.pi)  # tau = (pm mod 2 pi) / omega
-        rt = int(factor.root_tendency(np.array([w]), np.array([tau]), np.array([0.0]), delay=1)[0])
-        out.append(Crossover(omega=float(w), phase_margin=pm, tau=float(tau), root_tendency=rt))
+    for w, tau0 in pairs:
+        extra = (tau0 - delay) % (2.0 * math.pi / w) if delay else tau0
+        pm = math.remainder(w * extra, 2.0 * math.pi)  # extra = (pm mod 2 pi) / omega
+        rt = int(factor.root_tendency(np.array([w]), np.array([delay + extra]), np.array([0.0]), delay=1)[0])
+        out.append(Crossover(omega=float(w), phase_margin=math.degrees(pm), tau=float(extra), root_tendency=rt))
     return tuple(sorted(out, key=lambda c: c.tau))
