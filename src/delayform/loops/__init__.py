@@ -27,7 +27,16 @@ must be stable at tau = 0; the roots then move continuously with tau
 (retarded case), so none crosses before that delay. The answer is checked
 by a certified root count (argument principle,
 :func:`delayform.analysis.roots.count_roots_right_of`) of zero just below
-the margin.
+the margin. python-control's ``margin`` reports the crossover with the
+smallest |PM| only; pm / omega_c there can overstate the delay margin when
+another crossover, at a higher frequency, has the smaller delay.
+
+A loop that already contains its dead time theta, L(s) e^{-theta s} (the
+first-order-plus-dead-time plant), is ``delay_margin(L, delay=theta)``:
+the margin is then the extra delay it tolerates, the first crossing beyond
+theta, and stability at theta itself is certified. Phase margins are in
+degrees, as python-control gives them; plots return python-control's
+``ControlPlot``.
 
 Loops are python-control ``TransferFunction`` or ``StateSpace`` objects
 (imported only when such an object is passed; ``pip install

@@ -291,7 +291,8 @@ def delay_margin(loop: object, *, delay: float = 0.0, name: str = "loop") -> Del
         certified = _count_right(qp, below) == 0
     certificate = (
         f"{stable}; {what} ({len(crossovers)} found); the first root on the axis is "
-        f"j {first.omega:.10g} at {first.tau:.10g} s more delay (total {delay + first.tau:.10g} s); "
+        f"j {first.omega:.10g} at "
+        + (f"{first.tau:.10g} s more delay (total {delay + first.tau:.10g} s); " if delay else f"tau = {first.tau:.10g}; ")
         + (
             f"certified root count 0 right of the axis at tau = {below:.10g}"
             if certified
