@@ -281,8 +281,8 @@ def delay_margin(loop: object, *, delay: float = 0.0, name: str = "loop") -> Del
     if not crossovers:
         _confirm_no_crossing(qp, name)
         text = f"{what}: none, so no root reaches the axis at any delay; {stable}"
-        how = " (closed-loop poles and a certified root count)" if counted and not delay else (
-            " (closed-loop poles)" if not delay else "")
+        # with a dead time, ``stable`` already says how stability at it was established
+        how = "" if delay else (" (closed-loop poles and a certified root count)" if counted else " (closed-loop poles)")
         return DelayMargin(tau=math.inf, omega=None, phase_margin=None, certified=counted,
                            certificate=text + how, **common)  # fmt: skip
     first = crossovers[0]
