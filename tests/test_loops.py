@@ -358,9 +358,9 @@ def test_empty_coefficients_are_refused_not_certified(loop: tuple[list[float], l
 
 def test_infinite_margin_is_refused_when_a_crossing_was_lost(monkeypatch: pytest.MonkeyPatch) -> None:
     # the guard behind "infinite": if the elimination drops a crossover, the unit-circle test catches it
-    import delayform.loops as loops
+    import delayform.loops.crossings as crossings
 
-    monkeypatch.setattr(loops, "_siso_crossings", lambda g1, g2: [])
+    monkeypatch.setattr(crossings, "_siso_crossings", lambda g1, g2: [])
     with pytest.raises(df.errors.NotConvergedError, match="lost a crossover"):
         delay_margin(control.tf([2.0], [1.0, 1.0]))
     assert delay_margin(control.tf([0.7], [1.0, 1.0])).tau == math.inf  # a true infinite margin stands

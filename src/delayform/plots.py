@@ -657,7 +657,9 @@ def plot_delay_margin(result: Any, ax: Axes | None = None) -> Axes:
     The loci are the eigenvalues mu = -1/z of L(j omega), z the roots of
     g1 + g2 z + g4 z^2 (for a SISO loop, mu = L(j omega) itself), clipped
     radially at |mu| = 4 so that a loop with an integrator stays readable;
-    each crossover is marked at mu = -e^{j PM} with its first delay.
+    each crossover is marked at mu = -e^{j PM} with its first delay. A loop
+    with its own dead time theta is drawn as L(j omega) e^{-j omega theta},
+    whose phase margins the crossovers carry.
     """
     import numpy.polynomial.polynomial as npoly
 
@@ -673,13 +675,14 @@ def plot_delay_margin(result: Any, ax: Axes | None = None) -> Axes:
         root = np.sqrt(g2 * g2 - 4 * g4 * g1)
         loci = [-2 * g4 / (-g2 + root), -2 * g4 / (-g2 - root)]  # -1/z for both roots z
     for k, mu in enumerate(loci):
+        mu = mu * np.exp(-1j * w * getattr(result, "delay", 0.0))
         mu = np.where(np.abs(mu) > 4.0, mu / np.abs(mu) * 4.0, mu)
         ax.plot(mu.real, mu.imag, ".", ms=1.5, color=f"C{k}", label="loci of L(j omega), omega > 0" if k == 0 else None)
     t = np.linspace(0.0, 2 * np.pi, 200)
     ax.plot(np.cos(t), np.sin(t), color="0.6", lw=0.8, label="|L| = 1")
     ax.plot([-1.0], [0.0], "k+", ms=10)
     for c in result.crossovers:
-        mark = -np.exp(1j * c.phase_margin)
+        mark = -np.exp(1j * c.phase_margin_rad)
         ax.plot([mark.real], [mark.imag], "o", color="C3")
         ax.annotate(f"tau={c.tau:.3g}", (mark.real, mark.imag), textcoords="offset points", xytext=(5, 5))
     ax.set_aspect("equal")

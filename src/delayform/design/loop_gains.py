@@ -24,13 +24,13 @@ abscissa (plus a relative 1e-6), or says it could not be.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import minimize
 
-from delayform._display import FigureRepr
+from delayform._display import FigureRepr, control_plot
 from delayform._validation import check_delay, check_positive, validated
 from delayform.analysis.roots import count_roots_right_of, rightmost_root
 from delayform.characteristic import TwoDelayQuasiPolynomial
@@ -155,11 +155,16 @@ class LoopGainDesign(FigureRepr):
         """-abscissa (1/s): how fast the slowest mode decays."""
         return -self.abscissa
 
-    def plot(self, ax: Axes | None = None) -> Axes:
-        """The abscissa over the gain grid, its zero contour and the design (:func:`delayform.plots.plot_loop_gains`)."""
+    def plot(self, ax: Axes | None = None) -> Any:
+        """The abscissa over the gain grid, its zero contour and the design (:func:`delayform.plots.plot_loop_gains`).
+
+        Returns python-control's ``ControlPlot`` (``.lines``, ``.axes``,
+        ``.figure``, ``.legend``) when python-control is installed, else a
+        :class:`delayform._display.LoopPlot` with the same attributes.
+        """
         from delayform.plots import plot_loop_gains
 
-        return plot_loop_gains(self, ax=ax)
+        return control_plot(lambda axes: plot_loop_gains(self, ax=axes), ax)
 
 
 @validated(LoopError)
