@@ -99,7 +99,12 @@ class _Signals:
 
 
 def _he(M: Matrix) -> Matrix:
-    return M + M.T
+    return M + _t(M)
+
+
+def _t(M: Matrix) -> Matrix:
+    # transpose of the last two axes: the variables may carry a batch axis (lmi._linearize)
+    return np.swapaxes(M, -1, -2)
 
 
 def _quad(E: Matrix, W: Matrix) -> Matrix:
@@ -108,7 +113,7 @@ def _quad(E: Matrix, W: Matrix) -> Matrix:
 
 def _bessel(sig: _Signals, top: str, bottom: str, moments: Sequence[str], R: Matrix, order: int) -> Matrix:
     """sum_{k<=N} (2k+1) Gamma_k' R Gamma_k: the Bessel-Legendre lower bound of len * int x' R x'."""
-    out = np.zeros((sig.size, sig.size), dtype=sig.dtype)
+    out: Matrix = np.zeros((sig.size, sig.size), dtype=sig.dtype)
     for k in range(order + 1):
         out = out + (2 * k + 1) * _quad(sig.legendre(top, bottom, moments, k), R)
     return out
@@ -192,10 +197,10 @@ def time_varying(data: SystemData, order: int) -> LmiProblem:
             [sig.legendre("x1", "xh", wa, k) for k in range(order + 1)]
             + [sig.legendre("xh", "x2", wb, k) for k in range(order + 1)]
         )
-        Rt = np.zeros((m, m), dtype=sig.dtype)
+        Rt = np.zeros(v["R2"].shape[:-2] + (m, m), dtype=sig.dtype)
         for k in range(order + 1):
-            Rt[k * n : (k + 1) * n, k * n : (k + 1) * n] = (2 * k + 1) * v["R2"]
-        rcc = np.block([[Rt, v["X"]], [v["X"].T, Rt]])
+            Rt[..., k * n : (k + 1) * n, k * n : (k + 1) * n] = (2 * k + 1) * v["R2"]
+        rcc = np.block([[Rt, v["X"]], [_t(v["X"]), Rt]])
         Phi = Phi - _quad(Psi, rcc)
         out: dict[str, Matrix] = {}
         if not rated:

@@ -5,14 +5,15 @@ the decision variables ``x`` (symmetric or full matrix blocks), that must all
 be positive definite. It is posed to Clarabel as
 
     maximize t   subject to   M_i(x) - t I  in the PSD cone (every i),
-                              sum of the traces of the normalized blocks <= 1,  t <= 1,
+                              sum of the traces of the normalized blocks = 1,  t <= 1,
 
 Clarabel's form ``A z + s = b, s in K`` with ``z = (x, t)``: every PSD
 constraint enters as the vectorized upper triangle of its matrix, column by
 column, the off-diagonal entries scaled by sqrt(2) (Clarabel's
-``PSDTriangleConeT``). The conditions are homogeneous, so the trace bound
-only fixes the scale: a strictly feasible x exists if and only if the optimum
-t is positive.
+``PSDTriangleConeT``). The conditions are homogeneous, so the trace condition
+only fixes the scale (and excludes x = 0): a strictly feasible x exists if
+and only if the optimum t is positive, and a clearly negative optimum is the
+solver's word that none exists.
 
 The solver's status is never the certificate. :func:`recheck` rounds the
 returned variables to a dyadic grid, rebuilds every ``M_i`` from them in
@@ -84,17 +85,22 @@ class Variables:
         self.blocks.append(_Block(name, rows, cols, False, self.size))
 
     def unpack(self, x: NDArray[Any]) -> dict[str, NDArray[Any]]:
-        """The blocks' matrices from the vector ``x`` (float or object dtype of Fractions)."""
+        """The blocks' matrices from ``x`` (float or object dtype of Fractions).
+
+        ``x`` may carry leading batch axes (shape ``(..., size)``); the
+        matrices then carry them too, which the builders broadcast over.
+        """
         out: dict[str, NDArray[Any]] = {}
+        batch = x.shape[:-1]
         for b in self.blocks:
-            v = x[b.offset : b.offset + b.size]
+            v = x[..., b.offset : b.offset + b.size]
             if b.symmetric:
-                M = np.zeros((b.rows, b.rows), dtype=x.dtype)
+                M = np.zeros(batch + (b.rows, b.rows), dtype=x.dtype)
                 iu = np.triu_indices(b.rows)
-                M[iu] = v
-                M[(iu[1], iu[0])] = v
+                M[..., iu[0], iu[1]] = v
+                M[..., iu[1], iu[0]] = v
             else:
-                M = np.asarray(v).reshape(b.rows, b.cols)
+                M = np.asarray(v).reshape(batch + (b.rows, b.cols))
             out[b.name] = M
         return out
 
@@ -142,24 +148,24 @@ def _svec_order(m: int) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
 
 
 def svec(M: NDArray[np.float64]) -> NDArray[np.float64]:
-    """The vector Clarabel's PSD triangle cone holds for the symmetric matrix ``M``."""
-    rows, cols = _svec_order(M.shape[0])
-    v = M[rows, cols]
+    """The vector Clarabel's PSD triangle cone holds for the symmetric matrix ``M`` (batched on leading axes)."""
+    rows, cols = _svec_order(M.shape[-1])
+    v = M[..., rows, cols]
     return np.where(rows == cols, v, math.sqrt(2.0) * v)
 
 
 def _linearize(problem: LmiProblem) -> tuple[dict[str, NDArray[np.float64]], dict[str, NDArray[np.float64]]]:
-    """Constant svec and column matrix of each LMI: svec(M(x)) = c + J x (the map is affine)."""
+    """Constant svec and column matrix of each LMI: svec(M(x)) = c + J x (the map is affine).
+
+    The builder is evaluated once at x = 0 and once on the batch of all unit
+    vectors (the formulas broadcast over the batch axis).
+    """
     nv = problem.variables.size
     unpack = problem.variables.unpack
     base = problem.build(unpack(np.zeros(nv)), False)
     const = {k: svec(np.asarray(v, dtype=float)) for k, v in base.items()}
-    cols = {k: np.zeros((c.size, nv)) for k, c in const.items()}
-    for i in range(nv):
-        e = np.zeros(nv)
-        e[i] = 1.0
-        for k, M in problem.build(unpack(e), False).items():
-            cols[k][:, i] = svec(np.asarray(M, dtype=float)) - const[k]
+    units = problem.build(unpack(np.eye(nv)), False)
+    cols = {k: (svec(np.asarray(units[k], dtype=float)) - c).T for k, c in const.items()}
     return const, cols
 
 
@@ -171,8 +177,9 @@ def solve(problem: LmiProblem) -> SdpSolution:
     nv = problem.variables.size
     blocks_A: list[sp.spmatrix] = []
     b_parts: list[NDArray[np.float64]] = []
-    cones: list[Any] = [clarabel.NonnegativeConeT(2)]
-    # the normalization rows first: sum of traces <= 1 and t <= 1
+    cones: list[Any] = [clarabel.ZeroConeT(1), clarabel.NonnegativeConeT(1)]
+    # the normalization rows first: sum of traces = 1 (excludes x = 0, so an infeasible
+    # problem has a negative optimum t) and t <= 1
     norm = np.zeros((2, nv + 1))
     norm[0, :nv] = problem.variables.trace_row()
     norm[1, nv] = 1.0

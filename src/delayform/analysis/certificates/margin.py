@@ -54,9 +54,11 @@ class DelayCertificate:
     status
         "holds": the LMIs are satisfied by ``variables``, re-checked
         independently; "does not hold": the solver reports no strictly
-        feasible point of these LMIs (a sufficient condition: the system may
-        still be stable); "undecided": the solver's answer did not re-check or
-        it stopped short.
+        feasible point of these LMIs, its optimum margin clearly negative (a
+        sufficient condition: the system may still be stable); "undecided":
+        neither, e.g. an optimum margin of about zero (the boundary of the
+        feasible set, or a decoupled part certified alone), a solver that
+        stopped short, or an answer that failed the re-check.
     method, order
         The functional and the Bessel-Legendre order N (0 Jensen, 1 Wirtinger).
     h1, h2, mu
@@ -272,8 +274,8 @@ def certify_time_varying(A0: ArrayLike, A1: ArrayLike, h: float, *, mu: float | 
     >>> A0, A1 = [[-2.0, 0.0], [0.0, -0.9]], [[-1.0, 0.0], [-1.0, -1.0]]
     >>> certify_time_varying(A0, A1, 6.0, mu=0.0, h1=0.0).status
     'holds'
-    >>> certify_time_varying(A0, A1, 6.0, mu=0.0, order=0).status
-    'does not hold'
+    >>> certify_time_varying(A0, A1, 6.0, mu=0.0, order=0).holds  # Jensen's bound stops at 4.472
+    False
     """
     a0, a1 = _system(A0, A1)
     rate, n_order, h2 = _rate(mu), _order(order), _delay("h", h)
