@@ -54,14 +54,14 @@ class SystemData:
     mu: float | None
 
     def matrices(self, exact: bool) -> tuple[Matrix, Matrix]:
-        """(A0, A1) as float64, or as object arrays of Fractions equal to the floats."""
+        """(A0, A1) as float64, or (``exact``) as object arrays of Fractions equal to the floats."""
         if not exact:
             return self.A0, self.A1
         conv = np.vectorize(Fraction, otypes=[object])
         return conv(self.A0), conv(self.A1)
 
     def number(self, value: float, exact: bool) -> Any:
-        """A scalar in the requested arithmetic."""
+        """The scalar ``value`` in the requested arithmetic (``exact``: a Fraction)."""
         return Fraction(value) if exact else value
 
 
@@ -124,7 +124,15 @@ def _moments(prefix: str, order: int) -> list[str]:
 
 
 def constant_delay(data: SystemData, order: int) -> LmiProblem:
-    """The Bessel-Legendre hierarchy's LMIs for every constant delay h in [h1, h2] (module docstring)."""
+    """The Bessel-Legendre hierarchy's LMIs for every constant delay h in [h1, h2] (module docstring).
+
+    Parameters
+    ----------
+    data
+        The system and the interval (``data.mu`` is not used: the delay is constant).
+    order
+        The Bessel-Legendre order N; the state holds N Legendre moments.
+    """
     n = data.A0.shape[0]
     om = _moments("w", order)
     var = Variables()
@@ -159,6 +167,13 @@ def time_varying(data: SystemData, order: int) -> LmiProblem:
     are affine in dh/dt and their values in h(t), so the derivative bound is
     bilinear in (h, dh/dt) and holds on the whole box when it holds at its four
     vertices. Without a rate bound only x'Px is used (no term may depend on dh/dt).
+
+    Parameters
+    ----------
+    data
+        The system, the interval [h1, h2] (h2 > h1) and the rate bound mu (None: any rate).
+    order
+        The Bessel-Legendre order N of the bounds on both parts of the split integral.
     """
     n = data.A0.shape[0]
     inner = data.h1 > 0.0

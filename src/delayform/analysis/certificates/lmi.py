@@ -37,7 +37,8 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
-__all__ = ["LmiProblem", "Variables", "Recheck", "SdpSolution", "solve", "recheck", "exact_check", "leading_minors_positive"]
+__all__ = ["LmiProblem", "Variables", "Recheck", "SdpSolution", "solve", "recheck", "exact_check", "leading_minors_positive",
+           "solver_says_infeasible", "svec"]
 
 #: Bits of the dyadic grid the decision variables are rounded to before the re-check.
 _GRID_BITS = 40
@@ -75,13 +76,13 @@ class Variables:
         return sum(b.size for b in self.blocks)
 
     def symmetric(self, name: str, n: int, *, normalize: bool = True) -> None:
-        """Add an n x n symmetric block (its trace counts in the normalization when ``normalize``)."""
+        """Add an n x n symmetric block ``name`` (its trace counts in the normalization when ``normalize``)."""
         self.blocks.append(_Block(name, n, n, True, self.size))
         if normalize:
             self.normalized.append(name)
 
     def full(self, name: str, rows: int, cols: int) -> None:
-        """Add a rows x cols block without structure."""
+        """Add a rows x cols block ``name`` without structure."""
         self.blocks.append(_Block(name, rows, cols, False, self.size))
 
     def unpack(self, x: NDArray[Any]) -> dict[str, NDArray[Any]]:
@@ -170,7 +171,13 @@ def _linearize(problem: LmiProblem) -> tuple[dict[str, NDArray[np.float64]], dic
 
 
 def solve(problem: LmiProblem) -> SdpSolution:
-    """Maximize the common margin t of the LMIs with Clarabel (module docstring)."""
+    """Maximize the common margin t of the LMIs with Clarabel (module docstring).
+
+    Parameters
+    ----------
+    problem
+        The variables and the LMI builder; the builder is linearized once per solve.
+    """
     import clarabel
 
     const, cols = _linearize(problem)
@@ -206,12 +213,12 @@ def solve(problem: LmiProblem) -> SdpSolution:
 
 
 def solver_says_infeasible(sol: SdpSolution) -> bool:
-    """The solver's optimum t is clearly negative: no strictly feasible point (not re-checked)."""
+    """The solver's optimum t in ``sol`` is clearly negative: no strictly feasible point (not re-checked)."""
     return sol.status == "Solved" and math.isfinite(sol.t) and sol.t < -_INFEASIBLE_T
 
 
 def leading_minors_positive(M: NDArray[Any]) -> bool:
-    """Exact positive definiteness of a symmetric rational matrix (Sylvester's criterion).
+    """Exact positive definiteness of the symmetric rational matrix ``M`` (Sylvester's criterion).
 
     The matrix is scaled to integers by the least common denominator and
     Bareiss's fraction-free elimination produces its leading principal minors
@@ -278,7 +285,14 @@ def _dyadic(x: NDArray[np.float64]) -> list[Fraction]:
 def exact_check(problem: LmiProblem, rational: tuple[Fraction, ...]) -> bool | None:
     """Every LMI matrix, rebuilt in exact arithmetic from the rounded variables, positive definite.
 
-    None when the matrices are too large for the exact check (:data:`EXACT_LIMIT`).
+    Parameters
+    ----------
+    problem
+        The LMI problem whose builder runs here on Fractions.
+    rational
+        The decision variables as exact dyadic rationals (:attr:`Recheck.rational`).
+
+    Returns None when the matrices are too large for the exact check (:data:`EXACT_LIMIT`).
     """
     sizes = problem.build(problem.variables.unpack(np.zeros(len(rational))), False)
     if sum(M.shape[0] for M in sizes.values()) > EXACT_LIMIT:
@@ -290,8 +304,15 @@ def exact_check(problem: LmiProblem, rational: tuple[Fraction, ...]) -> bool | N
 def recheck(problem: LmiProblem, x: NDArray[np.float64], *, exact: bool = True) -> Recheck:
     """Rebuild every LMI matrix from rounded variables and check it positive definite twice.
 
-    With ``exact`` False only the eigenvalues are checked (``exact_ok`` None);
-    :func:`exact_check` can complete it later.
+    Parameters
+    ----------
+    problem
+        The LMI problem.
+    x
+        The decision variables the solver returned (never trusted: only re-checked).
+    exact
+        Also run the exact check (False: only the eigenvalues, ``exact_ok`` None;
+        :func:`exact_check` can complete it later).
     """
     rational = tuple(_dyadic(x))
     xr = np.array([float(v) for v in rational])  # exact: |v| 2^40 < 2^53 for the bounded variables

@@ -27,6 +27,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from delayform.analysis.certificates.krasovskii import SystemData, constant_delay, time_varying
 from delayform.analysis.certificates.lmi import LmiProblem, Recheck, exact_check, recheck, solve, solver_says_infeasible
+from delayform._validation import validated
 from delayform.errors import DelayError, InputError
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
@@ -45,6 +46,7 @@ Status = Literal["holds", "does not hold", "undecided"]
 _INEQUALITY = {0: "Jensen", 1: "Wirtinger"}
 
 
+@validated()
 @dataclass(frozen=True)
 class DelayCertificate:
     """A stability certificate (or its absence) for delays h(t) in [h1, h2].
@@ -96,6 +98,7 @@ class DelayCertificate:
         return self.status == "holds"
 
 
+@validated()
 @dataclass(frozen=True)
 class TimeVaryingMargin:
     """The largest certified h2 and the certificates that prove it.
@@ -241,6 +244,7 @@ def _attempt(a0: NDArray[np.float64], a1: NDArray[np.float64], h1: float, h2: fl
     return _Attempt(cert, problem, check)
 
 
+@validated(DelayError)
 def certify_time_varying(A0: ArrayLike, A1: ArrayLike, h: float, *, mu: float | None = None, h1: float | None = None,
                          order: int = 1) -> DelayCertificate:  # fmt: skip
     """Certify x' = A0 x + A1 x(t - h(t)) stable for every delay h(t) in [h1, h] with |h'(t)| <= mu.
@@ -285,6 +289,7 @@ def certify_time_varying(A0: ArrayLike, A1: ArrayLike, h: float, *, mu: float | 
     return _attempt(a0, a1, lo, h2, rate, n_order).cert
 
 
+@validated(DelayError)
 def time_varying_delay_margin(A0: ArrayLike, A1: ArrayLike, *, h1: float = 0.0, mu: float | None = None,
                               order: int = 1, rtol: float = 1e-4, max_delay: float = 1000.0) -> TimeVaryingMargin:  # fmt: skip
     """The largest h2 such that x' = A0 x + A1 x(t - h(t)) is certified stable for every h(t) in [h1, h2].
