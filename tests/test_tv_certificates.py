@@ -155,6 +155,21 @@ def test_no_certified_constant_delay_is_unstable(vals: list[float], h: float, or
             assert _stable_by_spectrum(a0, a1, tau)
 
 
+@settings(max_examples=10)
+@given(st.lists(entries, min_size=8, max_size=8), st.floats(0.0, 1.0), st.floats(0.1, 2.0),
+       st.sampled_from([0.3, None]))  # fmt: skip
+def test_no_certified_interval_of_varying_delays_holds_an_unstable_constant_delay(
+    vals: list[float], h1: float, width: float, mu: float | None
+) -> None:
+    # constant delays are among the delays varying in [h1, h2] (at any rate bound)
+    a0 = np.array(vals[:4]).reshape(2, 2) - 2.0 * np.eye(2)
+    a1 = np.array(vals[4:]).reshape(2, 2)
+    cert = certify_time_varying(a0, a1, h1 + width, h1=h1, mu=mu, order=1)
+    if cert.holds:
+        for tau in (max(h1, 1e-3), h1 + 0.5 * width, h1 + width):
+            assert _stable_by_spectrum(a0, a1, tau)
+
+
 @pytest.mark.parametrize(
     ("kwargs", "error"),
     [
@@ -203,3 +218,13 @@ def test_plot_draws_the_search() -> None:
     res = time_varying_delay_margin(A0, A1, mu=0.5, order=0, rtol=1e-2)
     ax = res.plot()
     assert "margin" in ax.get_title()
+
+
+def test_a_job_beyond_the_time_budget_is_refused_up_front(monkeypatch: pytest.MonkeyPatch) -> None:
+    from delayform.errors import ResourceLimitError
+
+    monkeypatch.setenv("DELAYFORM_TIME_BUDGET", "5")
+    a0, a1 = -3.0 * np.eye(8), 0.5 * np.eye(8)
+    with pytest.raises(ResourceLimitError, match="DELAYFORM_TIME_BUDGET"):
+        time_varying_delay_margin(a0, a1, h1=0.2, mu=0.3, order=1)
+    assert time_varying_delay_margin(A0, A1, mu=0.0, order=1, rtol=1e-2).margin is not None  # small jobs pass
