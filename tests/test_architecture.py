@@ -31,6 +31,7 @@ STAGES: dict[str, int] = {
     "quasipolynomial": 2,  # after characteristic (converts its TwoDelayQuasiPolynomial)
     "formation": 2,
     "analysis": 3,
+    "analysis.certificates": 3,  # LMIs of linear DDEs: imports only errors (no quasi-polynomials needed)
     "design": 4,
     "loops": 4,  # python-control loops: builds quasi-polynomials, counts their roots (issue 23)
     "simulation": 5,

@@ -173,6 +173,11 @@ _EXPORTS: dict[str, str] = {
     # actuation delay (issue 21, item 4)
     "actuated_factor": "analysis.roots.actuated",
     "ActuatedStabilityMap": "analysis.ctcr.actuated",
+    # Lyapunov-Krasovskii certificates for time-varying delays of linear DDEs
+    "time_varying_delay_margin": "analysis.certificates",
+    "certify_time_varying": "analysis.certificates",
+    "TimeVaryingMargin": "analysis.certificates",
+    "DelayCertificate": "analysis.certificates",
 }
 
 __all__ = sorted(_EXPORTS) + ["errors", "__version__"]

@@ -11,6 +11,10 @@
     The eigenvalue plane and certificates for whole classes of teams: which
     eigenvalues of C are stable at given delays, the delays safe for every spectrum
     in a set, and spectrum bounds for teams too large for dense eigenvalues.
+``certificates/``
+    Lyapunov-Krasovskii certificates for x' = A0 x + A1 x(t - h(t)): LMIs with
+    Bessel-Legendre inequalities for constant and time-varying delays, solved by
+    Clarabel and re-checked in exact arithmetic, and the certified delay margin.
 
 Each subpackage's ``__init__`` lists its public names; the modules inside are the
 method's own business.

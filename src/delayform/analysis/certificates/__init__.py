@@ -1,0 +1,23 @@
+"""Lyapunov-Krasovskii certificates for linear systems with time-varying delays.
+
+``krasovskii``
+    The functionals and their LMIs: the Bessel-Legendre hierarchy for constant
+    delays, and for delays varying in an interval (with or without a rate
+    bound) the split integral with reciprocal convexity.
+``lmi``
+    The LMIs in Clarabel's standard form, the solve, and the independent
+    re-check (eigenvalues, then exact rational arithmetic).
+``margin``
+    The public questions: :func:`certify_time_varying` at one interval and
+    :func:`time_varying_delay_margin`, the largest certified interval.
+"""
+
+from delayform.analysis.certificates.margin import (
+    MAX_ORDER,
+    DelayCertificate,
+    TimeVaryingMargin,
+    certify_time_varying,
+    time_varying_delay_margin,
+)
+
+__all__ = ["MAX_ORDER", "DelayCertificate", "TimeVaryingMargin", "certify_time_varying", "time_varying_delay_margin"]

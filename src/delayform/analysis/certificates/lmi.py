@@ -1,0 +1,333 @@
+"""Linear matrix inequalities: assembly in Clarabel's standard form, the solve, and an independent re-check.
+
+An LMI problem here is a set of symmetric matrices ``M_i(x)``, each affine in
+the decision variables ``x`` (symmetric or full matrix blocks), that must all
+be positive definite. It is posed to Clarabel as
+
+    maximize t   subject to   M_i(x) - t I  in the PSD cone (every i),
+                              sum of the traces of the normalized blocks = 1,  t <= 1,
+
+Clarabel's form ``A z + s = b, s in K`` with ``z = (x, t)``: every PSD
+constraint enters as the vectorized upper triangle of its matrix, column by
+column, the off-diagonal entries scaled by sqrt(2) (Clarabel's
+``PSDTriangleConeT``). The conditions are homogeneous, so the trace condition
+only fixes the scale (and excludes x = 0): a strictly feasible x exists if
+and only if the optimum t is positive, and a clearly negative optimum is the
+solver's word that none exists.
+
+The solver's status is never the certificate. :func:`recheck` rounds the
+returned variables to a dyadic grid, rebuilds every ``M_i`` from them in
+floating point (smallest eigenvalue above a relative margin) and in exact
+rational arithmetic (every leading principal minor positive, computed
+fraction-free by Bareiss's elimination: the pivots of an exact LDL^T are
+their ratios), from the same rounded variables and the exactly represented
+data.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from fractions import Fraction
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+from numpy.typing import NDArray
+
+__all__ = ["LmiProblem", "Variables", "Recheck", "SdpSolution", "solve", "recheck", "exact_check", "leading_minors_positive",
+           "solver_says_infeasible", "svec"]
+
+#: Bits of the dyadic grid the decision variables are rounded to before the re-check.
+_GRID_BITS = 40
+#: Smallest eigenvalue accepted, relative to the matrix's 2-norm (float re-check).
+EIG_MARGIN = 1e-9
+#: Largest total size of the LMI matrices re-checked in exact arithmetic (cost grows as the cube).
+EXACT_LIMIT = 400
+#: Optimum t below -this is read as "no strictly feasible point" (the solver's word).
+_INFEASIBLE_T = 1e-7
+
+
+@dataclass(frozen=True)
+class _Block:
+    name: str
+    rows: int
+    cols: int
+    symmetric: bool
+    offset: int
+
+    @property
+    def size(self) -> int:
+        return self.rows * (self.rows + 1) // 2 if self.symmetric else self.rows * self.cols
+
+
+@dataclass
+class Variables:
+    """The decision variables of an LMI problem: named symmetric or full matrix blocks."""
+
+    blocks: list[_Block] = field(default_factory=list)
+    normalized: list[str] = field(default_factory=list)
+
+    @property
+    def size(self) -> int:
+        """Number of scalar decision variables."""
+        return sum(b.size for b in self.blocks)
+
+    def symmetric(self, name: str, n: int, *, normalize: bool = True) -> None:
+        """Add an n x n symmetric block ``name`` (its trace counts in the normalization when ``normalize``)."""
+        self.blocks.append(_Block(name, n, n, True, self.size))
+        if normalize:
+            self.normalized.append(name)
+
+    def full(self, name: str, rows: int, cols: int) -> None:
+        """Add a rows x cols block ``name`` without structure."""
+        self.blocks.append(_Block(name, rows, cols, False, self.size))
+
+    def unpack(self, x: NDArray[Any]) -> dict[str, NDArray[Any]]:
+        """The blocks' matrices from ``x`` (float or object dtype of Fractions).
+
+        ``x`` may carry leading batch axes (shape ``(..., size)``); the
+        matrices then carry them too, which the builders broadcast over.
+        """
+        out: dict[str, NDArray[Any]] = {}
+        batch = x.shape[:-1]
+        for b in self.blocks:
+            v = x[..., b.offset : b.offset + b.size]
+            if b.symmetric:
+                M = np.zeros(batch + (b.rows, b.rows), dtype=x.dtype)
+                iu = np.triu_indices(b.rows)
+                M[..., iu[0], iu[1]] = v
+                M[..., iu[1], iu[0]] = v
+            else:
+                M = np.asarray(v).reshape(batch + (b.rows, b.cols))
+            out[b.name] = M
+        return out
+
+    def trace_row(self) -> NDArray[np.float64]:
+        """Coefficients of the summed traces of the normalized blocks."""
+        row = np.zeros(self.size)
+        for b in self.blocks:
+            if b.name in self.normalized:
+                r, c = np.triu_indices(b.rows)
+                row[b.offset + np.flatnonzero(r == c)] = 1.0
+        return row
+
+
+#: build(values, exact) -> {name: symmetric matrix that must be positive definite}
+Builder = Callable[[Mapping[str, NDArray[Any]], bool], dict[str, NDArray[Any]]]
+
+
+@dataclass(frozen=True)
+class LmiProblem:
+    """Variables and the affine map from them to the matrices that must be positive definite.
+
+    ``build(values, exact)`` must compute with float64 arrays when ``exact`` is
+    False and with object arrays of :class:`fractions.Fraction` (the data
+    converted exactly) when True, by the same formulas.
+    """
+
+    variables: Variables
+    build: Builder
+
+
+@dataclass(frozen=True)
+class SdpSolution:
+    """What Clarabel returned: the variables, the optimum t and the status name."""
+
+    x: NDArray[np.float64]
+    t: float
+    status: str
+
+
+@functools.lru_cache(maxsize=64)
+def _svec_order(m: int) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    # (row, col) of the upper triangle taken column by column
+    cols, rows = np.tril_indices(m)
+    return rows, cols
+
+
+def svec(M: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The vector Clarabel's PSD triangle cone holds for the symmetric matrix ``M`` (batched on leading axes)."""
+    rows, cols = _svec_order(M.shape[-1])
+    v = M[..., rows, cols]
+    return np.where(rows == cols, v, math.sqrt(2.0) * v)
+
+
+def _linearize(problem: LmiProblem) -> tuple[dict[str, NDArray[np.float64]], dict[str, NDArray[np.float64]]]:
+    """Constant svec and column matrix of each LMI: svec(M(x)) = c + J x (the map is affine).
+
+    The builder is evaluated once at x = 0 and once on the batch of all unit
+    vectors (the formulas broadcast over the batch axis).
+    """
+    nv = problem.variables.size
+    unpack = problem.variables.unpack
+    base = problem.build(unpack(np.zeros(nv)), False)
+    const = {k: svec(np.asarray(v, dtype=float)) for k, v in base.items()}
+    units = problem.build(unpack(np.eye(nv)), False)
+    cols = {k: (svec(np.asarray(units[k], dtype=float)) - c).T for k, c in const.items()}
+    return const, cols
+
+
+def solve(problem: LmiProblem) -> SdpSolution:
+    """Maximize the common margin t of the LMIs with Clarabel (module docstring).
+
+    Parameters
+    ----------
+    problem
+        The variables and the LMI builder; the builder is linearized once per solve.
+    """
+    import clarabel
+
+    const, cols = _linearize(problem)
+    nv = problem.variables.size
+    blocks_A: list[sp.spmatrix] = []
+    b_parts: list[NDArray[np.float64]] = []
+    cones: list[Any] = [clarabel.ZeroConeT(1), clarabel.NonnegativeConeT(1)]
+    # the normalization rows first: sum of traces = 1 (excludes x = 0, so an infeasible
+    # problem has a negative optimum t) and t <= 1
+    norm = np.zeros((2, nv + 1))
+    norm[0, :nv] = problem.variables.trace_row()
+    norm[1, nv] = 1.0
+    blocks_A.append(sp.csc_matrix(norm))
+    b_parts.append(np.ones(2))
+    for name, c in const.items():
+        m = int(round((math.sqrt(8 * c.size + 1) - 1) / 2))
+        eye = svec(np.eye(m))
+        # s = c + J x - t svec(I) = b - A z with A = [-J, svec(I)], b = c
+        blocks_A.append(sp.csc_matrix(np.hstack([-cols[name], eye[:, None]])))
+        b_parts.append(c)
+        cones.append(clarabel.PSDTriangleConeT(m))
+    A = sp.vstack(blocks_A, format="csc")
+    b = np.concatenate(b_parts)
+    q = np.zeros(nv + 1)
+    q[nv] = -1.0
+    settings = clarabel.DefaultSettings()
+    settings.verbose = False
+    settings.max_iter = 200
+    sol = clarabel.DefaultSolver(sp.csc_matrix((nv + 1, nv + 1)), q, A, b, cones, settings).solve()
+    z = np.asarray(sol.x, dtype=float)
+    t = float(z[nv]) if z.size == nv + 1 and np.all(np.isfinite(z)) else math.nan
+    return SdpSolution(z[:nv] if z.size == nv + 1 else np.zeros(nv), t, str(sol.status))
+
+
+def solver_says_infeasible(sol: SdpSolution) -> bool:
+    """The solver's optimum t in ``sol`` is clearly negative: no strictly feasible point (not re-checked)."""
+    return sol.status == "Solved" and math.isfinite(sol.t) and sol.t < -_INFEASIBLE_T
+
+
+def leading_minors_positive(M: NDArray[Any]) -> bool:
+    """Exact positive definiteness of the symmetric rational matrix ``M`` (Sylvester's criterion).
+
+    The matrix is scaled to integers by the least common denominator and
+    Bareiss's fraction-free elimination produces its leading principal minors
+    ``Delta_k`` as the successive pivots; the pivots of the exact LDL^T are
+    ``d_k = Delta_k / Delta_{k-1}``, so all positive is the same test.
+    """
+    m = M.shape[0]
+    fr = [[Fraction(M[i, j]) for j in range(m)] for i in range(m)]
+    if any(fr[i][j] != fr[j][i] for i in range(m) for j in range(i)):
+        return False
+    den = 1
+    for row in fr:
+        for v in row:
+            den = den * v.denominator // math.gcd(den, v.denominator)
+    Z = [[int(v * den) for v in row] for row in fr]
+    prev = 1
+    for k in range(m):
+        piv = Z[k][k]
+        if piv <= 0:
+            return False
+        for i in range(k + 1, m):
+            for j in range(k + 1, m):
+                Z[i][j] = (Z[i][j] * piv - Z[i][k] * Z[k][j]) // prev
+        prev = piv
+    return True
+
+
+@dataclass(frozen=True)
+class Recheck:
+    """The independent re-check of one solution: variables, matrices and their verdicts.
+
+    Attributes
+    ----------
+    values
+        The decision variables (rounded to the dyadic grid) the checks used.
+    matrices
+        Each LMI matrix rebuilt from them in floating point.
+    min_eigenvalues
+        Smallest eigenvalue of each, relative to its 2-norm.
+    eigenvalues_ok
+        Every relative smallest eigenvalue above :data:`EIG_MARGIN`.
+    exact_ok
+        Every matrix positive definite in exact arithmetic; None when too large to check.
+    """
+
+    values: dict[str, NDArray[np.float64]]
+    rational: tuple[Fraction, ...] = field(repr=False)
+    matrices: dict[str, NDArray[np.float64]]
+    min_eigenvalues: dict[str, float]
+    eigenvalues_ok: bool
+    exact_ok: bool | None
+
+    @property
+    def passed(self) -> bool:
+        """Both checks passed (the exact one where it was run)."""
+        return self.eigenvalues_ok and self.exact_ok is not False
+
+
+def _dyadic(x: NDArray[np.float64]) -> list[Fraction]:
+    scale = 2**_GRID_BITS
+    return [Fraction(round(float(v) * scale), scale) for v in x]
+
+
+def exact_check(problem: LmiProblem, rational: tuple[Fraction, ...]) -> bool | None:
+    """Every LMI matrix, rebuilt in exact arithmetic from the rounded variables, positive definite.
+
+    Parameters
+    ----------
+    problem
+        The LMI problem whose builder runs here on Fractions.
+    rational
+        The decision variables as exact dyadic rationals (:attr:`Recheck.rational`).
+
+    Returns None when the matrices are too large for the exact check (:data:`EXACT_LIMIT`).
+    """
+    sizes = problem.build(problem.variables.unpack(np.zeros(len(rational))), False)
+    if sum(M.shape[0] for M in sizes.values()) > EXACT_LIMIT:
+        return None
+    mats = problem.build(problem.variables.unpack(np.array(rational, dtype=object)), True)
+    return all(leading_minors_positive(M) for M in mats.values())
+
+
+def recheck(problem: LmiProblem, x: NDArray[np.float64], *, exact: bool = True) -> Recheck:
+    """Rebuild every LMI matrix from rounded variables and check it positive definite twice.
+
+    Parameters
+    ----------
+    problem
+        The LMI problem.
+    x
+        The decision variables the solver returned (never trusted: only re-checked).
+    exact
+        Also run the exact check (False: only the eigenvalues, ``exact_ok`` None;
+        :func:`exact_check` can complete it later).
+    """
+    rational = tuple(_dyadic(x))
+    xr = np.array([float(v) for v in rational])  # exact: |v| 2^40 < 2^53 for the bounded variables
+    values = problem.variables.unpack(xr)
+    mats = {k: np.asarray(v, dtype=float) for k, v in problem.build(values, False).items()}
+    rel: dict[str, float] = {}
+    ok = True
+    for k, M in mats.items():
+        if not np.all(np.isfinite(M)) or not np.allclose(M, M.T, rtol=0.0, atol=1e-12 * max(1.0, np.abs(M).max())):
+            rel[k] = -math.inf
+            ok = False
+            continue
+        norm = float(np.linalg.norm(M, 2))
+        lam = float(np.linalg.eigvalsh(0.5 * (M + M.T))[0])
+        rel[k] = lam / norm if norm > 0 else -math.inf
+        ok = ok and rel[k] > EIG_MARGIN
+    done = exact_check(problem, rational) if ok and exact else None
+    return Recheck(values, rational, mats, rel, ok, done)
