@@ -60,6 +60,7 @@ import numpy.polynomial.polynomial as npoly
 from numpy.typing import NDArray
 
 from delayform._display import FigureRepr
+from delayform._extras import require_extra
 from delayform.analysis.roots import count_roots_right_of
 from delayform.characteristic import TwoDelayQuasiPolynomial
 from delayform._validation import check_delay, validated
@@ -113,14 +114,11 @@ def _from_pair(loop: tuple[Any, Any], name: str) -> tuple[NDArray[np.float64], N
     return _trim(num), _trim(den)
 
 
-def _control_module(name: str, loop: object) -> Any:
-    try:
-        import control
-    except ImportError as exc:  # pragma: no cover - control is in the test extra
-        raise LoopError(
-            f"{name} is a {type(loop).__name__}; reading python-control objects needs "
-            "python-control (pip install delayform[control])"
-        ) from exc
+def _control_module() -> Any:
+    """python-control, for a loop that is not a pair (num, den) of coefficients."""
+    require_extra("control")
+    import control
+
     return control
 
 
@@ -185,7 +183,7 @@ def loop_polynomials(loop: object, *, name: str = "loop") -> tuple[NDArray[np.fl
     if isinstance(loop, tuple) and len(loop) == 2:
         num, den = _from_pair(loop, name)
     else:
-        control = _control_module(name, loop)
+        control = _control_module()
         if not isinstance(loop, (control.TransferFunction, control.StateSpace, control.FrequencyResponseData)):
             raise LoopError(
                 f"{name} must be a python-control TransferFunction or StateSpace, or a pair "
@@ -683,7 +681,7 @@ def _is_mimo(loop: object) -> bool:
 
 
 def _as_state_space(loop: Any, name: str) -> Any:
-    control = _control_module(name, loop)
+    control = _control_module()
     _check_continuous(loop, name)
     if loop.ninputs != loop.noutputs:
         raise LoopError(

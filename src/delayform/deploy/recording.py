@@ -41,6 +41,7 @@ from typing import Any
 
 import numpy as np
 
+from delayform._extras import require_extra
 from delayform._files import atomic_path
 from delayform._validation import validated
 from delayform.errors import RecordingError
@@ -72,7 +73,10 @@ def check_mcap_path(path: str | Path) -> Path:
     RecordingError
         For an empty name, a folder in its place, or a folder that is
         missing or cannot be written.
+    MissingExtraError
+        Without mcap or rosbags (the ``ros`` extra): no recording could be written.
     """
+    require_extra("ros")
     if not isinstance(path, (str, os.PathLike)) or not str(path).strip():
         raise RecordingError(f"the MCAP path must be a file name, got {path!r}")
     if "\x00" in os.fspath(path):  # pathlib and the OS would raise their own ValueError
@@ -123,7 +127,10 @@ def write_mcap(trajectory: Trajectory, path: str | Path, *, compression: str = "
     RecordingError
         For a double-integrator run (no robot commands), a bad compression
         name or a path that cannot be written (:func:`check_mcap_path`).
+    MissingExtraError
+        Without mcap or rosbags (the ``ros`` extra).
     """
+    require_extra("ros")
     from mcap.writer import CompressionType, Writer
     from rosbags.typesys import Stores, get_typestore
 
