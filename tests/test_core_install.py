@@ -82,6 +82,16 @@ def test_import_and_the_readme_example_need_no_extra(tmp_path: Path) -> None:
     assert done.stdout.splitlines()[-1] == "tried: []"
 
 
+def test_a_delay_margin_of_coefficients_needs_no_extra(tmp_path: Path) -> None:
+    # L = 2 / (s + 1): |L(jw)| = 1 at w = sqrt(3), phase margin pi - atan(sqrt 3) = 2 pi / 3, tau = PM / w
+    code = ("import math\nfrom delayform import delay_margin\n"
+            "m = delay_margin(([2.0], [1.0, 1.0]))\n"
+            "print(abs(m.tau - (2 * math.pi / 3) / math.sqrt(3)) < 1e-12, REFUSED)")  # fmt: skip
+    done = _core("code", code, cwd=tmp_path)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert done.stdout.splitlines()[-1] == "True []"
+
+
 def test_the_library_names_the_extra_it_needs(tmp_path: Path) -> None:
     # each call must raise MissingExtraError (an ImportError too) naming its extra, before any work
     code = """
@@ -207,3 +217,13 @@ def test_require_extra_passes_when_installed_and_its_error_is_an_import_error() 
     assert issubclass(MissingExtraError, ImportError) and issubclass(MissingExtraError, DelayformError)
     with pytest.raises(KeyError):
         require_extra("nonexistent")
+
+
+def test_citation_and_licence_match_the_package() -> None:
+    citation = (ROOT / "CITATION.cff").read_text(encoding="utf-8")
+    assert re.search(r"^cff-version: 1\.2\.0$", citation, flags=re.M)
+    assert re.search(r"^version: (.+)$", citation, flags=re.M).group(1) == delayform.__version__
+    assert "Formation Control of Non-holonomic Vehicles under Time Delayed Communications" in citation
+    licence = (ROOT / "LICENSE").read_text(encoding="utf-8")
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    assert licence.startswith("MIT License") and project["license"] == "MIT" and "LICENSE" in project["license-files"]
