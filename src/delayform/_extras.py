@@ -20,7 +20,7 @@ __all__ = ["EXTRAS", "require_extra"]
 EXTRAS: dict[str, tuple[str, tuple[str, ...]]] = {
     # the explorer's page switches the safety filter on and off: its extra brings Clarabel too
     "explore": ("the explorer (delayform explore)", ("starlette", "uvicorn", "plotly", "clarabel")),
-    "cluster": ("runs on Dask workers or a Dask scheduler", ("dask", "distributed")),
+    "cluster": ("runs on a Dask cluster (workers or a scheduler)", ("dask", "distributed")),
     "ros": ("ROS 2 recordings (MCAP)", ("mcap", "rosbags")),
     "control": ("python-control loops", ("control",)),
     "safety": ("the safety filter (safety = \"barrier\")", ("clarabel",)),
@@ -60,5 +60,5 @@ def require_extra(extra: str) -> None:
     missing = [m for m in modules if not _installed(m)]
     if missing:
         raise MissingExtraError(
-            f"{purpose} needs {', '.join(missing)}, not installed: pip install 'delayform[{extra}]'", extra=extra
+            f"{purpose}: {', '.join(missing)} not installed; pip install 'delayform[{extra}]'", extra=extra
         )
