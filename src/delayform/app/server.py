@@ -85,9 +85,9 @@ def plotly_bundle() -> Path:
     require_extra("explore")
     spec = importlib.util.find_spec("plotly")
     folders = list(spec.submodule_search_locations or []) if spec is not None else []
-    path = Path(folders[0] if folders else ".") / "package_data" / "plotly.min.js"
-    if not folders or not path.is_file():
-        raise InputError(f"the installed plotly package has no {path.name}")
+    path = Path(folders[0]) / "package_data" / "plotly.min.js" if folders else None
+    if path is None or not path.is_file():
+        raise InputError("the installed plotly package has no plotly.min.js")
     return path
 
 
@@ -160,7 +160,7 @@ def create_app(explorer: Explorer) -> Any:
     Raises
     ------
     MissingExtraError
-        Without Starlette, uvicorn or plotly (the ``explore`` extra).
+        Without the ``explore`` extra (Starlette, uvicorn, Plotly, Clarabel).
     """
     require_extra("explore")
     import anyio
@@ -339,7 +339,7 @@ def start(explorer: Explorer, *, host: str = LOOPBACK, port: int = 0) -> Running
     Raises
     ------
     MissingExtraError
-        Without Starlette, uvicorn or plotly (the ``explore`` extra), before any port is taken.
+        Without the ``explore`` extra (Starlette, uvicorn, Plotly, Clarabel), before any port is taken.
     """
     require_extra("explore")
     sock = bind(host, port)
@@ -373,7 +373,7 @@ def serve(explorer: Explorer, *, host: str = LOOPBACK, port: int = 0,
     Raises
     ------
     MissingExtraError
-        Without Starlette, uvicorn or plotly (the ``explore`` extra), before any port is taken.
+        Without the ``explore`` extra (Starlette, uvicorn, Plotly, Clarabel), before any port is taken.
     """
     require_extra("explore")
     sock = bind(host, port)
