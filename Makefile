@@ -10,10 +10,12 @@ $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 
+# the core only: `delayform paper` needs no extra (tests/test_core_install.py runs the commands without them)
 $(VENV)/.installed: $(BIN)/python pyproject.toml
 	$(BIN)/python -m pip install --quiet -e .
 	touch $@
 
+# the test extra brings every extra (all), so make test tests everything
 $(VENV)/.installed-test: $(VENV)/.installed
 	$(BIN)/python -m pip install --quiet -e ".[test]"
 	touch $@
@@ -53,8 +55,9 @@ docs: install-test
 wheel: install-test
 	$(BIN)/python -m build --outdir dist .
 
+# the benchmarks time the explorer, Dask runs, MCAP export, the safety filter and python-control loops too
 bench: install
-	$(BIN)/python -m pip install --quiet -e ".[bench]"
+	$(BIN)/python -m pip install --quiet -e ".[all,bench]"
 	for f in benchmarks/bench_*.py; do $(BIN)/python $$f || exit 1; done
 
 clean:

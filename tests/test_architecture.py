@@ -20,6 +20,7 @@ PACKAGE = Path(delayform.__file__).parent
 #: stage of each module or subpackage (first match of the dotted prefix, longest first)
 STAGES: dict[str, int] = {
     "errors": 0,
+    "_extras": 0,  # a leaf: the check that names the extra to install, imports only errors
     "_validation": 0,
     "resources": 0,  # a leaf: memory and time budget guard
     "_files": 0,  # a leaf: complete-or-absent output files

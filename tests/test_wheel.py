@@ -1,9 +1,12 @@
-"""The wheel installs into a bare virtual environment and every command runs from it (issue 23).
+"""The wheel installs into a bare virtual environment and every command runs from it.
 
-Slow: it builds the wheel, makes a venv without the project, installs the
-wheel (dependencies from the configured index or pip's cache) and runs each
-``delayform`` command on a shipped example, the explorer included (its page,
-script and Plotly served from the installed package).
+Slow: they build the wheel once, make venvs without the project and install
+the wheel there (dependencies from the configured index or pip's cache).
+With every extra (``delayform[all]``), each ``delayform`` command runs on a
+shipped example, the explorer included (its page, script and Plotly served
+from the installed package). Without extras (``pip install delayform``),
+the core stays small, its commands run, and a command that needs an extra
+says which in one line.
 """
 
 from __future__ import annotations
@@ -24,10 +27,14 @@ from delayform.cli import cli
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def _run(args: list[str], *, timeout: float = 600, cwd: Path | None = None) -> str:
+def _call(args: list[str], *, timeout: float = 600, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
     # without PYTHONPATH: the bare venv must import the installed wheel, never a source tree
     env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
-    done = subprocess.run(args, capture_output=True, text=True, timeout=timeout, cwd=cwd, check=False, env=env)
+    return subprocess.run(args, capture_output=True, text=True, timeout=timeout, cwd=cwd, check=False, env=env)
+
+
+def _run(args: list[str], *, timeout: float = 600, cwd: Path | None = None) -> str:
+    done = _call(args, timeout=timeout, cwd=cwd)
     assert done.returncode == 0, f"{' '.join(args)}\n{done.stdout[-2000:]}\n{done.stderr[-3000:]}"
     return done.stdout
 
@@ -72,21 +79,33 @@ def _check_explorer(exe: Path, out: Path) -> None:
             proc.wait(timeout=30)
 
 
-@pytest.mark.slow
-def test_wheel_installs_in_a_bare_venv_and_runs_every_command(tmp_path: Path) -> None:
-    dist = tmp_path / "dist"
+@pytest.fixture(scope="module")
+def wheel(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The project's wheel, built once for this module's tests, with what it must ship checked."""
+    dist = tmp_path_factory.mktemp("dist")
     _run([sys.executable, "-m", "build", "--wheel", "--outdir", str(dist), str(ROOT)], timeout=600)
-    (wheel,) = dist.glob("delayform-*.whl")
-    assert wheel.name.startswith(f"delayform-{delayform.__version__}-")
-    names = set(zipfile.ZipFile(wheel).namelist())
+    (built,) = dist.glob("delayform-*.whl")
+    assert built.name.startswith(f"delayform-{delayform.__version__}-")
+    names = set(zipfile.ZipFile(built).namelist())
     shipped = {"delayform/py.typed"} | {f"delayform/app/static/{p.name}" for p in (ROOT / "src/delayform/app/static").iterdir()}
     shipped |= {f"delayform/examples/{p.name}" for p in (ROOT / "examples").glob("*.toml")}
+    shipped |= {f"delayform-{delayform.__version__}.dist-info/licenses/LICENSE"}
     assert shipped <= names, f"missing from the wheel: {sorted(shipped - names)}"
+    return built
 
+
+def _venv(where: Path, requirement: str) -> tuple[Path, Path]:
+    """A fresh venv at ``where`` with ``requirement`` installed: its python and its delayform."""
+    _run([sys.executable, "-m", "venv", str(where)])
+    python, exe = where / "bin" / "python", where / "bin" / "delayform"
+    _run([str(python), "-m", "pip", "install", "--quiet", requirement], timeout=1200)
+    return python, exe
+
+
+@pytest.mark.slow
+def test_wheel_installs_in_a_bare_venv_and_runs_every_command(wheel: Path, tmp_path: Path) -> None:
     env = tmp_path / "venv"
-    _run([sys.executable, "-m", "venv", str(env)])
-    python, exe = env / "bin" / "python", env / "bin" / "delayform"
-    _run([str(python), "-m", "pip", "install", "--quiet", str(wheel)], timeout=1200)
+    python, exe = _venv(env, f"{wheel}[all]")
     version, example = _run(
         [str(python), "-c", "import delayform; print(delayform.__version__); print(delayform.example_path('ring12'))"],
         cwd=tmp_path,
@@ -100,3 +119,36 @@ def test_wheel_installs_in_a_bare_venv_and_runs_every_command(tmp_path: Path) ->
         _run([str(exe), command, *args], cwd=tmp_path)
     assert _run([str(exe), "--version"]).strip().endswith(delayform.__version__)
     _check_explorer(exe, out)
+
+
+#: what `pip install delayform` may bring at most (delayform and its dependencies; pip and
+#: setuptools come with the venv): the core's numbers are in docs/benchmarks.md
+CORE_PACKAGES = 20
+CORE_MIB = 400
+
+#: the size (bytes) of every installed distribution's files but the venv's own pip and setuptools
+_INSTALLED = """
+import importlib.metadata as md, json
+dists = [d for d in md.distributions() if d.metadata["Name"].lower() not in ("pip", "setuptools")]
+size = sum(f.locate().stat().st_size for d in dists for f in d.files or [] if f.locate().is_file())
+print(json.dumps({"names": sorted(d.metadata["Name"] for d in dists), "bytes": size}))
+"""
+
+
+@pytest.mark.slow
+def test_the_core_install_is_small_and_its_commands_run(wheel: Path, tmp_path: Path) -> None:
+    import json
+
+    python, exe = _venv(tmp_path / "venv", str(wheel))
+    found = json.loads(_run([str(python), "-c", _INSTALLED], cwd=tmp_path))
+    assert len(found["names"]) <= CORE_PACKAGES, f"{len(found['names'])} packages: {found['names']}"
+    assert found["bytes"] < CORE_MIB * 2**20, f"{found['bytes'] / 2**20:.0f} MiB"
+    assert not {"plotly", "dask", "distributed", "starlette", "uvicorn", "mcap", "rosbags", "clarabel"} & {
+        n.lower() for n in found["names"]}  # fmt: skip
+
+    out = tmp_path / "out"
+    _run([str(exe), "chart", "--out", str(out), "--tau1-max", "2", "--tau2-max", "2"], cwd=tmp_path)
+    _run([str(exe), "roots", "--out", str(out)], cwd=tmp_path)
+    refused = _call([str(exe), "explore", "--no-browser", "--port", "0"], timeout=300, cwd=tmp_path)
+    assert refused.returncode == 2, refused.stderr
+    assert refused.stderr.strip().endswith("pip install 'delayform[explore]'"), refused.stderr

@@ -159,7 +159,7 @@ _EXPORTS: dict[str, str] = {
         "DelayformError", "InputError", "TopologyError", "NoSpanningTreeError", "GainError", "DelayError",
         "NoStableDelaysError", "NoStableGainsError", "QuasiPolynomialError", "NeutralQuasiPolynomialError",
         "FormationError", "SimulationInputError", "NetworkError", "ClusterError", "ScenarioError",
-        "ResourceLimitError", "NotConvergedError",
+        "ResourceLimitError", "NotConvergedError", "MissingExtraError",
     )},  # fmt: skip
     # robots with bodies (issue 21)
     "Robot": "simulation",

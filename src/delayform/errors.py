@@ -30,6 +30,7 @@ The tree::
     |       +-- UnstableLoopError          a loop unstable at tau = 0 asked for a delay margin
     +-- NotConvergedError (RuntimeError)   carries the partial result
     +-- EssentialSpectrumError (RuntimeError)  neutral: no root right of the essential spectrum
+    +-- MissingExtraError (ImportError)    an optional package not installed: names the extra
 
     FragileNeutralWarning (UserWarning)    neutral: an answer at the delays given that is not
                                            strongly stable (small delay changes destabilize it)
@@ -64,6 +65,7 @@ __all__ = [
     "FragileNeutralWarning",
     "LoopError",
     "UnstableLoopError",
+    "MissingExtraError",
 ]
 
 
@@ -226,3 +228,24 @@ class LoopError(InputError):
 
 class UnstableLoopError(LoopError):
     """A loop whose closed loop 1 + L(s) is not stable without delay, asked for a delay margin."""
+
+
+class MissingExtraError(DelayformError, ImportError):
+    """A feature whose optional packages are not installed; the message names the extra to install.
+
+    ``pip install delayform`` brings the analysis and the plain simulation;
+    the explorer, Dask clusters, ROS 2 recordings and python-control loops
+    come with extras (``pip install 'delayform[explore]'``). An ``ImportError``
+    too, so code that already guards an import keeps working.
+
+    Parameters
+    ----------
+    message
+        One line: what needs which packages, and the ``pip install`` that brings them.
+    extra
+        The extra's name (``"explore"``, ``"cluster"``, ``"ros"``, ``"control"``).
+    """
+
+    def __init__(self, message: str, extra: str = "") -> None:
+        super().__init__(message)
+        self.extra = extra

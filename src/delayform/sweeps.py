@@ -41,6 +41,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from delayform._extras import require_extra
 from delayform._validation import validated
 from delayform.errors import ClusterError, SimulationInputError
 from delayform.formation import named_formation
@@ -158,7 +159,10 @@ def check_workers(workers: object) -> int:
     ------
     ClusterError
         Not a positive integer, or more than the cores of this machine.
+    MissingExtraError
+        Without Dask (the ``cluster`` extra).
     """
+    require_extra("cluster")
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise ClusterError(f"workers must be a positive integer, got {workers!r}")
     cores = usable_cores()
@@ -185,11 +189,15 @@ def parse_scheduler(address: object) -> tuple[str, str, int]:
     ------
     ClusterError
         Anything else, in one line naming the address.
+    MissingExtraError
+        Without Dask (the ``cluster`` extra): no address is of use then.
 
     >>> parse_scheduler("tcp://[::1]:8786")
     ('tcp', '::1', 8786)
     """
     from urllib.parse import urlsplit
+
+    require_extra("cluster")
 
     def bad(reason: str) -> ClusterError:
         return ClusterError(f"scheduler: {address!r} is not an address like tcp://host:8786 ({reason})")

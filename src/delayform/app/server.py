@@ -51,6 +51,7 @@ from delayform.app.jitter_layer import JitterLayer
 from delayform.app.side_by_side import SideBySide
 from delayform.app.params import Param, parse_query
 from delayform.app.robot_controls import RobotControls
+from delayform._extras import require_extra
 from delayform.errors import DelayformError, InputError
 
 __all__ = ["LOOPBACK", "create_app", "check_host", "bind", "start", "serve", "RunningExplorer"]
@@ -76,15 +77,17 @@ def plotly_bundle() -> Path:
 
     Raises
     ------
+    MissingExtraError
+        When the ``plotly`` package is not installed (the ``explore`` extra).
     InputError
-        When the ``plotly`` package is not installed.
+        When the installed plotly has no bundle.
     """
+    require_extra("explore")
     spec = importlib.util.find_spec("plotly")
-    if spec is None or not spec.submodule_search_locations:
-        raise InputError("the explorer needs the 'plotly' package (pip install plotly)")
-    path = Path(next(iter(spec.submodule_search_locations))) / "package_data" / "plotly.min.js"
-    if not path.is_file():
-        raise InputError(f"the installed plotly package has no {path.name}")
+    folders = list(spec.submodule_search_locations or []) if spec is not None else []
+    path = Path(folders[0]) / "package_data" / "plotly.min.js" if folders else None
+    if path is None or not path.is_file():
+        raise InputError("the installed plotly package has no plotly.min.js")
     return path
 
 
@@ -153,7 +156,13 @@ def create_app(explorer: Explorer) -> Any:
     ----------
     explorer
         The computations behind the page.
+
+    Raises
+    ------
+    MissingExtraError
+        Without the ``explore`` extra (Starlette, uvicorn, Plotly, Clarabel).
     """
+    require_extra("explore")
     import anyio
     from starlette.applications import Starlette
     from starlette.exceptions import HTTPException
@@ -326,7 +335,13 @@ def start(explorer: Explorer, *, host: str = LOOPBACK, port: int = 0) -> Running
     -------
     RunningExplorer
         Its ``url``; ``stop()`` it (or use it as a context manager).
+
+    Raises
+    ------
+    MissingExtraError
+        Without the ``explore`` extra (Starlette, uvicorn, Plotly, Clarabel), before any port is taken.
     """
+    require_extra("explore")
     sock = bind(host, port)
     server = _server(explorer)
     thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, daemon=True, name="delayform-explorer")
@@ -354,7 +369,13 @@ def serve(explorer: Explorer, *, host: str = LOOPBACK, port: int = 0,
         0 for a free port.
     on_ready
         Called with the page's URL once the server listens (e.g. to open a browser).
+
+    Raises
+    ------
+    MissingExtraError
+        Without the ``explore`` extra (Starlette, uvicorn, Plotly, Clarabel), before any port is taken.
     """
+    require_extra("explore")
     sock = bind(host, port)
     url = f"http://{LOOPBACK}:{sock.getsockname()[1]}/"
     server = _server(explorer)

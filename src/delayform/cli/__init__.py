@@ -8,7 +8,8 @@ summary as JSON on stdout with ``--json``. Progress goes to stderr.
 
 Every input error (a bad option, a malformed scenario file, an argument the
 library rejects) is one line on stderr naming the problem and exit code 2;
-no traceback reaches the user for an input error.
+no traceback reaches the user for an input error. So is a command that needs
+an optional package not installed: the line names the extra to install.
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ import click
 from delayform.cli import analysis, check, design, explore, gains, montecarlo, region, reports, simulation, sweep  # noqa: F401
 from delayform.cli import guarantees  # noqa: F401  (issue 20)
 from delayform.cli._common import _fail, cli
-from delayform.errors import DelayformError, InputError
+from delayform.errors import DelayformError, InputError, MissingExtraError
 
 __all__ = ["cli", "main"]
 
@@ -124,6 +125,8 @@ def _main(argv: list[str] | None) -> None:
         sys.exit(130)
     except InputError as exc:
         _fail(own_options(str(exc).replace("\n", " "), argv))
+    except MissingExtraError as exc:  # a core install: the one line says which extra to install
+        _fail(str(exc))
     except DelayformError as exc:  # a computation that did not succeed: not the user's input
         _fail(own_options(str(exc).replace("\n", " "), argv), code=1)
     except OSError as exc:  # e.g. an output file name taken by a folder, a full disk

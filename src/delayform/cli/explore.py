@@ -32,8 +32,10 @@ def explore_command(scenario: Path | None, port: int, host: str, no_browser: boo
     """
     import webbrowser
 
+    from delayform._extras import require_extra
     from delayform.app import Explorer, check_host, serve
 
+    require_extra("explore")  # a core install has no web server: say which extra, before any work
     check_host(host)  # refuse before reading anything
     sc = _scenario(scenario, topology_name=None, n=None, P=None, D=None, tau1=None, tau2=None)
     # proven writable before the page is served (a download must not be the first to find out);

@@ -75,8 +75,10 @@ def simulate_command(scenario: Path | None, model: str | None, duration: float |
     sc = with_actuation(_scenario(scenario, seed=seed, **overrides), actuation_delay)
     sim = _simulation_spec(sc, model=model, duration=duration, dt=dt, assignment=assignment)
     if mcap is not None:
+        from delayform._extras import require_extra
         from delayform.deploy.recording import check_mcap_path
 
+        require_extra("ros")  # a core install writes no recordings: say which extra, before any work
         if sim.model != "unicycle":
             raise click.UsageError("--mcap records robots: use --model unicycle")
         # its folder is created with --out's, below; what can be refused without creating it is refused now

@@ -73,6 +73,7 @@ from typing import Any
 
 import numpy as np
 
+from delayform._extras import require_extra
 from delayform._files import atomic_path
 from delayform._validation import validated
 from delayform.deploy._cdr import Layout, Slot
@@ -129,7 +130,10 @@ def check_mcap_path(path: str | Path) -> Path:
     RecordingError
         For an empty name, a folder in its place, or a folder that is
         missing or cannot be written.
+    MissingExtraError
+        Without mcap or rosbags (the ``ros`` extra): no recording could be written.
     """
+    require_extra("ros")
     if not isinstance(path, (str, os.PathLike)) or not str(path).strip():
         raise RecordingError(f"the MCAP path must be a file name, got {path!r}")
     if "\x00" in os.fspath(path):  # pathlib and the OS would raise their own ValueError
@@ -253,7 +257,10 @@ def write_mcap(
         For a double-integrator run (no robot commands), a topology of
         another size, a bad compression name, start time or metadata, or a
         path that cannot be written (:func:`check_mcap_path`).
+    MissingExtraError
+        Without mcap or rosbags (the ``ros`` extra).
     """
+    require_extra("ros")
     from mcap.writer import CompressionType, Writer
     from rosbags.typesys import Stores, get_typestore
 

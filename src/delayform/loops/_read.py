@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from delayform._extras import require_extra
 from delayform._validation import validated
 from delayform.errors import LoopError
 from delayform.characteristic import TwoDelayQuasiPolynomial
@@ -44,13 +45,10 @@ def _from_pair(loop: tuple[Any, Any], name: str) -> tuple[NDArray[np.float64], N
 
 
 def _control_module(name: str, loop: object) -> Any:
-    try:
-        import control
-    except ImportError as exc:  # pragma: no cover - control is in the test extra
-        raise LoopError(
-            f"{name} is a {type(loop).__name__}; reading python-control objects needs "
-            "python-control (pip install delayform[control])"
-        ) from exc
+    """python-control, for ``loop`` (named ``name``) that is not a pair (num, den) of coefficients."""
+    require_extra("control")
+    import control
+
     return control
 
 

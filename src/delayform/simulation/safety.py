@@ -99,6 +99,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from delayform._extras import require_extra
 from delayform._validation import validated
 from delayform.errors import SimulationInputError
 from delayform.simulation.bodies import _complex
@@ -141,12 +142,19 @@ class BarrierFilter:
         and brake harder. Default 2.
     margin
         Added to the sum of the radii (m): the safe distance ``Ds``. Default 0.02.
+
+    Raises
+    ------
+    MissingExtraError
+        Without Clarabel (the ``safety`` extra), which solves its joint QP.
     """
 
     rate: float = 2.0
     margin: float = 0.02
 
     def __post_init__(self) -> None:
+        # its joint QP (Clarabel) is reached only mid-run, when constraints conflict: refuse up front
+        require_extra("safety")
         for name in ("rate", "margin"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):

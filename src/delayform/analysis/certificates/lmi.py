@@ -37,6 +37,8 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
+from delayform._extras import require_extra
+
 __all__ = ["LmiProblem", "Variables", "Recheck", "SdpSolution", "solve", "recheck", "exact_check", "leading_minors_positive",
            "solver_says_infeasible", "svec"]
 
@@ -177,7 +179,13 @@ def solve(problem: LmiProblem) -> SdpSolution:
     ----------
     problem
         The variables and the LMI builder; the builder is linearized once per solve.
+
+    Raises
+    ------
+    MissingExtraError
+        Without Clarabel (the ``certificates`` extra).
     """
+    require_extra("certificates")
     import clarabel
 
     const, cols = _linearize(problem)
