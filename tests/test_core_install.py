@@ -101,12 +101,14 @@ from delayform.sweeps import check_workers, parse_scheduler
 from delayform.deploy.recording import check_mcap_path
 from delayform.loops import delay_margin
 from delayform.app import create_app
+from delayform import time_varying_delay_margin
 calls = {
     "cluster": [lambda: check_workers(1), lambda: parse_scheduler("tcp://127.0.0.1:8786")],
     "ros": [lambda: check_mcap_path("run.mcap")],
     "safety": [lambda: BarrierFilter()],
     "control": [lambda: delay_margin(object())],
     "explore": [lambda: create_app(None)],
+    "certificates": [lambda: time_varying_delay_margin([[-2.0, 0.0], [0.0, -0.9]], [[-1.0, 0.0], [-1.0, -1.0]])],
 }
 for extra, fns in calls.items():
     for fn in fns:
@@ -121,8 +123,9 @@ for extra, fns in calls.items():
     done = _core("code", code, cwd=tmp_path)
     assert done.returncode == 0, done.stderr[-3000:]
     lines = done.stdout.splitlines()
-    assert len(lines) == 6
-    for line, extra in zip(lines, ["cluster", "cluster", "ros", "safety", "control", "explore"], strict=True):
+    assert len(lines) == 7
+    extras = ["cluster", "cluster", "ros", "safety", "control", "explore", "certificates"]
+    for line, extra in zip(lines, extras, strict=True):
         assert line.endswith(f"pip install 'delayform[{extra}]'"), line
     assert not list(tmp_path.iterdir()), "a refused call wrote a file"
 
