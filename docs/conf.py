@@ -6,14 +6,17 @@ errors), so a broken docstring fails the build; MyST lets the existing
 Markdown pages in docs/ stay as they are, and MyST-NB executes the tutorial
 notebooks during the build, so they can never go stale.
 
-The API reference is generated at build time from ``delayform.__all__``:
-a name another engineer adds to ``_EXPORTS`` is documented without touching
-this file.
+The API reference is generated at build time from ``delayform.__all__``,
+one page per name, grouped by concept (``REFERENCE_GROUPS``: the module a
+name lives in decides its group), so a name another engineer adds to
+``_EXPORTS`` is documented without touching this file; a name in no group
+lands in "Other names" rather than disappearing.
 """
 
 from __future__ import annotations
 
 import inspect
+import logging
 from pathlib import Path
 
 import delayform
@@ -25,6 +28,7 @@ version = release
 
 extensions = [
     "sphinx.ext.autodoc",
+    "sphinx.ext.intersphinx",
     "sphinx.ext.mathjax",
     "sphinx.ext.viewcode",
     "numpydoc",
@@ -34,9 +38,33 @@ extensions = [
 source_suffix = {".rst": "restructuredtext", ".md": "myst-nb", ".ipynb": "myst-nb"}
 root_doc = "index"
 exclude_patterns = ["_build", "_generated/.keep", "**.ipynb_checkpoints"]
-html_theme = "alabaster"
-html_static_path: list[str] = []
+html_theme = "pydata_sphinx_theme"
+html_static_path = ["_static"]
+html_css_files = ["delayform.css"]  # wide tables scroll sideways instead of running off the page
 html_title = f"delayform {release}"
+html_theme_options = {
+    "navigation_with_keys": False,
+    "show_toc_level": 2,
+    "header_links_before_dropdown": 6,
+    "secondary_sidebar_items": ["page-toc", "sourcelink"],
+}
+html_sidebars = {"index": []}  # the landing page is wide: it has its own table of contents
+
+# intersphinx: numpy, scipy, matplotlib and python-control names in the reference and the
+# pages link to their documentation. The inventories are fetched over the network at each
+# build; a machine without one (CI reaches only package registries) must still build with
+# warnings as errors, so the single "failed to reach any of the inventories" warning is
+# demoted to an info line by ``_OfflineInventories`` below (Sphinx gives it no warning type,
+# so ``suppress_warnings`` cannot name it). Offline, those names are plain text; every other
+# warning still fails the build.
+intersphinx_mapping = {
+    "python": ("https://docs.python.org/3", None),
+    "numpy": ("https://numpy.org/doc/stable/", None),
+    "scipy": ("https://docs.scipy.org/doc/scipy/", None),
+    "matplotlib": ("https://matplotlib.org/stable/", None),
+    "control": ("https://python-control.readthedocs.io/en/stable/", None),
+}
+intersphinx_timeout = 10  # seconds: a blocked network fails fast instead of stalling the build
 
 # numpydoc: no autosummary tables of members (each class's members are documented in place);
 # See Also entries to names outside the reference are not turned into links that would warn
@@ -45,12 +73,15 @@ numpydoc_class_members_toctree = False
 numpydoc_xref_param_type = False
 numpydoc_validation_checks: set[str] = set()
 autodoc_default_options = {"members": True, "inherited-members": False, "undoc-members": False}
-autodoc_typehints = "none"  # the signatures carry them; numpydoc's Parameters say what they mean
+autodoc_typehints = "signature"  # numpy, matplotlib and python-control types link to their docs (intersphinx)
+autodoc_typehints_format = "short"
 autodoc_member_order = "bysource"
 
-# MyST: the existing pages use ``$...$`` nowhere and link to repository files outside docs/;
-# those links (to ../src/..., ../examples/...) are left as plain links rather than warnings.
-myst_enable_extensions = ["dollarmath"]
+# MyST: formulas are LaTeX, ``$...$`` inline and ``$$...$$`` (or amsmath environments) displayed,
+# rendered by MathJax; the pages link to repository files outside docs/ (../src/...,
+# ../examples/...), left as plain links rather than warnings.
+myst_enable_extensions = ["dollarmath", "amsmath"]
+myst_dmath_double_inline = True
 myst_heading_anchors = 3
 suppress_warnings = ["myst.xref_missing", "myst.header"]
 
@@ -75,25 +106,130 @@ def _directive(name: str, obj: object) -> str:
     return f".. autodata:: delayform.{name}\n   :annotation:\n"
 
 
+#: The reference's groups, in the order a user looks for things: (file stem, title, what the
+#: group answers, module prefixes). A name goes to the group of the longest prefix of the module
+#: it is defined in, or of its own name in ``GROUP_OF_NAME`` (constants have no module).
+REFERENCE_GROUPS: tuple[tuple[str, str, str, tuple[str, ...]], ...] = (
+    ("problem", "Teams, topologies and formations",
+     "The problem's nouns: who listens to whom, the shape the team takes, and where it ends up.",
+     ("delayform.topology", "delayform.formation")),
+    ("quasipolynomials", "Quasi-polynomials",
+     "The characteristic factors of a team and quasi-polynomials in any number of delays.",
+     ("delayform.characteristic", "delayform.quasipolynomial")),
+    ("ctcr", "Stability maps (CTCR)",
+     "Exact maps of the stable delay pairs: crossing curves, root tendencies, unstable-root counts.",
+     ("delayform.analysis.ctcr",)),
+    ("roots", "Roots",
+     "Rightmost and dominant roots with their certificates, every root in a rectangle, neutral spectra.",
+     ("delayform.analysis.roots", "delayform.analysis.neutral")),
+    ("plane", "Regions and spectrum sets",
+     "The eigenvalue plane: one answer for every graph, delays safe for a class of teams, large teams.",
+     ("delayform.analysis.plane",)),
+    ("networks", "Network guarantees",
+     "Per-link delays, delay boxes, jitter margins, packet loss in the mean square, time-varying delays.",
+     ("delayform.analysis.network", "delayform.analysis.certificates")),
+    ("design", "Design",
+     "Delays and gains chosen for the fastest certified decay.",
+     ("delayform.design",)),
+    ("simulation", "Simulation",
+     "Robots and their limits, bodies and contacts, slot assignment, the safety filter, trajectories.",
+     ("delayform.simulation",)),
+    ("simulated-networks", "Simulated networks",
+     "Imperfect networks in a simulation: per-link delays, variation, jitter, loss, sampling, noise.",
+     ("delayform.simulation.network",)),
+    ("sweeps", "Monte Carlo and sweeps",
+     "Many runs at once, in one process or on Dask workers, and their quantiles.",
+     ("delayform.simulation.montecarlo", "delayform.sweeps")),
+    ("scenarios", "Scenarios, reports and the explorer",
+     "A problem written down once (TOML), its report page and the interactive explorer.",
+     ("delayform.scenario", "delayform.report", "delayform.app", "delayform.packaged")),
+    ("deployment", "Deployment",
+     "From a design to robots: profiles, the on-robot controller, recordings, the fit check.",
+     ("delayform.deploy", "delayform.report.check")),
+    ("loops", "python-control loops",
+     "Exact delay margins and delayed PD gains for python-control systems.",
+     ("delayform.loops", "delayform.design.loop_gains")),
+    ("errors", "Errors",
+     "The exception tree: every refusal is one of these, a subclass of a built-in.",
+     ("delayform.errors",)),
+)
+GROUP_OF_NAME = {"PAPER_POINTS": "ctcr", "PROFILES": "deployment", "errors": "errors"}
+#: constants carry no docstring of their own (theirs would be their type's)
+CONSTANT_SUMMARY = {
+    "PAPER_POINTS": "The delay pairs a-e of the paper's stability figure: a, b, d, e stable, c not.",
+    "PROFILES": "Every robot profile by name (``delayform.robot_profile(name)`` returns one).",
+    "IROBOT_CREATE": "The iRobot Create's limits (wheel speeds, turn rate; an assumed acceleration).",
+    "errors": "The exception tree (module).",
+}
+OTHER_GROUP = ("other", "Other names", "Names not yet placed in a group.")
+
+
+def _group_of(name: str, obj: object) -> str:
+    if name in GROUP_OF_NAME:
+        return GROUP_OF_NAME[name]
+    module = obj.__name__ if inspect.ismodule(obj) else getattr(obj, "__module__", None) or ""
+    best, stem = -1, OTHER_GROUP[0]
+    for key, _title, _what, prefixes in REFERENCE_GROUPS:
+        for prefix in prefixes:
+            if (module == prefix or module.startswith(prefix + ".")) and len(prefix) > best:
+                best, stem = len(prefix), key
+    return stem
+
+
+def _order(name: str) -> tuple[int, int]:
+    """Functions first (where a user starts), then classes (what they return), then constants."""
+    obj = getattr(delayform, name)
+    kind = 0 if inspect.isroutine(obj) else 1 if inspect.isclass(obj) else 2
+    return kind, delayform.__all__.index(name)
+
+
+def _summary(obj: object) -> str:
+    """The first sentence of a docstring, as one line of rST (bars escaped, as in the pages)."""
+    doc = inspect.getdoc(obj) if inspect.isclass(obj) or inspect.isroutine(obj) else None
+    if not doc:
+        return ""
+    first = doc.split("\n\n")[0].replace("\n", " ").strip()
+    return _escape_bars(first)
+
+
+def _heading(title: str, mark: str = "=") -> str:
+    return f"{title}\n{mark * len(title)}\n"
+
+
 def write_api_reference() -> None:
-    """One page per public name of ``delayform.__all__`` and an index of them."""
+    """One page per public name of ``delayform.__all__``, one page per group, and their index."""
     GENERATED.mkdir(exist_ok=True)
     for old in GENERATED.glob("*.rst"):
         old.unlink()
     names = [n for n in delayform.__all__ if n != "__version__"]
+    members: dict[str, list[str]] = {}
     for name in names:
         obj = getattr(delayform, name)
-        title = f"``delayform.{name}``"
-        (GENERATED / f"{name}.rst").write_text(f"{title}\n{'=' * len(title)}\n\n{_directive(name, obj)}")
-    toc = "\n".join(f"   {n}" for n in names)
+        (GENERATED / f"{name}.rst").write_text(f"{_heading(f'``delayform.{name}``')}\n{_directive(name, obj)}")
+        members.setdefault(_group_of(name, obj), []).append(name)
+    groups = [g[:3] for g in REFERENCE_GROUPS if g[0] in members]
+    if OTHER_GROUP[0] in members:
+        groups.append(OTHER_GROUP)
+    for stem, title, what in groups:
+        rows = "".join(
+            f"   * - :doc:`delayform.{n} <{n}>`\n     - {CONSTANT_SUMMARY.get(n) or _summary(getattr(delayform, n))}\n"
+            for n in sorted(members[stem], key=_order)
+        )
+        toc = "".join(f"   {n}\n" for n in sorted(members[stem], key=_order))
+        (GENERATED / f"group-{stem}.rst").write_text(
+            f"{_heading(title)}\n{what}\n\n.. list-table::\n   :widths: 30 70\n\n{rows}\n"
+            f".. toctree::\n   :hidden:\n\n{toc}"
+        )
+    toc = "".join(f"   group-{stem}\n" for stem, _t, _w in groups)
     (GENERATED / "index.rst").write_text(
-        "API reference\n=============\n\n"
-        "Every name in ``delayform.__all__``, from its docstring (generated at build time).\n\n"
-        f".. toctree::\n   :maxdepth: 1\n\n{toc}\n"
+        f"{_heading('API reference')}\n"
+        "Every name in ``delayform.__all__``, from its docstring (generated at build time), grouped\n"
+        "as the problem is built up: the team, its quasi-polynomials, the maps and roots that\n"
+        "answer stability, guarantees over real networks, design, simulation and deployment.\n"
+        "Where each name lives in the package, and the conventions every name follows: :doc:`../api`.\n\n"
+        f".. toctree::\n   :maxdepth: 2\n\n{toc}"
     )
 
-
-write_api_reference()
 
 
 def _escape_bars(line: str) -> str:
@@ -131,7 +267,31 @@ def escape_absolute_values(app, what, name, obj, options, lines: list[str]) -> N
             literal_indent = indent
 
 
+write_api_reference()
+
+
+class _OfflineInventories(logging.Filter):
+    """Demote intersphinx's "failed to reach any of the inventories" warning to an info line.
+
+    Without a network (CI reaches only package registries) no inventory can be fetched; the
+    site must still build with warnings as errors, its numpy, SciPy, Matplotlib and
+    python-control names then plain text. Only that message, and only when the network could
+    not be reached (a connection error or a timeout), is demoted: an inventory that answers
+    wrongly (a mistyped address, HTTP 404), or any other warning, still fails the build.
+    """
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        if record.levelno == logging.WARNING and str(record.msg).startswith("failed to reach any of the inventories"):
+            text = record.getMessage()
+            if "ConnectionError" in text or "Timeout" in text:
+                record.levelno, record.levelname = logging.INFO, "INFO"
+                record.msg = "intersphinx: no inventory reachable (offline?), names stay plain text: " + str(record.msg)
+        return True
+
+
 def setup(app):  # noqa: ANN001, ANN201
+    # the logger intersphinx warns through (sphinx.util.logging prefixes "sphinx.")
+    logging.getLogger("sphinx.sphinx.ext.intersphinx").addFilter(_OfflineInventories())
     # before numpydoc (priority 500), so it sees the docstring as written
     app.connect("autodoc-process-docstring", escape_absolute_values, priority=400)
     return {"parallel_read_safe": True}
