@@ -16,10 +16,12 @@ lands in "Other names" rather than disappearing.
 from __future__ import annotations
 
 import inspect
-import logging
+import sys
 from pathlib import Path
 
 import delayform
+
+sys.path.insert(0, str(Path(__file__).parent / "_ext"))
 
 project = "delayform"
 author = "the delayform authors"
@@ -33,6 +35,7 @@ extensions = [
     "sphinx.ext.viewcode",
     "numpydoc",
     "myst_nb",
+    "offline_inventories",  # docs/_ext: the build passes without a network (below)
 ]
 
 source_suffix = {".rst": "restructuredtext", ".md": "myst-nb", ".ipynb": "myst-nb"}
@@ -54,9 +57,9 @@ html_sidebars = {"index": []}  # the landing page is wide: it has its own table 
 # pages link to their documentation. The inventories are fetched over the network at each
 # build; a machine without one (CI reaches only package registries) must still build with
 # warnings as errors, so the single "failed to reach any of the inventories" warning is
-# demoted to an info line by ``_OfflineInventories`` below (Sphinx gives it no warning type,
-# so ``suppress_warnings`` cannot name it). Offline, those names are plain text; every other
-# warning still fails the build.
+# demoted to an info line by the ``offline_inventories`` extension (Sphinx gives it no warning type,
+# so ``suppress_warnings`` cannot name it; docs/_ext/offline_inventories.py). Offline, those
+# names are plain text; every other warning still fails the build.
 intersphinx_mapping = {
     "python": ("https://docs.python.org/3", None),
     "numpy": ("https://numpy.org/doc/stable/", None),
@@ -270,28 +273,37 @@ def escape_absolute_values(app, what, name, obj, options, lines: list[str]) -> N
 write_api_reference()
 
 
-class _OfflineInventories(logging.Filter):
-    """Demote intersphinx's "failed to reach any of the inventories" warning to an info line.
+def _top_level_split(params: str) -> list[str]:
+    """Split a signature's parameter list at the commas outside brackets and quotes."""
+    parts, depth, quote, start = [], 0, "", 0
+    for k, ch in enumerate(params):
+        if quote:
+            quote = "" if ch == quote else quote
+        elif ch in "'\"":
+            quote = ch
+        elif ch in "([{":
+            depth += 1
+        elif ch in ")]}":
+            depth -= 1
+        elif ch == "," and depth == 0:
+            parts.append(params[start:k])
+            start = k + 1
+    parts.append(params[start:])
+    return [part.strip() for part in parts if part.strip()]
 
-    Without a network (CI reaches only package registries) no inventory can be fetched; the
-    site must still build with warnings as errors, its numpy, SciPy, Matplotlib and
-    python-control names then plain text. Only that message, and only when the network could
-    not be reached (a connection error or a timeout), is demoted: an inventory that answers
-    wrongly (a mistyped address, HTTP 404), or any other warning, still fails the build.
-    """
 
-    def filter(self, record: logging.LogRecord) -> bool:
-        if record.levelno == logging.WARNING and str(record.msg).startswith("failed to reach any of the inventories"):
-            text = record.getMessage()
-            if "ConnectionError" in text or "Timeout" in text:
-                record.levelno, record.levelname = logging.INFO, "INFO"
-                record.msg = "intersphinx: no inventory reachable (offline?), names stay plain text: " + str(record.msg)
-        return True
+def hide_private_fields(app, what, name, obj, options, signature, return_annotation):  # noqa: ARG001
+    """A result dataclass's private fields (``_axis1``, ...) are not arguments a user passes."""
+    if what != "class" or not signature or not signature.startswith("("):
+        return None
+    kept = [p for p in _top_level_split(signature[1:-1]) if not p.lstrip("*").startswith("_")]
+    if kept and kept[-1] == "*":  # a bare * with no keyword left after it is not a signature
+        kept.pop()
+    return f"({', '.join(kept)})", return_annotation
 
 
 def setup(app):  # noqa: ANN001, ANN201
-    # the logger intersphinx warns through (sphinx.util.logging prefixes "sphinx.")
-    logging.getLogger("sphinx.sphinx.ext.intersphinx").addFilter(_OfflineInventories())
+    app.connect("autodoc-process-signature", hide_private_fields)
     # before numpydoc (priority 500), so it sees the docstring as written
     app.connect("autodoc-process-docstring", escape_absolute_values, priority=400)
     return {"parallel_read_safe": True}
