@@ -229,7 +229,7 @@ def write_api_reference() -> None:
         "Every name in ``delayform.__all__``, from its docstring (generated at build time), grouped\n"
         "as the problem is built up: the team, its quasi-polynomials, the maps and roots that\n"
         "answer stability, guarantees over real networks, design, simulation and deployment.\n"
-        "Where each name lives in the package, and the conventions every name follows: :doc:`../api`.\n\n"
+        "Where each name lives in the package, and the conventions every name follows: :doc:`the API overview <../api>`.\n\n"
         f".. toctree::\n   :maxdepth: 2\n\n{toc}"
     )
 
