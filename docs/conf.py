@@ -16,6 +16,7 @@ lands in "Other names" rather than disappearing.
 from __future__ import annotations
 
 import inspect
+import re
 import sys
 from pathlib import Path
 
@@ -292,18 +293,47 @@ def _top_level_split(params: str) -> list[str]:
     return [part.strip() for part in parts if part.strip()]
 
 
-def hide_private_fields(app, what, name, obj, options, signature, return_annotation):  # noqa: ARG001
-    """A result dataclass's private fields (``_axis1``, ...) are not arguments a user passes."""
-    if what != "class" or not signature or not signature.startswith("("):
-        return None
-    kept = [p for p in _top_level_split(signature[1:-1]) if not p.lstrip("*").startswith("_")]
-    if kept and kept[-1] == "*":  # a bare * with no keyword left after it is not a signature
-        kept.pop()
-    return f"({', '.join(kept)})", return_annotation
+#: type names as written in the source, kept unexpanded and linked (``ArrayLike`` would
+#: otherwise print as a union of a dozen private numpy types); see ``tidy_signature``
+autodoc_type_aliases = {
+    "ArrayLike": "numpy.typing.ArrayLike",
+    "NDArray": "numpy.typing.NDArray",
+    "Axes": "matplotlib.axes.Axes",  # imported only for type checking: matplotlib loads lazily
+}
+_ANNOTATION_FIXES = (
+    # an alias inside a union prints as its repr in this Sphinx; ``~`` shows the short name, linked
+    (re.compile(r"TypeAliasForwardRef\('([\w.]+)'\)"), r"~\1"),
+    (re.compile(r"(?<![\w.~])(NDArray|ArrayLike)\b"), r"~numpy.typing.\1"),
+    (re.compile(r"(?<![\w.~])Axes\b"), "~matplotlib.axes.Axes"),
+    (re.compile(r"(?<![\w.~])np\."), "~numpy."),
+    (re.compile(r"(?<![\w.~])(numpy|matplotlib)\."), r"~\1."),  # full names shown short
+)
+
+
+def _tidy(text: str | None) -> str | None:
+    if not text:
+        return text
+    for pattern, replacement in _ANNOTATION_FIXES:
+        text = pattern.sub(replacement, text)
+    return text
+
+
+def tidy_signature(app, what, name, obj, options, signature, return_annotation):  # noqa: ARG001
+    """Signatures as a user reads them: numpy aliases short and linked, no private fields.
+
+    A result dataclass's private fields (``_axis1``, ...) are not arguments a user passes.
+    """
+    signature, return_annotation = _tidy(signature), _tidy(return_annotation)
+    if what == "class" and signature and signature.startswith("("):
+        kept = [p for p in _top_level_split(signature[1:-1]) if not p.lstrip("*").startswith("_")]
+        if kept and kept[-1] == "*":  # a bare * with no keyword left after it is not a signature
+            kept.pop()
+        signature = f"({', '.join(kept)})"
+    return signature, return_annotation
 
 
 def setup(app):  # noqa: ANN001, ANN201
-    app.connect("autodoc-process-signature", hide_private_fields)
+    app.connect("autodoc-process-signature", tidy_signature)
     # before numpydoc (priority 500), so it sees the docstring as written
     app.connect("autodoc-process-docstring", escape_absolute_values, priority=400)
     return {"parallel_read_safe": True}
