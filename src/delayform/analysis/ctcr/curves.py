@@ -276,7 +276,7 @@ def _unit_roots(qp: TwoDelayQuasiPolynomial, delay: int) -> tuple[NDArray, NDArr
     if len(h) <= 3:
         h = h + [np.zeros(0, complex)] * (3 - len(h))
         return _single_delay_roots(h[0], h[1], h[2])
-    return unit_roots_single(h, getattr(qp, "crossing_bound", None))
+    return unit_roots_single(h)
 
 
 def _origin_counts(qp: TwoDelayQuasiPolynomial, weight: int) -> tuple[int, int, _ZeroLine | None]:
