@@ -269,7 +269,7 @@ def _unit_roots(qp: TwoDelayQuasiPolynomial, delay: int) -> tuple[NDArray, NDArr
 
     Up to z^2 (every eq. genfactor qp) the closed resultant of
     :func:`~delayform.analysis.ctcr.phase._single_delay_roots`; higher powers
-    (commensurate terms) the Chebyshev resultant of
+    (commensurate terms) the frequency-eliminating resultant in z of
     :func:`~delayform.analysis.ctcr.general.unit_roots_single`.
     """
     h = collapse(qp, delay)

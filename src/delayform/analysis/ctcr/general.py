@@ -16,12 +16,13 @@ eliminations that hold for any degrees K1 (in z1) and K2 (in z2):
   roots of q(., z2) of unit modulus give z1, and Newton's method on the two
   phases polishes each pair on q itself. Frequencies are then joined into
   paths as for the paper's general path (:func:`~delayform.analysis.ctcr.phase._general_paths`).
-* On an axis (one delay zero) or for a qp in one delay, ``h(z) = sum_j h_j(s) z^j``:
-  the frequencies with a unit root are the real roots of
-  ``R(omega) = Res_z(h, h~)``, a polynomial in omega of degree <= 2 K deg q,
-  interpolated at Chebyshev points of ``[0, 1.5 Omega]`` (Omega bounds every
-  crossing frequency) and solved as a Chebyshev series (well conditioned,
-  unlike monomials); each root is polished with z on q itself.
+* On an axis (one delay zero), for a qp in one delay and on the lines
+  ``theta_k = const`` that seed the two-delay sweep: the frequency is
+  eliminated instead, a resultant in z on the unit circle
+  (:mod:`delayform.analysis.ctcr.single`), which needs no bound on the
+  crossing frequencies.
+* When every power of z1 is a multiple of g, q is eliminated in ``w = z1^g``
+  (in z1 the resultant would be a g-th power, with g-fold roots).
 
 Both are eliminations, not sign changes on a grid: a frequency or phase is
 found whenever it is a root of the eliminant, however close two of them lie.
