@@ -269,14 +269,14 @@ def _unit_roots(qp: TwoDelayQuasiPolynomial, delay: int) -> tuple[NDArray, NDArr
 
     Up to z^2 (every eq. genfactor qp) the closed resultant of
     :func:`~delayform.analysis.ctcr.phase._single_delay_roots`; higher powers
-    (commensurate terms) the Chebyshev resultant of
+    (commensurate terms) the frequency-eliminating resultant in z of
     :func:`~delayform.analysis.ctcr.general.unit_roots_single`.
     """
     h = collapse(qp, delay)
     if len(h) <= 3:
         h = h + [np.zeros(0, complex)] * (3 - len(h))
         return _single_delay_roots(h[0], h[1], h[2])
-    return unit_roots_single(h, getattr(qp, "crossing_bound", None))
+    return unit_roots_single(h)
 
 
 def _origin_counts(qp: TwoDelayQuasiPolynomial, weight: int) -> tuple[int, int, _ZeroLine | None]:

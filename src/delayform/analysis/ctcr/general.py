@@ -16,12 +16,13 @@ eliminations that hold for any degrees K1 (in z1) and K2 (in z2):
   roots of q(., z2) of unit modulus give z1, and Newton's method on the two
   phases polishes each pair on q itself. Frequencies are then joined into
   paths as for the paper's general path (:func:`~delayform.analysis.ctcr.phase._general_paths`).
-* On an axis (one delay zero) or for a qp in one delay, ``h(z) = sum_j h_j(s) z^j``:
-  the frequencies with a unit root are the real roots of
-  ``R(omega) = Res_z(h, h~)``, a polynomial in omega of degree <= 2 K deg q,
-  interpolated at Chebyshev points of ``[0, 1.5 Omega]`` (Omega bounds every
-  crossing frequency) and solved as a Chebyshev series (well conditioned,
-  unlike monomials); each root is polished with z on q itself.
+* On an axis (one delay zero), for a qp in one delay and on the lines
+  ``theta_k = const`` that seed the two-delay sweep: the frequency is
+  eliminated instead, a resultant in z on the unit circle
+  (:mod:`delayform.analysis.ctcr.single`), which needs no bound on the
+  crossing frequencies.
+* When every power of z1 is a multiple of g, q is eliminated in ``w = z1^g``
+  (in z1 the resultant would be a g-th power, with g-fold roots).
 
 Both are eliminations, not sign changes on a grid: a frequency or phase is
 found whenever it is a root of the eliminant, however close two of them lie.
@@ -30,10 +31,10 @@ found whenever it is a root of the eliminant, however close two of them lie.
 from __future__ import annotations
 
 import numpy as np
-import numpy.polynomial.chebyshev as cheb
 import numpy.polynomial.polynomial as npoly
 from numpy.typing import ArrayLike, NDArray
 
+from delayform.analysis.ctcr.single import sylvester, unit_roots_single
 from delayform.analysis.neutral.difference import certified_polydisk_min, difference_operator
 from delayform.characteristic import DELAY_MULTIPLES, TwoDelayQuasiPolynomial
 from delayform.errors import NeutralQuasiPolynomialError, QuasiPolynomialError
@@ -221,95 +222,6 @@ def omega_bound(qp: TwoDelayQuasiPolynomial | TermsQP) -> float:
     return float(max(1.0, lower.sum()) * 1.0001)
 
 
-# ===================================================================== one delay (axes, lines)
-def _sylvester(p: NDArray, q: NDArray) -> NDArray:
-    """Batched Sylvester matrices of p and q (last axis: coefficients, descending powers, same degree K)."""
-    K = p.shape[-1] - 1
-    n = 2 * K
-    S = np.zeros(p.shape[:-1] + (n, n), complex)
-    for i in range(K):
-        S[..., i, i : i + K + 1] = p
-        S[..., K + i, i : i + K + 1] = q
-    return S
-
-
-def unit_roots_single(
-    h: list[NDArray[np.complex128]], bound: float | None = None
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """omega > 0 and theta in [0, 2 pi) with ``sum_j h_j(j omega) e^{-j j theta} = 0`` (module docstring).
-
-    Parameters
-    ----------
-    h
-        ``h_j``, coefficients ascending in s, one per power of z.
-    bound
-        Bound on the crossing frequencies (None: the retarded Cauchy-like one).
-    """
-    K = len(h) - 1
-    if K < 1 or all(c.size == 0 for c in h[1:]):
-        return np.zeros(0), np.zeros(0)
-    n = max(c.size for c in h) - 1
-    if bound is None:
-        bound = omega_bound(TermsQP(tuple((c if c.size else np.zeros(1, complex), j, 0) for j, c in enumerate(h))))
-    W = 1.5 * bound
-    deg = 2 * K * max(n, 1)
-    N = 2 * deg + 8
-    x = np.cos(np.pi * (np.arange(N) + 0.5) / N)  # Chebyshev points of [-1, 1]
-    om = 0.5 * W * (x + 1.0)
-    vals = np.stack([npoly.polyval(1j * om, c) if c.size else np.zeros(N, complex) for c in h], -1)
-    p = vals[:, ::-1]                      # descending powers of z
-    q = np.conj(vals)                      # q~_j = conj(h_{K-j}): descending order is conj(h_0..h_K)
-    R = np.linalg.det(_sylvester(p, q))
-    coef = cheb.chebfit(x, R, deg)
-    scale = np.max(np.abs(coef))
-    if scale == 0.0:
-        return np.zeros(0), np.zeros(0)
-    nz = np.flatnonzero(np.abs(coef) > 1e-13 * scale)
-    roots = cheb.chebroots(coef[: nz[-1] + 1])
-    real = roots[(np.abs(roots.imag) <= 1e-6) & (roots.real > -1.0 - 1e-9) & (roots.real < 1.0 + 1e-9)].real
-    out_w, out_t = [], []
-    for r in np.unique(np.round(0.5 * W * (real + 1.0), 10)):
-        if r <= 1e-12 * W:
-            continue
-        zs = np.roots([npoly.polyval(1j * r, c) if c.size else 0j for c in h][::-1])
-        for z in zs:
-            if not np.isfinite(z) or abs(abs(z) - 1.0) > 1e-4:
-                continue
-            res = _polish_single(h, float(r), float(-np.angle(z)))
-            if res is not None and all(abs(res[0] - w) > 1e-9 * max(1, w) or
-                                       abs(np.angle(np.exp(1j * (res[1] - t)))) > 1e-7
-                                       for w, t in zip(out_w, out_t, strict=True)):
-                out_w.append(res[0])
-                out_t.append(res[1])
-    return np.array(out_w), np.array(out_t)
-
-
-def _polish_single(h: list[NDArray[np.complex128]], om: float, th: float) -> tuple[float, float] | None:
-    """Newton on (omega, theta) for ``sum_j h_j(j omega) e^{-j j theta} = 0``; keeps a flat (touching) start."""
-    js = np.arange(len(h))
-
-    def f_j(om: float, th: float) -> tuple[complex, complex, complex, float]:
-        s = 1j * om
-        v = np.array([npoly.polyval(s, c) if c.size else 0j for c in h])
-        dv = np.array([1j * npoly.polyval(s, npoly.polyder(c)) if c.size > 1 else 0j for c in h])
-        e = np.exp(-1j * js * th)
-        return (v * e).sum(), (dv * e).sum(), (-1j * js * v * e).sum(), float(np.abs(v).sum())
-
-    f, fo, ft, scale = f_j(om, th)
-    if abs(f) <= 1e-12 * scale:
-        return om, float(np.mod(th, TWO_PI))
-    for _ in range(20):
-        J = np.array([[fo.real, ft.real], [fo.imag, ft.imag]])
-        if abs(np.linalg.det(J)) <= 1e-14 * (abs(fo) * abs(ft) + 1e-300):
-            break
-        step = np.linalg.solve(J, [f.real, f.imag])
-        om, th = om - step[0], th - step[1]
-        f, fo, ft, scale = f_j(om, th)
-        if abs(f) <= 1e-15 * scale:
-            break
-    return (om, float(np.mod(th, TWO_PI))) if abs(f) <= 1e-10 * scale and om > 0 else None
-
-
 # ===================================================================== two delays (curves)
 def resultant_solutions(qp: TermsQP, omega: NDArray[np.float64]) -> list[NDArray[np.float64]]:
     """All (theta1, theta2) on the torus with q(j omega) = 0 at each omega (module docstring).
@@ -322,39 +234,44 @@ def resultant_solutions(qp: TermsQP, omega: NDArray[np.float64]) -> list[NDArray
         Frequencies.
     """
     terms = qp.terms()
-    K1 = max(a for _, a, _ in terms)
+    # q is a polynomial in w = z1^g (g the gcd of the powers of z1): eliminating z1 itself would
+    # give the g-th power of the resultant in w, whose g-fold roots rounding spreads by eps^(1/g)
+    g = max(1, int(np.gcd.reduce([a for _, a, _ in terms])))
+    K1 = max(a for _, a, _ in terms) // g
     K2 = max(b for _, _, b in terms)
     s = 1j * np.asarray(omega, float)
     vals = [npoly.polyval(s, c) for c, _, _ in terms]
     mult = np.array([(a, b) for _, a, b in terms], float)
+    reduced = [(a // g, b) for _, a, b in terms]
     n_z = 2 * K1 * K2 + 1
     z2 = np.exp(2j * np.pi * np.arange(n_z) / n_z)
     # P[w, m, a] = sum_b c_ab(omega_w) z2_m^b ; Pt[w, m, a] = sum_b conj(c_ab) z2_m^(K2 - b)
     P = np.zeros((s.size, n_z, K1 + 1), complex)
     Pt = np.zeros((s.size, n_z, K1 + 1), complex)
-    for v, (_, a, b) in zip(vals, terms, strict=True):
+    for v, (a, b) in zip(vals, reduced, strict=True):
         P[:, :, a] += v[:, None] * z2[None, :] ** b
         Pt[:, :, K1 - a] += np.conj(v)[:, None] * z2[None, :] ** (K2 - b)
-    R = np.linalg.det(_sylvester(P[..., ::-1], Pt[..., ::-1]))
+    R = np.linalg.det(sylvester(P[..., ::-1], Pt[..., ::-1]))
     coef = np.fft.fft(R, axis=1) / n_z  # R(z2_m) = sum_k coef_k z2_m^k on the n_z-th roots of unity
     out: list[NDArray[np.float64]] = []
     for i in range(s.size):
         roots2 = unit_circle_roots(coef[i], 1e-11)
         sols = []
-        g = np.array([v[i] for v in vals])
+        terms_at = np.array([v[i] for v in vals])
         for z in roots2:
             poly1 = np.zeros(K1 + 1, complex)
-            for gk, (a, b) in zip(g, mult.astype(int), strict=True):
+            for gk, (a, b) in zip(terms_at, reduced, strict=True):
                 poly1[a] += gk * z**b
             nzp = np.flatnonzero(np.abs(poly1) > 0)
             if nzp.size < 2:
                 continue
-            for z1 in np.roots(poly1[: nzp[-1] + 1][::-1]):
-                if abs(abs(z1) - 1.0) > 1e-3:
+            for w in np.roots(poly1[: nzp[-1] + 1][::-1]):
+                if abs(abs(w) - 1.0) > 1e-3:
                     continue
-                th = newton_phases(g, mult, -np.angle(z1), -np.angle(z))
-                if th is not None:
-                    sols.append(th)
+                for k in range(g):  # the g phases theta1 with e^{-j g theta1} = w
+                    th = newton_phases(terms_at, mult, (-np.angle(w) + TWO_PI * k) / g, -np.angle(z))
+                    if th is not None:
+                        sols.append(th)
         out.append(_unique(np.array(sols).reshape(-1, 2)))
     return out
 

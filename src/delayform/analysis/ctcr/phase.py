@@ -16,6 +16,7 @@ import numpy.polynomial.polynomial as npoly
 from numpy.typing import ArrayLike, NDArray
 
 from delayform.analysis.ctcr.general import TermsQP, newton_phases, resultant_solutions, unit_circle_roots
+from delayform.analysis.ctcr.single import line_frequencies
 from delayform.characteristic import DELAY_MULTIPLES, TwoDelayQuasiPolynomial
 
 TWO_PI = 2.0 * np.pi
@@ -28,6 +29,8 @@ _MAX_ROUNDS = 26
 _MAX_POINTS = 200_000
 #: Lowest crossing frequency traced, relative to the bound on crossing frequencies.
 _OMEGA_FLOOR = 1e-4
+#: Lines theta_1 = const (and as many theta_2 = const) whose exact crossings seed the general sweep.
+_SEED_LINES = 24
 
 
 # ===================================================================== polynomials in omega
@@ -365,7 +368,13 @@ def _general_paths(qp: TwoDelayQuasiPolynomial, window: tuple[float, float]) -> 
     from scipy.optimize import linear_sum_assignment
 
     bound = _omega_bound(qp)
-    omega = np.unique(np.concatenate([np.linspace(bound * 1e-3, bound, 600), bound * np.geomspace(_OMEGA_FLOOR, 1e-3, 12)]))
+    # The grid alone misses a curve whose band of frequencies falls between two samples (a small
+    # term: s + 1 + 2 z1^3 + 0.001 z2 spans 0.002); the exact crossings on lines theta_k = const
+    # put a sample on every curve that meets one of them, whatever its band.
+    seeds = line_frequencies(list(qp.terms()), _SEED_LINES)
+    seeds = seeds[(seeds >= bound * _OMEGA_FLOOR) & (seeds <= bound * 1.5)]
+    omega = np.unique(np.concatenate([np.linspace(bound * 1e-3, bound, 600),
+                                      bound * np.geomspace(_OMEGA_FLOOR, 1e-3, 12), seeds]))
     sols = _general_solutions(qp, omega)
     # Bisect wherever the number of solutions changes or neighbours are far apart.
     for _ in range(40):

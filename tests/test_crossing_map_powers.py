@@ -1,0 +1,246 @@
+"""crossing_map and rightmost_root for delays entering with any power: differential properties and regressions.
+
+NU of the map is checked against the argument-principle count of q itself
+(:func:`~delayform.count_roots_right_of`: the winding of q along Re s = c
+sampled under a Lipschitz bound, so its count is certified, and no part of
+CTCR is shared); a point is skipped only when that count differs between
+Re s > -1e-3 and Re s > 1e-3 (a root within 1e-3 of the axis, where a map
+drawn to 1e-9 and the count may honestly disagree about the side).
+rightmost_root (Chebyshev collocation of the generator, then Newton) is checked
+against Newton's method started from a dense grid over the box where roots
+right of it can lie.
+
+Run the properties with many more examples locally:
+``DELAYFORM_PROPERTY_EXAMPLES=3000 pytest tests/test_crossing_map_powers.py``.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+
+import numpy as np
+import numpy.polynomial.polynomial as npoly
+import pytest
+from hypothesis import assume, example, given, settings
+from hypothesis import strategies as st
+
+from delayform import QuasiPolynomial, count_roots_right_of, crossing_map, rightmost_root
+from delayform.analysis.ctcr.general import unit_roots_single
+from delayform.errors import NotConvergedError
+
+#: examples per property in the suite (seconds each); raise it by the environment for a long run
+EXAMPLES = int(os.environ.get("DELAYFORM_PROPERTY_EXAMPLES", "30"))
+WINDOW = 1.0
+#: Half-width of the strip about the imaginary axis inside which a point is not judged.
+STRIP = 1e-3
+
+
+# ----------------------------------------------------------------------------- random qps
+@st.composite
+def _coefficient(draw: st.DrawFn) -> float:
+    """A coefficient of either sign over three orders of magnitude (0.01 .. 10)."""
+    return draw(st.sampled_from([-1.0, 1.0])) * 10.0 ** draw(st.floats(-2.0, 1.0))
+
+
+@st.composite
+def retarded_qps(draw: st.DrawFn) -> dict[tuple[int, int], list[float]]:
+    """Monic principal polynomial of degree 1-4, two or three delayed terms z1^k1 z2^k2 (k <= 4) of lower degree.
+
+    The first delayed term has k1 >= 1 and the second k2 >= 1, so both delays enter.
+    """
+    n = draw(st.integers(1, 4))
+    terms = {(0, 0): [draw(_coefficient()) for _ in range(n)] + [1.0]}
+    keys = [(draw(st.integers(1, 4)), draw(st.integers(0, 4))), (draw(st.integers(0, 4)), draw(st.integers(1, 4)))]
+    if draw(st.booleans()):
+        keys.append((draw(st.integers(0, 4)), draw(st.integers(0, 4))))
+    for k in keys:
+        if k == (0, 0) or k in terms:
+            continue
+        terms[k] = [draw(_coefficient()) for _ in range(draw(st.integers(1, n)))]
+    return terms
+
+
+def _judged_count(qp: QuasiPolynomial, t1: float, t2: float) -> int | None:
+    """The certified count right of the axis, or None when a root lies within STRIP of it."""
+    try:
+        left, right = (count_roots_right_of(qp, t1, t2, c) for c in (-STRIP, STRIP))
+    except NotConvergedError:
+        return None
+    return right if left == right else None
+
+
+def _check_map(terms: dict[tuple[int, int], list[float]], points: list[tuple[float, float]]) -> int:
+    qp = QuasiPolynomial(terms)
+    m = crossing_map(qp, WINDOW, WINDOW)
+    judged = 0
+    for t1, t2 in points:
+        ref = _judged_count(qp, t1, t2)
+        if ref is None:
+            continue
+        judged += 1
+        assert int(m.unstable_count(t1, t2)) == ref, (terms, t1, t2)
+    return judged
+
+
+#: tau2 is 0 or at least 1e-3: just above the tau1 axis the count is wrong (the strict xfail below)
+_point = st.tuples(st.floats(0.0, WINDOW), st.one_of(st.just(0.0), st.floats(1e-3, WINDOW)))
+
+
+# the small second delay fails on the code before the frequency elimination (curves missed);
+# the other two are cases of the same shape kept as fixed examples (z1^3 with z2, z1^4 with z2^4)
+@example({(0, 0): [1.0, 2.0, 1.0], (3, 1): [2.0], (0, 1): [0.01]}, [(1.0, 0.5), (0.3, 0.5)])
+@example({(0, 0): [1.0, 1.0], (3, 0): [2.0], (0, 1): [0.001]}, [(1.0, 0.5), (0.2, 0.5)])
+@example({(0, 0): [0.5, 1.0], (4, 0): [1.2], (0, 4): [0.3]}, [(0.9, 0.4), (0.1, 0.1)])
+@settings(max_examples=EXAMPLES)
+@given(retarded_qps(), st.lists(_point, min_size=4, max_size=4))
+def test_map_nu_equals_certified_count(terms: dict, points: list) -> None:
+    _check_map(terms, points)
+
+
+@pytest.mark.xfail(strict=True, reason="NU just above the tau1 axis (tau2 ~ 1e-308) walks across the ends of "
+                                        "the curves on that axis and miscounts; not fixed here")
+def test_map_just_above_the_tau1_axis():
+    terms = {(0, 0): [-0.05605568286906746, 1.0], (4, 0): [-4.082911546947467], (4, 3): [-5.81746691295385]}
+    _check_map(terms, [(0.564416295172372, 2.2250738585072014e-308)])
+
+
+# ----------------------------------------------------------------------------- regressions
+def test_cubic_delay_power_of_a_double_pole():
+    """(s + 1)^2 + 2 e^{-3 tau1 s}: at omega = 1, (j + 1)^2 = 2j = -2 e^{-3 j theta} (closed form).
+
+    So 3 theta = pi / 2 mod 2 pi, theta = pi / 6 + 2 pi k / 3, and the first crossing is tau1 = pi / 6.
+    """
+    qp = QuasiPolynomial({(0, 0): [1.0, 2.0, 1.0], (3, 0): [2.0]})
+    m = crossing_map(qp, 2.0, 1.0)
+    assert len(m.curves) > 0
+    assert int(m.unstable_count(math.pi / 6 - 1e-3, 0.0)) == 0
+    assert int(m.unstable_count(math.pi / 6 + 1e-3, 0.0)) == 2
+    assert int(m.unstable_count(math.pi / 6 + 1e-3, 0.7)) == 2
+    assert count_roots_right_of(qp, math.pi / 6 + 1e-3, 0.0, 0.0) == 2  # the independent count agrees
+    om, th = unit_roots_single([np.array([1.0, 2.0, 1.0], complex), np.zeros(0, complex),
+                                np.zeros(0, complex), np.array([2.0], complex)])
+    np.testing.assert_allclose(om, 1.0, rtol=1e-12)
+    np.testing.assert_allclose(np.sort(th), np.pi / 6 * np.array([1.0, 5.0, 9.0]), rtol=1e-12)
+
+
+def test_cubic_delay_with_a_small_second_delay():
+    """s + 1 + 2 z1^3 + 0.001 z2: a band of frequencies 0.002 wide about sqrt(3) (|j omega + 1| = 2 +- 0.001)."""
+    terms = {(0, 0): [1.0, 1.0], (3, 0): [2.0], (0, 1): [0.001]}
+    qp = QuasiPolynomial(terms)
+    m = crossing_map(qp, 2.0, 1.0)
+    assert len(m.curves) > 0
+    for c in m.curves:
+        assert np.all(np.abs(np.abs(1.0 + 1j * c.omega) - 2.0) <= 0.001 + 1e-9)
+    rng = np.random.default_rng(3)
+    got = [(t1, t2) for t1, t2 in rng.uniform(0.0, [2.0, 1.0], (30, 2))]
+    refs = [_judged_count(qp, t1, t2) for t1, t2 in got]
+    assert len({r for r in refs if r is not None}) >= 2  # both stable and unstable points
+    for (t1, t2), ref in zip(got, refs, strict=True):
+        if ref is not None:
+            assert int(m.unstable_count(t1, t2)) == ref
+
+
+#: Olgac and Sipahi, "An exact method for the stability analysis of time-delayed LTI systems",
+#: IEEE Trans. Automatic Control 47(5), 2002, the example: dx/dt = A x(t) + B x(t - tau),
+#: A = [[-1, 13.5, -1], [-3, -1, -2], [-2, -1, -4]], B = [[-5.9, 7.1, -70.3], [2, -1, 5], [2, 0, 6]];
+#: det(sI - A - B e^{-tau s}) below. Stable for tau < 0.16235 and 0.18591 < tau < 0.22198 (the paper's Table).
+OLGAC_SIPAHI = {(0,): [111.0, 45.5, 6.0, 1.0], (1,): [-22.1, -116.8, 0.9], (2,): [-185.1, 90.9], (3,): [119.4]}
+OLGAC_SIPAHI_CROSSINGS = (0.16235, 0.18591, 0.22198)
+
+
+def _olgac_sipahi_characteristic() -> dict[int, np.ndarray]:
+    """The characteristic quasi-polynomial recomputed from the paper's A and B (interpolation on roots of unity)."""
+    A = np.array([[-1, 13.5, -1], [-3, -1, -2], [-2, -1, -4]])
+    B = np.array([[-5.9, 7.1, -70.3], [2, -1, 5], [2, 0, 6]])
+    r = np.exp(2j * np.pi * np.arange(4) / 4)
+    V = np.array([[np.linalg.det(s * np.eye(3) - A - B * z) for z in r] for s in r])
+    C = np.fft.fft2(V).real / 16.0  # C[i, k]: coefficient of s^i z^k (the points are e^{+2 pi j m / 4})
+    return {k: C[:, k] for k in range(4)}
+
+
+def test_olgac_sipahi_characteristic_from_its_matrices():
+    coef = _olgac_sipahi_characteristic()
+    for (k,), c in OLGAC_SIPAHI.items():
+        np.testing.assert_allclose(coef[k], np.pad(c, (0, 4 - len(c))), atol=1e-10)
+
+
+@pytest.mark.parametrize("spelling", ["powers", "two delays"])
+def test_olgac_sipahi_2002(spelling: str):
+    """Both spellings: z^k as keys (k, 0), and tau2 = 2 tau1 with z^3 = z1 z2 (then read on the diagonal)."""
+    c = {k: v for (k,), v in OLGAC_SIPAHI.items()}
+    if spelling == "powers":
+        qp = QuasiPolynomial({(k, 0): v for k, v in c.items()})
+        m = crossing_map(qp, 0.3, 0.1)
+        nu = lambda t: int(m.unstable_count(t, 0.05))  # noqa: E731 (no tau2 term: any tau2)
+        axis = lambda t: int(m.unstable_count(t, 0.0))  # noqa: E731
+        taus = np.sort(np.concatenate([(th + 2 * np.pi * np.arange(3)) / w
+                                       for w, th in zip(*unit_roots_single([np.asarray(v, complex)
+                                                                            for v in c.values()]), strict=True)]))
+        # the crossings below 0.3 are the paper's three, to its five digits
+        np.testing.assert_allclose(taus[taus < 0.3], OLGAC_SIPAHI_CROSSINGS, atol=5e-6)
+    else:
+        qp = QuasiPolynomial({(0, 0): c[0], (1, 0): c[1], (0, 1): c[2], (1, 1): c[3]})
+        m = crossing_map(qp, 0.3, 0.6)
+        nu = lambda t: int(m.unstable_count(t, 2 * t))  # noqa: E731
+        axis = nu
+    lo, mid, hi = OLGAC_SIPAHI_CROSSINGS
+    expected = {0.5 * lo: 0, 0.5 * (lo + mid): 2, 0.5 * (mid + hi): 0, hi + 0.02: 2}
+    one_delay = QuasiPolynomial({(k,): v for (k,), v in OLGAC_SIPAHI.items()})
+    for t, e in expected.items():
+        assert nu(t) == e and axis(t) == e
+        assert count_roots_right_of(one_delay, t, 0.0) == e  # the argument principle, independently
+    for t in OLGAC_SIPAHI_CROSSINGS:  # NU changes within 1e-5 of each published crossing
+        assert nu(t - 1e-5) != nu(t + 1e-5)
+
+
+# ----------------------------------------------------------------------------- rightmost root
+def _q(terms: dict, t1: float, t2: float, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """q and dq/ds at s (vectorized)."""
+    f = np.zeros(s.shape, complex)
+    df = np.zeros(s.shape, complex)
+    for (a, b), c in terms.items():
+        h = a * t1 + b * t2
+        e = np.exp(-h * s)
+        p = npoly.polyval(s, c)
+        f += p * e
+        df += (npoly.polyval(s, npoly.polyder(c)) - h * p) * e
+    return f, df
+
+
+def _grid_newton_rightmost(terms: dict, t1: float, t2: float, left: float) -> complex | None:
+    """Newton from a dense grid over the box of roots with Re s >= left; the rightmost converged root.
+
+    Right of ``left``, ``|e^{-h s}| <= e^{h max(0, -left)}``, so a root needs
+    ``|s|^n <= sum_i low_i |s|^i`` with the delayed moduli scaled by that factor:
+    ``|s| <= max(1, sum_i low_i)`` bounds the box (as the retarded Cauchy-like bound).
+    """
+    n = len(terms[(0, 0)]) - 1
+    low = np.zeros(n + 1)
+    for (a, b), c in terms.items():
+        low[: len(c)] += np.abs(c) * math.exp((a * t1 + b * t2) * max(0.0, -left))
+    radius = max(1.0, float(low[:n].sum()))
+    re = np.linspace(left, radius, 60)
+    im = np.linspace(-radius, radius, 241)
+    s = (re[:, None] + 1j * im[None, :]).ravel()
+    with np.errstate(all="ignore"):  # iterates that run off to the left overflow: dropped below
+        for _ in range(60):
+            f, df = _q(terms, t1, t2, s)
+            s = s - f / df
+            s = np.where(np.isfinite(s), s, np.nan)
+        f, _ = _q(terms, t1, t2, s)
+        scale = sum(np.abs(npoly.polyval(np.abs(s), np.abs(c))) * np.exp(-(a * t1 + b * t2) * s.real)
+                    for (a, b), c in terms.items())
+    ok = np.isfinite(s) & (np.abs(f) <= 1e-10 * scale) & (s.real >= left)
+    return complex(s[ok][np.argmax(s[ok].real)]) if np.any(ok) else None
+
+
+@settings(max_examples=2 * EXAMPLES)
+@given(retarded_qps(), st.floats(0.0, 1.5), st.floats(0.0, 1.5))
+def test_rightmost_root_against_grid_newton(terms: dict, t1: float, t2: float) -> None:
+    qp = QuasiPolynomial(terms)
+    r = rightmost_root(qp, t1, t2)
+    ref = _grid_newton_rightmost(terms, t1, t2, r.real - 0.5)
+    assume(ref is not None)  # the grid found r or a root right of it whenever Newton converged anywhere
+    assert ref.real <= r.real + 1e-7 * max(1.0, abs(r))  # no root right of the returned one
+    assert abs(ref.real - r.real) <= 1e-7 * max(1.0, abs(r))  # and the rightmost is the one returned
