@@ -41,7 +41,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from delayform.analysis.certificates.krasovskii import _bessel, _he, _moments, _quad, _Signals, _t
+from delayform.analysis.certificates.krasovskii import _bessel, _cross, _he, _moments, _quad, _Signals, _t
 from delayform.analysis.certificates.lmi import LmiProblem, Variables
 
 __all__ = ["IntervalDelays", "interval_delays", "orthogonal_basis", "constant_nodes"]
@@ -124,7 +124,7 @@ def interval_delays(data: IntervalDelays, order: int, *, split: int = 1, outer: 
     node_name = {c: f"c{i}" for i, c in enumerate(nodes)}
     node_name[0.0] = "x"
     tops = ["x", *(node_name[c] for c in nodes[:-1])]
-    lengths = [c - u for u, c in zip([0.0, *nodes[:-1]], nodes, strict=True)]
+    lengths = [c - u for u, c in zip([0.0, *nodes][:-1], nodes, strict=True)]
     wins = [_moments(f"w{i}_", order) for i in range(len(nodes))]
     pa = [_moments(f"p{k}_", order) for k in range(K)]
     qb = [_moments(f"q{k}_", order) for k in range(K)]
@@ -236,7 +236,7 @@ def interval_delays(data: IntervalDelays, order: int, *, split: int = 1, outer: 
                 a, b = _num(data.lo[k], exact), _num(data.hi[k], exact)
                 hv = b if up else a
                 rows.append((hv - a) * sig.e(pa[k][0]) + (b - hv) * sig.e(qb[k][0]))
-            Phv = Phi + _he(np.vstack(rows).T @ Pm @ Hm)
+            Phv = Phi + _he(_cross(np.vstack(rows), Pm, Hm))
             for k in range(K):  # the reciprocal-convexity bound at h_k = a_k (alpha 0) or b_k (alpha 1)
                 Phv = Phv - _quad(psi[k], rcc[k][corner[k] if outer else 0])
             label = "".join("+" if up else "-" for up in corner)

@@ -68,9 +68,12 @@ def invariant_of(a0: NDArray[np.float64], delayed: tuple[NDArray[np.float64], ..
     """The direction of constant solutions, checked exactly: (A0 + sum A_k) e = 0 in rational arithmetic."""
     if e is None:
         return None
-    v = _matrix("invariant", np.atleast_2d(np.asarray(e, dtype=float)))[0] if np.ndim(e) == 1 else None
-    if v is None or v.shape != (a0.shape[0],) or not np.any(v != 0.0):
-        raise InputError(f"invariant must be a non-zero vector of length {a0.shape[0]}")
+    try:
+        v = np.asarray(e, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"invariant must be a vector of {a0.shape[0]} real numbers") from None
+    if v.shape != (a0.shape[0],) or not np.all(np.isfinite(v)) or not np.any(v != 0.0):
+        raise InputError(f"invariant must be a finite non-zero vector of length {a0.shape[0]}")
     total = [[Fraction(a0[i, j]) + sum(Fraction(A[i, j]) for A in delayed) for j in range(a0.shape[0])]
              for i in range(a0.shape[0])]  # fmt: skip
     if any(sum(row[j] * Fraction(v[j]) for j in range(v.size)) != 0 for row in total):
