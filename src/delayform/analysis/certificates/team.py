@@ -63,7 +63,8 @@ class ModeMargin:
     functional
         The functional whose certificate holds (the cheapest of :data:`LEVELS` that does).
     certificate
-        Its certificate at the team's delta (re-checked exactly); None when delta is 0.
+        Its certificate (re-checked exactly), on intervals at least as wide as the team's
+        delta (a certificate for wider intervals covers the narrower ones); None when delta is 0.
     """
 
     lam: complex
@@ -127,9 +128,14 @@ class _Modes:
         self.systems = [mode_system(f) for f in self.fs]
         self.t = (t1, t2)
         self.failed: list[dict[int, float]] = [{} for _ in self.fs]  # level -> smallest delta it failed at
+        # the widest deviation certified per mode: its certificate covers every smaller one (the intervals are nested)
+        self.held: list[tuple[float, _Attempt, int] | None] = [None for _ in self.fs]
         self.limiting = 0
 
     def check(self, i: int, delta: float) -> tuple[_Attempt, int] | None:
+        held = self.held[i]
+        if held is not None and held[0] >= delta:
+            return held[1], held[2]
         A0, ak, e = self.systems[i]
         data = IntervalDelays(A0, ak, tuple(max(t - delta, 0.0) for t in self.t), tuple(t + delta for t in self.t), None, e)
         for level, fun in enumerate(LEVELS):
@@ -137,6 +143,7 @@ class _Modes:
                 continue
             att = attempt(data, fun, exact=False)
             if att.cert.holds:
+                self.held[i] = (delta, att, level)
                 return att, level
             self.failed[i][level] = min(delta, self.failed[i].get(level, math.inf))
         return None
