@@ -19,6 +19,7 @@ import time
 
 import numpy as np
 
+from delayform.analysis.certificates.adversary import greedy_switching_grows
 from delayform.analysis.certificates.team import team_delay_margin
 from delayform.analysis.network import jitter_margin
 from delayform.analysis.roots.single import rightmost_root
@@ -28,23 +29,8 @@ from delayform.topology import paper_six
 T1, T2, P, D = 2.0, 1.0, 1.0, 0.5
 
 
-def grows(lam: float, A: float, dt: float = 0.005, duration: float = 240.0) -> bool:
-    lags = [max(int(round(max(t - s * A, dt) / dt)), 1) for t in (T1, T2) for s in (1, -1)]
-    depth = max(lags) + 1
-    hx, hv = np.ones(depth), np.zeros(depth)
-    x, v, late = 1.0, 0.0, 0.0
-    steps = int(duration / dt)
-    for k in range(steps):
-        xa, xb = hx[(k - lags[0]) % depth], hx[(k - lags[1]) % depth]
-        va, vb = hv[(k - lags[2]) % depth], hv[(k - lags[3]) % depth]
-        xs = xa if lam * (xa - xb) * v > 0 else xb
-        vs = va if lam * (va - vb) * v > 0 else vb
-        v += dt * (-P * x - D * v + lam * (P * xs + D * vs))
-        x += dt * v
-        hx[(k + 1) % depth], hv[(k + 1) % depth] = x, v
-        if k > steps - int(20.0 / dt):
-            late = max(late, x * x + v * v)
-    return late > 1.0
+def grows(lam: float, A: float) -> bool:
+    return greedy_switching_grows(lam, P, D, T1, T2, A)
 
 
 def bisect(bad, hi: float, steps: int = 9) -> float | None:

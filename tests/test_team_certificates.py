@@ -18,6 +18,7 @@ from hypothesis import strategies as st
 
 pytest.importorskip("clarabel")
 
+from delayform.analysis.certificates.adversary import greedy_switching_grows  # noqa: E402
 from delayform.analysis.certificates.several import certify_interval_delays, interval_delay_margin  # noqa: E402
 from delayform.analysis.certificates.team import COVERS, mode_system, team_delay_margin  # noqa: E402
 from delayform.analysis.network import jitter_margin  # noqa: E402
@@ -32,27 +33,8 @@ GU_A0, GU_A1 = [[-2.0, 0.0], [0.0, -0.9]], [[-1.0, 0.0], [-1.0, -1.0]]
 GU_MARGIN = math.acos(-0.9) / math.sqrt(0.19)
 
 
-def _grows(lam: float, delta: float, t1: float = 2.0, t2: float = 1.0, P: float = 1.0, D: float = 0.5,
-           dt: float = 0.005, duration: float = 240.0) -> bool:  # fmt: skip
-    """Greedy bang-bang switching on one real mode: each step h1, h2 in {tau - delta, tau + delta}, whichever
-    pumps energy into v (max of v * lam (P x(t - h1) + D v(t - h2))); own semi-implicit Euler integrator."""
-    lags = [max(int(round(max(t - s * delta, dt) / dt)), 1) for t in (t1, t2) for s in (1, -1)]
-    depth = max(lags) + 1
-    hx, hv = np.ones(depth), np.zeros(depth)  # history: x = 1, v = 0 before t = 0
-    x, v = 1.0, 0.0
-    steps = int(duration / dt)
-    late = 0.0
-    for k in range(steps):
-        xa, xb = hx[(k - lags[0]) % depth], hx[(k - lags[1]) % depth]
-        va, vb = hv[(k - lags[2]) % depth], hv[(k - lags[3]) % depth]
-        xs = xa if lam * (xa - xb) * v > 0 else xb
-        vs = va if lam * (va - vb) * v > 0 else vb
-        v += dt * (-P * x - D * v + lam * (P * xs + D * vs))
-        x += dt * v
-        hx[(k + 1) % depth], hv[(k + 1) % depth] = x, v
-        if k > steps - int(20.0 / dt):
-            late = max(late, x * x + v * v)
-    return late > 1.0
+def _grows(lam: float, delta: float) -> bool:
+    return greedy_switching_grows(lam, 1.0, 0.5, 2.0, 1.0, delta)
 
 
 @pytest.fixture(scope="module")
@@ -60,6 +42,7 @@ def team_b():
     return team_delay_margin(paper_six(), 1.0, 0.5, 2.0, 1.0)
 
 
+@pytest.mark.slow  # one team margin at b: half a minute to a minute under load
 def test_team_margin_at_b_is_below_the_constant_offset_bound_and_the_adversary(team_b):
     m = team_b
     assert m.covers == COVERS and not m.reason
@@ -80,6 +63,7 @@ def test_team_margin_at_b_is_below_the_constant_offset_bound_and_the_adversary(t
     assert m.limiting == hard.lam
 
 
+@pytest.mark.slow
 def test_jitter_margin_names_what_each_margin_covers(team_b):
     small = jitter_margin(paper_six(), 1.0, 0.5, 2.0, 1.0)
     assert small.covers == PER_LINK and small.per_link_delta == small.delta and math.isnan(small.together_delta)
