@@ -120,3 +120,30 @@ def test_improved_reciprocally_convex_inequality(seed, alpha):
     M = np.block([[R + (1 - alpha) * Z1, alpha * Y1 + (1 - alpha) * Y2], [(alpha * Y1 + (1 - alpha) * Y2).T, R + alpha * Z2]])
     z = np.concatenate([x, y])
     assert lhs >= z @ M @ z - 1e-9 * (1 + abs(lhs))
+
+
+def test_cli_per_mode_refuses_per_link_delays(tmp_path):
+    from test_cli import assert_one_line_error, run
+
+    np.savetxt(tmp_path / "t1.csv", np.full((6, 6), 0.3), delimiter=",")
+    proc = run("jitter", "--tau1-file", str(tmp_path / "t1.csv"), "--tau2", "0.2", "--method", "per-mode", cwd=tmp_path)
+    assert_one_line_error(proc, "--method per-mode", "small-gain margin only")
+
+
+@pytest.mark.slow  # one team margin at b in a subprocess
+def test_cli_best_prints_both_margins_with_what_they_cover(tmp_path):
+    from test_cli import run
+
+    proc = run("jitter", "--tau1", "2", "--tau2", "1", "--method", "best", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    lines = proc.stdout.splitlines()
+    assert "Lyapunov-Krasovskii per mode" in lines[0]
+    assert lines[1].startswith("covers the same time-varying delays h1(t), h2(t) on every link")
+    assert lines[2].startswith("per link, each delay varying on its own: 0.035")  # the small-gain margin
+    assert "does not cover independent per-link variations" in lines[2]
+
+
+@pytest.mark.parametrize("kwargs", [dict(max_order=4), dict(max_order=True), dict(rtol=0.5)])
+def test_team_margin_bad_options_are_named(kwargs):
+    with pytest.raises(InputError):
+        team_delay_margin(paper_six(), 1.0, 0.5, 2.0, 1.0, **kwargs)

@@ -4,17 +4,21 @@ The system is
 
     x'(t) = A0 x(t) + sum_k A_k x(t - h_k(t)),   h_k(t) in [a_k, b_k],
 
-each h_k(t) varying arbitrarily fast (or with |h_k'| <= mu). Per delay the
-functional carries the interval-delay terms of
-:func:`~delayform.analysis.certificates.krasovskii.time_varying` (the
-integral of R2 over [t - b_k, t - a_k] split at t - h_k(t), each part bounded
-by the Bessel-Legendre inequality of order N and the two combined by
-reciprocal convexity), and the state of the quadratic term is augmented by
-the Legendre moments of x over the *constant* windows [t - a_k, t]: their
-derivatives do not involve h_k', so the augmentation is allowed for any
-variation, and it is what makes a long constant part [0, a_k] cheap to cover
-(without it a Wirtinger bound is no better than Jensen's). Derivation in
-docs/theory.md, "Several delays varying in intervals".
+each h_k(t) varying arbitrarily fast (or with |h_k'| <= mu). The positive
+lower ends a_k cut [t - max a_k, t] into *constant* windows shared by all
+delays; each carries a single and a double integral (bounded by the
+Bessel-Legendre inequality of order N) and its N Legendre moments augment the
+state of the quadratic term: their derivatives do not involve any h_k', so the
+augmentation is allowed for any variation (without it a Wirtinger bound is no
+better than Jensen's). Per delay, the outer window [t - b_k, t - a_k] carries
+the interval-delay terms of
+:func:`~delayform.analysis.certificates.krasovskii.time_varying` (its double
+integral split at t - h_k(t), each part bounded, the two recombined by
+reciprocal convexity); with ``outer`` its whole integral joins the state too
+(derivative free of h_k', value affine in h_k(t)) and the recombination is the
+improved reciprocally convex inequality, both affine in h_k(t), so the
+derivative bound is checked at the 2^K corners of the delays. Derivation in
+docs/theory.md, "Several delays varying in intervals, and the team's delays varying together".
 
 Constant solutions (the centroid's zero)
 ----------------------------------------

@@ -22,7 +22,16 @@ from numpy.typing import ArrayLike, NDArray
 
 from delayform.analysis.certificates.intervals import IntervalDelays, interval_delays
 from delayform.analysis.certificates.lmi import recheck, solve, solver_says_infeasible
-from delayform.analysis.certificates.margin import MAX_STATES, _INEQUALITY, DelayCertificate, _Attempt, _delay, _matrix, _order, _rate
+from delayform.analysis.certificates.margin import (
+    _INEQUALITY,
+    MAX_STATES,
+    DelayCertificate,
+    _Attempt,
+    _delay,
+    _matrix,
+    _order,
+    _rate,
+)
 from delayform.errors import DelayError, InputError
 
 __all__ = ["IntervalMargin", "certify_interval_delays", "interval_delay_margin", "MAX_DELAYS", "Functional"]
@@ -64,7 +73,8 @@ def system_of(A0: ArrayLike, delayed: Sequence[ArrayLike]) -> tuple[NDArray[np.f
     return a0, out
 
 
-def invariant_of(a0: NDArray[np.float64], delayed: tuple[NDArray[np.float64], ...], e: ArrayLike | None) -> NDArray[np.float64] | None:
+def invariant_of(a0: NDArray[np.float64], delayed: tuple[NDArray[np.float64], ...],
+                 e: ArrayLike | None) -> NDArray[np.float64] | None:  # fmt: skip
     """The direction of constant solutions, checked exactly: (A0 + sum A_k) e = 0 in rational arithmetic."""
     if e is None:
         return None

@@ -109,7 +109,10 @@ class TeamDelayMargin:
     reason: str = ""
 
 
-def mode_system(f: CharacteristicFactor) -> tuple[NDArray[np.float64], tuple[NDArray[np.float64], ...], NDArray[np.float64] | None]:
+Mode = tuple[NDArray[np.float64], tuple[NDArray[np.float64], ...], NDArray[np.float64] | None]
+
+
+def mode_system(f: CharacteristicFactor) -> Mode:
     """(A0, (A1, A2), invariant) of a factor's subsystem; lam = 1 exactly for the centroid (its zero is exact)."""
     if f.is_centroid:
         P, D = f.P, f.D
@@ -122,7 +125,9 @@ def mode_system(f: CharacteristicFactor) -> tuple[NDArray[np.float64], tuple[NDA
 class _Modes:
     """The team's distinct modes, hardest first, with the cheapest functional that held or failed per deviation."""
 
-    def __init__(self, fs: tuple[CharacteristicFactor, ...], t1: float, t2: float, right: list[complex]) -> None:
+    def __init__(self, fs: tuple[CharacteristicFactor, ...], t1: float, t2: float, right: list[complex],
+                 levels: tuple[Functional, ...]) -> None:  # fmt: skip
+        self.levels = levels
         order = sorted(range(len(fs)), key=lambda i: -right[i].real)
         self.fs = [fs[i] for i in order]
         self.systems = [mode_system(f) for f in self.fs]
@@ -138,7 +143,7 @@ class _Modes:
             return held[1], held[2]
         A0, ak, e = self.systems[i]
         data = IntervalDelays(A0, ak, tuple(max(t - delta, 0.0) for t in self.t), tuple(t + delta for t in self.t), None, e)
-        for level, fun in enumerate(LEVELS):
+        for level, fun in enumerate(self.levels):
             if delta >= self.failed[i].get(level, math.inf):  # it failed at a smaller deviation already
                 continue
             att = attempt(data, fun, exact=False)
@@ -163,7 +168,7 @@ class _Modes:
 
 @validated()
 def team_delay_margin(topology: Topology, P: float, D: float, tau1: float, tau2: float, *,
-                      rtol: float = 0.02) -> TeamDelayMargin:  # fmt: skip
+                      rtol: float = 0.02, max_order: int = 3) -> TeamDelayMargin:  # fmt: skip
     """The certified margin of the team for delays varying together on every link (module docstring).
 
     Parameters
@@ -174,6 +179,9 @@ def team_delay_margin(topology: Topology, P: float, D: float, tau1: float, tau2:
         The nominal delays, the same on every link.
     rtol
         Relative width at which the search on delta stops (0.005 to 0.1).
+    max_order
+        The highest Bessel-Legendre order of :data:`LEVELS` tried (1 to 3): lower is
+        faster and more conservative.
 
     Returns
     -------
@@ -183,8 +191,8 @@ def team_delay_margin(topology: Topology, P: float, D: float, tau1: float, tau2:
     Examples
     --------
     >>> from delayform.topology import paper_six
-    >>> m = team_delay_margin(paper_six(), 1.0, 0.5, 0.3, 0.2, rtol=0.1)
-    >>> m.delta > 0.1, m.covers.startswith("the same")
+    >>> m = team_delay_margin(paper_six(), 1.0, 0.5, 2.0, 1.0, rtol=0.1, max_order=1)  # point b, Wirtinger only
+    >>> 0.035 < m.delta < 0.2622, m.covers.startswith("the same")  # above small gain, below constant offsets
     (True, True)
     """
     from delayform.analysis.roots.single import rightmost_root  # roots import the network layer: not at the top
@@ -192,6 +200,9 @@ def team_delay_margin(topology: Topology, P: float, D: float, tau1: float, tau2:
     t1, t2 = check_delay("tau1", tau1), check_delay("tau2", tau2)
     if not (isinstance(rtol, (int, float)) and 0.005 <= rtol <= 0.1):
         raise InputError(f"rtol must be a number from 0.005 to 0.1, got {rtol!r}")
+    if isinstance(max_order, bool) or max_order not in (1, 2, 3):
+        raise InputError(f"max_order must be 1, 2 or 3, got {max_order!r}")
+    levels = tuple(f for f in LEVELS if f.order <= max_order)
     fs = factors(topology, P, D)
     if t1 == 0.0:
         return TeamDelayMargin(0.0, None, (), reason=(
@@ -201,14 +212,14 @@ def team_delay_margin(topology: Topology, P: float, D: float, tau1: float, tau2:
     if not worst.real < 0.0:
         return TeamDelayMargin(0.0, None, (), reason=(
             f"the nominal delays are unstable (rightmost root {worst.real:.4g} {worst.imag:+.4g}j)"))
-    modes = _Modes(fs, t1, t2, right)
+    modes = _Modes(fs, t1, t2, right, levels)
     start = 0.05 * max(t1, t2, 0.2)
     # beyond tau1 the position delay may be 0, where the centroid's zero is double: nothing to certify
     delta, found, tried, gap = search_delta(modes.all_hold, start, t1 * (1.0 - 1e-9), rtol)
     while found is not None:
         certs = [att.confirmed() for att, _ in found]
         if all(c.holds for c in certs):
-            out = tuple(ModeMargin(f.lam, f.is_centroid, LEVELS[lv].describe(), c)
+            out = tuple(ModeMargin(f.lam, f.is_centroid, levels[lv].describe(), c)
                         for f, (_, lv), c in zip(modes.fs, found, certs, strict=True))  # fmt: skip
             return TeamDelayMargin(delta, modes.fs[modes.limiting].lam, out, tried=tuple(tried), tolerance=gap)
         tried.append((delta, "failed the exact re-check"))

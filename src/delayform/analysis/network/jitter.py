@@ -33,6 +33,16 @@ seconds and delays in [tau - b, tau + b] that age lies in [tau - b, tau + b + h]
 ask for the margin about tau + h/2 and compare it with b + h/2
 (:mod:`delayform.report.guarantees` does).
 
+Delays varying together
+-----------------------
+When the same h1(t), h2(t) hold on every link the team still factorizes, and
+``jitter_margin(..., method="per-mode")`` certifies each mode by a
+Lyapunov-Krasovskii functional
+(:func:`~delayform.analysis.certificates.team.team_delay_margin`): a larger
+margin, but only for that class of variations (``JitterMargin.covers`` says
+which class a margin is about; ``method="best"`` keeps the per-link one in
+``per_link_delta``).
+
 Small gain with constant scalings
 ---------------------------------
 Each deviation operator acts on its own scalar channel, so a constant positive
