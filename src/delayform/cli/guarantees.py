@@ -156,14 +156,21 @@ def _require_inside(sc: Any, tau1_box: tuple[float, float], tau2_box: tuple[floa
 @cli.command("jitter")
 @team_options
 @_delay_options
-def jitter_command(scenario: Path | None, as_json: bool, tau1_file: Path | None, tau2_file: Path | None,
+@click.option("--method", type=click.Choice(["small-gain", "per-mode", "best"]), default="small-gain", show_default=True,
+              help="small-gain: every link's delays varying on their own; per-mode: the same delays on every link "
+                   "varying together (Lyapunov-Krasovskii per mode, slower); best: the larger of the two.")  # fmt: skip
+def jitter_command(scenario: Path | None, as_json: bool, tau1_file: Path | None, tau2_file: Path | None, method: str,
                    **overrides: Any) -> None:  # fmt: skip
-    """The certified jitter margin: every delay may vary in [tau - delta, tau + delta], per link, arbitrarily fast."""
+    """The certified jitter margin: every delay may vary in [tau - delta, tau + delta], arbitrarily fast."""
+    from delayform.analysis.certificates.team import COVERS
     from delayform.analysis.network import jitter_margin
-    from delayform.errors import DelayError
+    from delayform.errors import DelayError, InputError
 
     sc, t1, t2 = _delays({"scenario": scenario, **overrides}, tau1_file, tau2_file)
-    m = jitter_margin(sc.topology, sc.P, sc.D, t1, t2)
+    if method != "small-gain" and (np.ndim(t1) or np.ndim(t2)):
+        raise InputError(f"--method {method} needs one delay pair on every link (--tau1, --tau2): per-link delays "
+                         "have the small-gain margin only")  # fmt: skip
+    m = jitter_margin(sc.topology, sc.P, sc.D, t1, t2, method=method)
     if not m.nominal_stable:
         raise DelayError(f"the nominal delays are unstable (dominant root {m.nominal_root.real:.4g} "
                          f"{m.nominal_root.imag:+.4g}j): there is no jitter margin to certify")  # fmt: skip
@@ -171,11 +178,19 @@ def jitter_command(scenario: Path | None, as_json: bool, tau1_file: Path | None,
     if as_json:
         click.echo(json.dumps({"delta_s": m.delta, "gain": None if m.reason else m.gain,
                                "peak_frequency": m.peak_frequency, "scaled": m.scaled, "method": m.method,
+                               "covers": m.covers, "per_link_delta_s": m.per_link_delta,
+                               "together_delta_s": None if m.together_delta != m.together_delta else m.together_delta,
                                "reason": m.reason, "not_covered": extra}, indent=2))  # fmt: skip
         return
     if m.reason:
         click.echo(f"jitter margin delta = 0 s: {m.reason}")
         return
-    click.echo(f"jitter margin delta = {m.delta:.4g} s ({m.method}; loop gain <= {m.gain:.4g})")
+    small = m.per_link_delta == m.delta and m.covers != COVERS
+    gain = f"; loop gain <= {m.gain:.4g}" if small else ""
+    click.echo(f"jitter margin delta = {m.delta:.4g} s ({m.method}{gain})")
+    click.echo(f"covers {m.covers}")
+    if not small:  # the per-mode margin proves more, but only for delays varying together
+        click.echo(f"per link, each delay varying on its own: {m.per_link_delta:.4g} s (small gain, loop gain "
+                   f"<= {m.gain:.4g}); the per-mode margin does not cover independent per-link variations")  # fmt: skip
     if extra is not None:
         click.echo(f"the margin is around the constant per-link delays; the scenario's network has {extra}")

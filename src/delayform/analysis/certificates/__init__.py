@@ -10,6 +10,12 @@
 ``margin``
     The public questions: :func:`certify_time_varying` at one interval and
     :func:`time_varying_delay_margin`, the largest certified interval.
+``intervals``, ``several``
+    Several delayed terms, each delay varying in its own interval:
+    :func:`certify_interval_delays` and :func:`interval_delay_margin`.
+``team``
+    The team's margin for delays varying together on every link, one
+    certificate per mode of eq. factorized: :func:`team_delay_margin`.
 """
 
 from delayform.analysis.certificates.margin import (
@@ -20,4 +26,8 @@ from delayform.analysis.certificates.margin import (
     time_varying_delay_margin,
 )
 
-__all__ = ["MAX_ORDER", "DelayCertificate", "TimeVaryingMargin", "certify_time_varying", "time_varying_delay_margin"]
+from delayform.analysis.certificates.several import IntervalMargin, certify_interval_delays, interval_delay_margin
+from delayform.analysis.certificates.team import TeamDelayMargin, team_delay_margin
+
+__all__ = ["MAX_ORDER", "DelayCertificate", "TimeVaryingMargin", "certify_time_varying", "time_varying_delay_margin",
+           "IntervalMargin", "certify_interval_delays", "interval_delay_margin", "TeamDelayMargin", "team_delay_margin"]

@@ -108,7 +108,17 @@ def _t(M: Matrix) -> Matrix:
 
 
 def _quad(E: Matrix, W: Matrix) -> Matrix:
-    return E.T @ W @ E
+    return _cross(E, W, E)
+
+
+def _cross(G: Matrix, W: Matrix, H: Matrix) -> Matrix:
+    """G' W H; in exact arithmetic only over the non-zero columns (selections: most of zeta is not involved)."""
+    if G.dtype != object:
+        return G.T @ W @ H
+    gi, hi = np.flatnonzero(np.any(G != 0, axis=0)), np.flatnonzero(np.any(H != 0, axis=0))
+    out = np.zeros((G.shape[1], H.shape[1]), dtype=object)
+    out[np.ix_(gi, hi)] = G[:, gi].T @ W @ H[:, hi]
+    return out
 
 
 def _bessel(sig: _Signals, top: str, bottom: str, moments: Sequence[str], R: Matrix, order: int) -> Matrix:

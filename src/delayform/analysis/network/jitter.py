@@ -1,4 +1,4 @@
-"""A jitter margin: time-varying per-link delays, arbitrarily fast, certified by small gain (issue 20, part 3).
+"""A jitter margin: time-varying per-link delays, arbitrarily fast, certified by small gain.
 
 Question: the largest delta such that the team is stable for *any* time-varying
 delays ``tau1_ik(t) in [tau1_ik - delta, tau1_ik + delta]`` and
@@ -33,6 +33,16 @@ seconds and delays in [tau - b, tau + b] that age lies in [tau - b, tau + b + h]
 ask for the margin about tau + h/2 and compare it with b + h/2
 (:mod:`delayform.report.guarantees` does).
 
+Delays varying together
+-----------------------
+When the same h1(t), h2(t) hold on every link the team still factorizes, and
+``jitter_margin(..., method="per-mode")`` certifies each mode by a
+Lyapunov-Krasovskii functional
+(:func:`~delayform.analysis.certificates.team.team_delay_margin`): a larger
+margin, but only for that class of variations (``JitterMargin.covers`` says
+which class a margin is about; ``method="best"`` keeps the per-link one in
+``per_link_delta``).
+
 Small gain with constant scalings
 ---------------------------------
 Each deviation operator acts on its own scalar channel, so a constant positive
@@ -49,7 +59,7 @@ a cut-off frequency.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -59,13 +69,21 @@ from delayform.analysis.network.box import DelayBox
 from delayform.analysis.network.links import LinkTeam, link_team
 from delayform.analysis.network.per_link import dominant_of_team
 from delayform._validation import FloatOrNaN, validated
-from delayform.errors import DelayError, NotConvergedError
+from delayform.errors import DelayError, InputError, NotConvergedError
 from delayform.topology import Topology
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from matplotlib.axes import Axes
 
-__all__ = ["JitterMargin", "JitterMarginMap", "jitter_margin", "jitter_margin_map", "jitter_map_estimate"]
+__all__ = ["JitterMargin", "JitterMarginMap", "jitter_margin", "jitter_margin_map", "jitter_map_estimate", "METHODS",
+           "PER_LINK", "SMALL_GAIN"]
+
+#: The small-gain certificate, in words.
+SMALL_GAIN = "small gain, Kao-Lincoln delay-difference bound, constant diagonal scaling"
+#: What the small-gain margin covers.
+PER_LINK = "every link's and stream's delay varying on its own (per link, independently), arbitrarily fast"
+#: The methods :func:`jitter_margin` offers.
+METHODS = ("small-gain", "per-mode", "best")
 
 #: The certified norm is accepted when within this factor of the sampled peak.
 _TIGHT = 1.01
@@ -93,10 +111,22 @@ class JitterMargin:
     nominal_root
         The dominant root at the nominal delays.
     method
-        The certificate used.
+        The certificate that proves ``delta``.
     reason
         Why ``delta`` is 0 without a gain computed (an unstable nominal point,
         or the centroid's double zero at tau1 = 0); empty otherwise.
+    covers
+        Which variations ``delta`` is about: :data:`PER_LINK` (every link and
+        stream on its own) for the small-gain margin, or
+        :data:`~delayform.analysis.certificates.team.COVERS` (the same h1(t), h2(t)
+        on every link) for the per-mode Lyapunov-Krasovskii margin.
+    per_link_delta
+        The small-gain margin, which covers independent per-link variations
+        (equal to ``delta`` when that is the small-gain one).
+    together_delta
+        The per-mode Lyapunov-Krasovskii margin for delays varying together on
+        every link; NaN when not computed (``method="small-gain"``, or per-link
+        nominal delays, which do not factorize).
     """
 
     delta: float
@@ -104,8 +134,11 @@ class JitterMargin:
     peak_frequency: FloatOrNaN
     scaled: bool
     nominal_root: complex
-    method: str = "small gain, Kao-Lincoln delay-difference bound, constant diagonal scaling"
+    method: str = SMALL_GAIN
     reason: str = ""
+    covers: str = PER_LINK
+    per_link_delta: FloatOrNaN = float("nan")
+    together_delta: FloatOrNaN = float("nan")
 
     @property
     def nominal_stable(self) -> bool:
@@ -314,17 +347,19 @@ def margin_of_team(team: LinkTeam, nominal_root: complex | None = None) -> Jitte
     else:
         root, drift = complex(nominal_root), False
     if not root.real < 0.0:
-        return JitterMargin(0.0, math.inf, float("nan"), False, root, reason="the nominal delays are unstable")
+        return JitterMargin(0.0, math.inf, float("nan"), False, root, reason="the nominal delays are unstable",
+                            per_link_delta=0.0)  # fmt: skip
     if drift:
         # every position delay the centroid weighs is 0: s = 0 is a double root (the drift of eq. factor1),
         # the loop's gain is unbounded as w -> 0 and no jitter is certified (rounding would print ~1e-17 s)
         return JitterMargin(0.0, math.inf, 0.0, False, root, reason=(
             "tau1 = 0 on every link the centroid weighs: the centroid's zero is double (the team drifts), "
-            "the loop's gain is unbounded at w = 0 and no jitter of the delays is certified"))  # fmt: skip
+            "the loop's gain is unbounded at w = 0 and no jitter of the delays is certified"), per_link_delta=0.0)  # fmt: skip
     bound, wpk, scaled = _scaled_bound(team)
     if not math.isfinite(bound):
         raise NotConvergedError("the H-infinity bound of the jitter loop did not converge", partial=bound)
-    return JitterMargin(_delta_of_gain(bound, _longest(team)), bound, wpk, scaled, root)
+    delta = _delta_of_gain(bound, _longest(team))
+    return JitterMargin(delta, bound, wpk, scaled, root, per_link_delta=delta)
 
 
 def _longest(team: LinkTeam) -> float:
@@ -355,7 +390,8 @@ def _scaled_bound(team: LinkTeam) -> tuple[float, float, bool]:
 
 
 @validated()
-def jitter_margin(topology: Topology, P: float, D: float, tau1: ArrayLike, tau2: ArrayLike) -> JitterMargin:
+def jitter_margin(topology: Topology, P: float, D: float, tau1: ArrayLike, tau2: ArrayLike, *,
+                  method: str = "small-gain") -> JitterMargin:  # fmt: skip
     """The certified jitter margin at nominal delays (scalars or per-link N x N arrays).
 
     Parameters
@@ -363,13 +399,26 @@ def jitter_margin(topology: Topology, P: float, D: float, tau1: ArrayLike, tau2:
     topology, P, D, tau1, tau2
         The team, its gains and its nominal delays, as for
         :func:`~delayform.analysis.network.links.link_team`.
+    method
+        "small-gain" (default): the margin for every link's delays varying on
+        their own (module docstring). "per-mode": the Lyapunov-Krasovskii
+        margin per mode of eq. factorized
+        (:func:`~delayform.analysis.certificates.team.team_delay_margin`), which
+        covers only the same h1(t), h2(t) on every link (scalar nominal delays
+        only). "best": both, ``delta`` the larger and ``method`` / ``covers``
+        naming the one that proves it; ``per_link_delta`` keeps the per-link one.
 
     Returns
     -------
     JitterMargin
         ``delta`` such that every time-varying delay within ``[tau - delta, tau + delta]``
-        (clipped at 0), per link and arbitrarily fast, keeps the team stable
-        (module docstring); 0 where the nominal point is unstable.
+        (clipped at 0), in the class of variations ``covers`` names, keeps the team
+        stable; 0 where the nominal point is unstable.
+
+    Raises
+    ------
+    InputError
+        For an unknown method, or "per-mode" / "best" with per-link delays.
 
     Examples
     --------
@@ -378,16 +427,31 @@ def jitter_margin(topology: Topology, P: float, D: float, tau1: ArrayLike, tau2:
     >>> 0.0 < m.delta < 0.3
     True
     """
+    if method not in METHODS:
+        raise InputError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
+    scalar = np.ndim(tau1) == 0 and np.ndim(tau2) == 0
+    if method != "small-gain" and not scalar:
+        raise InputError(f"method {method!r} needs one delay pair for every link (the team factorizes only then); "
+                         "per-link delays have the small-gain margin only")  # fmt: skip
     team = link_team(topology, P, D, tau1, tau2)
     nominal = None
-    if np.ndim(tau1) == 0 and np.ndim(tau2) == 0 and float(tau1) > 0.0:  # type: ignore[arg-type]
+    if scalar and float(tau1) > 0.0:  # type: ignore[arg-type]
         # one delay pair for every link: the nominal team factorizes (eq. factorized), and its
         # dominant root comes from the factors at once (long delays and large gains included)
         # instead of the per-link matrix discretization; tau1 = 0 (the drift) stays per link
         from delayform.analysis.roots.dominant import dominant_root  # roots imports network: not at the top
 
         nominal = complex(dominant_root(topology, P, D, float(tau1), float(tau2)).root)  # type: ignore[arg-type]
-    return margin_of_team(team, nominal)
+    small = margin_of_team(team, nominal)
+    if method == "small-gain" or not small.nominal_stable or small.reason:
+        return small
+    from delayform.analysis.certificates.team import COVERS, team_delay_margin
+
+    lk = team_delay_margin(topology, team.P, team.D, float(tau1), float(tau2))  # type: ignore[arg-type]
+    if method == "per-mode" or lk.delta > small.delta:
+        return replace(small, delta=lk.delta, method=lk.method, covers=COVERS, together_delta=lk.delta,
+                       reason=lk.reason)  # fmt: skip
+    return replace(small, together_delta=lk.delta)
 
 
 #: seconds of one certified margin on the paper's six agents (12 links; a 13 x 13 map, benchmarks/bench_jitter_map.py)

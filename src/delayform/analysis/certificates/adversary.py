@@ -1,0 +1,48 @@
+"""The other side of a certificate: a switching adversary that tries to destabilize one mode.
+
+:func:`greedy_switching_grows` simulates one real mode of eq. factorized with the
+delays switching, every step, between tau - delta and tau + delta (the same on
+every link), picking whichever pumps energy into the mode: the delayed value
+that maximizes v * lam (P x(t - h1) + D v(t - h2)) (bang-bang, greedy). Its own
+semi-implicit Euler integrator, independent of the LMIs; a growth it finds
+inside a certified interval would be a bug of the certificate.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["greedy_switching_grows"]
+
+
+def greedy_switching_grows(lam: float, P: float, D: float, tau1: float, tau2: float, delta: float, *,
+                           dt: float = 0.005, duration: float = 240.0) -> bool:  # fmt: skip
+    """True when the mode's energy x^2 + v^2 over the last 20 s exceeds its initial value (x = 1, v = 0).
+
+    Parameters
+    ----------
+    lam
+        The (real) eigenvalue of C; not the centroid's 1, whose mode settles at any constant.
+    P, D, tau1, tau2
+        Gains and nominal delays.
+    delta
+        The switching amplitude: each delay takes tau - delta (at least dt) or tau + delta.
+    dt, duration
+        Step and length of the run (s).
+    """
+    lags = [max(int(round(max(t - s * delta, dt) / dt)), 1) for t in (tau1, tau2) for s in (1, -1)]
+    depth = max(lags) + 1
+    hx, hv = np.ones(depth), np.zeros(depth)  # the history: x = 1, v = 0 before t = 0
+    x, v, late = 1.0, 0.0, 0.0
+    steps = int(duration / dt)
+    for k in range(steps):
+        xa, xb = hx[(k - lags[0]) % depth], hx[(k - lags[1]) % depth]
+        va, vb = hv[(k - lags[2]) % depth], hv[(k - lags[3]) % depth]
+        xs = xa if lam * (xa - xb) * v > 0 else xb
+        vs = va if lam * (va - vb) * v > 0 else vb
+        v += dt * (-P * x - D * v + lam * (P * xs + D * vs))
+        x += dt * v
+        hx[(k + 1) % depth], hv[(k + 1) % depth] = x, v
+        if k > steps - int(20.0 / dt):
+            late = max(late, x * x + v * v)
+    return late > 1.0

@@ -1,0 +1,149 @@
+"""Certificates for several interval delays and the team's margin for delays varying together.
+
+Every number is checked against something the certificates do not compute:
+the exact spectrum of the constant-delay factors (rightmost roots), an
+adversarial switching simulation with its own integrator, the published
+constant-delay margin of the Gu-Kharitonov-Chen benchmark, and the algebra of
+the improved reciprocally convex inequality.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+pytest.importorskip("clarabel")
+
+from delayform.analysis.certificates.adversary import greedy_switching_grows  # noqa: E402
+from delayform.analysis.certificates.several import certify_interval_delays, interval_delay_margin  # noqa: E402
+from delayform.analysis.certificates.team import COVERS, mode_system, team_delay_margin  # noqa: E402
+from delayform.analysis.network import jitter_margin  # noqa: E402
+from delayform.analysis.network.jitter import PER_LINK  # noqa: E402
+from delayform.analysis.roots.single import rightmost_root  # noqa: E402
+from delayform.characteristic import factors  # noqa: E402
+from delayform.errors import InputError  # noqa: E402
+from delayform.topology import paper_six  # noqa: E402
+
+GU_A0, GU_A1 = [[-2.0, 0.0], [0.0, -0.9]], [[-1.0, 0.0], [-1.0, -1.0]]
+#: exact constant-delay margin of the benchmark, arccos(-0.9) / sqrt(0.19) (Gu, Kharitonov and Chen 2003)
+GU_MARGIN = math.acos(-0.9) / math.sqrt(0.19)
+
+
+def _grows(lam: float, delta: float) -> bool:
+    return greedy_switching_grows(lam, 1.0, 0.5, 2.0, 1.0, delta)
+
+
+@pytest.fixture(scope="module")
+def team_b():
+    return team_delay_margin(paper_six(), 1.0, 0.5, 2.0, 1.0)
+
+
+@pytest.mark.slow  # one team margin at b: half a minute to a minute under load
+def test_team_margin_at_b_is_below_the_constant_offset_bound_and_the_adversary(team_b):
+    m = team_b
+    assert m.covers == COVERS and not m.reason
+    assert m.delta > 0.09  # the small-gain margin here is 0.035 s
+    assert all(md.certificate is not None and md.certificate.holds and md.certificate.exact for md in m.modes)
+    fs = factors(paper_six(), 1.0, 0.5)
+    # exact spectrum: every constant pair in the certified square is stable (corners and edge midpoints) ...
+    d = m.delta
+    square = [(2 + a * d, 1 + b * d) for a in (-1, 0, 1) for b in (-1, 0, 1)]
+    assert all(rightmost_root(f, t1, t2).real < 0 for f in fs for t1, t2 in square)
+    # ... and a constant offset just beyond 0.2622 (the hardest mode, lam = -0.637) is unstable: delta is far below it
+    hard = next(f for f in fs if abs(f.lam - (-0.6368889)) < 1e-6)
+    assert max(rightmost_root(hard, 2 + u, 1 + v).real for u in (-0.27, 0.27) for v in (-0.27, 0.27)) > 0
+    assert d < 0.2622
+    # the greedy switching adversary destabilizes the hardest mode, but only beyond the certified delta
+    assert _grows(hard.lam.real, 0.2)
+    assert not _grows(hard.lam.real, d)
+    assert m.limiting == hard.lam
+
+
+@pytest.mark.slow
+def test_jitter_margin_names_what_each_margin_covers(team_b):
+    small = jitter_margin(paper_six(), 1.0, 0.5, 2.0, 1.0)
+    assert small.covers == PER_LINK and small.per_link_delta == small.delta and math.isnan(small.together_delta)
+    assert small.delta < team_b.delta  # per link, small gain: 0.035 s
+    with pytest.raises(InputError, match="one delay pair"):
+        jitter_margin(paper_six(), 1.0, 0.5, np.full((6, 6), 2.0), np.full((6, 6), 1.0), method="best")
+    with pytest.raises(InputError, match="method must be one of"):
+        jitter_margin(paper_six(), 1.0, 0.5, 2.0, 1.0, method="lmi")
+
+
+def test_centroid_mode_is_certified_only_with_its_constant_solutions_projected_out():
+    f = factors(paper_six(), 1.0, 0.5)[0]
+    assert f.is_centroid
+    A0, ak, e = mode_system(f)
+    lo, hi = [1.9, 0.9], [2.1, 1.1]
+    assert certify_interval_delays(A0, ak, lo, hi, order=1, outer=False, invariant=e).holds
+    # without the projection no functional V >= eps |x|^2 exists (x = const is a solution): the solver says so
+    assert not certify_interval_delays(A0, ak, lo, hi, order=1, outer=False).holds
+    with pytest.raises(InputError, match="exactly"):
+        certify_interval_delays(A0, ak, lo, hi, invariant=[0.0, 1.0])
+
+
+def test_one_delay_stays_below_the_exact_constant_delay_margin():
+    # any variation in [0, h]: constant delays included, so no certified h may pass 6.17258
+    m = interval_delay_margin(GU_A0, [GU_A1], [3.0], order=1, outer=False, rtol=0.02, max_delta=3.5)
+    assert 0.0 < m.delta and 3.0 + m.delta < GU_MARGIN
+    assert m.certificate is not None and m.certificate.exact
+    assert not certify_interval_delays(GU_A0, [GU_A1], [0.0], [GU_MARGIN + 0.05], order=2).holds
+
+
+@pytest.mark.parametrize("bad", [dict(lo=[1.0], hi=[0.5]), dict(lo=[0.0, 0.0], hi=[1.0]), dict(lo=[-1.0], hi=[1.0])])
+def test_bad_intervals_are_named(bad):
+    with pytest.raises(InputError):
+        certify_interval_delays(GU_A0, [GU_A1], bad["lo"], bad["hi"])
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.floats(0.01, 0.99))
+def test_improved_reciprocally_convex_inequality(seed, alpha):
+    # (1/a) x'Rx + (1/(1-a)) y'Ry >= [x; y]' [[R + (1-a) Z1, a Y1 + (1-a) Y2], [*, R + a Z2]] [x; y]
+    # whenever [[R - Z1, Y1], [Y1', R]] >= 0 and [[R, Y2], [Y2', R - Z2]] >= 0
+    rng = np.random.default_rng(seed)
+    m = 3
+    B = rng.normal(size=(m, m))
+    R = B @ B.T + 0.1 * np.eye(m)
+    L = np.linalg.cholesky(R)
+    Y1 = 0.5 * L @ rng.normal(size=(m, m)) @ L.T / 3
+    Y2 = 0.5 * L @ rng.normal(size=(m, m)) @ L.T / 3
+    Ri = np.linalg.inv(R)
+    Z1 = R - Y1 @ Ri @ Y1.T - 0.01 * np.eye(m)  # the largest Z1 the first condition allows (Schur)
+    Z2 = R - Y2.T @ Ri @ Y2 - 0.01 * np.eye(m)
+    x, y = rng.normal(size=m), rng.normal(size=m)
+    lhs = x @ R @ x / alpha + y @ R @ y / (1 - alpha)
+    M = np.block([[R + (1 - alpha) * Z1, alpha * Y1 + (1 - alpha) * Y2], [(alpha * Y1 + (1 - alpha) * Y2).T, R + alpha * Z2]])
+    z = np.concatenate([x, y])
+    assert lhs >= z @ M @ z - 1e-9 * (1 + abs(lhs))
+
+
+def test_cli_per_mode_refuses_per_link_delays(tmp_path):
+    from test_cli import assert_one_line_error, run
+
+    np.savetxt(tmp_path / "t1.csv", np.full((6, 6), 0.3), delimiter=",")
+    proc = run("jitter", "--tau1-file", str(tmp_path / "t1.csv"), "--tau2", "0.2", "--method", "per-mode", cwd=tmp_path)
+    assert_one_line_error(proc, "--method per-mode", "small-gain margin only")
+
+
+@pytest.mark.slow  # one team margin at b in a subprocess
+def test_cli_best_prints_both_margins_with_what_they_cover(tmp_path):
+    from test_cli import run
+
+    proc = run("jitter", "--tau1", "2", "--tau2", "1", "--method", "best", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    lines = proc.stdout.splitlines()
+    assert "Lyapunov-Krasovskii per mode" in lines[0]
+    assert lines[1].startswith("covers the same time-varying delays h1(t), h2(t) on every link")
+    assert lines[2].startswith("per link, each delay varying on its own: 0.035")  # the small-gain margin
+    assert "does not cover independent per-link variations" in lines[2]
+
+
+@pytest.mark.parametrize("kwargs", [dict(max_order=4), dict(max_order=True), dict(rtol=0.5)])
+def test_team_margin_bad_options_are_named(kwargs):
+    with pytest.raises(InputError):
+        team_delay_margin(paper_six(), 1.0, 0.5, 2.0, 1.0, **kwargs)
