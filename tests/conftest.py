@@ -30,3 +30,14 @@ def _close_figures():
 
     if "matplotlib.pyplot" in sys.modules:
         sys.modules["matplotlib.pyplot"].close("all")
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """The slow tests first, so that across xdist workers none of them starts last and runs alone.
+
+    pytest-xdist deals the first quarter of the collection out one test at a time to its
+    workers: the long tests (the wheel, the documentation site, whole reports) start at once,
+    side by side, and the many short ones fill in around them. The order within each group,
+    and so every module's own order, is unchanged.
+    """
+    items.sort(key=lambda item: item.get_closest_marker("slow") is None)
