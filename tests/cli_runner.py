@@ -31,10 +31,15 @@ import delayform
 PACKAGE_ROOT = str(Path(delayform.__file__).resolve().parents[1])
 
 
+#: the BLAS thread counts the test run chose (tests/conftest.py: one per xdist worker), passed on
+THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+
+
 def cli_env(cwd: Path | None) -> dict[str, str]:
     """The environment of a CLI run: a headless backend, a bare PATH, HOME in the run's folder."""
     home = str(cwd) if cwd is not None else os.getcwd()
-    return {"MPLBACKEND": "Agg", "PATH": "/usr/bin:/bin", "HOME": home, "PYTHONPATH": PACKAGE_ROOT}
+    env = {"MPLBACKEND": "Agg", "PATH": "/usr/bin:/bin", "HOME": home, "PYTHONPATH": PACKAGE_ROOT}
+    return env | {k: os.environ[k] for k in THREAD_VARIABLES if k in os.environ}
 
 
 def run_subprocess(*args: str, cwd: Path | None = None, timeout: float = 600,
