@@ -19,10 +19,12 @@ from __future__ import annotations
 import contextlib
 import io
 import os
+import signal
 import subprocess
 import sys
+import threading
 import warnings
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import delayform
@@ -80,16 +82,39 @@ def _text(stream: io.TextIOWrapper) -> str:
     return buffer.getvalue().decode("utf-8").replace("\r\n", "\n").replace("\r", "\n")
 
 
-def run_in_process(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
+@contextlib.contextmanager
+def time_limit(seconds: int, error: Callable[[], BaseException]) -> Iterator[None]:
+    """Raise ``error()`` in the block once it has run ``seconds`` (SIGALRM; the main thread only)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def stop(signum: int, frame: object) -> None:
+        raise error()
+
+    previous = signal.signal(signal.SIGALRM, stop)
+    signal.alarm(seconds)
+    try:
+        yield
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, previous)
+
+
+def run_in_process(*args: str, cwd: Path | None = None, timeout: int = 600) -> subprocess.CompletedProcess[str]:
     """``delayform ARGS`` through :func:`delayform.cli.main` in this process.
 
     An exception the CLI does not handle propagates (a subprocess would print
-    its traceback and exit 1), so the failing test shows where it came from.
+    its traceback and exit 1), so the failing test shows where it came from;
+    so does :class:`subprocess.TimeoutExpired` after ``timeout`` seconds.
     """
     from delayform.cli import main
 
+    def hung() -> subprocess.TimeoutExpired:
+        return subprocess.TimeoutExpired(["delayform (in-process)", *args], timeout)
+
     code: int | str | None = 0
-    with _as_a_process(cwd) as (out, err):
+    with _as_a_process(cwd) as (out, err), time_limit(timeout, hung):
         try:
             main(list(args))
         except SystemExit as exc:
