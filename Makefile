@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 OUT ?= out/paper
 
-.PHONY: demo test install install-test browser bench clean docs wheel
+.PHONY: demo test test-fast install install-test browser bench clean docs wheel
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -39,10 +39,16 @@ browser:
 demo: install
 	$(BIN)/delayform paper --out $(OUT)
 
-# across the cores (pytest-xdist; `make test PYTEST_WORKERS=0` runs in one process)
+# across the cores (pytest-xdist; `make test PYTEST_WORKERS=0` runs in one process); tests/conftest.py
+# starts the slow tests first so that no long one runs alone at the end
 PYTEST_WORKERS ?= auto
 test: install-test browser
 	$(BIN)/python -m pytest -q -n $(PYTEST_WORKERS) src tests
+
+# the edit loop: everything but the tests marked slow (the wheel, the site, whole reports, long runs);
+# `make test` still runs them all
+test-fast: install-test
+	$(BIN)/python -m pytest -q -n $(PYTEST_WORKERS) -m "not slow" src tests
 
 # The documentation site (Sphinx + numpydoc + MyST-NB, docs/conf.py says why): warnings are errors,
 # the tutorials in docs/tutorials/ are executed; tests/test_site.py runs the same build.

@@ -1,4 +1,10 @@
-"""The ``delayform`` command line, run as users run it: in a subprocess.
+"""The ``delayform`` command line: its exit codes, its messages and its ``--json``.
+
+Most tests call the CLI in this process (``tests/cli_runner.py``: the same
+working directory, environment and pipes a subprocess sees, at a fraction of
+the cost); the tests of the entry point itself run ``python -m delayform`` in
+a subprocess, as users run it: no command, a malformed file, a bad option, an
+unknown command, a note on stderr, and ``paper``.
 
 * every malformed scenario file gives exit code 2 and one line naming the problem;
 * bad options do the same;
@@ -10,18 +16,16 @@ from __future__ import annotations
 
 import json
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-import delayform
-
+from cli_runner import PACKAGE_ROOT, run_in_process, run_subprocess
 from test_scenario import MALFORMED  # the same malformed files as the in-process tests
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGE_ROOT = str(Path(delayform.__file__).resolve().parents[1])
+__all__ = ["PACKAGE_ROOT", "ROOT", "assert_no_warning_text", "assert_one_line_error", "run", "run_entry_point"]
 COMMANDS = ("chart", "roots", "map", "schedule", "simulate", "report")
 
 
@@ -35,14 +39,19 @@ def assert_no_warning_text(stderr: str) -> None:
         assert text not in stderr, stderr
 
 
-def run(*args: str, cwd: Path | None = None, timeout: float = 600) -> subprocess.CompletedProcess[str]:
-    """``python -m delayform ARGS`` with captured text output; every run is checked for warning text."""
-    proc = subprocess.run(
-        [sys.executable, "-m", "delayform", *args],
-        capture_output=True, text=True, cwd=cwd, timeout=timeout,
-        # the subprocess imports the same delayform as this test run (a worktree, not another install)
-        env={"MPLBACKEND": "Agg", "PATH": "/usr/bin:/bin", "HOME": str(cwd or ROOT), "PYTHONPATH": PACKAGE_ROOT},
-    )  # fmt: skip
+def run(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
+    """``delayform ARGS`` in this process, output captured as a subprocess's; checked for warning text."""
+    proc = run_in_process(*args, cwd=cwd or ROOT)
+    assert_no_warning_text(proc.stderr)
+    return proc
+
+
+def run_entry_point(*args: str, cwd: Path | None = None, timeout: float = 600) -> subprocess.CompletedProcess[str]:
+    """``python -m delayform ARGS`` in a subprocess, as users run it; checked for warning text.
+
+    The subprocess imports the same delayform as this test run (a worktree, not another install).
+    """
+    proc = run_subprocess(*args, cwd=cwd or ROOT, timeout=timeout)
     assert_no_warning_text(proc.stderr)
     return proc
 
@@ -69,7 +78,8 @@ def test_malformed_scenario_exits_2_with_one_line(tmp_path: Path, index: int, te
     path = tmp_path / f"bad{index}.toml"
     path.write_text(text)
     command = COMMANDS[index % len(COMMANDS)]  # every subcommand meets some of them
-    proc = run(command, str(path), "--out", str(tmp_path / "out"), cwd=tmp_path)
+    runner = run_entry_point if index == 0 else run  # the first as users run it, in a subprocess
+    proc = runner(command, str(path), "--out", str(tmp_path / "out"), cwd=tmp_path)
     assert_one_line_error(proc, str(path), key)
     assert not (tmp_path / "out").exists()  # nothing computed, nothing written
 
@@ -98,7 +108,9 @@ def test_malformed_scenario_exits_2_with_one_line(tmp_path: Path, index: int, te
     ids=lambda v: " ".join(v) if isinstance(v, tuple) else None,
 )
 def test_bad_option_exits_2_with_one_line(tmp_path: Path, args: tuple[str, ...], needle: str) -> None:
-    assert_one_line_error(run(*args, cwd=tmp_path), needle)
+    # a bad value and an unknown command as users meet them, in a subprocess; the rest in-process
+    runner = run_entry_point if args in {("chart", "--tau1-max", "-1"), ("frobnicate",)} else run
+    assert_one_line_error(runner(*args, cwd=tmp_path), needle)
 
 
 def test_override_that_does_not_fit_the_scenario(tmp_path: Path) -> None:
@@ -121,7 +133,7 @@ def test_every_option_has_help() -> None:
 
 
 def test_no_command_shows_help() -> None:
-    proc = run()
+    proc = run_entry_point()
     assert proc.returncode == 0
     assert proc.stdout.startswith("Usage: delayform") and "paper" in proc.stdout
 
@@ -291,7 +303,8 @@ def test_simulate_huge_delays_run_and_huge_runs_are_refused(tmp_path: Path) -> N
 
 
 def test_simulate_notes_a_diverging_run_on_stderr(tmp_path: Path) -> None:
-    proc = run("simulate", "--tau1", "1", "--tau2", "2", "--duration", "600", "--dt", "0.05",
+    # in a subprocess: the note goes through Python's own warning display, as on a user's terminal
+    proc = run_entry_point("simulate", "--tau1", "1", "--tau2", "2", "--duration", "600", "--dt", "0.05",
                "--model", "double_integrator", "--out", str(tmp_path), cwd=tmp_path)  # fmt: skip
     assert proc.returncode == 0
     lines = proc.stderr.strip().splitlines()
@@ -321,7 +334,7 @@ def paper_output(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
     done = base / "stdout.json"
     if not done.exists():
         base.mkdir(exist_ok=True)
-        proc = run("paper", "--out", str(base / "paper"), "--json", cwd=base)
+        proc = run_entry_point("paper", "--out", str(base / "paper"), "--json", cwd=base)
         printed = _json(proc)
         done.write_text(json.dumps(printed))
     return base / "paper", json.loads(done.read_text())

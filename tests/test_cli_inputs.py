@@ -12,9 +12,7 @@ command has, and write no file.
 from __future__ import annotations
 
 import re
-import signal
-from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import AbstractContextManager
 from pathlib import Path
 
 import click
@@ -24,6 +22,7 @@ from hypothesis import strategies as st
 
 from delayform.cli import cli, main
 from delayform.cli._common import DelayValues, FloatTuple, LabelledPoint, OutDir
+from cli_runner import time_limit
 from test_cli import assert_no_warning_text
 from test_hardening import BASE
 from test_hardening import cli as _run
@@ -87,23 +86,13 @@ def _own(command: click.Command) -> set[str]:
     return {o for p in command.params for o in (*p.opts, *p.secondary_opts)} | {"--help"}
 
 
-@contextmanager
-def _deadline(seconds: int) -> Iterator[None]:
+class Hung(BaseException):  # not an OSError (TimeoutError is one): main must not catch it
+    pass
+
+
+def _deadline(seconds: int) -> AbstractContextManager[None]:
     """A wrong value that is accepted would run the whole command (or serve forever): fail instead."""
-
-    class Hung(BaseException):  # not an OSError (TimeoutError is one): main must not catch it
-        pass
-
-    def stop(signum: int, frame: object) -> None:
-        raise Hung(f"the command ran for {seconds} s: the wrong value was accepted")
-
-    old = signal.signal(signal.SIGALRM, stop)
-    signal.alarm(seconds)
-    try:
-        yield
-    finally:
-        signal.alarm(0)
-        signal.signal(signal.SIGALRM, old)
+    return time_limit(seconds, lambda: Hung(f"the command ran for {seconds} s: the wrong value was accepted"))
 
 
 def _files(root: Path) -> set[Path]:

@@ -1,27 +1,20 @@
-"""``delayform montecarlo`` as users run it: JSON equal to the library, one-line errors with exit code 2."""
+"""``delayform montecarlo``: JSON equal to the library, one-line errors with exit code 2."""
 
 from __future__ import annotations
 
 import json
 from dataclasses import replace
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
-
-import delayform
-
-SRC = Path(delayform.__file__).resolve().parents[1]  # the code under test, also in a worktree
+from cli_runner import run_in_process
 
 
 def run(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [sys.executable, "-m", "delayform", "montecarlo", *args],
-        capture_output=True, text=True, cwd=cwd, timeout=300,
-        env={"MPLBACKEND": "Agg", "PATH": "/usr/bin:/bin", "HOME": str(cwd), "PYTHONPATH": str(SRC)},
-    )  # fmt: skip
+    """``delayform montecarlo ARGS`` in-process (``tests/test_cli.py`` runs the entry point in a subprocess)."""
+    return run_in_process("montecarlo", *args, cwd=cwd)
 
 
 SMALL = """\

@@ -1,15 +1,15 @@
-"""``delayform region`` and ``delayform safe-delays`` (issue 11), run in a subprocess like users run them."""
+"""``delayform region`` and ``delayform safe-delays`` (issue 11), run in-process as a subprocess would see them."""
 
 from __future__ import annotations
 
 import json
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
-from test_cli import ROOT, assert_one_line_error
+from cli_runner import run_in_process
+from test_cli import assert_one_line_error
 
 from delayform.analysis.plane.spectrum_sets import safe_delays
 from delayform.analysis.plane.region import lambda_region
@@ -17,10 +17,8 @@ from delayform.topology import paper_six
 
 
 def run(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
-    """``python -m delayform ARGS`` on this checkout's sources (not an installed copy)."""
-    env = {"MPLBACKEND": "Agg", "PATH": "/usr/bin:/bin", "HOME": str(cwd), "PYTHONPATH": str(ROOT / "src")}
-    return subprocess.run([sys.executable, "-m", "delayform", *args], capture_output=True, text=True, cwd=cwd,
-                          timeout=600, env=env)  # fmt: skip
+    """``delayform ARGS`` on this checkout's sources, in-process (``tests/test_cli.py`` runs the entry point)."""
+    return run_in_process(*args, cwd=cwd)
 
 
 def test_region_json_equals_the_library(tmp_path: Path) -> None:

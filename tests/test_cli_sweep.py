@@ -6,23 +6,16 @@ import csv
 import statistics
 import json
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
-
-import delayform
-
-SRC = Path(delayform.__file__).resolve().parents[1]
+from cli_runner import run_in_process
 
 
 def run(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [sys.executable, "-m", "delayform", "sweep", *args],
-        capture_output=True, text=True, cwd=cwd, timeout=300,
-        env={"MPLBACKEND": "Agg", "PATH": "/usr/bin:/bin", "HOME": str(cwd), "PYTHONPATH": str(SRC)},
-    )  # fmt: skip
+    """``delayform sweep ARGS`` in-process (``tests/test_cli.py`` runs the entry point in a subprocess)."""
+    return run_in_process("sweep", *args, cwd=cwd)
 
 
 def test_grid_cells_equal_monte_carlo_at_each_delay_pair(tmp_path: Path) -> None:

@@ -10,11 +10,11 @@ from __future__ import annotations
 
 import dataclasses
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from cli_runner import run_in_process
 
 from delayform.deploy import PROFILES, robot_profile
 from delayform.deploy.fit import formation_fit, require_formation_fit
@@ -114,9 +114,8 @@ def test_scenario_profile_key(tmp_path):
 
 # ------------------------------------------------------------------ command line
 def run(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "delayform", *args], capture_output=True, text=True, cwd=cwd,
-                          env={"MPLBACKEND": "Agg", "PATH": "/usr/bin:/bin", "HOME": str(cwd),
-                               "PYTHONPATH": str(ROOT / "src")}, timeout=600)  # fmt: skip
+    """``delayform ARGS`` in-process (``tests/test_cli.py`` runs the entry point in a subprocess)."""
+    return run_in_process(*args, cwd=cwd)
 
 
 def one_line_error(proc, *needles):

@@ -16,7 +16,7 @@ from delayform.analysis.ctcr.stability_map import PAPER_POINTS
 from delayform.app import Explorer, start
 from delayform.scenario import paper_scenario
 
-pytestmark = [pytest.mark.browser]
+pytestmark = [pytest.mark.browser, pytest.mark.slow]  # a headless Chromium per test: 12-26 s under load
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 #: flags for a browser that reaches nothing but the explorer and keeps no state

@@ -16,7 +16,7 @@ from delayform.app import Explorer, start
 from delayform.scenario import paper_scenario
 from test_explorer_browser import CHROMIUM, CHROMIUM_ARGS
 
-pytestmark = [pytest.mark.browser]
+pytestmark = [pytest.mark.browser, pytest.mark.slow]  # a headless Chromium per test: 12-26 s under load
 
 TRACE = """() => (document.getElementById("chart").data || []).filter((t) => t.name === "jitter margin (s)")
   .map((t) => ({ type: t.type, levels: t.contours.start, n: t.x.length }))"""

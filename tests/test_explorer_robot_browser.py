@@ -18,7 +18,7 @@ from test_explorer_browser import CHROMIUM, CHROMIUM_ARGS
 from delayform.app import Explorer, start
 from delayform.scenario import paper_scenario
 
-pytestmark = [pytest.mark.browser]
+pytestmark = [pytest.mark.browser, pytest.mark.slow]  # a headless Chromium per test: 12-26 s under load
 
 
 def test_actuation_delay_and_switches_from_the_page(tmp_path: Path) -> None:

@@ -18,7 +18,6 @@ import json
 import math
 import subprocess
 from dataclasses import replace
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -27,6 +26,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import ref_gains
+from cli_runner import run_in_process
 from ref_spectrum import reference_dominant_root
 
 from delayform.analysis.ctcr.stability_map import PAPER_POINTS, stability_map
@@ -36,7 +36,6 @@ from delayform.design.gains import GainDesign, box_is_stable, design_gains
 from delayform.errors import DelayError, GainError, InputError, NoStableGainsError
 from delayform.topology import paper_six
 
-ROOT = Path(__file__).resolve().parents[1]
 BOUNDS = (0.05, 3.0)
 TEAM = paper_six()
 EIG = [complex(v) for v in TEAM.eigenvalues]
@@ -216,9 +215,8 @@ def test_designed_gains_settle_faster_in_simulation(designs: dict[str, GainDesig
 
 
 def _run(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "delayform", *args], capture_output=True, text=True, cwd=cwd,
-                          env={"MPLBACKEND": "Agg", "PATH": "/usr/bin:/bin", "HOME": str(cwd),
-                               "PYTHONPATH": str(ROOT / "src")}, timeout=300)  # fmt: skip
+    """``delayform ARGS`` in-process (``tests/test_cli.py`` runs the entry point in a subprocess)."""
+    return run_in_process(*args, cwd=cwd)
 
 
 def test_cli_json_equals_the_library(tmp_path: Path) -> None:

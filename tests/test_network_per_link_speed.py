@@ -9,6 +9,7 @@ DDE (tests/test_network_per_link.py), and the matrix E(s) itself, formed directl
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 
 import numpy as np
 import pytest
@@ -168,8 +169,22 @@ def test_100_agent_per_link_root_matches_an_independent_discretization():
     assert abs(max(w.real for w in ref) - r.root.real) < 1e-7
 
 
-def test_single_threaded_blas_restores_the_thread_count():
+@pytest.fixture
+def two_blas_threads() -> Iterator[int | None]:
+    """OpenBLAS on two threads for the test (the xdist workers run on one, tests/conftest.py), then as before."""
+    from delayform.analysis.network.blas import _controls
+
+    saved = [int(get()) for get, _ in _controls()]
+    for _, put in _controls():
+        put(2)
+    yield blas_threads()
+    for (_, put), k in zip(_controls(), saved):
+        put(k)
+
+
+def test_single_threaded_blas_restores_the_thread_count(two_blas_threads: int | None):
     before = blas_threads()
+    assert before == two_blas_threads and before in (None, 2)  # a count to restore that is not 1
     with single_threaded_blas():
         if before is not None:
             assert blas_threads() == 1

@@ -60,32 +60,21 @@ def test_format_seconds(value: float, text: str) -> None:
 
 
 # ============================================== every size a user gives is budgeted before the work
-import signal  # noqa: E402
-from collections.abc import Callable, Iterator  # noqa: E402
-from contextlib import contextmanager  # noqa: E402
+from collections.abc import Callable  # noqa: E402
+from contextlib import AbstractContextManager  # noqa: E402
 
 import numpy as np  # noqa: E402
 
+from cli_runner import time_limit  # noqa: E402
 from delayform.resources import sized_by  # noqa: E402
 
 #: a refusal comes before any work: well under this many seconds (the alarm stops a job that started)
 REFUSED_WITHIN = 5
 
 
-@contextmanager
-def alarm(seconds: int = REFUSED_WITHIN) -> Iterator[None]:
+def alarm(seconds: int = REFUSED_WITHIN) -> AbstractContextManager[None]:
     """Fail (instead of hanging or allocating for minutes) when the block runs longer than ``seconds``."""
-
-    def stop(signum: int, frame: object) -> None:
-        raise AssertionError(f"not refused within {seconds} s: the work started")
-
-    previous = signal.signal(signal.SIGALRM, stop)
-    signal.alarm(seconds)
-    try:
-        yield
-    finally:
-        signal.alarm(0)
-        signal.signal(signal.SIGALRM, previous)
+    return time_limit(seconds, lambda: AssertionError(f"not refused within {seconds} s: the work started"))
 
 
 def _refusal(job: Callable[[], object]) -> str:
