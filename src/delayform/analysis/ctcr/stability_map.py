@@ -236,6 +236,14 @@ class StabilityMap(FigureRepr):
         count += _axis_sum(self._axis2, y)
         count += _horizontal_crossings(self._segments, x, y, self.traced, max(self.tau1_max, self.tau2_max))
         on_axis = y == 0.0
+        if all(t.is_retarded for t in self.traced):
+            # Within a millionth of the window of the tau1 axis the horizontal path meets the curves
+            # where they cross the axis, traced there only to the chord tolerance (2e-4 of the window):
+            # a curve zig-zagging through tau2 = 0 was crossed several times and NU came out 30 too
+            # high. A retarded qp's roots are continuous in the delays at tau2 = 0, so that close to
+            # the axis NU is the axis walk's, exact to the map's resolution (a neutral qp may change
+            # at tau2 = 0+, which is why it keeps the path).
+            on_axis |= y <= 1e-6 * max(self.tau1_max, self.tau2_max)
         if np.any(on_axis):
             # tau2 = 0: walk along the tau1 axis instead of crossing the curves' ends.
             count[on_axis] = self._start1 + _axis_sum(self._axis1, x[on_axis])
