@@ -252,3 +252,14 @@ def test_rightmost_root_against_grid_newton(terms: dict, t1: float, t2: float) -
     assume(ref is not None)  # the grid found r or a root right of it whenever Newton converged anywhere
     assert ref.real <= r.real + 1e-7 * max(1.0, abs(r))  # no root right of the returned one
     assert abs(ref.real - r.real) <= 1e-7 * max(1.0, abs(r))  # and the rightmost is the one returned
+
+
+@pytest.mark.xfail(strict=True, reason="every term in (z1 z2)^k: the map finds no curve where NU changes 2 -> 4; not fixed yet")
+def test_map_of_equal_powers_on_both_delays():
+    """Found by the map property at 500 examples: a qp in z1^k z2^k alone (a function of tau1 + tau2).
+
+    The certified count says 2 unstable roots at (0.5, 0.5) and 4 at (0.9, 1.0); the map has no curve.
+    """
+    terms = {(0, 0): [10.0, 4.370470253254392, 1.0, 1.0, 1.0], (4, 4): [9.99976974414163],
+             (2, 2): [0.013279192346630218, 6.390341292750604, -1.0, -0.015284861509589766]}
+    _check_map(terms, [(0.5, 0.5), (0.9641826686329382, 1.0)])
