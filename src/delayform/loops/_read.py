@@ -44,8 +44,8 @@ def _from_pair(loop: tuple[Any, Any], name: str) -> tuple[NDArray[np.float64], N
     return _trim(num), _trim(den)
 
 
-def _control_module(name: str, loop: object) -> Any:
-    """python-control, for ``loop`` (named ``name``) that is not a pair (num, den) of coefficients."""
+def _control_module() -> Any:
+    """python-control, for a loop that is not a pair (num, den) of coefficients (the ``control`` extra)."""
     require_extra("control")
     import control
 
@@ -113,7 +113,7 @@ def loop_polynomials(loop: object, *, name: str = "loop") -> tuple[NDArray[np.fl
     if isinstance(loop, tuple) and len(loop) == 2:
         num, den = _from_pair(loop, name)
     else:
-        control = _control_module(name, loop)
+        control = _control_module()
         if not isinstance(loop, (control.TransferFunction, control.StateSpace, control.FrequencyResponseData)):
             raise LoopError(
                 f"{name} must be a python-control TransferFunction or StateSpace, or a pair "
@@ -174,7 +174,7 @@ def _is_mimo(loop: object) -> bool:
 
 
 def _as_state_space(loop: Any, name: str) -> Any:
-    control = _control_module(name, loop)
+    control = _control_module()
     _check_continuous(loop, name)
     if loop.ninputs != loop.noutputs:
         raise LoopError(
