@@ -28,6 +28,7 @@ STAGES: dict[str, int] = {
     "_display": 0,  # a leaf: Jupyter's _repr_png_ mixin, imports no delayform module
     "packaged": 0,  # a leaf: paths of the shipped example scenarios
     "topology": 1,
+    "model": 1,  # the nouns: Team, Delays (built on the topology; every layer above takes them whole)
     "characteristic": 2,
     "quasipolynomial": 2,  # after characteristic (converts its TwoDelayQuasiPolynomial)
     "formation": 2,

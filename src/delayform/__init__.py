@@ -28,6 +28,9 @@ _EXPORTS: dict[str, str] = {
     "star": "topology",
     "random_digraph": "topology",
     "grid": "topology",
+    # the problem's nouns
+    "Team": "model",
+    "Delays": "model",
     # characteristic equation
     "TwoDelayQuasiPolynomial": "characteristic",
     "CharacteristicFactor": "characteristic",
