@@ -13,9 +13,9 @@ def test_team_checks_its_topology_and_gains_once() -> None:
     team = Team(paper_six(), 1, 0.5)
     assert (team.n, team.P, team.D) == (6, 1.0, 0.5)
     assert team.with_gains(2, 1).P == 2.0
-    two_leaders = Topology.from_adjacency([[0, 0, 0], [0, 0, 0], [1, 1, 0]])
+    two_pairs = Topology.from_adjacency([[0, 1, 0, 0], [1, 0, 0, 0], [0, 0, 0, 1], [0, 0, 1, 0]])
     with pytest.raises(NoSpanningTreeError):
-        Team(two_leaders, 1, 0.5)
+        Team(two_pairs, 1, 0.5)
     with pytest.raises(GainError):
         Team(paper_six(), -1, 0.5)
     with pytest.raises(TopologyError):
