@@ -31,6 +31,8 @@ _EXPORTS: dict[str, str] = {
     # the problem's nouns
     "Team": "model",
     "Delays": "model",
+    "Start": "model",
+    "RunOptions": "simulation.options",
     # characteristic equation
     "TwoDelayQuasiPolynomial": "characteristic",
     "CharacteristicFactor": "characteristic",

@@ -3,8 +3,9 @@
 Everything delayform computes is about a :class:`Team` (who hears whom, with
 which gains) under :class:`Delays` (how late they hear it); a simulation adds
 the :class:`Robot` (agent model, limits or the real robot's
-:class:`RobotProfile`, body, safety filter) and the :class:`Network` (per-link
-and varying delays, jitter, loss, sampling, noise). Each noun checks its own
+:class:`RobotProfile`, body, safety filter), the :class:`Network` (per-link
+and varying delays, jitter, loss, sampling, noise) and the :class:`Start`
+(where the robots are at t = 0). Each noun checks its own
 fields once, when it is built, so the layers above take it whole and never
 check or rename its parts again.
 """
@@ -23,12 +24,15 @@ from delayform.model.network import (
 )
 from delayform.model.profiles import PROFILES, Arena, RobotProfile, profile_names, robot_profile
 from delayform.model.robot import MODELS, REST_SPEED, SAFETY_FILTERS, BarrierFilter, Robot, check_safety
+from delayform.model.start import PAPER_SPEED, Start
 from delayform.model.team import Team
 
 __all__ = [
     "Team",
     "Delays",
     "Robot",
+    "Start",
+    "PAPER_SPEED",
     "RobotLimits",
     "IROBOT_CREATE",
     "RobotProfile",

@@ -13,8 +13,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
-
 import numpy as np
 from numpy.typing import NDArray
 
@@ -152,7 +150,7 @@ class Robot:
     model: str = "unicycle"
     limits: RobotLimits | None = None
     radius: float | None = None
-    safety: Any = None
+    safety: str | BarrierFilter | None = None
     actuation_delay: float = 0.0
     profile: RobotProfile | str | None = None
     rest_speed: float = REST_SPEED
