@@ -26,17 +26,17 @@ from types import MappingProxyType
 from typing import Any, TypeVar
 
 from delayform.errors import SimulationInputError
-from delayform.model import Delays, Robot, Team
+from delayform.model import Robot, Team
+from delayform.model.loose import LOOSE_TEAM, is_loose, team_and_delays
 from delayform.model.start import Start
 from delayform.simulation.options import RunOptions
-from delayform.topology import Topology
 
 __all__ = ["SIMULATE_KEYWORDS", "MONTE_CARLO_KEYWORDS", "LOOSE_POSITIONAL", "accepts_loose_calls", "nouns_of"]
 
 _F = TypeVar("_F", bound=Callable[..., Any])
 
 #: the old positional parameters, in order
-LOOSE_POSITIONAL = ("topology", "P", "D", "tau1", "tau2", "formation")
+LOOSE_POSITIONAL = (*LOOSE_TEAM, "formation")
 
 _ROBOT = {"model": "model", "limits": "limits", "safety": "safety", "actuation_delay": "actuation_delay",
           "rest_speed": "rest_speed", "radius": "radius"}  # fmt: skip
@@ -126,9 +126,7 @@ def nouns_of(
 
 def _is_loose(args: tuple[Any, ...], loose: Mapping[str, Any]) -> bool:
     """The old form: a Topology first (or by name), or more than the three nouns positionally."""
-    if "topology" in loose or (args and isinstance(args[0], Topology)):
-        return True
-    return len(args) > 3 and not isinstance(args[0], Team)
+    return is_loose(args, loose) or (len(args) > 3 and not isinstance(args[0], Team))
 
 
 def accepts_loose_calls(table: Mapping[str, str], *, default_model: str) -> Callable[[_F], _F]:
@@ -161,8 +159,7 @@ def accepts_loose_calls(table: Mapping[str, str], *, default_model: str) -> Call
                 missing = [n for n in LOOSE_POSITIONAL if n not in bound]
                 if missing:
                     raise SimulationInputError(f"{where}: {', '.join(missing)} required and not given")
-                team = Team(bound["topology"], bound["P"], bound["D"])
-                delays = Delays(bound["tau1"], bound["tau2"])
+                team, delays = team_and_delays(*(bound[n] for n in LOOSE_TEAM))
                 kwargs = nouns_of(where, table, kwargs, loose, default_model)
                 return func(team, delays, bound["formation"], **kwargs)
             if loose:

@@ -40,6 +40,8 @@ from numpy.typing import ArrayLike, NDArray
 from delayform.analysis.network.links import link_team
 from delayform.analysis.network.per_link import LinkDominantRoot, link_dominant_root
 from delayform._validation import check_delay, check_gains, validated
+from delayform.model import Delays, Team
+from delayform.model.loose import accepts_loose_team
 from delayform.analysis.roots.actuated import actuated_beside_drift, actuated_factor, actuated_rightmost
 from delayform.analysis.roots.family.solve import family_grid, family_rightmost
 from delayform.analysis.roots.problem import (
@@ -225,34 +227,31 @@ def _factors_of(topology: Topology, P: float, D: float) -> tuple[CharacteristicF
     return factors(topology, P, D)
 
 
+@accepts_loose_team(actuation="actuation_delay")
 @validated()
-def dominant_root(
-    topology: Topology, P: float, D: float, tau1: float | ArrayLike, tau2: float | ArrayLike, *,
-    actuation_delay: float = 0.0,
-) -> DominantRoot | LinkDominantRoot:
+def dominant_root(team: Team, delays: Delays) -> DominantRoot | LinkDominantRoot:
     """The dominant root of the formation and its time constant.
 
-    With N x N arrays of per-link delays (``tau1[i, k]``: what agent i hears
-    from k) the answer is the certified dominant root of det of the N x N matrix
-    quasi-polynomial, a :class:`~delayform.analysis.network.LinkDominantRoot`
+    Which computation answers is said by :attr:`Delays.kind`: uniform delays
+    go through the factors of eq. factorized; per-link delays
+    (``tau1[i, k]``: what agent i hears from k) give the certified dominant
+    root of det of the N x N matrix quasi-polynomial, a
+    :class:`~delayform.analysis.network.LinkDominantRoot`
     (:mod:`delayform.analysis.network.per_link`).
 
     Parameters
     ----------
-    topology
-        Communication topology; it must have a spanning tree (Lemma 3).
-    P, D
-        Positive gains of eq. protocol.
-    tau1, tau2
-        Non-negative delays on positions and velocities, or N x N arrays of
-        per-link delays (entries without a link ignored).
-    actuation_delay
-        tau_a >= 0 (s): each robot applies its command tau_a late, so every
-        factor gains the delayed own-state terms
+    team
+        Topology (with a spanning tree, Lemma 3) and the positive gains of eq. protocol.
+    delays
+        tau1, tau2 on positions and velocities, uniform or per link (entries
+        without a link ignored), and the actuation delay tau_a >= 0 (s): each
+        robot applies its command tau_a late, so every factor gains the
+        delayed own-state terms
         (:func:`~delayform.analysis.roots.actuated.actuated_factor`); 0
         (default) is the paper's model, solved by the vectorized family path.
-        With per-link arrays it needs the same delays on every link (they are
-        then the scalar delays); otherwise DelayError.
+        With per-link delays tau_a needs the same delays on every link (they
+        are then the uniform pair); otherwise DelayError.
 
     Returns
     -------
@@ -260,19 +259,27 @@ def dominant_root(
         The rightmost root over the factors of eq. factorized, excluding the
         persistent root 0 of eq. factor1 (its other roots count).
 
+    Notes
+    -----
+    The loose form ``dominant_root(topology, P, D, tau1, tau2, actuation_delay=0.0)``
+    of earlier versions is still taken (:func:`delayform.model.loose.accepts_loose_team`).
+
     Examples
     --------
+    >>> from delayform.model import Delays, Team
     >>> from delayform.topology import paper_six
-    >>> r = dominant_root(paper_six(), 1.0, 0.5, 1.0, 2.0)  # point c of Fig. stability
+    >>> r = dominant_root(Team(paper_six(), 1.0, 0.5), Delays(1.0, 2.0))  # point c of Fig. stability
     >>> r.is_stable, round(r.root.real, 4)
     (False, 0.0836)
     """
-    ta = check_delay("actuation_delay", actuation_delay)
-    if np.ndim(tau1) or np.ndim(tau2):  # per-link delays: the matrix quasi-polynomial, no factorization
+    topology, P, D, ta = team.topology, team.P, team.D, delays.actuation
+    if delays.kind == "per_link":  # the matrix quasi-polynomial, no factorization
+        delays.check_team(team.n)
         if ta == 0.0:
-            return link_dominant_root(topology, P, D, tau1, tau2)
-        tau1, tau2 = _uniform_link_delays(topology, P, D, tau1, tau2)
-    t1, t2 = check_delay("tau1", tau1), check_delay("tau2", tau2)
+            return link_dominant_root(topology, P, D, delays.tau1, delays.tau2)
+        t1, t2 = _uniform_link_delays(topology, P, D, delays.tau1, delays.tau2)
+    else:
+        t1, t2 = delays.pair
     fs = _checked_factors(topology, P, D)
     if ta > 0.0:
         return _actuated_dominant(fs, t1, t2, ta)
