@@ -32,7 +32,13 @@ LOOSE_TEAM = ("topology", "P", "D", "tau1", "tau2")
 
 
 def is_loose(args: tuple[Any, ...], kwargs: Mapping[str, Any]) -> bool:
-    """Whether a call is in the loose form: a Topology first, or ``topology`` by name."""
+    """Whether a call is in the loose form: a Topology first, or ``topology`` by name.
+
+    Parameters
+    ----------
+    args, kwargs
+        The call's positional and keyword arguments.
+    """
     return "topology" in kwargs or bool(args and isinstance(args[0], Topology))
 
 
