@@ -104,7 +104,7 @@ _EXPORTS: dict[str, str] = {
     # the browser explorer
     "Explorer": "app",
     "ExplorerLimits": "app",
-    "scenario_toml": "app",
+    "scenario_toml": "scenario",
     # run-time hardening (issue 24, items 2-5)
     "check_workers": "sweeps",
     "check_scheduler": "sweeps",
