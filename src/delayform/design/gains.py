@@ -439,12 +439,12 @@ def box_is_stable(smap: StabilityMap, tau1_box: tuple[float, float], tau2_box: t
     -------
     bool
     """
-    from delayform.analysis.ctcr.stability_map import _CHORD_TOL
+    from delayform.analysis.ctcr.phase import CHORD_TOL
 
     (a0, a1), (b0, b1) = tau1_box, tau2_box
     if a1 > smap.tau1_max or b1 > smap.tau2_max:
         raise DelayError("the box must lie inside the map's window")
-    margin = 4.0 * _CHORD_TOL * max(smap.tau1_max, smap.tau2_max)
+    margin = 4.0 * CHORD_TOL * max(smap.tau1_max, smap.tau2_max)
     x0, x1, y0, y1 = a0 - margin, a1 + margin, b0 - margin, b1 + margin
     for c in smap.curves:
         if _polyline_meets_box(c.tau1, c.tau2, (x0, x1, y0, y1)):

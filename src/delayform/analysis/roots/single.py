@@ -80,7 +80,7 @@ from delayform.analysis.roots.problem import (
     Region,
     _cluster,
     _abs_poly,
-    _evaluate,
+    evaluate,
     _mirror_problem,
     _multiplicity,
     _polish,
@@ -92,7 +92,7 @@ from delayform.analysis.roots.problem import (
 )
 from delayform.analysis.roots.long_delay import is_long
 from delayform.analysis.roots.rightmost import _BATCH_SEEDS, _certify, _pick_rightmost, _solve_rightmost
-from delayform.analysis.roots.argument_principle import _count_right_single, _region_count
+from delayform.analysis.roots.argument_principle import _count_right_single, count_in_region
 from delayform.analysis.roots.multiple import distinct_roots
 from delayform.characteristic import CharacteristicFactor, TwoDelayQuasiPolynomial
 from delayform.errors import InputError, NotConvergedError, QuasiPolynomialError
@@ -143,7 +143,7 @@ def relative_residual(
         return np.abs(q) / mag
     if len(delays) != 2:
         raise InputError(f"relative_residual(qp, s, tau1, tau2): got {len(delays)} delay(s)")
-    q, _, mag = _evaluate(
+    q, _, mag = evaluate(
         qp.terms(), s_arr, np.asarray(delays[0], dtype=float), np.asarray(delays[1], dtype=float)
     )
     return np.abs(q) / mag
@@ -343,7 +343,7 @@ def roots_in(
     # when mirroring, roots of the lam-factor in the mirrored region are needed too
     yy = max(abs(y0), abs(y1))
     count_regions = [region] if not base.mirror else [(x0, x1, -yy, yy)]
-    expected = _region_count(base, t1, t2, count_regions[0])
+    expected = count_in_region(base.terms, t1, t2, count_regions[0])
     # a root on the boundary (e.g. a real root on Im s = 0): count on a slightly larger
     # rectangle and report the roots of the closed one, boundary roots included
     size = max(abs(v) for v in region) + 1.0
@@ -354,7 +354,7 @@ def roots_in(
         rx0, rx1, ry0, ry1 = count_regions[0]
         count_regions = [(rx0 - d, rx1 + d, ry0 - d, ry1 + d)]
         region = (x0 - d, x1 + d, y0 - d, y1 + d)
-        expected = _region_count(base, t1, t2, count_regions[0])
+        expected = count_in_region(base.terms, t1, t2, count_regions[0])
     if expected is None:
         raise NotConvergedError(
             f"roots lie on (or within rounding of) the boundary of the rectangle {asked} "
