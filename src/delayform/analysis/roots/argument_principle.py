@@ -345,13 +345,13 @@ def _count_right_batch(
     omega = _cauchy_radius(prob.terms, c, t1, t2)
     real = all(np.all(cf.imag == 0.0) for cf, _, _ in prob.terms)
 
-    def evaluate(line: NDArray[np.int64], s: NDArray[np.complex128]) -> NDArray[np.complex128]:
+    def q_on(line: NDArray[np.int64], s: NDArray[np.complex128]) -> NDArray[np.complex128]:
         return evaluate(prob.terms, s, t1[line], t2[line], magnitude=False)[0]
 
     def lipschitz(line: NDArray[np.int64], rho: NDArray[np.float64]) -> NDArray[np.float64]:
         return _lipschitz(prob.terms, rho, c[line], t1[line], t2[line])
 
-    total, failed = adaptive_winding(c, omega, evaluate, lipschitz, real=real, initial=initial,
+    total, failed = adaptive_winding(c, omega, q_on, lipschitz, real=real, initial=initial,
                                      max_segments=max_segments)  # fmt: skip
     roots = _g1_roots(prob.terms)
     top = _tail_winding(prob.terms, roots, c + 1j * omega, t1, t2, upper=True)

@@ -210,7 +210,20 @@ def _decay_time(root: complex) -> float:
     return 1.0 / -root.real if root.real < 0.0 else math.inf
 
 
-def _checked_factors(topology: Topology, P: float, D: float) -> tuple[CharacteristicFactor, ...]:
+def checked_factors(topology: Topology, P: float, D: float) -> tuple[CharacteristicFactor, ...]:
+    """The factors of eq. factorized of a team, its topology and gains checked first.
+
+    The same tuple for repeated calls on one (frozen) topology and gains.
+
+    Raises
+    ------
+    InputError
+        When ``topology`` is not a :class:`~delayform.topology.Topology`.
+    TopologyError
+        Without a spanning tree (Lemma 3).
+    GainError
+        For gains that are not positive or out of range.
+    """
     if not isinstance(topology, Topology):
         raise InputError(f"topology must be a Topology, got {type(topology).__name__}")
     topology.require_spanning_tree()
@@ -273,7 +286,7 @@ def dominant_root(
             return link_dominant_root(topology, P, D, tau1, tau2)
         tau1, tau2 = _uniform_link_delays(topology, P, D, tau1, tau2)
     t1, t2 = check_delay("tau1", tau1), check_delay("tau2", tau2)
-    fs = _checked_factors(topology, P, D)
+    fs = checked_factors(topology, P, D)
     if ta > 0.0:
         return _actuated_dominant(fs, t1, t2, ta)
     # all factors in one batch (one stacked discretization, one vectorized certificate); long delays
@@ -474,7 +487,7 @@ def dominant_root_map(
     >>> m.stable.tolist()
     [[True, True], [True, False]]
     """
-    fs = _checked_factors(topology, P, D)
+    fs = checked_factors(topology, P, D)
     ax1 = _grid_axis("tau1_values", tau1_values)
     ax2 = _grid_axis("tau2_values", tau2_values)
     ta = check_delay("actuation_delay", actuation_delay)

@@ -99,7 +99,7 @@ from delayform.errors import InputError, NotConvergedError, QuasiPolynomialError
 from delayform.quasipolynomial import QuasiPolynomial
 
 __all__ = ["RESIDUAL_TOL", "roots_in", "rightmost_root", "count_roots_right_of", "relative_residual",
-           "delay_reach"]
+           "delay_reach", "require_reach"]
 
 
 def relative_residual(
@@ -162,6 +162,27 @@ def _check_reach(prob: _Problem, t1: float, t2: float) -> None:
     N = _needed_degree(h, _root_scale(prob))
     if N > MAX_DEGREE:
         _require_degree(prob, N, h)
+
+
+def require_reach(factor: CharacteristicFactor, tau1: float, tau2: float) -> None:
+    """Refuse delays whose discretization of this factor exceeds the machine's memory or time budget.
+
+    The rule of the maps and of gain design, which discretize at every pair
+    (:func:`delay_reach` gives the square of delays it accepts).
+
+    Parameters
+    ----------
+    factor
+        A factor of eq. factorized at its gains.
+    tau1, tau2
+        The largest delays the computation will meet.
+
+    Raises
+    ------
+    DelayError
+        Naming the delays and what to change.
+    """
+    _check_reach(_problem_of_factor(factor), tau1, tau2)
 
 
 # =====================================================================
