@@ -37,9 +37,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from delayform.analysis.network.links import link_team
-from delayform.analysis.network.per_link import LinkDominantRoot, link_dominant_root
 from delayform._validation import check_delay, check_gains, validated
+from delayform.analysis.roots import delegated
 from delayform.analysis.roots.actuated import actuated_beside_drift, actuated_factor, actuated_rightmost
 from delayform.analysis.roots.family.solve import family_grid, family_rightmost
 from delayform.analysis.roots.problem import (
@@ -242,7 +241,7 @@ def _factors_of(topology: Topology, P: float, D: float) -> tuple[CharacteristicF
 def dominant_root(
     topology: Topology, P: float, D: float, tau1: float | ArrayLike, tau2: float | ArrayLike, *,
     actuation_delay: float = 0.0,
-) -> DominantRoot | LinkDominantRoot:
+) -> DominantRoot | delegated.PerLinkRoot:
     """The dominant root of the formation and its time constant.
 
     With N x N arrays of per-link delays (``tau1[i, k]``: what agent i hears
@@ -282,9 +281,10 @@ def dominant_root(
     """
     ta = check_delay("actuation_delay", actuation_delay)
     if np.ndim(tau1) or np.ndim(tau2):  # per-link delays: the matrix quasi-polynomial, no factorization
+        per_link = delegated.per_link()  # solved by analysis/network, which sits above roots
         if ta == 0.0:
-            return link_dominant_root(topology, P, D, tau1, tau2)
-        tau1, tau2 = _uniform_link_delays(topology, P, D, tau1, tau2)
+            return per_link.dominant_root(topology, P, D, tau1, tau2)
+        tau1, tau2 = per_link.uniform_delays(topology, P, D, tau1, tau2)
     t1, t2 = check_delay("tau1", tau1), check_delay("tau2", tau2)
     fs = checked_factors(topology, P, D)
     if ta > 0.0:
@@ -305,26 +305,6 @@ def dominant_root(
         beside = formation[0] if nxt is None or formation[0].real >= nxt.real else nxt
     return DominantRoot(best[0], best[1], t1, t2, formation_root=formation[0], centroid_root=centroid_root,
                         beside_drift=beside)  # fmt: skip
-
-
-def _uniform_link_delays(topology: Topology, P: float, D: float, tau1: ArrayLike, tau2: ArrayLike) -> tuple[float, float]:
-    """The two delays of per-link arrays equal on every link, for the actuated factors; else DelayError.
-
-    The per-link matrix quasi-polynomial has no actuation terms, so an
-    actuation delay with delays that differ between links is refused rather
-    than answered without it.
-    """
-    team = link_team(topology, P, D, tau1, tau2)
-    out = []
-    for name, values in (("tau1", team.tau1), ("tau2", team.tau2)):
-        if values.size and np.ptp(values) > 0.0:
-            raise DelayError(
-                f"actuation_delay with per-link {name} that differs between links "
-                f"({values.min():g} to {values.max():g} s) is not solved: the per-link determinant has "
-                "no actuation terms; give equal delays on every link or actuation_delay = 0"
-            )
-        out.append(float(values[0]) if values.size else 0.0)
-    return out[0], out[1]
 
 
 def _actuated_dominant(fs: tuple[CharacteristicFactor, ...], t1: float, t2: float, ta: float) -> DominantRoot:

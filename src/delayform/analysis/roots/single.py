@@ -62,6 +62,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from delayform._validation import check_delay, validated
+from delayform.analysis.roots import delegated
 from delayform.analysis.roots.family.solve import family_rightmost
 from delayform.analysis.roots.generator import (
     _eigenvalues_at,
@@ -348,10 +349,8 @@ def roots_in(
     >>> roots_in(q, 0.0, 0.0, (-3, 0, -1, 1)).real.round(12)
     array([-1., -2.])
     """
-    if _neutral(qp):  # hook: analysis/neutral (argument-principle subdivision)
-        from delayform.analysis.neutral.spectrum import neutral_roots_in  # imports roots: not at the top
-
-        r, m = neutral_roots_in(qp, *delays_and_region[:-1], region=delays_and_region[-1])  # type: ignore[arg-type]
+    if _neutral(qp):  # solved by analysis/neutral (argument-principle subdivision), which sits above roots
+        r, m = delegated.neutral().roots_in(qp, *delays_and_region[:-1], region=delays_and_region[-1])  # type: ignore[arg-type]
         return np.repeat(r, m)
     call = _call(qp, delays_and_region, ("region",), "roots_in")
     prob, t1, t2 = call.prob, call.t1, call.t2
@@ -472,10 +471,8 @@ def count_roots_right_of(
     NotConvergedError
         When a root lies on (or within rounding of) the line.
     """
-    if _neutral(qp):  # hook: analysis/neutral (only right of the essential spectrum)
-        from delayform.analysis.neutral.spectrum import neutral_count_right_of
-
-        return neutral_count_right_of(qp, *delays_and_c[:-1], c=_check_abscissa(delays_and_c[-1]))  # type: ignore[arg-type]
+    if _neutral(qp):  # solved by analysis/neutral (only right of the essential spectrum)
+        return delegated.neutral().count_right_of(qp, *delays_and_c[:-1], c=_check_abscissa(delays_and_c[-1]))  # type: ignore[arg-type]
     call = _call(qp, delays_and_c, ("c",), "count_roots_right_of")
     prob, t1, t2 = call.prob, call.t1, call.t2
     c = _check_abscissa(call.rest[0])
@@ -521,10 +518,8 @@ def rightmost_root(qp: QuasiPolynomial | TwoDelayQuasiPolynomial | Characteristi
     >>> round(s.real, 6), round(s.imag, 6)
     (-0.605021, 1.788188)
     """
-    if _neutral(qp):  # hook: analysis/neutral (EssentialSpectrumError when none lies right of it)
-        from delayform.analysis.neutral.spectrum import neutral_rightmost_root
-
-        return neutral_rightmost_root(qp, *delays)  # type: ignore[arg-type]
+    if _neutral(qp):  # solved by analysis/neutral (EssentialSpectrumError when none lies right of it)
+        return delegated.neutral().rightmost_root(qp, *delays)  # type: ignore[arg-type]
     call = _call(qp, delays, (), "rightmost_root")
     t1, t2 = call.t1, call.t2
     if isinstance(qp, CharacteristicFactor):  # a factor of eq. factorized: the vectorized family path
