@@ -91,10 +91,22 @@ def rightmost_roots(
 ) -> tuple[_CArr, _CArr]:
     """Certified rightmost root (Im >= 0 member) of the factor of ``group`` on every line.
 
-    ``seeds`` (B, K), e.g. the roots of a nearby line (roots move continuously
-    with the gains), replace the discretization where the certificate accepts
-    them. Returns the rightmost roots and every line's distinct roots found
-    (NaN-padded), the seeds for the next nearby batch.
+    Parameters
+    ----------
+    group
+        The eigenvalue group of C whose factor is solved.
+    L
+        The lines (:func:`gain_lines`).
+    seeds
+        (B, K) seeds, e.g. the roots of a nearby line (roots move continuously
+        with the gains): they replace the discretization where the certificate
+        accepts them.
+
+    Returns
+    -------
+    roots, found
+        The rightmost roots, and every line's distinct roots found
+        (NaN-padded), the seeds for the next nearby batch.
     """
     B = L.size
     rows = _Rows(np.full(B, complex(group.lam)), L.t1, L.t2, np.full(B, not group.is_complex_pair),
@@ -139,7 +151,9 @@ def _merge_rows(found: _CArr, rows: NDArray[np.int64], new: _CArr) -> _CArr:
 def root_gradients(
     lam: complex, L: GainLines, s: _CArr
 ) -> tuple[_Arr, _Arr, _Arr, _Arr]:
-    """d Re s / d(P, D, tau1, tau2) of simple roots s, by implicit differentiation of q(s) = 0.
+    """d Re s / d(P, D, tau1, tau2) of simple roots ``s`` of the factor of ``lam`` on the lines ``L``.
+
+    By implicit differentiation of q(s) = 0.
 
     ds/dx = -(dq/dx) / (dq/ds) with dq/dP = 1 - lam e^{-tau1 s},
     dq/dD = s (1 - lam e^{-tau2 s}), dq/dtau1 = lam P s e^{-tau1 s} and
