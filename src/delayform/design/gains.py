@@ -55,7 +55,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from delayform._display import FigureRepr  # Jupyter shows the figure (issue 23)
+from delayform._display import FigureRepr  # Jupyter shows the figure
 from delayform._validation import check_delay, validated
 from delayform.analysis.roots.single import require_reach
 from delayform.analysis.roots.dominant import SETTLING_FACTOR, dominant_root, dominant_root_map

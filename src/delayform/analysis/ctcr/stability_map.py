@@ -105,7 +105,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from delayform._display import FigureRepr  # Jupyter shows the figure (issue 23)
+from delayform._display import FigureRepr  # Jupyter shows the figure
 from delayform._validation import check_delay, check_delay_array, check_positive, validated
 from delayform.analysis.ctcr.actuated import ActuatedStabilityMap, actuated_stability_map
 # the curves and the count live in one module per concept; names other modules and

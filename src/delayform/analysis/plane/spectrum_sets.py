@@ -66,7 +66,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from delayform._display import FigureRepr  # Jupyter shows the figure (issue 23)
+from delayform._display import FigureRepr  # Jupyter shows the figure
 from delayform._validation import check_delay_array, check_gains, check_positive, validated
 from delayform.analysis.plane.boundary_curve import omega_limit
 from delayform.analysis.ctcr.stability_map import StabilityMap, lam_factor, crossing_map

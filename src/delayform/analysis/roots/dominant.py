@@ -458,7 +458,7 @@ def dominant_root_map(
         When the grid would need more memory or time than the machine allows.
     DelayError
         When the grid's delays need a discretization beyond the machine's
-        memory or time budget (there is no fixed reach since issue 19).
+        memory or time budget (there is no fixed reach: long delays get a finer discretization).
 
     Examples
     --------
