@@ -310,7 +310,7 @@ class Explorer:
         return PointReport(P, D, tau1, tau2, count, dom)
 
     def guarantee(self, P: float, D: float, tau1: float, tau2: float) -> GuaranteeReport:
-        """The certified jitter margin at one delay pair (issue 20), for teams up to :data:`GUARANTEE_AGENTS`.
+        """The certified jitter margin at one delay pair, for teams up to :data:`GUARANTEE_AGENTS`.
 
         Parameters
         ----------

@@ -1,4 +1,4 @@
-"""What is guaranteed beside what was observed (issue 20, part 5).
+"""What is guaranteed beside what was observed.
 
 :func:`network_guarantees` lists the certificates of
 :mod:`delayform.analysis.network` that apply to a scenario's network: the exact

@@ -1,4 +1,4 @@
-"""Bursty (Gilbert-Elliott) packet loss, exactly in the mean square (issue 20, part 4, extended).
+"""Bursty (Gilbert-Elliott) packet loss, exactly in the mean square.
 
 Model: the sampled team of :mod:`~delayform.analysis.network.loss` (period h, delays
 whole multiples of h, hold-last-value), but every stream (link and kind: position

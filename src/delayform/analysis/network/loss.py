@@ -1,4 +1,4 @@
-"""Packet loss, exactly in the mean square (issue 20, part 4).
+"""Packet loss, exactly in the mean square.
 
 Model (the simulator's, :mod:`delayform.simulation.network`, with ``Sampling`` and
 ``BernoulliLoss``): every agent samples its position and velocity every h = 1/rate
