@@ -68,7 +68,7 @@ def main() -> None:
     small = jitter_margin(paper_six(), P, D, T1, T2)
     print(f"\nteam margin (delays varying together): {m.delta:.4f} s, limiting lam = {m.limiting:.4f}; "
           f"time median {np.median(times):.1f} s, best {min(times):.1f} s, CPU best {min(cpu):.1f} s "
-          f"({args.repeat} runs, {len(m.tried)} SDPs each); load now "
+          f"({args.repeat} runs, {len(m.tried)} probes each); load now "
           f"{os.getloadavg()[0]:.1f}")  # fmt: skip
     print(f"small gain (per link): {small.delta:.4f} s\n")
     print("| mode lam | functional that holds | greedy switching destabilizes at | weighted family at | constant offset unstable at |")
