@@ -18,10 +18,11 @@ solver's word that none exists.
 The solver's status is never the certificate. :func:`recheck` rounds the
 returned variables to a dyadic grid, rebuilds every ``M_i`` from them in
 floating point (smallest eigenvalue above a relative margin) and in exact
-rational arithmetic (every leading principal minor positive, computed
-fraction-free by Bareiss's elimination: the pivots of an exact LDL^T are
-their ratios), from the same rounded variables and the exactly represented
-data.
+rational arithmetic (first an exact congruence X' M X, X from a float
+Cholesky factor, shown strictly diagonally dominant; failing that, every
+leading principal minor positive, computed fraction-free by Bareiss's
+elimination: the pivots of an exact LDL^T are their ratios), from the same
+rounded variables and the exactly represented data.
 """
 
 from __future__ import annotations

@@ -94,7 +94,7 @@ class TeamDelayMargin:
     tried
         Every (delta, verdict) of the search.
     tolerance
-        Gap to the first uncertified delta.
+        Bound on the gap to the first uncertified delta (the search's relative width times delta).
     reason
         Why delta is 0 without a search (unstable nominal delays, tau1 = 0); empty otherwise.
     """
