@@ -38,6 +38,7 @@ STAGES: dict[str, int] = {
     "loops": 4,  # python-control loops: builds quasi-polynomials, counts their roots (issue 23)
     "simulation": 5,
     "deploy": 5,  # robot profiles, the on-robot controller, MCAP recordings: after simulation, beside it
+    "fleet": 6,  # the team as processes over Zenoh: runs the deploy controller, measures against simulation and analysis
     "sweeps": 6,
     "scenario": 7,
     "report": 8,

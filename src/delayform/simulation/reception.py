@@ -28,7 +28,7 @@ from delayform.simulation.integrator import Agent, Progress, Samples
 from delayform.simulation.network import BernoulliLoss, GilbertElliott, Network, check_link_matrix
 from delayform.topology import Topology
 
-__all__ = ["Reception", "reception", "integrate_network", "network_memory"]
+__all__ = ["Reception", "reception", "integrate_network", "network_memory", "packet_losses"]
 
 _Array = NDArray[np.float64]
 
@@ -159,6 +159,42 @@ def _loss_mask(
             flip = u_state[m + 1] < np.where(bad, loss.p_bad_to_good, loss.p_good_to_bad)
             bad = bad ^ flip
     return lost
+
+
+def packet_losses(
+    network: Network, topology: Topology, *, packets: int
+) -> tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.bool_] | None]:
+    """Which packets the network loses: the draws :func:`reception` makes, for packets sent elsewhere.
+
+    The losses of a run of ``simulate(..., network=network, dt=dt, duration=T)``
+    whose streams are packets: with ``packets = floor((steps + 1) dt / period) + 1``
+    (``steps = T / dt``, ``period`` the sampling period, or dt), the same seed
+    gives the same masks, packet for packet and link for link, so a team of
+    real processes can lose the messages the simulator loses.
+
+    Parameters
+    ----------
+    network
+        The network (its ``loss`` and ``seed`` are used).
+    topology
+        Who hears whom: the links, in the order :func:`reception` uses.
+    packets
+        Packets per stream.
+
+    Returns
+    -------
+    receivers, informers
+        ``(E,)`` agent indices of each link (i hears k).
+    lost
+        ``(2, packets, E)``: True where packet m of stream s (0: positions,
+        1: velocities) on link e is lost; None when nothing is lost.
+    """
+    if isinstance(network.loss, BernoulliLoss) and isinstance(network.loss.probability, np.ndarray):
+        check_link_matrix("loss.probability", network.loss.probability, topology.n)
+    rows, cols, _ = _links(topology)
+    rng_loss = np.random.default_rng(np.random.SeedSequence(network.seed).spawn(5)[3])  # reception's fourth stream
+    masks = [_loss_mask(network.loss, rows, cols, packets, rng_loss) for _ in range(2)]
+    return rows, cols, None if masks[0] is None else np.stack(masks)
 
 
 def _packet_causes(network: Network) -> str:

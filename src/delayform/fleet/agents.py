@@ -1,0 +1,275 @@
+"""The processes of a fleet run: one per robot and one world, each started as ``python -m delayform.fleet.agents SPEC``.
+
+Every child reads its JSON spec, ties its life to its parent's
+(:func:`tie_to_parent`), opens its Zenoh session, declares its subscribers
+and prints ``ready``; it then reads ``t0`` (seconds since 1970 of the run's
+t = 0) on stdin and runs on the wall clock until ``t0 + duration``, writes
+its log (NPZ) and prints ``done``.
+
+A robot (:func:`robot_main`) ticks every control period h at ``t0 + k h``:
+from its own latest odometry it publishes its state, extrapolated along its
+heading to the tick (stamped with the tick's time: the sender's clock), and
+from t = 0 on it runs :class:`~delayform.deploy.controller.FormationController`
+on its neighbours' states and publishes the velocity command. Before t = 0
+it only publishes its state: the neighbours' playout buffers then hold the
+initial state, the constant history of the simulation. A tick that wakes
+more than a period late skips the deadlines it missed (counted).
+The scenario's network acts where a real one would, on reception
+(:mod:`delayform.fleet.plan`): a state message the network loses never
+reaches the controller.
+
+The world (:func:`world_main`) holds the robots still before t = 0, then
+applies each command when it arrives and integrates its model
+(:mod:`delayform.fleet.world`) in real time, publishing every robot's
+odometry every period.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import faulthandler
+import json
+import math
+import os
+import queue
+import signal
+import sys
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+__all__ = ["tie_to_parent", "robot_main", "world_main", "main"]
+
+_PR_SET_PDEATHSIG = 1
+
+
+def tie_to_parent(parent: int) -> None:
+    """End this process when its parent ends, however it ends (Linux: PR_SET_PDEATHSIG; else a watchdog).
+
+    Ctrl-C at the terminal reaches the whole process group: the children
+    ignore it and the parent, which handles it, ends them.
+    """
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, lambda *_: os._exit(143))
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    except (OSError, AttributeError):  # not Linux: the watchdog below is the only guard
+        pass
+    if os.getppid() != parent:  # the parent died before the signal was armed
+        os._exit(1)
+
+    def watch() -> None:
+        while True:
+            time.sleep(0.2)
+            if os.getppid() != parent:
+                os._exit(1)
+
+    threading.Thread(target=watch, daemon=True).start()
+
+
+def _say(text: str) -> None:
+    sys.stdout.write(text + "\n")
+    sys.stdout.flush()
+
+
+def _start_time() -> float:
+    line = sys.stdin.readline()
+    if not line:  # the parent closed the pipe: the run was called off
+        os._exit(0)
+    return float(line)
+
+
+def _sleep_until(epoch: float) -> None:
+    while True:
+        left = epoch - time.time()
+        if left <= 0:
+            return
+        time.sleep(min(left, 0.05))
+
+
+# ------------------------------------------------------------------ robot
+def robot_main(spec: dict[str, Any]) -> None:
+    """One robot: odometry and neighbours' states in, state and velocity commands out (module doc)."""
+    from delayform.deploy.controller import FormationController, NeighbourMessage
+    from delayform.fleet.wire import Codec, Odometry, key, open_session
+    from delayform.simulation.robots import RobotLimits
+
+    me, n, h = int(spec["robot"]), int(spec["n"]), float(spec["period"])
+    limits = None if spec["limits"] is None else RobotLimits(**spec["limits"])
+    ctrl = FormationController(robot=me, P=spec["P"], D=spec["D"], tau1=spec["tau1"], tau2=spec["tau2"],
+                               weights={int(k): w for k, w in spec["weights"].items()},
+                               forcing=spec["forcing"], limits=limits)  # fmt: skip
+    lost = {int(k): np.asarray(v, dtype=bool) for k, v in (spec.get("lost") or {}).items()}
+    codec = Codec(n)
+    session = open_session(listen=["tcp/127.0.0.1:0"], connect=[spec["endpoint"]])
+    inbox: queue.SimpleQueue[NeighbourMessage] = queue.SimpleQueue()
+    odom: list[Odometry | None] = [None]
+    t0_box = [math.inf]
+    received: list[tuple[int, float, float, bool]] = []  # sender, stamp, receipt (run clock), lost by the network
+    counts = dict.fromkeys(ctrl.neighbours, 0)
+
+    def on_state(sample: Any) -> None:
+        now = time.time()
+        sender = int(str(sample.key_expr).split("/")[0].removeprefix("robot_"))
+        o = codec.read_odometry(sender, bytes(sample.payload.to_bytes()))
+        t0 = t0_box[0]
+        stamp = o.stamp - t0
+        dropped = False
+        if stamp >= 0.0 and sender in lost:  # the m-th message since t = 0 meets the m-th draw
+            m = counts[sender]
+            counts[sender] = m + 1
+            mask = lost[sender]
+            dropped = bool(m < mask.size and mask[m])
+        received.append((sender, stamp, now - t0, dropped))
+        if not dropped:
+            c, s = math.cos(o.theta), math.sin(o.theta)
+            inbox.put(NeighbourMessage(sender, stamp, o.x, o.y, o.v * c, o.v * s))
+
+    def on_odom(sample: Any) -> None:
+        odom[0] = codec.read_odometry(me, bytes(sample.payload.to_bytes()))
+
+    subs = [session.declare_subscriber(key(k, "state"), on_state) for k in ctrl.neighbours]
+    subs.append(session.declare_subscriber(key(me, "odom"), on_odom))
+    pub_state = session.declare_publisher(key(me, "state"))
+    pub_cmd = session.declare_publisher(key(me, "cmd_vel"))
+    _say("ready")
+    t0 = _start_time()
+    t0_box[0] = t0
+    end = t0 + float(spec["duration"])
+    lead = float(spec["lead"])
+    k = math.ceil((time.time() - t0 - lead) / h)
+    ticks: list[tuple[float, float, float, float, float]] = []  # deadline, lateness, lag, compute time, speed sent
+    missed = 0
+    error = ""
+    while True:
+        deadline = t0 + k * h
+        if deadline >= end:
+            break
+        _sleep_until(deadline)
+        woke = time.time()
+        late = woke - deadline
+        if late >= h:  # this deadline and the ones after it passed while the process waited for the CPU
+            skip = int(late // h)
+            missed += skip if k >= 0 else 0
+            k += skip
+            continue
+        o = odom[0]
+        if o is None:  # no odometry yet (only before t = 0: the world publishes from the start)
+            k += 1
+            continue
+        t = woke - t0
+        age = woke - o.stamp  # dead reckoning from the odometry's stamp to the tick
+        th = o.theta + o.omega * age
+        mid = 0.5 * (o.theta + th)
+        x, y = o.x + o.v * math.cos(mid) * age, o.y + o.v * math.sin(mid) * age
+        pub_state.put(codec.odometry(me, Odometry(woke, x, y, th, o.v, o.omega)))
+        if k >= 0:
+            while True:
+                try:
+                    ctrl.receive(inbox.get_nowait())
+                except queue.Empty:
+                    break
+            try:
+                cmd = ctrl.tick(t, x, y, th, o.v)
+            except Exception as exc:  # a neighbour never heard from, a state that blew up: stop, say why
+                error = f"robot {me} at t = {t:.3f} s: {exc}"
+                break
+            speed = ctrl.speed_command(cmd, h)
+            pub_cmd.put(codec.twist(speed, cmd.turn_rate))
+            ticks.append((k * h, late, cmd.lag, time.time() - woke, speed))
+        k += 1
+    for s in subs:
+        s.undeclare()
+    session.close()
+    rec = np.array(received, dtype=np.float64).reshape(-1, 4)
+    tk = np.array(ticks, dtype=np.float64).reshape(-1, 5)
+    np.savez(spec["log"], received=rec, ticks=tk, missed=missed, error=error)
+    _say("done")
+
+
+# ------------------------------------------------------------------ world
+def world_main(spec: dict[str, Any]) -> None:
+    """The world: commands in, the model integrated in real time, odometry out (module doc)."""
+    from delayform.fleet.wire import Codec, Odometry, key, open_session
+    from delayform.fleet.world import world_model
+    from delayform.simulation.robots import RobotLimits
+
+    n, h = int(spec["n"]), float(spec["period"])
+    limits = None if spec["limits"] is None else RobotLimits(**spec["limits"])
+    world = world_model(spec["world"], np.asarray(spec["state0"], dtype=np.float64), period=h, limits=limits)
+    codec = Codec(n)
+    session = open_session(listen=["tcp/127.0.0.1:0"], connect=[spec["endpoint"]])
+    commands: queue.SimpleQueue[tuple[float, int, float, float]] = queue.SimpleQueue()
+
+    def on_cmd(sample: Any) -> None:
+        robot = int(str(sample.key_expr).split("/")[0].removeprefix("robot_"))
+        speed, turn = codec.read_twist(bytes(sample.payload.to_bytes()))
+        commands.put((time.time(), robot, speed, turn))
+
+    subs = [session.declare_subscriber(key(i, "cmd_vel"), on_cmd) for i in range(1, n + 1)]
+    pubs = [session.declare_publisher(key(i, "odom")) for i in range(1, n + 1)]
+    _say("ready")
+    t0 = _start_time()
+    end = t0 + float(spec["duration"])
+    lead = float(spec["lead"])
+    k = math.ceil((time.time() - t0 - lead) / h)
+    times, states, omegas, lateness = [], [], [], []
+    applied = 0
+    while True:
+        deadline = t0 + k * h
+        if deadline > end + 1e-9:
+            break
+        # commands are applied when they arrive: wait for them until the next odometry is due
+        while True:
+            left = deadline - time.time()
+            try:
+                at, robot, speed, turn = commands.get(timeout=max(left, 0.0)) if left > 0 else commands.get_nowait()
+            except queue.Empty:
+                break
+            if at - t0 >= 0.0:
+                world.advance(at - t0)
+            world.command(robot - 1, speed, turn)
+            applied += 1
+        now = time.time()
+        if now - deadline >= h:  # the world fell a period behind: publish now, skip the missed deadlines
+            k += int((now - deadline) // h)
+            deadline = t0 + k * h
+        t = max(now - t0, 0.0)
+        if t > 0.0:
+            world.advance(t)
+        s = world.state
+        stamp = t0 + world.time if now >= t0 else now  # before t = 0 the robots stand still at their start
+        for i in range(n):
+            pubs[i].put(codec.odometry(i + 1, Odometry(stamp, s[i, 0], s[i, 1], s[i, 2], s[i, 3], world.omega[i])))
+        if now >= t0:
+            times.append(world.time)
+            states.append(s.copy())
+            omegas.append(world.omega.copy())
+            lateness.append(now - deadline)
+        k += 1
+    for sub in subs:
+        sub.undeclare()
+    session.close()
+    np.savez(spec["log"], times=np.array(times), states=np.array(states).reshape(-1, n, 4),
+             omega=np.array(omegas).reshape(-1, n), lateness=np.array(lateness), applied=applied)  # fmt: skip
+    _say("done")
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Entry point of a child: ``python -m delayform.fleet.agents SPEC.json``."""
+    args = sys.argv[1:] if argv is None else argv
+    spec = json.loads(Path(args[0]).read_text())
+    tie_to_parent(int(spec["parent"]))
+    faulthandler.register(signal.SIGUSR1)  # the parent asks a child that does not answer where it is
+    if spec["role"] == "robot":
+        robot_main(spec)
+    else:
+        world_main(spec)
+
+
+if __name__ == "__main__":
+    main()
