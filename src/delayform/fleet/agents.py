@@ -39,7 +39,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-import numpy as np
+# only the standard library at the top: a child ties its life to its parent's before the slow imports
 
 __all__ = ["tie_to_parent", "robot_main", "world_main", "main"]
 
@@ -94,6 +94,8 @@ def _sleep_until(epoch: float) -> None:
 # ------------------------------------------------------------------ robot
 def robot_main(spec: dict[str, Any]) -> None:
     """One robot: odometry and neighbours' states in, state and velocity commands out (module doc)."""
+    import numpy as np
+
     from delayform.deploy.controller import FormationController, NeighbourMessage
     from delayform.fleet.wire import Codec, Odometry, key, open_session
     from delayform.simulation.robots import RobotLimits
@@ -144,6 +146,7 @@ def robot_main(spec: dict[str, Any]) -> None:
     k = math.ceil((time.time() - t0 - lead) / h)
     ticks: list[tuple[float, float, float, float, float]] = []  # deadline, lateness, lag, compute time, speed sent
     missed = 0
+    accel = 0.0  # the acceleration of the last command (m/s^2)
     error = ""
     while True:
         deadline = t0 + k * h
@@ -162,11 +165,14 @@ def robot_main(spec: dict[str, Any]) -> None:
             k += 1
             continue
         t = woke - t0
-        age = woke - o.stamp  # dead reckoning from the odometry's stamp to the tick
+        # dead reckoning from the odometry's stamp to the tick, with the acceleration last commanded: the
+        # odometry is up to a period old, and a set-point built on its stale speed would cut every acceleration
+        age = min(max(woke - o.stamp, 0.0), h)
+        v = o.v + accel * age
         th = o.theta + o.omega * age
-        mid = 0.5 * (o.theta + th)
-        x, y = o.x + o.v * math.cos(mid) * age, o.y + o.v * math.sin(mid) * age
-        pub_state.put(codec.odometry(me, Odometry(woke, x, y, th, o.v, o.omega)))
+        mid, vm = 0.5 * (o.theta + th), 0.5 * (o.v + v)
+        x, y = o.x + vm * math.cos(mid) * age, o.y + vm * math.sin(mid) * age
+        pub_state.put(codec.odometry(me, Odometry(woke, x, y, th, v, o.omega)))
         if k >= 0:
             while True:
                 try:
@@ -174,11 +180,12 @@ def robot_main(spec: dict[str, Any]) -> None:
                 except queue.Empty:
                     break
             try:
-                cmd = ctrl.tick(t, x, y, th, o.v)
+                cmd = ctrl.tick(t, x, y, th, v)
             except Exception as exc:  # a neighbour never heard from, a state that blew up: stop, say why
                 error = f"robot {me} at t = {t:.3f} s: {exc}"
                 break
             speed = ctrl.speed_command(cmd, h)
+            accel = (speed - v) / h
             pub_cmd.put(codec.twist(speed, cmd.turn_rate))
             ticks.append((k * h, late, cmd.lag, time.time() - woke, speed))
         k += 1
@@ -194,6 +201,8 @@ def robot_main(spec: dict[str, Any]) -> None:
 # ------------------------------------------------------------------ world
 def world_main(spec: dict[str, Any]) -> None:
     """The world: commands in, the model integrated in real time, odometry out (module doc)."""
+    import numpy as np
+
     from delayform.fleet.wire import Codec, Odometry, key, open_session
     from delayform.fleet.world import world_model
     from delayform.simulation.robots import RobotLimits
