@@ -117,6 +117,8 @@ _EXPORTS: dict[str, str] = {
     "FormationController": "deploy",
     "NeighbourMessage": "deploy",
     "write_mcap": "deploy.recording",
+    # the team as processes over Zenoh
+    "run_fleet": "fleet",
     "robot_check": "report.check",
     "RobotCheck": "report.check",
     # guarantees for real networks (issue 20)
@@ -162,7 +164,7 @@ _EXPORTS: dict[str, str] = {
         "DelayformError", "InputError", "TopologyError", "NoSpanningTreeError", "GainError", "DelayError",
         "NoStableDelaysError", "NoStableGainsError", "QuasiPolynomialError", "NeutralQuasiPolynomialError",
         "FormationError", "SimulationInputError", "NetworkError", "ClusterError", "ScenarioError",
-        "ResourceLimitError", "NotConvergedError", "MissingExtraError",
+        "ResourceLimitError", "NotConvergedError", "MissingExtraError", "FleetError", "FleetRunError",
     )},  # fmt: skip
     # robots with bodies (issue 21)
     "Robot": "simulation",

@@ -93,7 +93,14 @@ def _sleep_until(epoch: float) -> None:
 
 # ------------------------------------------------------------------ robot
 def robot_main(spec: dict[str, Any]) -> None:
-    """One robot: odometry and neighbours' states in, state and velocity commands out (module doc)."""
+    """One robot: odometry and neighbours' states in, state and velocity commands out (module doc).
+
+    Parameters
+    ----------
+    spec
+        The robot's part of the run, as :func:`delayform.fleet.run.run_fleet` writes it: its number,
+        gains, delays, weights, forcing, limits, period, the endpoint and which messages the network drops.
+    """
     import numpy as np
 
     from delayform.deploy.controller import FormationController, NeighbourMessage
@@ -200,7 +207,13 @@ def robot_main(spec: dict[str, Any]) -> None:
 
 # ------------------------------------------------------------------ world
 def world_main(spec: dict[str, Any]) -> None:
-    """The world: commands in, the model integrated in real time, odometry out (module doc)."""
+    """The world: commands in, the model integrated in real time, odometry out (module doc).
+
+    Parameters
+    ----------
+    spec
+        The world's part of the run: the model's name, the initial states, the limits, the period and the endpoint.
+    """
     import numpy as np
 
     from delayform.fleet.wire import Codec, Odometry, key, open_session
@@ -269,7 +282,13 @@ def world_main(spec: dict[str, Any]) -> None:
 
 
 def main(argv: list[str] | None = None) -> None:
-    """Entry point of a child: ``python -m delayform.fleet.agents SPEC.json``."""
+    """Entry point of a child: ``python -m delayform.fleet.agents SPEC.json``.
+
+    Parameters
+    ----------
+    argv
+        The arguments (the spec's path); None reads ``sys.argv``.
+    """
     args = sys.argv[1:] if argv is None else argv
     spec = json.loads(Path(args[0]).read_text())
     tie_to_parent(int(spec["parent"]))
