@@ -36,7 +36,7 @@ from delayform.model import Delays, Team
 from delayform.topology import paper_six
 
 _PEER = r"""
-import sys, time, json, zenoh
+import os, sys, time, json, zenoh
 mode, port = sys.argv[1], sys.argv[2]
 c = zenoh.Config()
 c.insert_json5("mode", '"peer"')
@@ -47,8 +47,11 @@ if mode == "sub":
     lat = []
     sub = s.declare_subscriber("peer/x", lambda m: lat.append(time.time() - float(bytes(m.payload.to_bytes())[:20])))
     print("ready", flush=True)
-    time.sleep(14)
+    end = time.time() + 30
+    while len(lat) < 1000 and time.time() < end:
+        time.sleep(0.1)
     print(json.dumps(lat), flush=True)
+    os._exit(0)
 else:
     c.insert_json5("connect/endpoints", json.dumps([f"tcp/127.0.0.1:{port}"]))
     s = zenoh.open(c)
@@ -59,6 +62,8 @@ else:
         while time.time() < t0 + 0.01 * k:
             time.sleep(0.0005)
         p.put(f"{time.time():<20.6f}".encode() + b"x" * 680)
+    time.sleep(0.5)
+    os._exit(0)
 """
 
 
@@ -77,11 +82,11 @@ def peer_latency() -> dict[str, float]:
     assert sub.stdout is not None
     sub.stdout.readline()
     pub = subprocess.Popen([sys.executable, "-c", _PEER, "pub", port])
-    pub.wait()
+    pub.wait(60)
     import json
 
     lat = np.array(json.loads(sub.stdout.readline()))
-    sub.wait()
+    sub.wait(60)
     return {"count": int(lat.size), "median_ms": 1e3 * float(np.median(lat)), "p99_ms": 1e3 * float(np.quantile(lat, 0.99))}
 
 

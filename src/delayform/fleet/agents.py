@@ -83,6 +83,15 @@ def _start_time() -> float:
     return float(line)
 
 
+def _close(session: Any) -> None:
+    """Close the Zenoh session politely for at most a second, then end: the log is already written."""
+    closer = threading.Thread(target=session.close, daemon=True)
+    closer.start()
+    closer.join(1.0)
+    sys.stdout.flush()
+    os._exit(0)
+
+
 def _sleep_until(epoch: float) -> None:
     while True:
         left = epoch - time.time()
@@ -196,13 +205,11 @@ def robot_main(spec: dict[str, Any]) -> None:
             pub_cmd.put(codec.twist(speed, cmd.turn_rate))
             ticks.append((k * h, late, cmd.lag, time.time() - woke, speed))
         k += 1
-    for s in subs:
-        s.undeclare()
-    session.close()
     rec = np.array(received, dtype=np.float64).reshape(-1, 4)
     tk = np.array(ticks, dtype=np.float64).reshape(-1, 5)
     np.savez(spec["log"], received=rec, ticks=tk, missed=missed, error=error)
     _say("done")
+    _close(session)
 
 
 # ------------------------------------------------------------------ world
@@ -273,12 +280,10 @@ def world_main(spec: dict[str, Any]) -> None:
             omegas.append(world.omega.copy())
             lateness.append(now - deadline)
         k += 1
-    for sub in subs:
-        sub.undeclare()
-    session.close()
     np.savez(spec["log"], times=np.array(times), states=np.array(states).reshape(-1, n, 4),
              omega=np.array(omegas).reshape(-1, n), lateness=np.array(lateness), applied=applied)  # fmt: skip
     _say("done")
+    _close(session)
 
 
 def main(argv: list[str] | None = None) -> None:

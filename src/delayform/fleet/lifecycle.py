@@ -120,6 +120,15 @@ class Children:
                     self.procs[name].wait()
                     raise FleetRunError(f"the {name} process ended before '{word}': {self.why(name)}")
 
+    def wait(self, timeout: float) -> None:
+        """Wait up to ``timeout`` s in all for every child to exit (those still running are ended on leaving)."""
+        deadline = time.monotonic() + timeout
+        for p in self.procs.values():
+            try:
+                p.wait(max(deadline - time.monotonic(), 0.01))
+            except subprocess.TimeoutExpired:
+                return
+
     def send(self, text: str) -> None:
         """Write one line to every child's stdin."""
         for p in self.procs.values():

@@ -240,8 +240,7 @@ def run_fleet(
                         raise FleetRunError(failure)
                     time.sleep(0.1)
                 children.expect("done", _DONE_TIMEOUT)
-                for p in children.procs.values():
-                    p.wait(_DONE_TIMEOUT)
+                children.wait(_DONE_TIMEOUT)
                 failure = children.failed()
                 if failure:
                     raise FleetRunError(failure)
