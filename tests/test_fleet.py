@@ -244,6 +244,24 @@ def _cli(*args: str, **kw: object) -> subprocess.Popen[bytes]:
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, **kw)  # type: ignore[call-overload]
 
 
+@pytest.mark.slow
+def test_the_command_writes_its_page_and_prints_json(tmp_path: Path) -> None:
+    scenario = tmp_path / "three.toml"
+    scenario.write_text('name = "three"\n[topology]\nname = "complete"\nn = 3\n[gains]\nP = 1.0\nD = 1.5\n'
+                        '[delays]\ntau1 = 0.3\ntau2 = 0.2\n[formation]\nshape = "polygon"\n[robot]\nprofile = "create3"\n')  # fmt: skip
+    out = tmp_path / "out"
+    proc = _cli(str(scenario), "--duration", "3", "--out", str(out), "--json", "--endpoint", f"tcp/127.0.0.1:{_free_port()}")
+    stdout, stderr = proc.communicate(timeout=180)
+    assert proc.returncode == 0, stderr
+    summary = json.loads(stdout)
+    assert summary["run"]["period"] == 0.01  # the Create 3's control period
+    assert summary["team"]["chart_verdict"] == "stable"
+    assert {p.name for p in out.iterdir()} >= {"fleet.mcap", "summary.json", "summary.txt", "fleet_error.png", "fleet_error.svg"}
+    assert json.loads((out / "summary.json").read_text())["links"] == summary["links"]
+    text = (out / "summary.txt").read_text()
+    assert "dominant root" in text and "3 <- 1" in text
+
+
 def test_a_bad_scenario_exits_2_with_one_line_before_any_process(tmp_path: Path) -> None:
     bad = tmp_path / "jitter.toml"
     bad.write_text((ROOT / "examples" / "paper.toml").read_text() + "\n[network]\njitter = [0.01, 0.01]\n")
