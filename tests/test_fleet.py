@@ -29,8 +29,8 @@ from delayform.fleet.world import WORLDS, KinematicWorld
 from delayform.formation import named_formation
 from delayform.model import Delays, Team
 from delayform.simulation import simulate
-from delayform.simulation.network import BernoulliLoss, Jitter, Network
-from delayform.simulation.reception import packet_losses, reception
+from delayform.simulation.network import BernoulliLoss, Jitter, MeasurementNoise, Network, Sampling
+from delayform.simulation.reception import packet_draws, reception
 from delayform.topology import complete, paper_six
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -118,18 +118,21 @@ def test_endpoint_checks() -> None:
 def test_network_parts_not_applied_are_refused() -> None:
     assert check_network(Network()) is None
     assert check_network(Network(loss=BernoulliLoss(0.1))) is not None
+    assert check_network(Network(sampling=Sampling(20.0), noise=MeasurementNoise(0.01, 0.01))) is not None
     with pytest.raises(FleetError, match="jitter"):
         check_network(Network(jitter=Jitter(0.01, 0.01)))
 
 
-def test_packet_losses_are_the_simulator_s_draws() -> None:
-    """The packets the simulator's reception never hears are exactly the ones packet_losses drops."""
+def test_packet_draws_are_the_simulator_s() -> None:
+    """The packets the simulator's reception never hears are exactly the ones packet_draws drops."""
     topo = complete(3)
     net = Network(loss=BernoulliLoss(0.3), seed=7)
     dt, steps = 0.05, 60
     rec = reception(net, topo, 0.3, 0.2, dt=dt, steps=steps)
     packets = math.floor((steps + 1) * dt / dt + 1e-9) + 1
-    rows, cols, lost = packet_losses(net, topo, packets=packets)
+    draws = packet_draws(net, topo, packets=packets)
+    rows, cols, lost = draws.receivers, draws.informers, draws.lost
+    assert lost is not None and draws.noise is None
     assert (rows == rec.receivers).all() and (cols == rec.informers).all()
     for s in range(2):
         heard = rec.packet[s]
@@ -138,6 +141,16 @@ def test_packet_losses_are_the_simulator_s_draws() -> None:
             # every packet that arrives before the end is heard (constant delays, one packet per step)
             arrived = {m for m in range(packets) if m * dt + (0.3, 0.2)[s] <= (steps + 1) * dt + 1e-9}
             assert got == {m for m in arrived if not lost[s, m, e]}
+
+
+def test_packet_noise_is_the_simulator_s() -> None:
+    topo = paper_six()
+    net = Network(loss=BernoulliLoss(0.1), noise=MeasurementNoise(0.02, 0.01), seed=5)
+    rec = reception(net, topo, 0.3, 0.2, dt=0.05, steps=40)
+    draws = packet_draws(net, topo, packets=42)
+    assert draws.noise is not None
+    for s in range(2):
+        assert rec.noise[s] is not None and np.array_equal(draws.noise[s], rec.noise[s])
 
 
 def test_decay_rate_of_an_exponential() -> None:
@@ -225,15 +238,19 @@ def test_no_process_survives_the_run(paper_run: tuple[object, Path]) -> None:
 
 @pytest.mark.slow
 def test_network_loss_drops_messages_at_its_rate(tmp_path: Path) -> None:
-    """Bernoulli loss 0.2 in the scenario: the state messages dropped are within a 4-sigma binomial bound."""
-    p = 0.2
-    run = run_fleet(Team(complete(3), 1.0, 1.5), Delays(0.3, 0.2), "polygon", out=tmp_path, duration=5.0,
-                    period=0.01, robot=robot_profile("create3"), seed=1, network=Network(loss=BernoulliLoss(p), seed=3),
+    """Bernoulli loss 0.2 and sampling at 50 Hz: 50 states a second per link, 20 % dropped (4-sigma binomial bound)."""
+    p, rate, duration = 0.2, 50.0, 6.0
+    net = Network(loss=BernoulliLoss(p), sampling=Sampling(rate), seed=3)
+    run = run_fleet(Team(complete(3), 1.0, 1.5), Delays(0.3, 0.2), "polygon", out=tmp_path, duration=duration,
+                    period=0.01, robot=robot_profile("create3"), seed=1, network=net,
                     endpoint=f"tcp/127.0.0.1:{_free_port()}")  # fmt: skip
     links = run.summary["links"]
+    assert len(links) == 6
+    for link in links:  # one state per 20 ms period (the run's last 0.1 s not counted)
+        assert abs(link["sent"] - rate * (duration - 0.1)) <= 3
+        assert link["received"] == link["sent"]
     received = sum(link["received"] for link in links)
     dropped = sum(link["dropped_by_network"] for link in links)
-    assert received > 6 * 400
     assert abs(dropped - p * received) <= 4 * math.sqrt(received * p * (1 - p))
     assert run.summary["team"]["network_loss_rate"] == p
 

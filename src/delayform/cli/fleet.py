@@ -49,8 +49,8 @@ def fleet_command(scenario: Path | None, seed: int | None, use_limits: bool | No
     ideal robots) and publishes their odometry. Messages are CDR-encoded
     nav_msgs/Odometry (robot_<i>/odom, robot_<i>/state) and geometry_msgs/Twist
     (robot_<i>/cmd_vel) on Zenoh key expressions named as ROS 2 topics; the
-    scenario's [network] loss drops state messages on reception with the
-    simulator's draws. Writes fleet.mcap (every message), summary.json,
+    scenario's [network] loss, sampling and noise act on the state messages
+    with the simulator's draws. Writes fleet.mcap (every message), summary.json,
     summary.txt and fleet_error.png/.svg: per link the delays applied, ticks
     missed or late, messages lost, and beside them the chart's verdict, the
     dominant root's decay against the measured one, and the simulator's

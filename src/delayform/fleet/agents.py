@@ -121,14 +121,24 @@ def robot_main(spec: dict[str, Any]) -> None:
     ctrl = FormationController(robot=me, P=spec["P"], D=spec["D"], tau1=spec["tau1"], tau2=spec["tau2"],
                                weights={int(k): w for k, w in spec["weights"].items()},
                                forcing=spec["forcing"], limits=limits)  # fmt: skip
-    lost = {int(k): np.asarray(v, dtype=bool) for k, v in (spec.get("lost") or {}).items()}
+    # the network's draws for the links this robot receives on: packet m of informer k (run.py, module doc)
+    lost: dict[int, Any] = {}
+    noise: dict[int, Any] = {}
+    if spec.get("draws"):
+        with np.load(spec["draws"]) as d:
+            for e, k in enumerate(d["informers"]):
+                if "lost" in d:
+                    lost[int(k)] = d["lost"][:, e]
+                if "noise" in d:
+                    noise[int(k)] = d["noise"][:, e]
+    rate = spec.get("rate")
+    packet = h if rate is None else 1.0 / float(rate)
     codec = Codec(n)
     session = open_session(listen=["tcp/127.0.0.1:0"], connect=[spec["endpoint"]])
     inbox: queue.SimpleQueue[NeighbourMessage] = queue.SimpleQueue()
     odom: list[Odometry | None] = [None]
     t0_box = [math.inf]
     received: list[tuple[int, float, float, bool]] = []  # sender, stamp, receipt (run clock), lost by the network
-    counts = dict.fromkeys(ctrl.neighbours, 0)
 
     def on_state(sample: Any) -> None:
         now = time.time()
@@ -137,15 +147,18 @@ def robot_main(spec: dict[str, Any]) -> None:
         t0 = t0_box[0]
         stamp = o.stamp - t0
         dropped = False
-        if stamp >= 0.0 and sender in lost:  # the m-th message since t = 0 meets the m-th draw
-            m = counts[sender]
-            counts[sender] = m + 1
-            mask = lost[sender]
-            dropped = bool(m < mask.size and mask[m])
+        c, s = math.cos(o.theta), math.sin(o.theta)
+        x, y, vx, vy = o.x, o.y, o.v * c, o.v * s
+        if stamp >= 0.0:  # packet m: sent in the m-th packet period since t = 0 (before it, the exact history)
+            m = math.floor(stamp / packet + 1e-9)
+            mask = lost.get(sender)
+            dropped = bool(mask is not None and m < mask.size and mask[m])
+            extra = noise.get(sender)
+            if extra is not None and m < extra.shape[0]:
+                x, y, vx, vy = x + extra[m, 0], y + extra[m, 1], vx + extra[m, 2], vy + extra[m, 3]
         received.append((sender, stamp, now - t0, dropped))
         if not dropped:
-            c, s = math.cos(o.theta), math.sin(o.theta)
-            inbox.put(NeighbourMessage(sender, stamp, o.x, o.y, o.v * c, o.v * s))
+            inbox.put(NeighbourMessage(sender, stamp, x, y, vx, vy))
 
     def on_odom(sample: Any) -> None:
         odom[0] = codec.read_odometry(me, bytes(sample.payload.to_bytes()))
@@ -163,6 +176,8 @@ def robot_main(spec: dict[str, Any]) -> None:
     ticks: list[tuple[float, float, float, float, float]] = []  # deadline, lateness, lag, compute time, speed sent
     missed = 0
     accel = 0.0  # the acceleration of the last command (m/s^2)
+    sent = 0  # with a sampling rate: the next packet period to send in
+    stamps: list[float] = []  # of the states sent since t = 0
     error = ""
     while True:
         deadline = t0 + k * h
@@ -188,7 +203,11 @@ def robot_main(spec: dict[str, Any]) -> None:
         th = o.theta + o.omega * age
         mid, vm = 0.5 * (o.theta + th), 0.5 * (o.v + v)
         x, y = o.x + vm * math.cos(mid) * age, o.y + vm * math.sin(mid) * age
-        pub_state.put(codec.odometry(me, Odometry(woke, x, y, th, v, o.omega)))
+        if rate is None or k < 0 or t >= sent * packet - 1e-9:  # sampled: the first tick at or after m / rate
+            pub_state.put(codec.odometry(me, Odometry(woke, x, y, th, v, o.omega)))
+            if k >= 0:
+                sent = math.floor(t / packet + 1e-9) + 1
+                stamps.append(t)
         if k >= 0:
             while True:
                 try:
@@ -207,7 +226,7 @@ def robot_main(spec: dict[str, Any]) -> None:
         k += 1
     rec = np.array(received, dtype=np.float64).reshape(-1, 4)
     tk = np.array(ticks, dtype=np.float64).reshape(-1, 5)
-    np.savez(spec["log"], received=rec, ticks=tk, missed=missed, error=error)
+    np.savez(spec["log"], received=rec, ticks=tk, missed=missed, error=error, sent=np.array(stamps))
     _say("done")
     _close(session)
 

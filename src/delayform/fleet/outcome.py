@@ -232,7 +232,7 @@ def measure(*, team: Team, tau1: float, tau2: float, desired: _Array, limits: Ro
             every = rec[(rec[:, 0] == k) & (rec[:, 3] == 0.0)]  # the ones before t = 0 too: the initial history
             d1, wait1 = _applied(tick_times[i], every[:, 1], every[:, 2], tau1)
             d2, _ = _applied(tick_times[i], every[:, 1], every[:, 2], tau2)
-            sent = int(np.sum(tick_times[k] <= cutoff))
+            sent = int(np.sum(np.asarray(logs[f"robot_{k}"]["sent"]) <= cutoff))
             links.append({
                 "receiver": i, "informer": k, "sent": sent, "received": int(mine.shape[0]),
                 "lost_in_transport": max(sent - int(mine.shape[0]), 0), "dropped_by_network": int(np.sum(mine[:, 3] != 0.0)),

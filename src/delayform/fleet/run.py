@@ -12,17 +12,20 @@ The network
 -----------
 The loopback loses nothing and takes a fraction of a millisecond; the
 design's delays are made by each robot's playout buffer. The scenario's
-``[network]`` loss is applied where a real network loses packets, at the
-receiving robot, with the draws the simulator makes for the same seed
-(:func:`delayform.simulation.reception.packet_losses` at ``dt`` = the
-control period): the m-th state message a robot receives from a neighbour
-after t = 0 is dropped when the simulator's position stream loses packet m on
-that link. A state message carries both streams, as one packet does on a
-real robot, so the velocity stream's separate draws are not used. Delays
-that differ per link or in time (per-link matrices, spread, variation,
-jitter), sampling and noise are not applied to real messages: a network with
-them is refused (:class:`~delayform.errors.FleetError`) rather than run
-without them.
+``[network]`` acts where a real network would, on the state messages, with
+the draws the simulator makes for the same seed
+(:func:`delayform.simulation.reception.packet_draws`, for the simulator
+stepping at the control period): with ``rate`` each robot sends its state at
+the first tick at or after every ``m / rate`` (else at every tick: packet m is
+the one sent in period m); on reception, packet m on a link is dropped when the
+simulator's position stream loses packet m of that link (loss, Bernoulli or
+bursty), and carries the noise the simulator adds to it, stream by stream
+(positions, velocities). A state message carries both streams, as one packet
+does on a real robot, so the velocity stream's separate loss draws are not
+used. Delays that differ per link or in time (per-link matrices, spread,
+variation, jitter) decide when each stream arrives, and one message cannot
+arrive twice: a network with them is refused
+(:class:`~delayform.errors.FleetError`) rather than run without them.
 """
 
 from __future__ import annotations
@@ -66,13 +69,18 @@ _READY_TIMEOUT, _DONE_TIMEOUT = 60.0, 30.0
 
 
 def check_network(network: Network | None) -> Network | None:
-    """The network a fleet run applies: its loss; None when it is ideal (module doc, The network).
+    """The network a fleet run applies: loss, sampling and noise; None when it is ideal (module doc, The network).
+
+    Parameters
+    ----------
+    network
+        The scenario's network, or None.
 
     Raises
     ------
     FleetError
         For a network with parts not applied to real messages (per-link or
-        varying delays, jitter, sampling, noise).
+        varying delays, jitter).
     """
     if network is None or network.is_ideal:
         return None
@@ -80,12 +88,11 @@ def check_network(network: Network | None) -> Network | None:
         ("per-link delays", network.delays is not None and not network.delays.is_uniform),
         ("delay variation", network.variation is not None and not network.variation.is_off),
         ("jitter", network.jitter is not None and not network.jitter.is_off),
-        ("sampling", network.sampling is not None),
-        ("noise", network.noise is not None and not network.noise.is_off),
     ) if on]  # fmt: skip
     if parts:
-        raise FleetError(f"the scenario's [network] has {', '.join(parts)}: a fleet run applies only its loss to "
-                         f"real messages; remove them, or run simulate for the whole network")  # fmt: skip
+        raise FleetError(f"the scenario's [network] has {', '.join(parts)}: a fleet run applies loss, sampling and "
+                         f"noise to real messages, not delays that differ per link or in time; remove them, or run "
+                         f"simulate for the whole network")  # fmt: skip
     return network
 
 
@@ -205,7 +212,8 @@ def run_fleet(
                    initial_positions=initial_positions, initial_headings=initial_headings,
                    initial_speed=initial_speed, seed=seed, duration=duration, dt=steps_dt, network=network)  # fmt: skip
     state0 = np.column_stack([sim.positions[0], sim.headings[0], sim.speeds[0]])
-    lost = _losses(network, team, duration, steps_dt, period)
+    draws = _draws(network, team, duration, steps_dt, period)
+    rate = None if network is None or network.sampling is None else network.sampling.rate
     F = formation_forcing(topology, team.P, desired)
     C = topology.C_sparse.tocsr()
 
@@ -215,7 +223,7 @@ def run_fleet(
         try:
             recorder = _Recorder(session, n)
             common = {"n": n, "endpoint": endpoint, "period": period, "duration": duration, "lead": LEAD,
-                      "limits": _limits_dict(limits)}  # fmt: skip
+                      "limits": _limits_dict(limits), "rate": rate}  # fmt: skip
             with Children(folder) as children:
                 say("starting the processes")
                 children.start("world", {**common, "role": "world", "world": world, "state0": state0.tolist(),
@@ -226,8 +234,7 @@ def run_fleet(
                     children.start(f"robot_{i + 1}", {
                         **common, "role": "robot", "robot": i + 1, "P": team.P, "D": team.D, "tau1": tau1,
                         "tau2": tau2, "weights": weights, "forcing": F[i].tolist(),
-                        "lost": {k: lost[(i + 1, int(k))].tolist() for k in weights if (i + 1, int(k)) in lost},
-                        "log": str(folder / f"robot_{i + 1}.npz")})  # fmt: skip
+                        "draws": _save_draws(draws, i + 1, folder), "log": str(folder / f"robot_{i + 1}.npz")})  # fmt: skip
                 pids = children.pids
                 children.expect("ready", _READY_TIMEOUT)
                 t0 = time.time() + LEAD
@@ -256,18 +263,32 @@ def run_fleet(
                    pids=pids, mcap=mcap, world=world, endpoint=endpoint)  # fmt: skip
 
 
-def _losses(network: Network | None, team: Team, duration: float, dt: float, period: float) -> dict[tuple[int, int], np.ndarray]:
-    """(receiver, informer) from 1 -> which of its state messages the network drops (module doc)."""
-    if network is None or network.loss is None or network.loss.is_off:
-        return {}
-    from delayform.simulation.reception import packet_losses
+def _draws(network: Network | None, team: Team, duration: float, dt: float, period: float) -> Any:
+    """The simulator's draws for the state messages (module doc), or None for a network that draws nothing."""
+    if network is None or not network.packets:
+        return None
+    from delayform.simulation.reception import packet_draws
 
-    # a robot sends once per period: the draws of the simulator stepping at that period, a packet per step
-    packets = math.floor(duration / period + 1e-9) + 2
-    rows, cols, lost = packet_losses(network, team.topology, packets=packets)
-    if lost is None:
-        return {}
-    return {(int(r) + 1, int(c) + 1): lost[0, :, e] for e, (r, c) in enumerate(zip(rows, cols)) if r != c}
+    # as reception(): the simulator stepping at dt sends a packet every sampling period (or step)
+    every = dt if network.sampling is None else 1.0 / network.sampling.rate
+    steps = round(duration / dt)
+    packets = math.floor((steps + 1) * dt / every + 1e-9) + 1
+    return packet_draws(network, team.topology, packets=packets)
+
+
+def _save_draws(draws: Any, robot: int, folder: Path) -> str | None:
+    """Robot ``robot``'s share of the draws (the links it receives on) as an NPZ; its path, or None."""
+    if draws is None:
+        return None
+    mine = np.flatnonzero((draws.receivers == robot - 1) & (draws.informers != robot - 1))
+    arrays: dict[str, np.ndarray] = {"informers": draws.informers[mine] + 1}
+    if draws.lost is not None:
+        arrays["lost"] = draws.lost[0][:, mine]  # the position stream's: one message carries both
+    if draws.noise is not None:
+        arrays["noise"] = np.concatenate([draws.noise[0][:, mine], draws.noise[1][:, mine]], axis=-1)  # dx dy dvx dvy
+    path = folder / f"draws_{robot}.npz"
+    np.savez(path, **arrays)
+    return str(path)
 
 
 class _Recorder:
