@@ -89,6 +89,9 @@ def fleet_command(scenario: Path | None, seed: int | None, use_limits: bool | No
     section = fleet_section(run, sc.name, directory)
     _emit(section, directory, as_json=as_json)
     team = run.summary["team"]
+    for robot in run.summary["robots"]:
+        if robot["error"]:  # a controller that stopped: the run went on without its commands
+            click.echo(f"delayform: note: {robot['error']}", err=True)
     if team["ticks_missed"]:
         click.echo(f"delayform: note: {team['ticks_missed']} control tick(s) missed: the machine was too busy "
                    f"for {sc.topology.n} robots every {h:g} s (summary.txt)", err=True)  # fmt: skip

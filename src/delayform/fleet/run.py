@@ -155,7 +155,7 @@ def run_fleet(
     initial_positions, initial_headings, initial_speed, seed
         The initial state, as :func:`delayform.simulate` takes it (random from ``seed`` where not given).
     network
-        The scenario's network: its loss is applied on reception (module doc).
+        The scenario's network: its loss, sampling and noise act on the state messages (module doc).
     endpoint
         The Zenoh endpoint on the loopback the parent listens on.
     world
@@ -219,7 +219,10 @@ def run_fleet(
 
     with tempfile.TemporaryDirectory(dir=out, prefix=".fleet-") as tmp, terminate_as_exit():
         folder = Path(tmp)
-        session = open_session(listen=[endpoint], connect=[])
+        try:
+            session = open_session(listen=[endpoint], connect=[])
+        except Exception as exc:  # zenoh's own error (a port taken since the check, a bad address): one line
+            raise FleetError(f"cannot listen on the endpoint {endpoint}: {str(exc).splitlines()[0][:200]}") from None
         try:
             recorder = _Recorder(session, n)
             common = {"n": n, "endpoint": endpoint, "period": period, "duration": duration, "lead": LEAD,
