@@ -161,7 +161,7 @@ class FleetRun:
         rate = team["dominant_decay_rate"]
         if self.error.size and math.isfinite(rate):
             t = self.times
-            ax.semilogy(t, self.error[0] * np.exp(-rate * t), "k--", lw=0.8, label=f"exp(-{rate:.3g} t): dominant root")
+            ax.semilogy(t, self.error[0] * np.exp(-rate * t), "k--", lw=0.8, label=f"exp({-rate:+.3g} t): dominant root")
         ax.set_ylim(max(float(np.min(self.error, initial=1.0)) * 0.5, 1e-6), None)
         ax.set_xlabel("t (s)")
         ax.set_ylabel("formation error (m)")
