@@ -18,6 +18,11 @@ The scenario's network acts where a real one would, on reception
 (:mod:`delayform.fleet.plan`): a state message the network loses never
 reaches the controller.
 
+Every process takes its messages from Zenoh channels in its own thread, looking
+every millisecond while it waits for its next deadline (:func:`_wait_until`):
+no Python code runs on Zenoh's threads, and a message's receipt time is when the
+process took it. A child that fails prints its traceback and ends at once.
+
 The world (:func:`world_main`) holds the robots still before t = 0, then
 applies each command when it arrives and integrates its model
 (:mod:`delayform.fleet.world`) in real time, publishing every robot's
@@ -28,14 +33,15 @@ from __future__ import annotations
 
 import ctypes
 import faulthandler
+import gc
 import json
 import math
 import os
-import queue
 import signal
 import sys
 import threading
 import time
+import traceback
 from pathlib import Path
 from typing import Any
 
@@ -77,6 +83,11 @@ def _say(text: str) -> None:
 
 
 def _start_time() -> float:
+    # no garbage-collector pauses in the loop: what it allocates (floats, tuples) holds no cycles, and a
+    # collection scanning the growing logs would cost milliseconds at random ticks
+    gc.collect()
+    gc.freeze()
+    gc.disable()
     line = sys.stdin.readline()
     if not line:  # the parent closed the pipe: the run was called off
         os._exit(0)
@@ -92,12 +103,40 @@ def _close(session: Any) -> None:
     os._exit(0)
 
 
-def _sleep_until(epoch: float) -> None:
+#: how often a process looks for messages while it waits for its next deadline (s): the receipt times are this exact
+_POLL = 0.001
+
+#: messages a subscriber holds between two looks
+_CAPACITY = 4096
+
+
+def _subscribe(session: Any, keyexpr: str) -> Any:
+    """A subscriber whose messages wait in a channel until this process takes them.
+
+    No Python callback runs on Zenoh's threads: a callback there needs the GIL
+    while the main thread may hold it inside a Zenoh call, a deadlock seen in
+    a few runs out of twenty.
+    """
+    import zenoh
+
+    return session.declare_subscriber(keyexpr, zenoh.handlers.FifoChannel(_CAPACITY))
+
+
+def _drain(subs: list[tuple[Any, Any]]) -> None:
+    """Hand every waiting message to its handler."""
+    for sub, handle in subs:
+        while (sample := sub.try_recv()) is not None:
+            handle(sample)
+
+
+def _wait_until(epoch: float, subs: list[tuple[Any, Any]]) -> None:
+    """Take messages as they come until ``epoch`` (s since 1970)."""
     while True:
+        _drain(subs)
         left = epoch - time.time()
         if left <= 0:
             return
-        time.sleep(min(left, 0.05))
+        time.sleep(min(left, _POLL))
 
 
 # ------------------------------------------------------------------ robot
@@ -135,7 +174,6 @@ def robot_main(spec: dict[str, Any]) -> None:
     packet = h if rate is None else 1.0 / float(rate)
     codec = Codec(n)
     session = open_session(listen=["tcp/127.0.0.1:0"], connect=[spec["endpoint"]])
-    inbox: queue.SimpleQueue[NeighbourMessage] = queue.SimpleQueue()
     odom: list[Odometry | None] = [None]
     t0_box = [math.inf]
     received: list[tuple[int, float, float, bool]] = []  # sender, stamp, receipt (run clock), lost by the network
@@ -158,13 +196,13 @@ def robot_main(spec: dict[str, Any]) -> None:
                 x, y, vx, vy = x + extra[m, 0], y + extra[m, 1], vx + extra[m, 2], vy + extra[m, 3]
         received.append((sender, stamp, now - t0, dropped))
         if not dropped:
-            inbox.put(NeighbourMessage(sender, stamp, x, y, vx, vy))
+            ctrl.receive(NeighbourMessage(sender, stamp, x, y, vx, vy))
 
     def on_odom(sample: Any) -> None:
         odom[0] = codec.read_odometry(me, bytes(sample.payload.to_bytes()))
 
-    subs = [session.declare_subscriber(key(k, "state"), on_state) for k in ctrl.neighbours]
-    subs.append(session.declare_subscriber(key(me, "odom"), on_odom))
+    subs = [(_subscribe(session, key(k, "state")), on_state) for k in ctrl.neighbours]
+    subs.append((_subscribe(session, key(me, "odom")), on_odom))
     pub_state = session.declare_publisher(key(me, "state"))
     pub_cmd = session.declare_publisher(key(me, "cmd_vel"))
     _say("ready")
@@ -183,7 +221,7 @@ def robot_main(spec: dict[str, Any]) -> None:
         deadline = t0 + k * h
         if deadline >= end:
             break
-        _sleep_until(deadline)
+        _wait_until(deadline, subs)
         woke = time.time()
         late = woke - deadline
         if late >= h:  # this deadline and the ones after it passed while the process waited for the CPU
@@ -209,11 +247,6 @@ def robot_main(spec: dict[str, Any]) -> None:
                 sent = math.floor(t / packet + 1e-9) + 1
                 stamps.append(t)
         if k >= 0:
-            while True:
-                try:
-                    ctrl.receive(inbox.get_nowait())
-                except queue.Empty:
-                    break
             try:
                 cmd = ctrl.tick(t, x, y, th, v)
             except Exception as exc:  # a neighbour never heard from, a state that blew up: stop, say why
@@ -251,37 +284,33 @@ def world_main(spec: dict[str, Any]) -> None:
     world = world_model(spec["world"], np.asarray(spec["state0"], dtype=np.float64), period=h, limits=limits)
     codec = Codec(n)
     session = open_session(listen=["tcp/127.0.0.1:0"], connect=[spec["endpoint"]])
-    commands: queue.SimpleQueue[tuple[float, int, float, float]] = queue.SimpleQueue()
+    applied = 0
+    t0_box = [math.inf]
 
-    def on_cmd(sample: Any) -> None:
+    def on_cmd(sample: Any) -> None:  # applied when it arrives (within the polling interval)
+        nonlocal applied
         robot = int(str(sample.key_expr).split("/")[0].removeprefix("robot_"))
         speed, turn = codec.read_twist(bytes(sample.payload.to_bytes()))
-        commands.put((time.time(), robot, speed, turn))
+        at = time.time() - t0_box[0]
+        if at >= 0.0:
+            world.advance(at)
+        world.command(robot - 1, speed, turn)
+        applied += 1
 
-    subs = [session.declare_subscriber(key(i, "cmd_vel"), on_cmd) for i in range(1, n + 1)]
+    subs = [(_subscribe(session, key(i, "cmd_vel")), on_cmd) for i in range(1, n + 1)]
     pubs = [session.declare_publisher(key(i, "odom")) for i in range(1, n + 1)]
     _say("ready")
     t0 = _start_time()
+    t0_box[0] = t0
     end = t0 + float(spec["duration"])
     lead = float(spec["lead"])
     k = math.ceil((time.time() - t0 - lead) / h)
     times, states, omegas, lateness = [], [], [], []
-    applied = 0
     while True:
         deadline = t0 + k * h
         if deadline > end + 1e-9:
             break
-        # commands are applied when they arrive: wait for them until the next odometry is due
-        while True:
-            left = deadline - time.time()
-            try:
-                at, robot, speed, turn = commands.get(timeout=max(left, 0.0)) if left > 0 else commands.get_nowait()
-            except queue.Empty:
-                break
-            if at - t0 >= 0.0:
-                world.advance(at - t0)
-            world.command(robot - 1, speed, turn)
-            applied += 1
+        _wait_until(deadline, subs)  # commands are applied as they arrive, until the next odometry is due
         now = time.time()
         if now - deadline >= h:  # the world fell a period behind: publish now, skip the missed deadlines
             k += int((now - deadline) // h)
@@ -317,10 +346,15 @@ def main(argv: list[str] | None = None) -> None:
     spec = json.loads(Path(args[0]).read_text())
     tie_to_parent(int(spec["parent"]))
     faulthandler.register(signal.SIGUSR1)  # the parent asks a child that does not answer where it is
-    if spec["role"] == "robot":
-        robot_main(spec)
-    else:
-        world_main(spec)
+    try:
+        if spec["role"] == "robot":
+            robot_main(spec)
+        else:
+            world_main(spec)
+    except BaseException:  # say why on stderr (the parent quotes its last line) and end now: Zenoh's threads
+        traceback.print_exc()  # would otherwise keep a failed process alive
+        sys.stderr.flush()
+        os._exit(1)
 
 
 if __name__ == "__main__":

@@ -3,8 +3,9 @@
 From the processes' logs (:mod:`delayform.fleet.agents`):
 
 Per link (receiver i, informer k)
-    The network latency of each state message (receipt minus the sender's
-    stamp), the delay the controller actually applied at each tick (the tick's
+    The network latency of each state message (receipt, when the receiving
+    process took it from its channel, within a millisecond of its
+    arrival, minus the sender's stamp), the delay the controller actually applied at each tick (the tick's
     time minus the stamp of the newest message it had received that was sent
     at or before ``t - tau``: what the playout buffer hands the controller),
     how long that message waited in the buffer (playout), and the messages
