@@ -49,7 +49,7 @@ def fleet_text(run: FleetRun, name: str) -> str:
     width = max(len(a) for a, _, _ in rows)
     lines += [f"  {a:<{width}}  {b:<28}  {c}" for a, b, c in rows]
     lines += ["", f"The decay is fitted to log error where the error is between {FIT_WINDOW[0]:g} and "
-                  f"{FIT_WINDOW[1]:g} of its start; a tick is late {LATE_FRACTION:g} period after its deadline.", "",
+                  f"{FIT_WINDOW[1]:g} of its start; a tick is late when it wakes more than {LATE_FRACTION:g} period after its deadline.", "",
               "Per link (receiver <- informer): network latency, delays applied by the playout buffer "
               "(median / max), messages sent, received, dropped", ""]  # fmt: skip
     for link in s["links"]:
