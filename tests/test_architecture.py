@@ -50,6 +50,7 @@ STAGES: dict[str, int] = {
     "design": 8,
     "simulation": 9,
     "deploy": 9,  # robot profiles, the on-robot controller, MCAP recordings: after simulation, beside it
+    "fleet": 10,  # the team as processes over Zenoh: runs the deploy controller, measures against simulation and analysis
     "sweeps": 10,
     "scenario": 11,
     "report": 12,

@@ -155,6 +155,7 @@ NEEDS_AN_EXTRA = {
                          "--workers", "1"], "cluster"),  # fmt: skip
     "simulate --mcap": (["simulate", "--out", "out", "--mcap", "run.mcap"], "ros"),
     "simulate --safety": (["simulate", "--out", "out", "--safety", "barrier"], "safety"),
+    "fleet": (["fleet", "--out", "out", "--duration", "2"], "fleet"),
 }
 
 

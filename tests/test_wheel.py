@@ -39,6 +39,14 @@ def _run(args: list[str], *, timeout: float = 600, cwd: Path | None = None) -> s
     return done.stdout
 
 
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
 #: a quick real run of every command (``paper`` is the whole paper, ~40 s: its --help only here;
 #: tests/test_cli.py runs it from the source tree)
 def _invocations(example: str, out: str) -> dict[str, list[str]]:
@@ -60,6 +68,9 @@ def _invocations(example: str, out: str) -> dict[str, list[str]]:
         "box": [example, "--tau1-box", "0.1,0.2", "--tau2-box", "0.1,0.2"],
         "jitter": [example],
         "check": [example.replace("ring12", "create3_hexagon")],  # a design that fits: exit 0
+        # seven processes from the installed package (python -m delayform.fleet.agents), 2 s of wall clock
+        "fleet": [example.replace("ring12", "create3_hexagon"), "--out", out, "--duration", "2",
+                  "--endpoint", f"tcp/127.0.0.1:{_free_port()}"],
         "paper": ["--help"],
     }
 

@@ -169,6 +169,7 @@ _GROUPS: dict[str, dict[str, str]] = {
         "FormationController": "deploy",
         "NeighbourMessage": "deploy",
         "write_mcap": "deploy.recording",
+        "run_fleet": "fleet",
         "robot_check": "report.check",
         "RobotCheck": "report.check",
     },
@@ -188,7 +189,7 @@ _GROUPS: dict[str, dict[str, str]] = {
             "NoStableDelaysError", "NoStableGainsError", "QuasiPolynomialError", "NeutralQuasiPolynomialError",
             "FormationError", "SimulationInputError", "NetworkError", "ClusterError", "ScenarioError",
             "ResourceLimitError", "RobotProfileError", "ControllerInputError", "RecordingError", "LoopError",
-            "UnstableLoopError", "NotConvergedError", "EssentialSpectrumError", "MissingExtraError",
+            "UnstableLoopError", "NotConvergedError", "EssentialSpectrumError", "MissingExtraError", "FleetError", "FleetRunError",
             "FragileNeutralWarning",
         )},  # fmt: skip
         "MissingGlyphWarning": "plots",

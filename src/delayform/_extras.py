@@ -22,6 +22,7 @@ EXTRAS: dict[str, tuple[str, tuple[str, ...]]] = {
     "explore": ("the explorer (delayform explore)", ("starlette", "uvicorn", "plotly", "clarabel")),
     "cluster": ("runs on a Dask cluster (workers or a scheduler)", ("dask", "distributed")),
     "ros": ("ROS 2 recordings (MCAP)", ("mcap", "rosbags")),
+    "fleet": ("the team as processes over Zenoh (delayform fleet)", ("zenoh", "mcap", "rosbags")),
     "control": ("python-control loops", ("control",)),
     "safety": ("the safety filter (safety = \"barrier\")", ("clarabel",)),
     # the same solver, for the semidefinite programs of the time-varying delay certificates

@@ -26,9 +26,11 @@ The tree::
     |   +-- RobotProfileError              an unknown robot profile, or one the formation cannot meet
     |   +-- ControllerInputError           the on-robot controller: a bad state or message
     |   +-- RecordingError                 an MCAP recording that cannot be written there
+    |   +-- FleetError                     a fleet run that cannot start (endpoint, port, network part)
     |   +-- LoopError                      a feedback loop (python-control object) outside what is analysed
     |       +-- UnstableLoopError          a loop unstable at tau = 0 asked for a delay margin
     +-- NotConvergedError (RuntimeError)   carries the partial result
+    +-- FleetRunError (RuntimeError)       a fleet run whose robot or world process failed
     +-- EssentialSpectrumError (RuntimeError)  neutral: no root right of the essential spectrum
     +-- MissingExtraError (ImportError)    an optional package not installed: names the extra
 
@@ -61,6 +63,8 @@ __all__ = [
     "RobotProfileError",
     "ControllerInputError",
     "RecordingError",
+    "FleetError",
+    "FleetRunError",
     "EssentialSpectrumError",
     "FragileNeutralWarning",
     "LoopError",
@@ -152,6 +156,14 @@ class ControllerInputError(InputError):
 
 class RecordingError(InputError):
     """An MCAP recording that cannot be written: a folder that is missing or not writable, a bad name."""
+
+
+class FleetError(InputError):
+    """A fleet run that cannot start: a bad endpoint or port, a network part not applied to real messages."""
+
+
+class FleetRunError(DelayformError, RuntimeError):
+    """A fleet run that started and failed: a robot or world process that died or never became ready."""
 
 
 class NotConvergedError(DelayformError, RuntimeError):

@@ -84,7 +84,8 @@ from delayform.simulation.network import Network
 from delayform.simulation.trajectory import Trajectory
 from delayform.topology import Topology
 
-__all__ = ["write_mcap", "check_mcap_path", "recording_start", "MCAP_TOPICS", "LINK_RATE", "LINK_LIMIT"]
+__all__ = ["write_mcap", "check_mcap_path", "recording_start", "odometry_layout", "twist_layout",
+           "MCAP_TOPICS", "LINK_RATE", "LINK_LIMIT"]
 
 #: message type of each kind of topic
 MCAP_TOPICS = {
@@ -394,6 +395,38 @@ def _odometry(T: Any, child: str) -> tuple[Any, list[Slot]]:
                                               (tw.linear, "x", "d"), (tw.linear, "y", "d"), (tw.angular, "z", "d")]  # fmt: skip
 
 
+def odometry_layout(store: Any, robot: int) -> Layout:
+    """The CDR layout of robot ``robot``'s ``nav_msgs/msg/Odometry`` (module doc: frames and fields).
+
+    Its changing fields, in order: ``header.stamp.sec``, ``header.stamp.nanosec``,
+    position x, y, orientation z, w, twist linear x (the signed speed), linear y
+    (across the heading) and angular z (the turn rate).
+
+    Parameters
+    ----------
+    store
+        The rosbags type store (ROS 2 Humble).
+    robot
+        The robot's number, from 1 (the child frame ``robot_<i>/base_link`` is part of the bytes).
+    """
+    odom, slots = _odometry(store.types, f"robot_{robot}/base_link")
+    return Layout(store, MCAP_TOPICS["odom"], odom, slots)
+
+
+def twist_layout(store: Any) -> Layout:
+    """The CDR layout of a ``geometry_msgs/msg/Twist`` command: ``linear.x`` (m/s), then ``angular.z`` (rad/s).
+
+    Parameters
+    ----------
+    store
+        The rosbags type store (ROS 2 Humble).
+    """
+    T = store.types
+    V3 = T["geometry_msgs/msg/Vector3"]
+    twist = T["geometry_msgs/msg/Twist"](linear=V3(x=0.0, y=0.0, z=0.0), angular=V3(x=0.0, y=0.0, z=0.0))
+    return Layout(store, MCAP_TOPICS["cmd_vel"], twist, [(twist.linear, "x", "d"), (twist.angular, "z", "d")])
+
+
 def _write_messages(writer: Any, store: Any, traj: Trajectory, topology: Topology | None, start: int) -> None:
     """All messages in time order: the once-only ones at the start, then step by step, robot by robot."""
     T = store.types
@@ -418,19 +451,17 @@ def _write_messages(writer: Any, store: Any, traj: Trajectory, topology: Topolog
     c, s = np.cos(th), np.sin(th)
     across = c * traj.velocities[..., 1] - s * traj.velocities[..., 0]
     lanes: list[_Lane] = []
-    Twist, V3 = T["geometry_msgs/msg/Twist"], T["geometry_msgs/msg/Vector3"]
-    twist = Twist(linear=V3(x=0.0, y=0.0, z=0.0), angular=V3(x=0.0, y=0.0, z=0.0))
-    twist_layout = Layout(store, MCAP_TOPICS["cmd_vel"], twist, [(twist.linear, "x", "d"), (twist.angular, "z", "d")])
+    twists = twist_layout(store)
     pose = T["geometry_msgs/msg/PoseStamped"](header=_header(T, ODOM_FRAME), pose=_zero_pose(T))
     p, q = pose.pose.position, pose.pose.orientation
     pose_layout = Layout(store, MCAP_TOPICS["pose"], pose, _stamp_slots(pose.header) + [
         (p, "x", "d"), (p, "y", "d"), (q, "z", "d"), (q, "w", "d")])  # fmt: skip
     for i in range(n):
-        odom, slots = _odometry(T, f"robot_{i + 1}/base_link")  # the child frame's name changes the layout
-        lanes.append(_Lane(channel(f"/robot_{i + 1}/odom", "odom"), Layout(store, MCAP_TOPICS["odom"], odom, slots),
+        # the child frame's name changes the layout
+        lanes.append(_Lane(channel(f"/robot_{i + 1}/odom", "odom"), odometry_layout(store, i + 1),
                            lambda k, i=i: [sec[k], nanosec[k], x[k, i], y[k, i], qz[k, i], qw[k, i],
                                            traj.speeds[k, i], across[k, i], cmd.turn_rate[k, i]]))  # fmt: skip
-        lanes.append(_Lane(channel(f"/robot_{i + 1}/cmd_vel", "cmd_vel"), twist_layout,
+        lanes.append(_Lane(channel(f"/robot_{i + 1}/cmd_vel", "cmd_vel"), twists,
                            lambda k, i=i: [cmd.speed[k, i], cmd.turn_rate[k, i]]))  # fmt: skip
         lanes.append(_Lane(channel(f"/robot_{i + 1}/pose", "pose"), pose_layout,
                            lambda k, i=i: [sec[k], nanosec[k], x[k, i], y[k, i], qz[k, i], qw[k, i]]))  # fmt: skip

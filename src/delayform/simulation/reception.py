@@ -28,7 +28,7 @@ from delayform.simulation.integrator import Agent, Progress, Samples
 from delayform.simulation.network import BernoulliLoss, GilbertElliott, Network, check_link_matrix
 from delayform.topology import Topology
 
-__all__ = ["Reception", "reception", "integrate_network", "network_memory"]
+__all__ = ["Reception", "reception", "integrate_network", "network_memory", "packet_draws", "PacketDraws"]
 
 _Array = NDArray[np.float64]
 
@@ -159,6 +159,59 @@ def _loss_mask(
             flip = u_state[m + 1] < np.where(bad, loss.p_bad_to_good, loss.p_good_to_bad)
             bad = bad ^ flip
     return lost
+
+
+@dataclass(frozen=True, eq=False)
+class PacketDraws:
+    """Which packets a network loses and the noise each carries: the draws of :func:`reception`.
+
+    Attributes
+    ----------
+    receivers, informers
+        ``(E,)`` agent indices of each link (i hears k), in :func:`reception`'s order.
+    lost
+        ``(2, packets, E)``: True where packet m of stream s (0: positions,
+        1: velocities) on link e is lost; None when nothing is lost.
+    noise
+        ``(2, packets, E, 2)``: the noise packet m of stream s carries on link
+        e (m or m/s per coordinate); None without noise.
+    """
+
+    receivers: NDArray[np.intp]
+    informers: NDArray[np.intp]
+    lost: NDArray[np.bool_] | None
+    noise: _Array | None
+
+
+def packet_draws(network: Network, topology: Topology, *, packets: int) -> PacketDraws:
+    """The losses and noise :func:`reception` draws, for packets that travel elsewhere (real messages).
+
+    A run of ``simulate(..., network=network, dt=dt, duration=T)`` whose streams
+    are packets draws them for ``packets = floor((steps + 1) dt / period) + 1``
+    packets per stream (``steps = T / dt``, ``period`` the sampling period, or
+    dt): with that count and the same seed the masks and the noise are the
+    simulator's, packet for packet and link for link, so a team of real
+    processes can lose the messages the simulator loses.
+
+    Parameters
+    ----------
+    network
+        The network (its ``loss``, ``noise`` and ``seed`` are used).
+    topology
+        Who hears whom: the links, in the order :func:`reception` uses.
+    packets
+        Packets per stream.
+    """
+    if isinstance(network.loss, BernoulliLoss) and isinstance(network.loss.probability, np.ndarray):
+        check_link_matrix("loss.probability", network.loss.probability, topology.n)
+    rows, cols, _ = _links(topology)
+    seeds = np.random.SeedSequence(network.seed).spawn(5)  # reception's streams: the fourth loses, the fifth adds noise
+    rng_loss, rng_noise = np.random.default_rng(seeds[3]), np.random.default_rng(seeds[4])
+    masks = [_loss_mask(network.loss, rows, cols, packets, rng_loss) for _ in range(2)]
+    sigmas = (0.0, 0.0) if network.noise is None else (network.noise.position, network.noise.velocity)
+    draws = [rng_noise.standard_normal((packets, rows.size, 2)) for _ in range(2)]  # drawn always, as reception
+    noise = None if not any(sigmas) else np.stack([sigma * d for sigma, d in zip(sigmas, draws)])
+    return PacketDraws(receivers=rows, informers=cols, lost=None if masks[0] is None else np.stack(masks), noise=noise)
 
 
 def _packet_causes(network: Network) -> str:

@@ -1,0 +1,114 @@
+"""The fleet command: the team as one process per robot over Zenoh, measured against the analysis."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import click
+
+from delayform.cli._common import (
+    POSITIVE,
+    _emit,
+    _limits_given,
+    _out_dir,
+    _scenario,
+    _with_robot,
+    cli,
+    limit_options,
+    scenario_options,
+)
+
+#: the world models (kept literal: the CLI starts fast; tests/test_fleet.py checks them against delayform.fleet.world.WORLDS)
+WORLD_NAMES = ("kinematic",)
+
+#: the control period of a robot whose profile states none: the Create Open Interface's 15 ms
+DEFAULT_PERIOD = 0.015
+
+
+@cli.command("fleet")
+@scenario_options
+@limit_options
+@click.option("--duration", type=POSITIVE, default=30.0, show_default=True, help="Seconds of wall clock from t = 0.")
+@click.option("--period", type=POSITIVE,
+              help=f"Control period of every robot (s) [default: the robot profile's, else {DEFAULT_PERIOD:g}].")
+@click.option("--endpoint", default="tcp/127.0.0.1:7447", show_default=True,
+              help="Zenoh endpoint on the loopback where the processes meet (peer mode, no router).")
+@click.option("--world", type=click.Choice(WORLD_NAMES), default="kinematic", show_default=True,
+              help="What moves the robots: the kinematic unicycle with the robots' limits.")
+def fleet_command(scenario: Path | None, seed: int | None, use_limits: bool | None, duration: float,
+                  period: float | None, endpoint: str, world: str, out: Path | None, as_json: bool,
+                  **overrides: Any) -> None:  # fmt: skip
+    """Run the team as processes: one per robot, a world, Zenoh messages.
+
+    Each robot's process runs the on-robot controller (its playout buffer
+    holding tau1, tau2) every control period on the wall clock; the world
+    process moves the robots (the kinematic unicycle with their limits: the
+    scenario's [robot], --robot, else the iRobot Create's; --no-limits for
+    ideal robots) and publishes their odometry. Messages are CDR-encoded
+    nav_msgs/Odometry (robot_<i>/odom, robot_<i>/state) and geometry_msgs/Twist
+    (robot_<i>/cmd_vel) on Zenoh key expressions named as ROS 2 topics; the
+    scenario's [network] loss, sampling and noise act on the state messages
+    with the simulator's draws. Writes fleet.mcap (every message), summary.json,
+    summary.txt and fleet_error.png/.svg: per link the delays applied, ticks
+    missed or late, messages lost, and beside them the chart's verdict, the
+    dominant root's decay against the measured one, and the simulator's
+    settling time and closest approach at the same delays.
+    """
+    from delayform._extras import require_extra
+    from delayform.deploy import robot_profile
+    from delayform.fleet.run import check_network
+    from delayform.fleet.wire import check_endpoint
+    from delayform.simulation import IROBOT_CREATE
+
+    require_extra("fleet")
+    given = _limits_given(overrides)
+    sc = _scenario(scenario, seed=seed, **overrides)
+    if sc.actuation_delay:
+        raise click.UsageError("the scenario has an actuation delay: a fleet run's robots act when their command "
+                               "arrives; set [robot] actuation_delay = 0")  # fmt: skip
+    sc = sc.at_one_delay_pair("fleet (the on-robot controller holds one delay pair)", "simulate", spread=True)
+    if use_limits is None and sc.robot is None and not given:  # the paper's robot, as the fleet's default
+        sc = replace(sc, robot=IROBOT_CREATE)
+    sc = _with_robot(sc, use_limits, given, "unicycle")
+    desired = sc.desired_positions()
+    if sc.robot is not None:
+        sc.robot_spec.check_slots(desired)
+    network = check_network(sc.network)
+    check_endpoint(endpoint)
+    profile = robot_profile(sc.robot_profile) if sc.robot_profile else None
+    h = period if period is not None else (profile.control_period if profile and profile.control_period else DEFAULT_PERIOD)
+    if h >= duration:
+        raise click.BadParameter(f"the control period {h:g} s must be shorter than the duration {duration:g} s",
+                                 param_hint="--period")  # fmt: skip
+    directory = _out_dir(out, sc)
+    run = _run(sc, desired, network, h, duration, endpoint, world, directory, quiet=as_json)
+    from delayform.report.fleet import fleet_section
+
+    section = fleet_section(run, sc.name, directory)
+    _emit(section, directory, as_json=as_json)
+    team = run.summary["team"]
+    for robot in run.summary["robots"]:
+        if robot["error"]:  # a controller that stopped: the run went on without its commands
+            click.echo(f"delayform: note: {robot['error']}", err=True)
+    if team["ticks_missed"]:
+        click.echo(f"delayform: note: {team['ticks_missed']} control tick(s) missed: the machine was too busy "
+                   f"for {sc.topology.n} robots every {h:g} s (summary.txt)", err=True)  # fmt: skip
+
+
+def _run(sc: Any, desired: Any, network: Any, h: float, duration: float, endpoint: str, world: str,
+         directory: Path, *, quiet: bool) -> Any:  # fmt: skip
+    from delayform.fleet import run_fleet
+    from delayform.model import Delays, Team
+
+    def say(text: str) -> None:
+        if not quiet:
+            click.echo(f"fleet: {text}", err=True)
+
+    positions = sc.initial_positions()
+    headings = sc.initial_headings()
+    return run_fleet(Team(sc.topology, sc.P, sc.D), Delays(sc.tau1, sc.tau2), desired, out=directory,
+                     duration=duration, period=h, robot=sc.robot, initial_positions=positions,
+                     initial_headings=headings, initial_speed=sc.initial.speed, seed=sc.initial.seed,
+                     network=network, endpoint=endpoint, world=world, progress=say)  # fmt: skip

@@ -1,0 +1,28 @@
+"""The team in the loop: one OS process per robot and a world process, talking over Zenoh on the loopback.
+
+:func:`run_fleet` (``delayform fleet``) runs each robot's
+:class:`~delayform.deploy.controller.FormationController` in its own process
+at the control period on the wall clock, a world process that moves the
+robots (:mod:`~delayform.fleet.world`), CDR-encoded ROS 2 messages on
+ROS 2 key expressions (:mod:`~delayform.fleet.wire`), the scenario's network
+loss on reception, and measures what happened against the analysis
+(:mod:`~delayform.fleet.outcome`). Needs the ``fleet`` extra.
+
+The names are imported on first use: the robot and world processes start
+from :mod:`delayform.fleet.agents` and must not pay for the rest.
+"""
+
+from __future__ import annotations
+
+from importlib import import_module
+from typing import Any
+
+__all__ = ["run_fleet", "FleetRun", "decay_rate"]
+
+_WHERE = {"run_fleet": "delayform.fleet.run", "FleetRun": "delayform.fleet.outcome", "decay_rate": "delayform.fleet.outcome"}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _WHERE:
+        return getattr(import_module(_WHERE[name]), name)
+    raise AttributeError(f"module 'delayform.fleet' has no attribute {name!r}")

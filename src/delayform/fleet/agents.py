@@ -1,0 +1,361 @@
+"""The processes of a fleet run: one per robot and one world, each started as ``python -m delayform.fleet.agents SPEC``.
+
+Every child reads its JSON spec, ties its life to its parent's
+(:func:`tie_to_parent`), opens its Zenoh session, declares its subscribers
+and prints ``ready``; it then reads ``t0`` (seconds since 1970 of the run's
+t = 0) on stdin and runs on the wall clock until ``t0 + duration``, writes
+its log (NPZ) and prints ``done``.
+
+A robot (:func:`robot_main`) ticks every control period h at ``t0 + k h``:
+from its own latest odometry it publishes its state, extrapolated along its
+heading to the tick (stamped with the tick's time: the sender's clock), and
+from t = 0 on it runs :class:`~delayform.deploy.controller.FormationController`
+on its neighbours' states and publishes the velocity command. Before t = 0
+it only publishes its state: the neighbours' playout buffers then hold the
+initial state, the constant history of the simulation. A tick that wakes
+more than a period late skips the deadlines it missed (counted).
+The scenario's network acts where a real one would, on reception
+(:mod:`delayform.fleet.plan`): a state message the network loses never
+reaches the controller.
+
+Every process takes its messages from Zenoh channels in its own thread, looking
+every millisecond while it waits for its next deadline (:func:`_wait_until`):
+no Python code runs on Zenoh's threads, and a message's receipt time is when the
+process took it. A child that fails prints its traceback and ends at once.
+
+The world (:func:`world_main`) holds the robots still before t = 0, then
+applies each command when it arrives and integrates its model
+(:mod:`delayform.fleet.world`) in real time, publishing every robot's
+odometry every period.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import faulthandler
+import gc
+import json
+import math
+import os
+import signal
+import sys
+import threading
+import time
+import traceback
+from pathlib import Path
+from typing import Any
+
+# only the standard library at the top: a child ties its life to its parent's before the slow imports
+
+__all__ = ["tie_to_parent", "robot_main", "world_main", "main"]
+
+_PR_SET_PDEATHSIG = 1
+
+
+def tie_to_parent(parent: int) -> None:
+    """End this process when its parent ends, however it ends (Linux: PR_SET_PDEATHSIG; else a watchdog).
+
+    Ctrl-C at the terminal reaches the whole process group: the children
+    ignore it and the parent, which handles it, ends them.
+    """
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, lambda *_: os._exit(143))
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    except (OSError, AttributeError):  # not Linux: the watchdog below is the only guard
+        pass
+    if os.getppid() != parent:  # the parent died before the signal was armed
+        os._exit(1)
+
+    def watch() -> None:
+        while True:
+            time.sleep(0.2)
+            if os.getppid() != parent:
+                os._exit(1)
+
+    threading.Thread(target=watch, daemon=True).start()
+
+
+def _say(text: str) -> None:
+    sys.stdout.write(text + "\n")
+    sys.stdout.flush()
+
+
+def _start_time() -> float:
+    # no garbage-collector pauses in the loop: what it allocates (floats, tuples) holds no cycles, and a
+    # collection scanning the growing logs would cost milliseconds at random ticks
+    gc.collect()
+    gc.freeze()
+    gc.disable()
+    line = sys.stdin.readline()
+    if not line:  # the parent closed the pipe: the run was called off
+        os._exit(0)
+    return float(line)
+
+
+def _close(session: Any) -> None:
+    """Close the Zenoh session politely for at most a second, then end: the log is already written."""
+    closer = threading.Thread(target=session.close, daemon=True)
+    closer.start()
+    closer.join(1.0)
+    sys.stdout.flush()
+    os._exit(0)
+
+
+#: how often a process looks for messages while it waits for its next deadline (s): the receipt times are this exact
+_POLL = 0.001
+
+#: messages a subscriber holds between two looks
+_CAPACITY = 4096
+
+
+def _subscribe(session: Any, keyexpr: str) -> Any:
+    """A subscriber whose messages wait in a channel until this process takes them.
+
+    No Python callback runs on Zenoh's threads: a callback there needs the GIL
+    while the main thread may hold it inside a Zenoh call, a deadlock seen in
+    a few runs out of twenty.
+    """
+    import zenoh
+
+    return session.declare_subscriber(keyexpr, zenoh.handlers.FifoChannel(_CAPACITY))
+
+
+def _drain(subs: list[tuple[Any, Any]]) -> None:
+    """Hand every waiting message to its handler."""
+    for sub, handle in subs:
+        while (sample := sub.try_recv()) is not None:
+            handle(sample)
+
+
+def _wait_until(epoch: float, subs: list[tuple[Any, Any]]) -> None:
+    """Take messages as they come until ``epoch`` (s since 1970)."""
+    while True:
+        _drain(subs)
+        left = epoch - time.time()
+        if left <= 0:
+            return
+        time.sleep(min(left, _POLL))
+
+
+# ------------------------------------------------------------------ robot
+def robot_main(spec: dict[str, Any]) -> None:
+    """One robot: odometry and neighbours' states in, state and velocity commands out (module doc).
+
+    Parameters
+    ----------
+    spec
+        The robot's part of the run, as :func:`delayform.fleet.run.run_fleet` writes it: its number,
+        gains, delays, weights, forcing, limits, period, the endpoint and which messages the network drops.
+    """
+    import numpy as np
+
+    from delayform.deploy.controller import FormationController, NeighbourMessage
+    from delayform.fleet.wire import Codec, Odometry, key, open_session
+    from delayform.simulation.robots import RobotLimits
+
+    me, n, h = int(spec["robot"]), int(spec["n"]), float(spec["period"])
+    limits = None if spec["limits"] is None else RobotLimits(**spec["limits"])
+    ctrl = FormationController(robot=me, P=spec["P"], D=spec["D"], tau1=spec["tau1"], tau2=spec["tau2"],
+                               weights={int(k): w for k, w in spec["weights"].items()},
+                               forcing=spec["forcing"], limits=limits)  # fmt: skip
+    # the network's draws for the links this robot receives on: packet m of informer k (run.py, module doc)
+    lost: dict[int, Any] = {}
+    noise: dict[int, Any] = {}
+    if spec.get("draws"):
+        with np.load(spec["draws"]) as d:
+            for e, k in enumerate(d["informers"]):
+                if "lost" in d:
+                    lost[int(k)] = d["lost"][:, e]
+                if "noise" in d:
+                    noise[int(k)] = d["noise"][:, e]
+    rate = spec.get("rate")
+    packet = h if rate is None else 1.0 / float(rate)
+    codec = Codec(n)
+    session = open_session(listen=["tcp/127.0.0.1:0"], connect=[spec["endpoint"]])
+    odom: list[Odometry | None] = [None]
+    t0_box = [math.inf]
+    received: list[tuple[int, float, float, bool]] = []  # sender, stamp, receipt (run clock), lost by the network
+
+    def on_state(sample: Any) -> None:
+        now = time.time()
+        sender = int(str(sample.key_expr).split("/")[0].removeprefix("robot_"))
+        o = codec.read_odometry(sender, bytes(sample.payload.to_bytes()))
+        t0 = t0_box[0]
+        stamp = o.stamp - t0
+        dropped = False
+        c, s = math.cos(o.theta), math.sin(o.theta)
+        x, y, vx, vy = o.x, o.y, o.v * c, o.v * s
+        if stamp >= 0.0:  # packet m: sent in the m-th packet period since t = 0 (before it, the exact history)
+            m = math.floor(stamp / packet + 1e-9)
+            mask = lost.get(sender)
+            dropped = bool(mask is not None and m < mask.size and mask[m])
+            extra = noise.get(sender)
+            if extra is not None and m < extra.shape[0]:
+                x, y, vx, vy = x + extra[m, 0], y + extra[m, 1], vx + extra[m, 2], vy + extra[m, 3]
+        received.append((sender, stamp, now - t0, dropped))
+        if not dropped:
+            ctrl.receive(NeighbourMessage(sender, stamp, x, y, vx, vy))
+
+    def on_odom(sample: Any) -> None:
+        odom[0] = codec.read_odometry(me, bytes(sample.payload.to_bytes()))
+
+    subs = [(_subscribe(session, key(k, "state")), on_state) for k in ctrl.neighbours]
+    subs.append((_subscribe(session, key(me, "odom")), on_odom))
+    pub_state = session.declare_publisher(key(me, "state"))
+    pub_cmd = session.declare_publisher(key(me, "cmd_vel"))
+    _say("ready")
+    t0 = _start_time()
+    t0_box[0] = t0
+    end = t0 + float(spec["duration"])
+    lead = float(spec["lead"])
+    k = math.ceil((time.time() - t0 - lead) / h)
+    ticks: list[tuple[float, float, float, float, float]] = []  # deadline, lateness, lag, compute time, speed sent
+    missed = 0
+    accel = 0.0  # the acceleration of the last command (m/s^2)
+    sent = 0  # with a sampling rate: the next packet period to send in
+    stamps: list[float] = []  # of the states sent since t = 0
+    error = ""
+    while True:
+        deadline = t0 + k * h
+        if deadline >= end:
+            break
+        _wait_until(deadline, subs)
+        woke = time.time()
+        late = woke - deadline
+        if late >= h:  # this deadline and the ones after it passed while the process waited for the CPU
+            skip = int(late // h)
+            missed += skip if k >= 0 else 0
+            k += skip
+            continue
+        o = odom[0]
+        if o is None:  # no odometry yet (only before t = 0: the world publishes from the start)
+            k += 1
+            continue
+        t = woke - t0
+        # dead reckoning from the odometry's stamp to the tick, with the acceleration last commanded: the
+        # odometry is up to a period old, and a set-point built on its stale speed would cut every acceleration
+        age = min(max(woke - o.stamp, 0.0), h)
+        v = o.v + accel * age
+        th = o.theta + o.omega * age
+        mid, vm = 0.5 * (o.theta + th), 0.5 * (o.v + v)
+        x, y = o.x + vm * math.cos(mid) * age, o.y + vm * math.sin(mid) * age
+        if rate is None or k < 0 or t >= sent * packet - 1e-9:  # sampled: the first tick at or after m / rate
+            pub_state.put(codec.odometry(me, Odometry(woke, x, y, th, v, o.omega)))
+            if k >= 0:
+                sent = math.floor(t / packet + 1e-9) + 1
+                stamps.append(t)
+        if k >= 0:
+            try:
+                cmd = ctrl.tick(t, x, y, th, v)
+            except Exception as exc:  # a neighbour never heard from, a state that blew up: stop, say why
+                error = f"robot {me} at t = {t:.3f} s: {exc}"
+                break
+            speed = ctrl.speed_command(cmd, h)
+            accel = (speed - v) / h
+            pub_cmd.put(codec.twist(speed, cmd.turn_rate))
+            ticks.append((k * h, late, cmd.lag, time.time() - woke, speed))
+        k += 1
+    rec = np.array(received, dtype=np.float64).reshape(-1, 4)
+    tk = np.array(ticks, dtype=np.float64).reshape(-1, 5)
+    np.savez(spec["log"], received=rec, ticks=tk, missed=missed, error=error, sent=np.array(stamps))
+    _say("done")
+    _close(session)
+
+
+# ------------------------------------------------------------------ world
+def world_main(spec: dict[str, Any]) -> None:
+    """The world: commands in, the model integrated in real time, odometry out (module doc).
+
+    Parameters
+    ----------
+    spec
+        The world's part of the run: the model's name, the initial states, the limits, the period and the endpoint.
+    """
+    import numpy as np
+
+    from delayform.fleet.wire import Codec, Odometry, key, open_session
+    from delayform.fleet.world import world_model
+    from delayform.simulation.robots import RobotLimits
+
+    n, h = int(spec["n"]), float(spec["period"])
+    limits = None if spec["limits"] is None else RobotLimits(**spec["limits"])
+    world = world_model(spec["world"], np.asarray(spec["state0"], dtype=np.float64), period=h, limits=limits)
+    codec = Codec(n)
+    session = open_session(listen=["tcp/127.0.0.1:0"], connect=[spec["endpoint"]])
+    applied = 0
+    t0_box = [math.inf]
+
+    def on_cmd(sample: Any) -> None:  # applied when it arrives (within the polling interval)
+        nonlocal applied
+        robot = int(str(sample.key_expr).split("/")[0].removeprefix("robot_"))
+        speed, turn = codec.read_twist(bytes(sample.payload.to_bytes()))
+        at = time.time() - t0_box[0]
+        if at >= 0.0:
+            world.advance(at)
+        world.command(robot - 1, speed, turn)
+        applied += 1
+
+    subs = [(_subscribe(session, key(i, "cmd_vel")), on_cmd) for i in range(1, n + 1)]
+    pubs = [session.declare_publisher(key(i, "odom")) for i in range(1, n + 1)]
+    _say("ready")
+    t0 = _start_time()
+    t0_box[0] = t0
+    end = t0 + float(spec["duration"])
+    lead = float(spec["lead"])
+    k = math.ceil((time.time() - t0 - lead) / h)
+    times, states, omegas, lateness = [], [], [], []
+    while True:
+        deadline = t0 + k * h
+        if deadline > end + 1e-9:
+            break
+        _wait_until(deadline, subs)  # commands are applied as they arrive, until the next odometry is due
+        now = time.time()
+        if now - deadline >= h:  # the world fell a period behind: publish now, skip the missed deadlines
+            k += int((now - deadline) // h)
+            deadline = t0 + k * h
+        t = max(now - t0, 0.0)
+        if t > 0.0:
+            world.advance(t)
+        s = world.state
+        stamp = t0 + world.time if now >= t0 else now  # before t = 0 the robots stand still at their start
+        for i in range(n):
+            pubs[i].put(codec.odometry(i + 1, Odometry(stamp, s[i, 0], s[i, 1], s[i, 2], s[i, 3], world.omega[i])))
+        if now >= t0:
+            times.append(world.time)
+            states.append(s.copy())
+            omegas.append(world.omega.copy())
+            lateness.append(now - deadline)
+        k += 1
+    np.savez(spec["log"], times=np.array(times), states=np.array(states).reshape(-1, n, 4),
+             omega=np.array(omegas).reshape(-1, n), lateness=np.array(lateness), applied=applied)  # fmt: skip
+    _say("done")
+    _close(session)
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Entry point of a child: ``python -m delayform.fleet.agents SPEC.json``.
+
+    Parameters
+    ----------
+    argv
+        The arguments (the spec's path); None reads ``sys.argv``.
+    """
+    args = sys.argv[1:] if argv is None else argv
+    spec = json.loads(Path(args[0]).read_text())
+    tie_to_parent(int(spec["parent"]))
+    faulthandler.register(signal.SIGUSR1)  # the parent asks a child that does not answer where it is
+    try:
+        if spec["role"] == "robot":
+            robot_main(spec)
+        else:
+            world_main(spec)
+    except BaseException:  # say why on stderr (the parent quotes its last line) and end now: Zenoh's threads
+        traceback.print_exc()  # would otherwise keep a failed process alive
+        sys.stderr.flush()
+        os._exit(1)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,290 @@
+"""What a fleet run did, beside what the analysis promised for the same team at the same delays.
+
+From the processes' logs (:mod:`delayform.fleet.agents`):
+
+Per link (receiver i, informer k)
+    The network latency of each state message (receipt, when the receiving
+    process took it from its channel, within a millisecond of its
+    arrival, minus the sender's stamp), the delay the controller actually applied at each tick (the tick's
+    time minus the stamp of the newest message it had received that was sent
+    at or before ``t - tau``: what the playout buffer hands the controller),
+    how long that message waited in the buffer (playout), and the messages
+    sent, received, lost on the way and dropped by the scenario's network.
+    With a playout buffer the applied delay lies in ``[tau, tau + h)`` (h the
+    control period) when the network is faster than the design.
+Per robot
+    Ticks run, missed (a deadline that passed while the process waited for
+    the CPU) and late (woken more than :data:`LATE_FRACTION` of a period after
+    its deadline), the lateness's median, 99th percentile and largest value,
+    and the controller's :attr:`~delayform.deploy.controller.Command.lag`.
+The team
+    The formation error of the true states the world integrated (RMS
+    distance from the shape after removing the common offset), its settling
+    time (:data:`~delayform.simulation.trajectory.SETTLING_FRACTION`), the
+    closest approach of two robots, and the measured decay rate: the slope of
+    a least-squares line through ``log e(t)`` where the error is between
+    :data:`FIT_WINDOW` of its initial value (:func:`decay_rate`). Beside them:
+    the exact CTCR chart's verdict at (tau1, tau2), the dominant root's decay
+    rate ``-Re s`` of the formation modes (:func:`delayform.dominant_root`),
+    and the simulator's settling time, closest approach and its own error's
+    decay fitted the same way.
+"""
+
+from __future__ import annotations
+
+import math
+from bisect import bisect_right, insort
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from delayform.model import Team
+from delayform.simulation.bodies import closest_approach
+from delayform.simulation.network import Network
+from delayform.simulation.robots import RobotLimits
+from delayform.simulation.trajectory import Trajectory, formation_error, settling_time
+
+__all__ = ["FleetRun", "measure", "decay_rate", "FIT_WINDOW", "LATE_FRACTION"]
+
+_Array = NDArray[np.float64]
+
+#: the decay is fitted where the error is between these fractions of its initial value
+FIT_WINDOW = (0.3, 0.003)
+
+#: messages sent in the last this many seconds are not counted as sent or lost
+_SETTLE = 0.1
+
+#: a tick is late when it woke more than this fraction of a period after its deadline
+LATE_FRACTION = 0.2
+
+
+def decay_rate(times: _Array, error: _Array, *, window: tuple[float, float] = FIT_WINDOW) -> float:
+    """The decay rate (1/s) of ``error``: minus the slope of a least-squares line through log error.
+
+    The fit starts when the error first falls to ``window[0]`` of its initial
+    value (after the approach, which actuator limits may slow) and stops when
+    it first falls to ``window[1]`` of it (before noise and rounding), or at
+    the end.
+
+    Parameters
+    ----------
+    times, error
+        ``(T,)`` times and positive errors.
+    window
+        The two fractions of the initial error.
+
+    Returns
+    -------
+    float
+        NaN when fewer than ten samples lie in the window.
+
+    >>> t = np.linspace(0, 10, 101)
+    >>> round(decay_rate(t, 3 * np.exp(-0.5 * t)), 6)
+    0.5
+    """
+    e0 = float(error[0])
+    hi, lo = window[0] * e0, window[1] * e0
+    start = np.flatnonzero(error <= hi)
+    if start.size == 0:
+        return math.nan
+    a = int(start[0])
+    stop = np.flatnonzero(error[a:] <= lo)
+    b = a + int(stop[0]) if stop.size else error.size
+    t, e = times[a:b], error[a:b]
+    keep = e > 0
+    if keep.sum() < 10:
+        return math.nan
+    slope = np.polyfit(t[keep], np.log(e[keep]), 1)[0]
+    return float(-slope)
+
+
+def _stats(values: _Array) -> dict[str, float]:
+    if values.size == 0:
+        return {"median": math.nan, "p99": math.nan, "max": math.nan}
+    return {"median": float(np.median(values)), "p99": float(np.quantile(values, 0.99)), "max": float(values.max())}
+
+
+def _applied(ticks_t: _Array, stamps: _Array, receipts: _Array, tau: float) -> tuple[_Array, _Array]:
+    """Per tick: the delay applied (t minus the stamp used) and how long that message waited (t minus its receipt)."""
+    order = np.argsort(receipts, kind="stable")
+    stamps, receipts = stamps[order], receipts[order]
+    held: list[float] = []  # stamps received so far, sorted
+    when: dict[float, float] = {}
+    delay = np.full(ticks_t.size, math.nan)
+    wait = np.full(ticks_t.size, math.nan)
+    j = 0
+    for r, t in enumerate(ticks_t):
+        while j < receipts.size and receipts[j] <= t:
+            insort(held, stamps[j])
+            when.setdefault(stamps[j], receipts[j])
+            j += 1
+        if not held:
+            continue
+        pos = bisect_right(held, t - tau + 1e-9) - 1
+        used = held[max(pos, 0)]
+        delay[r] = t - used
+        wait[r] = t - when[used]
+    return delay, wait
+
+
+@dataclass(frozen=True, eq=False)
+class FleetRun:
+    """A fleet run measured: the summary (module doc) and the formation error over time, fleet and simulator.
+
+    Attributes
+    ----------
+    summary
+        JSON-ready: ``links``, ``robots``, ``team`` (measured beside promised), ``run`` (what ran).
+    times, error
+        The fleet's formation error (m) at the world's odometry times (s).
+    sim_times, sim_error
+        The simulator's, for the same team at the same delays.
+    """
+
+    summary: dict[str, Any]
+    times: _Array
+    error: _Array
+    sim_times: _Array
+    sim_error: _Array
+    files: tuple[str, ...] = field(default=())
+
+    def plot(self, ax: Any = None) -> Any:
+        """The formation error of the fleet and of the simulator, log scale, with the dominant root's slope."""
+        import matplotlib.pyplot as plt
+
+        if ax is None:
+            _, ax = plt.subplots(figsize=(7.0, 4.0))
+        ax.semilogy(self.sim_times, self.sim_error, color="0.6", lw=2.0, label="simulator")
+        ax.semilogy(self.times, self.error, color="C0", lw=1.0, label="fleet (processes)")
+        team = self.summary["team"]
+        rate = team["dominant_decay_rate"]
+        if self.error.size and math.isfinite(rate):
+            t = self.times
+            ax.semilogy(t, self.error[0] * np.exp(-rate * t), "k--", lw=0.8, label=f"exp({-rate:+.3g} t): dominant root")
+        ax.set_ylim(max(float(np.min(self.error, initial=1.0)) * 0.5, 1e-6), None)
+        ax.set_xlabel("t (s)")
+        ax.set_ylabel("formation error (m)")
+        ax.legend(loc="upper right", fontsize=8)
+        return ax
+
+
+def measure(*, team: Team, tau1: float, tau2: float, desired: _Array, limits: RobotLimits | None, period: float,
+            duration: float, network: Network | None, simulation: Trajectory, logs: dict[str, dict[str, Any]],
+            recording: dict[str, int], pids: dict[str, int], mcap: Any, world: str, endpoint: str) -> FleetRun:  # fmt: skip
+    """Measure a run from its logs (module doc); the comparison with the analysis included.
+
+    Parameters
+    ----------
+    team, tau1, tau2, desired, limits, period, duration, network
+        What was run.
+    simulation
+        The simulator's run of the same team at the same delays, from the same initial state.
+    logs
+        ``"world"`` and ``"robot_<i>"`` -> the arrays each process saved.
+    recording, pids, mcap, world, endpoint
+        For the summary: messages recorded per key, the processes' PIDs, the MCAP path, the world model, the endpoint.
+    """
+    from delayform.analysis.ctcr import stability_map
+    from delayform.analysis.roots.dominant import dominant_root
+
+    n, h = team.n, period
+    topology = team.topology
+    w = logs["world"]
+    times, states = np.asarray(w["times"]), np.asarray(w["states"])
+    positions = states[:, :, :2]
+    velocities = states[:, :, 3:4] * np.stack([np.cos(states[:, :, 2]), np.sin(states[:, :, 2])], axis=-1)
+    error = formation_error(positions, desired) if times.size else np.zeros(0)
+    scale = float(np.abs(positions).max(initial=1.0))
+    radius = 0.0 if limits is None else limits.radius
+    approach = closest_approach(times, positions, velocities, 2 * radius) if times.size > 1 else None
+
+    # --- robots: ticks
+    robots = []
+    tick_times: dict[int, _Array] = {}
+    for i in range(1, n + 1):
+        log = logs[f"robot_{i}"]
+        ticks = np.asarray(log["ticks"]).reshape(-1, 5)
+        late = ticks[:, 1]
+        tick_times[i] = ticks[:, 0] + late
+        expected = math.ceil(duration / h - 1e-9)
+        robots.append({
+            "robot": i, "ticks_expected": expected, "ticks_run": int(ticks.shape[0]),
+            "ticks_missed": int(log["missed"]), "ticks_late": int(np.sum(late > LATE_FRACTION * h)),
+            "lateness_s": _stats(late), "compute_s": _stats(ticks[:, 3]), "lag_s": _stats(ticks[:, 2]),
+            "error": str(log["error"]) or None,
+        })  # fmt: skip
+
+    # --- links
+    links = []
+    C = topology.C_sparse.tocsr()
+    loss_rate = 0.0 if network is None or network.loss is None else float(
+        network.loss.link_loss_rate(topology.adjacency) if hasattr(network.loss, "link_loss_rate") else network.loss.loss_rate)  # fmt: skip
+    cutoff = duration - _SETTLE  # a message sent in the run's last instant may meet a receiver that has stopped
+    for i in range(1, n + 1):
+        rec = np.asarray(logs[f"robot_{i}"]["received"]).reshape(-1, 4)
+        for j in C.indices[C.indptr[i - 1]:C.indptr[i]]:
+            k = int(j) + 1
+            if k == i:
+                continue
+            mine = rec[(rec[:, 0] == k) & (rec[:, 1] >= 0.0) & (rec[:, 1] <= cutoff)]
+            delivered = mine[mine[:, 3] == 0.0]
+            every = rec[(rec[:, 0] == k) & (rec[:, 3] == 0.0)]  # the ones before t = 0 too: the initial history
+            d1, wait1 = _applied(tick_times[i], every[:, 1], every[:, 2], tau1)
+            d2, _ = _applied(tick_times[i], every[:, 1], every[:, 2], tau2)
+            sent = int(np.sum(np.asarray(logs[f"robot_{k}"]["sent"]) <= cutoff))
+            links.append({
+                "receiver": i, "informer": k, "sent": sent, "received": int(mine.shape[0]),
+                "lost_in_transport": max(sent - int(mine.shape[0]), 0), "dropped_by_network": int(np.sum(mine[:, 3] != 0.0)),
+                "latency_s": _stats(mine[:, 2] - mine[:, 1]),
+                "applied_tau1_s": _stats(d1[np.isfinite(d1)]), "applied_tau2_s": _stats(d2[np.isfinite(d2)]),
+                "playout_s": _stats(wait1[np.isfinite(wait1)]),
+                "delivered": int(delivered.shape[0]),
+            })  # fmt: skip
+
+    # --- the promise
+    dr = dominant_root(topology, team.P, team.D, tau1, tau2)
+    root = dr.formation_root if getattr(dr, "formation_root", None) is not None else dr.root
+    smap = stability_map(topology, team.P, team.D, max(8.0, 1.25 * tau1), max(8.0, 1.25 * tau2))
+    chart_stable = bool(np.asarray(smap.is_stable(np.array([tau1]), np.array([tau2])))[0])
+    sim_error = simulation.formation_error
+    measured = decay_rate(times, error) if times.size else math.nan
+    sim_rate = decay_rate(simulation.times, sim_error)
+    fleet_settling = settling_time(times, error, scale) if times.size else math.inf
+    sent = sum(link["sent"] for link in links)
+    dropped = sum(link["dropped_by_network"] for link in links)
+    team_summary = {
+        "chart_verdict": "stable" if chart_stable else "unstable",
+        "dominant_root": [float(np.real(root)), float(np.imag(root))],
+        "dominant_decay_rate": float(-np.real(root)),
+        "measured_decay_rate": measured,
+        "simulator_decay_rate": sim_rate,
+        "decay_ratio": measured / float(-np.real(root)) if np.real(root) < 0 and math.isfinite(measured) else math.nan,
+        "initial_error_m": float(error[0]) if error.size else math.nan,
+        "final_error_m": float(error[-1]) if error.size else math.nan,
+        "error_reduction": float(error[0] / error[-1]) if error.size and error[-1] > 0 else math.inf,
+        "settling_time_s": fleet_settling,
+        "simulator_settling_time_s": float(simulation.settling_time),
+        "closest_approach_m": approach.min_distance if approach is not None else math.nan,
+        "closest_at_s": approach.at if approach is not None else math.nan,
+        "simulator_closest_approach_m": float(simulation.min_distance),
+        "contacts": 0 if approach is None else len(approach.contacts),
+        "ticks_missed": sum(r["ticks_missed"] for r in robots),
+        "ticks_late": sum(r["ticks_late"] for r in robots),
+        "messages_dropped_by_network": dropped,
+        "network_drop_rate": dropped / max(sum(link["received"] for link in links), 1),
+        "network_loss_rate": loss_rate,
+        "messages_lost_in_transport": sum(link["lost_in_transport"] for link in links),
+        "state_messages_sent": sent,
+    }  # fmt: skip
+    run = {
+        "robots": n, "P": team.P, "D": team.D, "tau1": tau1, "tau2": tau2, "period": h, "duration": duration,
+        "world": world, "world_step": 0.001, "endpoint": endpoint,
+        "network": "ideal" if network is None else network.describe(topology.adjacency),
+        "limits": None if limits is None else limits.describe(), "pids": pids, "recording": str(mcap),
+        "messages_recorded": recording,
+        "world_lateness_s": _stats(np.asarray(w["lateness"])), "commands_applied": int(w["applied"]),
+    }  # fmt: skip
+    summary = {"run": run, "team": team_summary, "robots": robots, "links": links}
+    return FleetRun(summary=summary, times=times, error=error, sim_times=simulation.times, sim_error=sim_error)

@@ -1,0 +1,107 @@
+"""The page of a fleet run: what happened beside what was promised (``summary.json``, ``summary.txt``, a figure)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from delayform._files import write_text
+from delayform.fleet.outcome import FIT_WINDOW, LATE_FRACTION, FleetRun
+from delayform.report._common import Figure, Section, _fmt, _pyplot, _save, jsonable
+
+__all__ = ["fleet_section", "fleet_text"]
+
+
+def _ms(value: float | None) -> str:
+    return "n/a" if value is None else _fmt(1e3 * value, 3) + " ms"
+
+
+def fleet_text(run: FleetRun, name: str) -> str:
+    """The one-page summary of a run as plain text (the tables of :func:`fleet_section`, every link and robot).
+
+    Parameters
+    ----------
+    run
+        The measured run.
+    name
+        The scenario's name, for the title.
+    """
+    s = jsonable(run.summary)
+    r, t = s["run"], s["team"]
+    h = r["period"]
+    lines = [f"delayform fleet: {name}", "",
+             f"{r['robots']} robot processes and a {r['world']} world over Zenoh ({r['endpoint']}), "
+             f"P = {r['P']:g}, D = {r['D']:g}, (tau1, tau2) = ({r['tau1']:g}, {r['tau2']:g}) s, "
+             f"control period {h:g} s, {r['duration']:g} s of wall clock; network: {r['network']}; "
+             f"robots: {r['limits'] or 'ideal'}.", "",
+             "Promised (exact analysis at the same delays) beside measured", ""]  # fmt: skip
+    rows = [("chart's verdict at (tau1, tau2)", t["chart_verdict"], ""),
+            ("decay rate of the formation error (1/s)", _fmt(t["dominant_decay_rate"]) + " (dominant root)",
+             _fmt(t["measured_decay_rate"]) + f" (fleet); simulator {_fmt(t['simulator_decay_rate'])}"),
+            ("formation error (m)", f"from {_fmt(t['initial_error_m'])}", f"to {_fmt(t['final_error_m'])}"),
+            ("settling time (s)", _fmt(t["simulator_settling_time_s"]) + " (simulator)", _fmt(t["settling_time_s"])),
+            ("closest approach (m)", _fmt(t["simulator_closest_approach_m"]) + " (simulator)", _fmt(t["closest_approach_m"])),
+            ("control ticks missed / late", "0", f"{t['ticks_missed']} / {t['ticks_late']}"),
+            ("state messages dropped by the network", f"rate {_fmt(t['network_loss_rate'])}",
+             f"{t['messages_dropped_by_network']} (rate {_fmt(t['network_drop_rate'])})"),
+            ("state messages lost in transport", "0", str(t["messages_lost_in_transport"]))]  # fmt: skip
+    width = max(len(a) for a, _, _ in rows)
+    lines += [f"  {a:<{width}}  {b:<28}  {c}" for a, b, c in rows]
+    lines += ["", f"The decay is fitted to log error where the error is between {FIT_WINDOW[0]:g} and "
+                  f"{FIT_WINDOW[1]:g} of its start; a tick is late when it wakes more than {LATE_FRACTION:g} period after its deadline.", "",
+              "Per link (receiver <- informer): network latency, delays applied by the playout buffer "
+              "(median / max), messages sent, received, dropped", ""]  # fmt: skip
+    for link in s["links"]:
+        lines.append(f"  {link['receiver']} <- {link['informer']}: latency {_ms(link['latency_s']['median'])} "
+                     f"(p99 {_ms(link['latency_s']['p99'])}); tau1 {_ms(link['applied_tau1_s']['median'])} / "
+                     f"{_ms(link['applied_tau1_s']['max'])}, tau2 {_ms(link['applied_tau2_s']['median'])} / "
+                     f"{_ms(link['applied_tau2_s']['max'])}; {link['sent']} sent, {link['received']} received, "
+                     f"{link['dropped_by_network']} dropped")  # fmt: skip
+    lines += ["", "Per robot: ticks run / expected, missed, late; lateness median / p99 / max; tick compute p99", ""]
+    for rb in s["robots"]:
+        lines.append(f"  robot {rb['robot']}: {rb['ticks_run']} / {rb['ticks_expected']}, {rb['ticks_missed']} missed, "
+                     f"{rb['ticks_late']} late; {_ms(rb['lateness_s']['median'])} / {_ms(rb['lateness_s']['p99'])} / "
+                     f"{_ms(rb['lateness_s']['max'])}; {_ms(rb['compute_s']['p99'])}"
+                     + (f"; stopped: {rb['error']}" if rb["error"] else ""))  # fmt: skip
+    w = r["world_lateness_s"]
+    lines += ["", f"World: {r['commands_applied']} commands applied; odometry lateness median {_ms(w['median'])}, "
+                  f"p99 {_ms(w['p99'])}, max {_ms(w['max'])}. Recording: {Path(r['recording']).name}."]  # fmt: skip
+    return "\n".join(lines) + "\n"
+
+
+def fleet_section(run: FleetRun, name: str, out: Path) -> Section:
+    """Write ``summary.json``, ``summary.txt`` and ``fleet_error.png/.svg`` of a run; its section for the command line.
+
+    Parameters
+    ----------
+    run
+        The measured run.
+    name
+        The scenario's name.
+    out
+        The output folder (where the run wrote ``fleet.mcap``).
+    """
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(7.0, 4.0))
+    run.plot(ax=ax)
+    ax.set_title(f"Formation error: {name}, fleet and simulator")
+    files = list(_save(fig, out, "fleet_error"))
+    summary = jsonable(run.summary)
+    write_text(out / "summary.json", json.dumps(summary, indent=2) + "\n")
+    write_text(out / "summary.txt", fleet_text(run, name))
+    files += ["summary.json", "summary.txt", Path(run.summary["run"]["recording"]).name]
+    t = run.summary["team"]
+    table = (("chart's verdict", t["chart_verdict"]),
+             ("decay rate: dominant root / fleet / simulator", f"{_fmt(t['dominant_decay_rate'])} / "
+              f"{_fmt(t['measured_decay_rate'])} / {_fmt(t['simulator_decay_rate'])} 1/s"),
+             ("formation error", f"{_fmt(t['initial_error_m'])} m -> {_fmt(t['final_error_m'])} m"),
+             ("settling time: fleet / simulator", f"{_fmt(t['settling_time_s'])} / {_fmt(t['simulator_settling_time_s'])} s"),
+             ("closest approach: fleet / simulator", f"{_fmt(t['closest_approach_m'])} / {_fmt(t['simulator_closest_approach_m'])} m"),
+             ("ticks missed / late", f"{t['ticks_missed']} / {t['ticks_late']}"),
+             ("messages dropped by the network / lost in transport", f"{t['messages_dropped_by_network']} / {t['messages_lost_in_transport']}"))  # fmt: skip
+    figure = Figure("fleet_error", "Formation error, fleet and simulator",
+                    "The formation error of the robots' true states (world process) and of the simulator at the same "
+                    "delays, with the dominant root's decay.")  # fmt: skip
+    return Section(key="fleet", title=f"Fleet run: {name}", text="", figures=(figure,), table=table,
+                   summary=summary, files=tuple(files))  # fmt: skip
