@@ -28,7 +28,7 @@ from delayform.fleet.run import check_network
 from delayform.fleet.wire import Codec, Odometry, check_endpoint
 from delayform.fleet.world import WORLDS, KinematicWorld
 from delayform.formation import named_formation
-from delayform.model import Delays, Team
+from delayform.model import Delays, Start, Team
 from delayform.simulation import simulate
 from delayform.simulation.network import BernoulliLoss, Jitter, MeasurementNoise, Network, Sampling
 from delayform.simulation.reception import packet_draws, reception
@@ -173,8 +173,7 @@ def test_a_run_of_the_paper_s_six(tmp_path: Path) -> None:
     out = tmp_path
     run = run_fleet(Team(paper_six(), 1.0, 1.5), Delays(0.3, 0.2), named_formation("hexagon", 6, spacing=2.0),
                     out=out, duration=10.0, period=0.01,
-                    robot=robot_profile("create3"), initial_positions=_near_hexagon(), initial_headings=np.zeros(6),
-                    initial_speed=0.0, endpoint=f"tcp/127.0.0.1:{_free_port()}")  # fmt: skip
+                    robot=robot_profile("create3"), start=Start(_near_hexagon(), np.zeros(6), speed=0.0), endpoint=f"tcp/127.0.0.1:{_free_port()}")  # fmt: skip
     _converges_at_the_dominant_root_s_rate(run)
     _applies_the_design_s_delays(run)
     _recording_decodes_with_mcap_ros2(run, out)
@@ -239,7 +238,7 @@ def test_network_loss_drops_messages_at_its_rate(tmp_path: Path) -> None:
     p, rate, duration = 0.2, 50.0, 6.0
     net = Network(loss=BernoulliLoss(p), sampling=Sampling(rate), seed=3)
     run = run_fleet(Team(complete(3), 1.0, 1.5), Delays(0.3, 0.2), "polygon", out=tmp_path, duration=duration,
-                    period=0.01, robot=robot_profile("create3"), seed=1, network=net,
+                    period=0.01, robot=robot_profile("create3"), start=Start(seed=1), network=net,
                     endpoint=f"tcp/127.0.0.1:{_free_port()}")  # fmt: skip
     links = run.summary["links"]
     assert len(links) == 6

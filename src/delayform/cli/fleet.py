@@ -100,15 +100,13 @@ def fleet_command(scenario: Path | None, seed: int | None, use_limits: bool | No
 def _run(sc: Any, desired: Any, network: Any, h: float, duration: float, endpoint: str, world: str,
          directory: Path, *, quiet: bool) -> Any:  # fmt: skip
     from delayform.fleet import run_fleet
-    from delayform.model import Delays, Team
+    from delayform.model import Delays, Start, Team
 
     def say(text: str) -> None:
         if not quiet:
             click.echo(f"fleet: {text}", err=True)
 
-    positions = sc.initial_positions()
-    headings = sc.initial_headings()
     return run_fleet(Team(sc.topology, sc.P, sc.D), Delays(sc.tau1, sc.tau2), desired, out=directory,
-                     duration=duration, period=h, robot=sc.robot, initial_positions=positions,
-                     initial_headings=headings, initial_speed=sc.initial.speed, seed=sc.initial.seed,
+                     duration=duration, period=h, robot=sc.robot,
+                     start=Start(sc.initial_positions(), sc.initial_headings(), sc.initial.speed, sc.initial.seed),
                      network=network, endpoint=endpoint, world=world, progress=say)  # fmt: skip

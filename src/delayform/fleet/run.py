@@ -51,7 +51,7 @@ from delayform.fleet.outcome import FleetRun, measure
 from delayform.fleet.wire import DEFAULT_ENDPOINT, check_endpoint, open_session
 from delayform.fleet.world import WORLDS
 from delayform.formation import check_formation, formation_forcing
-from delayform.model import Delays, Team
+from delayform.model import Delays, Start, Team
 from delayform.simulation.network import BernoulliLoss, GilbertElliott, Network
 from delayform.simulation.robots import Robot, RobotLimits
 
@@ -126,10 +126,7 @@ def run_fleet(
     duration: float,
     period: float,
     robot: RobotProfile | RobotLimits | None = None,
-    initial_positions: ArrayLike | None = None,
-    initial_headings: ArrayLike | None = None,
-    initial_speed: float = 1e-3,
-    seed: int = 0,
+    start: Start | None = None,
     network: Network | None = None,
     endpoint: str = DEFAULT_ENDPOINT,
     world: str = "kinematic",
@@ -154,8 +151,9 @@ def run_fleet(
     robot
         The robots' profile or limits (the kinematic world and the controller
         both use them); None: ideal robots.
-    initial_positions, initial_headings, initial_speed, seed
-        The initial state, as :func:`delayform.simulate` takes it (random from ``seed`` where not given).
+    start
+        The initial state (:class:`~delayform.model.Start`), as :func:`delayform.simulate`
+        takes it; None: ``Start()``, drawn from seed 0.
     network
         The scenario's network: its loss, sampling and noise act on the state messages (module doc).
     endpoint
@@ -210,9 +208,8 @@ def run_fleet(
 
     steps_dt = min([period] + [t for t in (tau1, tau2) if t > 0])
     say("simulating the same team")
-    sim = simulate(topology, team.P, team.D, tau1, tau2, desired, robot=Robot(model="unicycle", limits=limits),
-                   initial_positions=initial_positions, initial_headings=initial_headings,
-                   initial_speed=initial_speed, seed=seed, duration=duration, dt=steps_dt, network=network)  # fmt: skip
+    sim = simulate(team, delays, desired, robot=Robot(model="unicycle", limits=limits), network=network,
+                   start=start, duration=duration, dt=steps_dt)  # fmt: skip
     state0 = np.column_stack([sim.positions[0], sim.headings[0], sim.speeds[0]])
     draws = _draws(network, team, duration, steps_dt, period)
     rate = None if network is None or network.sampling is None else network.sampling.rate
