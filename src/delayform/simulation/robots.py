@@ -45,8 +45,9 @@ from delayform.errors import SimulationInputError
 
 __all__ = ["Robot", "RobotLimits", "IROBOT_CREATE", "REST_SPEED", "MODELS", "ideal_commands", "wheel_speeds"]
 
-#: agent models accepted by :func:`delayform.simulation.simulate`
-MODELS = ("double_integrator", "unicycle")
+#: agent models accepted by :func:`delayform.simulation.simulate`; ``"physics"``: robots with mass
+#: in a physics engine (:mod:`delayform.simulation.physics`)
+MODELS = ("double_integrator", "unicycle", "physics")
 
 _Array = NDArray[np.float64]
 
@@ -155,10 +156,13 @@ class Robot:
     Attributes
     ----------
     model
-        ``"unicycle"`` (differential-drive robot, eq. transform2) or
-        ``"double_integrator"`` (point agents, ``x'' = u``).
+        ``"unicycle"`` (differential-drive robot, eq. transform2),
+        ``"double_integrator"`` (point agents, ``x'' = u``) or ``"physics"``
+        (differential-drive bodies with mass, wheel servos and contacts in
+        a physics engine: :mod:`delayform.simulation.physics`).
     limits
-        Actuator limits (:class:`RobotLimits`); None for ideal robots.
+        Actuator limits (:class:`RobotLimits`); None for ideal robots (for
+        ``"physics"``: :data:`IROBOT_CREATE`).
     radius
         Radius (m) of the disc containing the body, for contacts. None
         (default): ``limits.radius``, else the Create's 0.17 m for robots
@@ -172,6 +176,10 @@ class Robot:
         (dv/dt, omega) of eq. transform2, computed on the state when the
         command is made, are executed tau_a later under the limits of that
         time (docs/theory.md, "Actuation delay"). 0 (default): the paper's model.
+    chassis
+        For ``model="physics"`` only: mass, inertia, tyres and wheel servos
+        (:class:`~delayform.simulation.physics.Chassis`); None: the
+        Create 3's (:data:`~delayform.simulation.physics.CREATE_CHASSIS`).
 
     Examples
     --------
@@ -184,6 +192,7 @@ class Robot:
     radius: float | None = None
     safety: Any = None
     actuation_delay: float = 0.0
+    chassis: Any = None
 
     def __post_init__(self) -> None:
         from delayform.simulation.safety import check_safety
@@ -194,10 +203,31 @@ class Robot:
             raise SimulationInputError(f"unknown model {self.model!r}; choose one of {', '.join(MODELS)}")
         if self.limits is not None and not isinstance(self.limits, RobotLimits):
             raise SimulationInputError(f"limits must be a RobotLimits or None, got {type(self.limits).__name__}")
-        if self.limits is not None and self.model != "unicycle":
+        if self.limits is not None and self.model == "double_integrator":
             raise SimulationInputError("limits apply to robots: use model='unicycle'")
+        if self.model == "physics":
+            self._physics_defaults()
+        elif self.chassis is not None:
+            raise SimulationInputError("a chassis (mass, servos, tyres) applies to model='physics' only")
         if self.radius is not None:
             object.__setattr__(self, "radius", _nonnegative("radius", self.radius, "m"))
+
+    def _physics_defaults(self) -> None:
+        """The Create's limits and chassis where none are given; refuse what the engine does not model."""
+        from delayform.simulation.physics.chassis import CREATE_CHASSIS, Chassis
+
+        if self.chassis is None:
+            object.__setattr__(self, "chassis", CREATE_CHASSIS)
+        elif not isinstance(self.chassis, Chassis):
+            raise SimulationInputError(f"chassis must be a Chassis, got {type(self.chassis).__name__}")
+        if self.limits is None:
+            object.__setattr__(self, "limits", IROBOT_CREATE)
+        if self.safety is not None:
+            raise SimulationInputError("the safety filter is not modelled for model='physics': the bodies "
+                                       "push each other instead (use model='unicycle' for the filter)")  # fmt: skip
+        if self.actuation_delay > 0.0:
+            raise SimulationInputError("model='physics' has its own actuation lag (the wheel servos): give "
+                                       "actuation_delay with model='unicycle' or 'double_integrator'")  # fmt: skip
 
     @property
     def body_radius(self) -> float:

@@ -363,6 +363,10 @@ def simulate(
     if assignment == "optimal":
         slots = assign_slots(topology, P, D, tau1, tau2, desired, x0, v0).slots
         desired = desired[slots]
+    if model == "physics":
+        traj = _physics(topology, desired, robot, P, D, tau1, tau2, dt, duration, (x0, th0, speed0),
+                        save_every, network, progress, rest_speed)  # fmt: skip
+        return dataclasses.replace(traj, slots=slots)
     steps = max(1, math.ceil(duration / dt - 1e-9))
     if save_every is None:
         save_every = max(1, math.ceil((steps + 1) * n / _SAVE_BUDGET))
@@ -409,6 +413,37 @@ def simulate(
         progress(steps, steps)
     traj = _trajectory(topology, desired, robot, P, D, tau1, tau2, dt, duration, th0, run, rest_speed)
     return dataclasses.replace(traj, slots=slots)
+
+
+def _physics(
+    topology: Topology, desired: _Array, robot: Robot, P: float, D: float, tau1: float, tau2: float,
+    dt: float, duration: float, start: tuple[_Array, _Array, _Array], save_every: int | None,
+    network: Network | None, progress: Progress | None, rest_speed: float,
+) -> Trajectory:  # fmt: skip
+    """A run of robots with mass (:mod:`delayform.simulation.physics`): samples every ``dt``, on the control ticks."""
+    from delayform.simulation.physics.engine import integrate_physics, physics_resources, tick_grid
+
+    assert robot.limits is not None and robot.chassis is not None
+    period, substeps = tick_grid(robot.chassis)
+    ticks = max(1, math.ceil(duration / period - 1e-9))
+    n = topology.n
+    stride = max(1, round(dt / period))
+    if save_every is None:
+        save_every = max(1, math.ceil((ticks // stride + 1) * n / _SAVE_BUDGET))
+    elif isinstance(save_every, bool) or not isinstance(save_every, int) or save_every < 1:
+        raise SimulationInputError(f"save_every must be a positive integer, got {save_every!r}")
+    nbytes, seconds = physics_resources(n, ticks, substeps)
+    nbytes += approach_cost(n, ticks // (stride * save_every) + 2)[0]
+    require(what=f"this physics run ({ticks:,} control ticks of {n:,} robots)", nbytes=nbytes, seconds=seconds,
+            setting="the duration (--duration) or the number of robots")  # fmt: skip
+    x0, th0, speed0 = start
+    F = formation_forcing(topology, P, desired)
+    run = integrate_physics(topology, F, P, D, tau1, tau2, chassis=robot.chassis, limits=robot.limits,
+                            x0=x0, th0=th0, speed0=speed0, duration=duration, save_every=stride * save_every,
+                            network=network, progress=progress)  # fmt: skip
+    if progress is not None:
+        progress(ticks, ticks)
+    return _trajectory(topology, desired, robot, P, D, tau1, tau2, period, duration, th0, run, rest_speed)
 
 
 def _robot(

@@ -1,0 +1,116 @@
+"""The physical numbers of a differential-drive robot: chassis, wheels, caster, tyres and wheel servos.
+
+A :class:`Chassis` completes a :class:`~delayform.simulation.robots.RobotLimits`
+(wheel radius, track, speed limits, body radius) with what a physics engine
+needs: mass and yaw inertia, body height, wheel mass and width, where the
+caster sits, the tyres' friction, the wheel servo's gain and torque limit,
+and the period of the loop that sends the wheel commands. Robot profiles
+(:mod:`delayform.deploy.profiles`) give each number its source, or mark it
+as an assumption where the maker documents none.
+
+Conventions
+-----------
+SI units: kg, m, kg m^2, N m, N m s/rad (a velocity servo's torque per
+rad/s of speed error), s. The robot's frame has x forward and z up; its
+origin is the middle of the axle.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields, replace
+
+import numpy as np
+
+from delayform._validation import validated
+from delayform.errors import SimulationInputError
+
+__all__ = ["Chassis", "CREATE_CHASSIS"]
+
+
+@validated(SimulationInputError)
+@dataclass(frozen=True)
+class Chassis:
+    """The mass, inertia, tyres and wheel servos of a differential-drive robot (module doc for units).
+
+    Attributes
+    ----------
+    mass
+        Mass of the body without its two drive wheels (kg).
+    height
+        Height of the body's cylinder (m); its radius is the robot's
+        :attr:`~delayform.simulation.robots.RobotLimits.radius`.
+    wheel_mass
+        Mass of one drive wheel (kg).
+    wheel_width
+        Width of one drive wheel's tyre (m).
+    caster_offset
+        Distance of the caster's contact ahead of the axle (m); the body's
+        centre of mass lies a third of the way from the axle to the caster,
+        inside the triangle of the three contacts.
+    tyre_friction
+        Sliding friction coefficient of the tyres on the floor.
+    servo_gain
+        Gain of each wheel's velocity servo: torque (N m) per rad/s of
+        wheel-speed error.
+    max_torque
+        Largest torque (N m) a wheel's motor gives.
+    control_period
+        Period (s) at which the robot's controller sends wheel speeds (held
+        between ticks).
+    yaw_inertia
+        The body's moment of inertia about the vertical (kg m^2); None
+        (default): a uniform cylinder, ``mass radius^2 / 2``.
+    """
+
+    mass: float
+    height: float
+    wheel_mass: float
+    wheel_width: float
+    caster_offset: float
+    tyre_friction: float
+    servo_gain: float
+    max_torque: float
+    control_period: float = 0.01
+    yaw_inertia: float | None = None
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if value is None and f.name == "yaw_inertia":
+                continue
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
+                raise SimulationInputError(f"chassis.{f.name} must be a number, got {value!r}")
+            if not (math.isfinite(value) and value > 0):
+                raise SimulationInputError(f"chassis.{f.name} must be finite and positive, got {value!r}")
+            object.__setattr__(self, f.name, float(value))
+
+    def with_changes(self, **changes: float) -> Chassis:
+        """A copy with some numbers changed (``chassis.with_changes(servo_gain=1.0)``)."""
+        return replace(self, **changes)
+
+    def servo_time_constant(self, wheel_radius: float) -> float:
+        """Time constant (s) of a straight-line speed step while no limit is reached.
+
+        Each wheel carries its own inertia and half the robot's mass at the
+        rim: ``(I_wheel + (mass / 2 + wheel_mass) r^2) / servo_gain``.
+
+        Parameters
+        ----------
+        wheel_radius
+            Radius r of the drive wheels (m).
+        """
+        r = wheel_radius
+        inertia = 0.5 * self.wheel_mass * r * r + (0.5 * self.mass + self.wheel_mass) * r * r
+        return inertia / self.servo_gain
+
+
+#: iRobot Create 3 numbers, used by ``simulate(..., model="physics")`` when no chassis is given.
+#: Body mass 2.3 kg plus the bumper's 0.1 kg, body cylinder 6 cm high, caster 12.5 cm ahead of
+#: the axle: iRobotEducation/create3_sim, irobot_create_description/urdf/create3.urdf.xacro.
+#: The wheel's mass and width, the tyres' friction, the servo's gain and torque are NOT documented
+#: by iRobot: assumptions (docs/theory.md, "Robots with mass").
+CREATE_CHASSIS = Chassis(
+    mass=2.4, height=0.06, wheel_mass=0.1, wheel_width=0.02, caster_offset=0.125,
+    tyre_friction=0.8, servo_gain=0.1, max_torque=0.1, control_period=0.01,
+)  # fmt: skip
