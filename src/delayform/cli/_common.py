@@ -191,7 +191,7 @@ def _robot(robot: Any, use_limits: bool | None, given: dict[str, Any], model: st
         robot = robot_profile(name).limits
     if use_limits or given:
         robot = replace(robot or IROBOT_CREATE, **given)
-    if robot is not None and model != "unicycle":
+    if robot is not None and model == "double_integrator":
         raise click.UsageError("actuator limits apply to robots: use --model unicycle or --no-limits")
     return robot
 

@@ -33,7 +33,7 @@ _MCAP_FOLDER = "the folder of the MCAP file"
 
 @cli.command("simulate")
 @scenario_options
-@click.option("--model", type=click.Choice(("unicycle", "double_integrator")),
+@click.option("--model", type=click.Choice(("unicycle", "double_integrator", "physics")),
               help="Agent model [default: simulation.model].")
 @click.option("--duration", type=POSITIVE, help="Simulated time in seconds [default: simulation.duration].")
 @click.option("--dt", type=POSITIVE, help="Time step in seconds [default: simulation.dt].")
@@ -74,6 +74,10 @@ def simulate_command(scenario: Path | None, model: str | None, duration: float |
     given = _limits_given(overrides)
     sc = with_actuation(_scenario(scenario, seed=seed, **overrides), actuation_delay)
     sim = _simulation_spec(sc, model=model, duration=duration, dt=dt, assignment=assignment)
+    if sim.model == "physics":
+        from delayform._extras import require_extra
+
+        require_extra("physics")  # the engine comes with an extra: say which, before any work
     if mcap is not None:
         from delayform._extras import require_extra
         from delayform.deploy.recording import check_mcap_path

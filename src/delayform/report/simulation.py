@@ -222,6 +222,9 @@ def simulation_section(
     if sim.model == "unicycle":
         robots = ("differential-drive robots with actuator limits (saturated unicycle)" if limits is not None
                   else "ideal differential-drive robots (unicycle, feedback linearization eq. transform2)")  # fmt: skip
+    elif sim.model == "physics":
+        robots = ("differential-drive robots with mass, wheel servos and contacts in a physics engine "
+                  f"(controller ticks every {robot.chassis.control_period:g} s)")  # fmt: skip
     return Section(
         key=f"simulation_{label}",
         title=f"Simulation at {label}: (tau1, tau2) = ({tau1:g}, {tau2:g}) s" + ("" if per_link is None else ", per-link delays over [network]"),

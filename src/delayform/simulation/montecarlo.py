@@ -154,6 +154,9 @@ class Setup:
         The safety filter of every run (``"barrier"``), or None.
     actuation_delay
         tau_a (s) of every run: each robot applies its command that late.
+    chassis
+        For ``model="physics"``: the robots' mass, tyres and servos
+        (:class:`~delayform.simulation.physics.Chassis`); None: the Create's.
     """
 
     topology: Topology
@@ -174,12 +177,13 @@ class Setup:
     assignment: str = "given"
     safety: Any = None
     actuation_delay: float = 0.0
+    chassis: Any = None
 
     @property
     def robot(self) -> Robot:
-        """The robot of every run (model, limits, body radius, safety filter, actuation delay)."""
+        """The robot of every run (model, limits, body radius, safety filter, actuation delay, chassis)."""
         return Robot(model=self.model, limits=self.limits, radius=self.radius, safety=self.safety,
-                     actuation_delay=self.actuation_delay)  # fmt: skip
+                     actuation_delay=self.actuation_delay, chassis=self.chassis)  # fmt: skip
 
     def with_changes(self, **changes: Any) -> Setup:
         """A copy with some fields replaced (sweeps).
@@ -256,7 +260,7 @@ def simulate_run(task: tuple[Setup, int, tuple[int, int]]) -> RunOutcome:
         initial_headings=setup.initial_headings, initial_speed=setup.initial_speed,
         seed=initial_seed, duration=setup.duration, dt=setup.dt, network=network, assignment=setup.assignment,
     )  # fmt: skip
-    if setup.model == "unicycle":
+    if setup.model != "double_integrator":  # robots: |dv/dt| and |omega|
         peaks = (float(np.abs(traj.inputs[..., 0]).max()), float(np.abs(traj.inputs[..., 1]).max()))
     else:
         peaks = (float(np.hypot(traj.inputs[..., 0], traj.inputs[..., 1]).max()), 0.0)
@@ -549,6 +553,7 @@ def make_setup(
     assignment: str = "given",
     safety: Any = None,
     actuation_delay: float = 0.0,
+    chassis: Any = None,
 ) -> Setup:
     """The checked scenario-like inputs of a Monte Carlo or of a sweep's base point.
 
@@ -576,6 +581,8 @@ def make_setup(
         The safety filter (``"barrier"``) or None.
     actuation_delay
         tau_a >= 0 (s) of every run (``Robot.actuation_delay``).
+    chassis
+        For ``model="physics"``: mass, tyres and servos (``Robot.chassis``).
 
     Raises
     ------
@@ -590,7 +597,7 @@ def make_setup(
         initial_positions=None if initial_positions is None else np.asarray(initial_positions, dtype=np.float64),
         initial_headings=None if initial_headings is None else np.asarray(initial_headings, dtype=np.float64),
         initial_speed=initial_speed, limits=limits, radius=radius, assignment=assignment, safety=safety,
-        actuation_delay=actuation_delay,
+        actuation_delay=actuation_delay, chassis=chassis,
     )  # fmt: skip
     return checked(setup)
 
@@ -672,6 +679,7 @@ def monte_carlo(
     assignment: str = "given",
     safety: Any = None,
     actuation_delay: float = 0.0,
+    chassis: Any = None,
     executor: Executor | None = None,
     progress: Progress | None = None,
 ) -> MonteCarloResult:
@@ -683,7 +691,7 @@ def monte_carlo(
         As for :func:`~delayform.simulation.simulate`: team, gains of eq.
         protocol, nominal delays and the desired shape (array or name).
     model
-        ``"double_integrator"`` (default) or ``"unicycle"``; over a non-ideal
+        ``"double_integrator"`` (default), ``"unicycle"`` or ``"physics"``; over a non-ideal
         network the unicycle is the ideal robot rebuilt from the double
         integrator (:mod:`delayform.simulation.network`).
     network
@@ -710,6 +718,9 @@ def monte_carlo(
         The safety filter of every run (``"barrier"``), or None.
     actuation_delay
         tau_a >= 0 (s): each robot applies its command that late, in every run.
+    chassis
+        For ``model="physics"`` (robots with mass in a physics engine): the
+        robots' :class:`~delayform.simulation.physics.Chassis`; None: the Create's.
     executor
         Where the runs go (:class:`SerialExecutor` by default; see
         :func:`delayform.sweeps.executor` for Dask); its ``workers``
@@ -742,6 +753,7 @@ def monte_carlo(
         topology, P, D, tau1, tau2, formation, model=model, network=network, duration=duration, dt=dt,
         initial_positions=initial_positions, initial_headings=initial_headings, initial_speed=initial_speed,
         limits=limits, radius=radius, assignment=assignment, safety=safety, actuation_delay=actuation_delay,
+        chassis=chassis,
     )  # fmt: skip
     guard(setup, runs, int(getattr(executor, "workers", 1)))
     tasks = [(setup, r, s) for r, s in enumerate(run_seeds(seed, runs))]

@@ -45,9 +45,10 @@ class Chassis:
     wheel_width
         Width of one drive wheel's tyre (m).
     caster_offset
-        Distance of the caster's contact ahead of the axle (m); the body's
-        centre of mass lies a third of the way from the axle to the caster,
-        inside the triangle of the three contacts.
+        Where the caster touches the floor along the robot's axis (m):
+        positive ahead of the axle, negative behind it (the TurtleBot3's).
+        The body's centre of mass lies a third of the way from the axle to
+        the caster, inside the triangle of the three contacts.
     tyre_friction
         Sliding friction coefficient of the tyres on the floor.
     servo_gain
@@ -81,7 +82,10 @@ class Chassis:
                 continue
             if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
                 raise SimulationInputError(f"chassis.{f.name} must be a number, got {value!r}")
-            if not (math.isfinite(value) and value > 0):
+            if f.name == "caster_offset":
+                if not (math.isfinite(value) and value != 0.0):
+                    raise SimulationInputError(f"chassis.caster_offset must be finite and non-zero (m), got {value!r}")
+            elif not (math.isfinite(value) and value > 0):
                 raise SimulationInputError(f"chassis.{f.name} must be finite and positive, got {value!r}")
             object.__setattr__(self, f.name, float(value))
 
@@ -105,12 +109,13 @@ class Chassis:
         return inertia / self.servo_gain
 
 
-#: iRobot Create 3 numbers, used by ``simulate(..., model="physics")`` when no chassis is given.
-#: Body mass 2.3 kg plus the bumper's 0.1 kg, body cylinder 6 cm high, caster 12.5 cm ahead of
-#: the axle: iRobotEducation/create3_sim, irobot_create_description/urdf/create3.urdf.xacro.
-#: The wheel's mass and width, the tyres' friction, the servo's gain and torque are NOT documented
-#: by iRobot: assumptions (docs/theory.md, "Robots with mass").
+#: The iRobot Create's (the paper's robot, :data:`~delayform.simulation.robots.IROBOT_CREATE`),
+#: used by ``simulate(..., model="physics")`` when no chassis is given. iRobot's Open Interface
+#: specification documents none of these numbers: every one is an ASSUMPTION (the robot
+#: profile ``create`` names each): 3.6 kg, a Roomba-class body 7 cm high, 0.1 kg wheels 2 cm wide,
+#: the caster 13 cm ahead, rubber on a hard floor (0.8), a servo of 25 ms time constant
+#: (:meth:`Chassis.servo_time_constant`), torque for three times the 0.5 m/s^2 limit, 10 ms ticks.
 CREATE_CHASSIS = Chassis(
-    mass=2.4, height=0.06, wheel_mass=0.1, wheel_width=0.02, caster_offset=0.125,
-    tyre_friction=0.8, servo_gain=0.1, max_torque=0.1, control_period=0.01,
+    mass=3.6, height=0.07, wheel_mass=0.1, wheel_width=0.02, caster_offset=0.13,
+    tyre_friction=0.8, servo_gain=0.1, max_torque=0.15, control_period=0.01,
 )  # fmt: skip

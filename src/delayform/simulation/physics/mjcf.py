@@ -63,7 +63,8 @@ def _robot(i: int, chassis: Chassis, limits: RobotLimits, pose: tuple[float, flo
     r, half_track, radius = limits.wheel_radius, 0.5 * limits.axle_length, limits.radius
     x, y, theta = pose
     caster_r = 0.5 * r
-    caster_x = min(chassis.caster_offset, radius - caster_r)
+    # the caster stays under the body: at most the body's radius less its own from the axle
+    caster_x = float(np.sign(chassis.caster_offset)) * min(abs(chassis.caster_offset), radius - caster_r)
     com_x = caster_x / 3.0
     izz = chassis.yaw_inertia if chassis.yaw_inertia is not None else 0.5 * chassis.mass * radius * radius
     ixx = chassis.mass * (3 * radius * radius + chassis.height**2) / 12.0
