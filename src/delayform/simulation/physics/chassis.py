@@ -25,7 +25,10 @@ import numpy as np
 from delayform._validation import validated
 from delayform.errors import SimulationInputError
 
-__all__ = ["Chassis", "CREATE_CHASSIS"]
+__all__ = ["Chassis", "CREATE_CHASSIS", "TIMESTEP"]
+
+#: the engine's step (s): docs/theory.md, "Robots with mass", says why 2 ms
+TIMESTEP = 0.002
 
 
 @validated(SimulationInputError)
@@ -93,11 +96,28 @@ class Chassis:
         """A copy with some numbers changed (``chassis.with_changes(servo_gain=1.0)``)."""
         return replace(self, **changes)
 
+    def wheel_inertia(self, wheel_radius: float) -> float:
+        """A drive wheel's inertia about its axle (kg m^2): a disc, ``wheel_mass r^2 / 2``."""
+        return 0.5 * self.wheel_mass * wheel_radius * wheel_radius
+
+    def rotor_inertia(self, wheel_radius: float) -> float:
+        """Inertia (kg m^2) the motor adds at the wheel's axle: ``max(0, servo_gain TIMESTEP - I_wheel)``.
+
+        The engine integrates the servo's torque explicitly (semi-implicit
+        Euler, accurate for the servo-chassis coupling, docs/theory.md), which
+        is stable for a wheel off the floor while ``servo_gain TIMESTEP /
+        inertia <= 1``: the wheel's joint carries at least that inertia, as a
+        geared motor's rotor does (a few per cent of what the servo drives on
+        the floor for every profile).
+        """
+        return max(0.0, self.servo_gain * TIMESTEP - self.wheel_inertia(wheel_radius))
+
     def servo_time_constant(self, wheel_radius: float) -> float:
         """Time constant (s) of a straight-line speed step while no limit is reached.
 
-        Each wheel carries its own inertia and half the robot's mass at the
-        rim: ``(I_wheel + (mass / 2 + wheel_mass) r^2) / servo_gain``.
+        Each wheel's servo drives its own and its rotor's inertia and half
+        the robot's mass at the rim:
+        ``(I_wheel + I_rotor + (mass / 2 + wheel_mass) r^2) / servo_gain``.
 
         Parameters
         ----------
@@ -105,7 +125,7 @@ class Chassis:
             Radius r of the drive wheels (m).
         """
         r = wheel_radius
-        inertia = 0.5 * self.wheel_mass * r * r + (0.5 * self.mass + self.wheel_mass) * r * r
+        inertia = self.wheel_inertia(r) + self.rotor_inertia(r) + (0.5 * self.mass + self.wheel_mass) * r * r
         return inertia / self.servo_gain
 
 

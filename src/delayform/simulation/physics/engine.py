@@ -23,7 +23,7 @@ wheel commands held in between: zero-order hold) robot i
    (:func:`~delayform.simulation.robots.wheel_speeds`, clipped to
    ``max_wheel_speed``) to the two wheel servos.
 
-The engine then steps the bodies (step :data:`~delayform.simulation.physics.mjcf.TIMESTEP`)
+The engine then steps the bodies (step :data:`~delayform.simulation.physics.chassis.TIMESTEP`)
 until the next tick: servos with finite gain and torque, tyres that slip
 when the friction cone is left, bodies that push each other.
 
@@ -42,8 +42,8 @@ from numpy.typing import NDArray
 from delayform._extras import require_extra
 from delayform.simulation.integrator import Progress, Samples
 from delayform.simulation.network import Network
-from delayform.simulation.physics.chassis import Chassis
-from delayform.simulation.physics.mjcf import QPOS_PER_ROBOT, QVEL_PER_ROBOT, TIMESTEP, team_mjcf
+from delayform.simulation.physics.chassis import TIMESTEP, Chassis
+from delayform.simulation.physics.mjcf import QPOS_PER_ROBOT, QVEL_PER_ROBOT, team_mjcf
 from delayform.simulation.robots import LimitedUnicycle, RobotLimits, wheel_speeds
 from delayform.topology import Topology
 

@@ -23,7 +23,7 @@ Body origin at the middle of the axle, at the wheel radius above the floor.
 The body's mass sits a third of the way to the caster (inside the triangle
 of the contacts, so the robot does not tip), with the yaw inertia of the
 chassis; the caster's radius is half the wheel's. The engine step and
-solver are set in :data:`TIMESTEP` and :func:`team_mjcf`.
+solver are set in :func:`team_mjcf`; the step is :data:`~delayform.simulation.physics.chassis.TIMESTEP`.
 """
 
 from __future__ import annotations
@@ -31,13 +31,10 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from delayform.simulation.physics.chassis import Chassis
+from delayform.simulation.physics.chassis import TIMESTEP, Chassis
 from delayform.simulation.robots import RobotLimits
 
-__all__ = ["team_mjcf", "TIMESTEP", "QPOS_PER_ROBOT", "QVEL_PER_ROBOT"]
-
-#: the engine's step (s): docs/theory.md, "Robots with mass", says why 2 ms
-TIMESTEP = 0.002
+__all__ = ["team_mjcf", "QPOS_PER_ROBOT", "QVEL_PER_ROBOT"]
 
 #: free joint (3 position + 4 quaternion) and two wheel hinges
 QPOS_PER_ROBOT = 9
@@ -72,15 +69,16 @@ def _robot(i: int, chassis: Chassis, limits: RobotLimits, pose: tuple[float, flo
     # the body's cylinder starts a quarter wheel radius above the floor (origin: axle, at height r)
     body_z = -0.75 * r + 0.5 * chassis.height
     wm, ww = chassis.wheel_mass, chassis.wheel_width
-    wheel_i = 0.5 * wm * r * r
+    wheel_i = chassis.wheel_inertia(r)
+    rotor = chassis.rotor_inertia(r)
     wheel_t = wm * (3 * r * r + ww * ww) / 12.0
     quat = f"{_g(np.cos(theta / 2))} 0 0 {_g(np.sin(theta / 2))}"
     wheels = "".join(
         f'<body name="w{side}{i}" pos="0 {_g(sign * half_track)} 0">'
-        f'<joint name="j{side}{i}" type="hinge" axis="0 1 0" damping="0" armature="0"/>'
+        f'<joint name="j{side}{i}" type="hinge" axis="0 1 0" damping="0" armature="{_g(rotor)}"/>'
         f'<inertial pos="0 0 0" mass="{_g(wm)}" diaginertia="{_g(wheel_t)} {_g(wheel_i)} {_g(wheel_t)}"/>'
         f'<geom type="sphere" size="{_g(r)}" {_WHEEL} '
-        f'friction="{_g(chassis.tyre_friction)} 0.005 0.0001" condim="3"/></body>'
+        f'friction="{_g(chassis.tyre_friction)} 0.005 0.0001" condim="3" solref="0.004 1"/></body>'
         for side, sign in (("l", 1.0), ("r", -1.0))
     )
     return (
@@ -131,11 +129,13 @@ def team_mjcf(chassis: Chassis, limits: RobotLimits, poses: _Array) -> str:
         for i in range(poses.shape[0])
         for side in ("l", "r")
     )
-    # implicitfast: the servos' velocity feedback is integrated implicitly, stable for stiff gains;
-    # elliptic cones model the tyres' friction circle (slip in any direction)
+    # semi-implicit Euler: the servo's torque and the contacts are solved together, so a stiff servo
+    # drives the chassis as it should (an implicit servo term is applied after the contacts are solved
+    # and lags the chassis by about dt servo_gain / inertia); stable thanks to the rotor inertia
+    # (Chassis.rotor_inertia). Elliptic cones: the tyres' friction circle (slip in any direction)
     return (
         '<mujoco model="team"><compiler angle="radian" autolimits="true"/>'
-        f'<option timestep="{_g(TIMESTEP)}" integrator="implicitfast" cone="elliptic" gravity="0 0 -9.81">'
+        f'<option timestep="{_g(TIMESTEP)}" integrator="Euler" cone="elliptic" impratio="10" gravity="0 0 -9.81">'
         '<flag energy="disable"/></option>'
         '<size memory="64M"/>'
         f'<worldbody><geom name="floor" type="plane" size="0 0 1" {_FLOOR} friction="0 0 0"/>{robots}</worldbody>'
