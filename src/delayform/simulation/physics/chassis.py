@@ -96,6 +96,15 @@ class Chassis:
         """A copy with some numbers changed (``chassis.with_changes(servo_gain=1.0)``)."""
         return replace(self, **changes)
 
+    def engine_grid(self) -> tuple[float, int]:
+        """The engine's step (s) and the steps per control tick: the longest step up to :data:`TIMESTEP` that divides the period.
+
+        >>> CREATE_CHASSIS.engine_grid(), CREATE_CHASSIS.with_changes(control_period=0.015).engine_grid()
+        ((0.002, 5), (0.001875, 8))
+        """
+        substeps = max(1, math.ceil(self.control_period / TIMESTEP - 1e-9))
+        return self.control_period / substeps, substeps
+
     def wheel_inertia(self, wheel_radius: float) -> float:
         """A drive wheel's inertia about its axle (kg m^2): a disc, ``wheel_mass r^2 / 2``."""
         return 0.5 * self.wheel_mass * wheel_radius * wheel_radius

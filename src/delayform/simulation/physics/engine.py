@@ -23,7 +23,8 @@ wheel commands held in between: zero-order hold) robot i
    (:func:`~delayform.simulation.robots.wheel_speeds`, clipped to
    ``max_wheel_speed``) to the two wheel servos.
 
-The engine then steps the bodies (step :data:`~delayform.simulation.physics.chassis.TIMESTEP`)
+The engine then steps the bodies (steps of at most :data:`~delayform.simulation.physics.chassis.TIMESTEP`
+that divide the period)
 until the next tick: servos with finite gain and torque, tyres that slip
 when the friction cone is left, bodies that push each other.
 
@@ -42,7 +43,7 @@ from numpy.typing import NDArray
 from delayform._extras import require_extra
 from delayform.simulation.integrator import Progress, Samples
 from delayform.simulation.network import Network
-from delayform.simulation.physics.chassis import TIMESTEP, Chassis
+from delayform.simulation.physics.chassis import Chassis
 from delayform.simulation.physics.mjcf import QPOS_PER_ROBOT, QVEL_PER_ROBOT, team_mjcf
 from delayform.simulation.robots import LimitedUnicycle, RobotLimits, wheel_speeds
 from delayform.topology import Topology
@@ -56,16 +57,14 @@ _BLOWUP = 1e8
 
 
 def tick_grid(chassis: Chassis) -> tuple[float, int]:
-    """The control period on the engine's grid and the engine steps per tick.
-
-    The period is rounded to a whole number of engine steps (at least one).
+    """The control period and the engine steps per tick (:meth:`Chassis.engine_grid`).
 
     >>> from delayform.simulation.physics.chassis import CREATE_CHASSIS
     >>> tick_grid(CREATE_CHASSIS)
     (0.01, 5)
     """
-    substeps = max(1, round(chassis.control_period / TIMESTEP))
-    return substeps * TIMESTEP, substeps
+    _, substeps = chassis.engine_grid()
+    return chassis.control_period, substeps
 
 
 class PhysicsTeam:

@@ -31,7 +31,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from delayform.simulation.physics.chassis import TIMESTEP, Chassis
+from delayform.simulation.physics.chassis import Chassis
 from delayform.simulation.robots import RobotLimits
 
 __all__ = ["team_mjcf", "QPOS_PER_ROBOT", "QVEL_PER_ROBOT"]
@@ -135,7 +135,7 @@ def team_mjcf(chassis: Chassis, limits: RobotLimits, poses: _Array) -> str:
     # (Chassis.rotor_inertia). Elliptic cones: the tyres' friction circle (slip in any direction)
     return (
         '<mujoco model="team"><compiler angle="radian" autolimits="true"/>'
-        f'<option timestep="{_g(TIMESTEP)}" integrator="Euler" cone="elliptic" impratio="10" gravity="0 0 -9.81">'
+        f'<option timestep="{_g(chassis.engine_grid()[0])}" integrator="Euler" cone="elliptic" impratio="10" gravity="0 0 -9.81">'
         '<flag energy="disable"/></option>'
         '<size memory="64M"/>'
         f'<worldbody><geom name="floor" type="plane" size="0 0 1" {_FLOOR} friction="0 0 0"/>{robots}</worldbody>'

@@ -1,0 +1,203 @@
+"""Robots with mass in a physics engine: the bodies, the wheels, the contacts, and the team.
+
+Independent references: the differential drive's closed forms (v = r (wl + wr) / 2,
+omega = r (wr - wl) / L) for the engine's bodies; the kinematic saturated unicycle
+(another integrator of another model) for the team; the first-order servo's closed form
+(Chassis.servo_time_constant) for the identification.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+pytest.importorskip("mujoco")
+
+from delayform.deploy.profiles import PROFILES, RobotProfile, robot_profile  # noqa: E402
+from delayform.errors import RobotProfileError, SimulationInputError  # noqa: E402
+from delayform.formation import formation_forcing  # noqa: E402
+from delayform.simulation import IROBOT_CREATE, simulate  # noqa: E402
+from delayform.simulation.network import LinkDelays, Network  # noqa: E402
+from delayform.simulation.physics import CREATE_CHASSIS, Chassis  # noqa: E402
+from delayform.simulation.physics.engine import PhysicsTeam, integrate_physics, tick_grid  # noqa: E402
+from delayform.simulation.physics.mjcf import team_mjcf  # noqa: E402
+from delayform.simulation.robots import Robot  # noqa: E402
+from delayform.topology import complete, paper_six  # noqa: E402
+
+#: examples/create3_hexagon.toml's start: a ring twice as wide as the 1 m hexagon
+RING = np.array([[4.0, 0.0], [2.0, 3.464], [-2.0, 3.464], [-4.0, 0.0], [-2.0, -3.464], [2.0, -3.464]])
+HEADINGS = np.array([3.1416, -2.0944, -1.0472, 0.0, 1.0472, 2.0944])
+
+
+def _drive(profile: RobotProfile, left: float, right: float, seconds: float, n: int = 1, poses=None):
+    """One or more robots of ``profile`` at rest, both wheels commanded; the measured state each engine step."""
+    lim, ch = profile.limits, profile.chassis
+    if poses is None:
+        poses = np.zeros((n, 3))
+    team = PhysicsTeam(ch, lim, poses[:, :2], poses[:, 2], np.zeros(len(poses)))
+    team.command(np.full(len(poses), left), np.full(len(poses), right))
+    out = []
+    for _ in range(round(seconds / team.model.opt.timestep)):
+        team.step(1)
+        out.append(team.measure())
+    X, V, th, v = (np.array(a) for a in zip(*out))
+    return team, X, V, np.unwrap(th, axis=0), v
+
+
+def _second(team) -> int:
+    """Engine steps in one second."""
+    return round(1.0 / team.model.opt.timestep)
+
+
+# ------------------------------------------------------------------ the model
+@pytest.mark.parametrize("name", list(PROFILES))
+def test_mjcf_builds_for_every_profile_with_its_masses_and_rests_level(name):
+    import mujoco
+
+    profile = PROFILES[name]
+    ch, lim = profile.chassis, profile.limits
+    poses = np.array([[0.0, 0.0, 0.3], [1.0, 0.0, -1.0], [0.0, 1.0, 2.0]])
+    model = mujoco.MjModel.from_xml_string(team_mjcf(ch, lim, poses))
+    assert (model.nu, model.njnt) == (6, 9)
+    # every robot weighs its chassis and two wheels (the world body weighs nothing)
+    assert model.body_mass.sum() == pytest.approx(3 * (ch.mass + 2 * ch.wheel_mass), rel=1e-12)
+    assert model.opt.timestep == pytest.approx(ch.engine_grid()[0]) and model.opt.timestep <= 0.002
+    # at rest on its wheels and caster: level, still, where it was put
+    team, X, V, th, v = _drive(profile, 0.0, 0.0, 0.5, poses=poses)
+    q = team.data.qpos.reshape(3, 9)
+    roll_pitch = 2 * np.hypot(q[:, 4], q[:, 5])  # quaternion x, y: twice the half-angle sines
+    assert roll_pitch.max() < 1e-2
+    np.testing.assert_allclose(X[-1], poses[:, :2], atol=1e-3)
+    np.testing.assert_allclose(th[-1], poses[:, 2], atol=1e-3)
+
+
+@pytest.mark.parametrize("name", ["create3", "turtlebot3_burger", "robotarium"])
+def test_straight_line_speed_is_wheel_speed_times_radius(name):
+    profile = PROFILES[name]
+    r = profile.limits.wheel_radius
+    w = 0.5 * profile.limits.max_wheel_speed
+    team, X, _, th, v = _drive(profile, w, w, 3.0)
+    # after the servo's transient (a few time constants): v = w r, straight ahead
+    assert v[-1] == pytest.approx(w * r, rel=5e-3)
+    travelled = X[-1, 0, 0] - X[-1 - _second(team), 0, 0]  # the last second
+    assert travelled == pytest.approx(w * r * 1.0, rel=5e-3)
+    assert abs(th[-1, 0]) < 1e-6 and abs(X[-1, 0, 1]) < 1e-6
+
+
+@pytest.mark.parametrize("name", ["create3", "turtlebot3_burger"])
+def test_turn_matches_differential_drive_kinematics(name):
+    profile = PROFILES[name]
+    r, L = profile.limits.wheel_radius, profile.limits.axle_length
+    wl, wr = 0.2 * profile.limits.max_wheel_speed, 0.5 * profile.limits.max_wheel_speed
+    team, X, _, th, v = _drive(profile, wl, wr, 4.0)
+    omega = (th[-1, 0] - th[-1 - _second(team), 0]) / 1.0
+    assert omega == pytest.approx(r * (wr - wl) / L, rel=2e-2)
+    assert v[-1, 0] == pytest.approx(r * (wl + wr) / 2, rel=1e-2)
+    # the path of the last second lies on the circle of radius v / omega
+    centre_offset = np.array([-np.sin(th[-1, 0]), np.cos(th[-1, 0])]) * (v[-1, 0] / omega)
+    centre = X[-1, 0] + centre_offset
+    radii = np.hypot(*(X[-_second(team):, 0] - centre).T)
+    assert np.ptp(radii) < 2e-3
+
+
+def test_head_on_bodies_touch_and_do_not_pass_through():
+    profile = PROFILES["create3"]
+    R = profile.limits.radius
+    w = profile.limits.max_wheel_speed
+    poses = np.array([[-0.5, 0.0, 0.0], [0.5, 0.0, math.pi]])
+    _, X, _, _, _ = _drive(profile, w, w, 4.0, poses=poses)
+    gap = np.hypot(*(X[:, 0] - X[:, 1]).T)
+    assert gap.min() <= 2 * R + 1e-3  # they met ...
+    assert gap.min() >= 2 * R - 5e-3  # ... and pushed: no deeper than the engine's soft contact
+    assert np.all(X[:, 0, 0] < X[:, 1, 0])  # nobody passed through
+
+
+def test_two_robots_into_touching_slots_report_their_contacts():
+    """Two robots cross to touching slots: the run reports the contact, as for the kinematic models."""
+    R = PROFILES["create3"].limits.radius
+    slots = np.array([[R, 0.0], [-R, 0.0]])
+    traj = simulate(complete(2), 1.0, 1.5, 0.1, 0.1, slots, model="physics",
+                    limits=PROFILES["create3"].limits, initial_positions=[[-1.0, 0.0], [1.0, 0.0]],
+                    initial_headings=[0.0, math.pi], duration=20.0, dt=0.01)  # fmt: skip
+    assert traj.model == "physics"
+    assert traj.contacts  # they touched
+    assert traj.min_distance >= 2 * R - 5e-3  # and stayed apart
+
+
+# --------------------------------------------------------------- the team
+def test_physics_run_is_a_trajectory_settling_near_the_kinematic_run():
+    create3 = robot_profile("create3")
+    kw = dict(initial_positions=RING / 2, initial_headings=HEADINGS, initial_speed=1e-3, duration=20.0, dt=0.01)
+    phys = simulate(paper_six(), 1.0, 1.5, 0.3, 0.2, "hexagon",
+                    robot=Robot(model="physics", limits=create3.limits, chassis=create3.chassis), **kw)  # fmt: skip
+    kin = simulate(paper_six(), 1.0, 1.5, 0.3, 0.2, "hexagon", limits=create3.limits, **kw)
+    assert type(phys) is type(kin) and phys.model == "physics"
+    assert phys.status == "settled" and kin.status == "settled"
+    assert phys.times[1] == pytest.approx(create3.chassis.control_period)
+    assert phys.commands is not None and phys.commands.limited
+    assert phys.commands.speed.max() <= create3.limits.speed_cap * 1.05
+    # the same formation, placed by the same dynamics of the centroid
+    assert np.abs(phys.positions[-1] - kin.positions[-1]).max() < 0.1
+    assert abs(phys.settling_time - kin.settling_time) < 2.0
+
+
+def test_network_with_the_design_delays_on_every_link_is_the_plain_run():
+    topo = paper_six()
+    lim, ch = IROBOT_CREATE, CREATE_CHASSIS
+    F = formation_forcing(topo, 1.0, RING / 4)
+    common = dict(chassis=ch, limits=lim, x0=RING / 2, th0=HEADINGS, speed0=np.full(6, 1e-3), duration=3.0,
+                  save_every=1)  # fmt: skip
+    plain = integrate_physics(topo, F, 1.0, 1.5, 0.3, 0.2, **common)
+    links = Network(delays=LinkDelays(tau1=np.full((6, 6), 0.3), tau2=np.full((6, 6), 0.2)))
+    heard = integrate_physics(topo, F, 1.0, 1.5, 0.3, 0.2, network=links, **common)
+    np.testing.assert_allclose(heard.positions, plain.positions, atol=1e-12)
+    slower = Network(delays=LinkDelays(tau1=np.full((6, 6), 0.6), tau2=np.full((6, 6), 0.2)))
+    late = integrate_physics(topo, F, 1.0, 1.5, 0.3, 0.2, network=slower, **common)
+    assert np.abs(late.positions[-1] - plain.positions[-1]).max() > 1e-3  # the network reaches the run
+
+
+def test_tick_grid_rounds_the_control_period_to_engine_steps():
+    # the period stays exact; the engine's step is the longest up to 2 ms that divides it
+    assert tick_grid(CREATE_CHASSIS.with_changes(control_period=0.033)) == (0.033, 17)
+    assert CREATE_CHASSIS.with_changes(control_period=0.033).engine_grid()[0] == pytest.approx(0.033 / 17)
+    assert CREATE_CHASSIS.with_changes(control_period=1e-4).engine_grid() == (1e-4, 1)
+
+
+# ---------------------------------------------------------------- refusals
+@pytest.mark.parametrize(
+    "kwargs, words",
+    [
+        (dict(model="physics", safety="barrier"), "safety filter"),
+        (dict(model="physics", actuation_delay=0.05), "actuation lag"),
+        (dict(model="unicycle", chassis=CREATE_CHASSIS), "physics"),
+        (dict(model="physics", chassis="create3"), "Chassis"),
+    ],
+)
+def test_robot_refuses_what_the_physics_model_does_not_model(kwargs, words):
+    with pytest.raises(SimulationInputError, match=words):
+        Robot(**kwargs)
+
+
+@pytest.mark.parametrize("field, value", [("mass", 0.0), ("servo_gain", -1.0), ("caster_offset", 0.0),
+                                          ("max_torque", math.inf), ("tyre_friction", "high")])  # fmt: skip
+def test_chassis_refuses_bad_numbers_by_name(field, value):
+    with pytest.raises(SimulationInputError, match=field):
+        CREATE_CHASSIS.with_changes(**{field: value})
+
+
+def test_profile_without_physical_numbers_is_refused_naming_them():
+    bare = RobotProfile(name="mine", title="Mine", limits=IROBOT_CREATE)
+    with pytest.raises(RobotProfileError, match="missing: mass, height, wheel_mass"):
+        bare.physics_chassis()
+
+
+def test_every_profile_names_a_source_or_an_assumption_for_each_physical_number():
+    for profile in PROFILES.values():
+        assert isinstance(profile.chassis, Chassis)
+        for field in ("mass", "height", "wheel_mass", "wheel_width", "caster_offset", "tyre_friction",
+                      "servo_gain", "max_torque", "control_period"):  # fmt: skip
+            assert profile.sources[f"chassis.{field}"], (profile.name, field)
+    assert "1 kg" in PROFILES["turtlebot3_burger"].sources["chassis.mass"]
+    assert "assumption" in PROFILES["create3"].sources["chassis.servo_gain"]
