@@ -201,3 +201,77 @@ def test_every_profile_names_a_source_or_an_assumption_for_each_physical_number(
             assert profile.sources[f"chassis.{field}"], (profile.name, field)
     assert "1 kg" in PROFILES["turtlebot3_burger"].sources["chassis.mass"]
     assert "assumption" in PROFILES["create3"].sources["chassis.servo_gain"]
+
+
+# ------------------------------------------------------ what the dynamics cost
+def _stiffer(chassis: Chassis, factor: float) -> Chassis:
+    """Servo gain, torque and tyre friction all ``factor`` times the profile's."""
+    return chassis.with_changes(servo_gain=chassis.servo_gain * factor, max_torque=chassis.max_torque * factor,
+                                tyre_friction=chassis.tyre_friction * factor)  # fmt: skip
+
+
+@pytest.mark.slow
+def test_stiffer_servos_and_grippier_tyres_converge_to_the_kinematic_model():
+    """The independent reference is the kinematic saturated unicycle (RK4 on another model)."""
+    from delayform.simulation.physics import compare_with_kinematic
+
+    create3 = robot_profile("create3")
+    worst = []
+    for factor in (1.0, 4.0, 16.0):
+        robot = Robot(model="physics", limits=create3.limits, chassis=_stiffer(create3.chassis, factor))
+        cmp = compare_with_kinematic(paper_six(), 1.0, 1.5, 0.3, 0.2, "hexagon", robot=robot,
+                                     initial_positions=RING / 2, initial_headings=HEADINGS,
+                                     duration=60.0 if factor == 16.0 else 15.0, dt=0.01)  # fmt: skip
+        worst.append(cmp.max_deviation)
+        assert cmp.physics.status == cmp.kinematic.status == "settled"
+    assert worst[0] > worst[1] > worst[2]
+    assert worst[2] < 0.01  # the stiff limit: within 1 cm of the kinematic robots over 60 s
+
+
+def test_comparison_reports_positions_and_settling_of_both_runs():
+    from delayform.simulation.physics import compare_with_kinematic
+
+    cmp = compare_with_kinematic(paper_six(), 1.0, 1.5, 0.3, 0.2, "hexagon", initial_positions=RING / 2,
+                                 initial_headings=HEADINGS, duration=6.0, dt=0.01)  # fmt: skip
+    assert cmp.physics.model == "physics" and cmp.kinematic.model == "unicycle"
+    assert cmp.kinematic.limits == cmp.physics.limits == IROBOT_CREATE
+    assert cmp.deviation.shape == cmp.times.shape and cmp.deviation[0] == 0.0
+    assert 0.0 < cmp.max_deviation < 0.2
+    direct = np.hypot(*(cmp.physics.positions[-1] - cmp.kinematic.positions[-1]).T).max()
+    assert cmp.final_deviation == pytest.approx(direct, rel=1e-9)  # both sampled at 6 s
+    assert "cm of the kinematic robots" in cmp.describe()
+    with pytest.raises(SimulationInputError, match="physics"):
+        compare_with_kinematic(paper_six(), 1.0, 1.5, 0.3, 0.2, "hexagon", robot=Robot(), duration=1.0, dt=0.01)
+
+
+@pytest.mark.parametrize("name", ["create3", "turtlebot3_burger"])
+def test_identification_recovers_the_servo_time_constant(name):
+    """Against the closed form of a first-order servo driving the wheel, rotor and half the chassis."""
+    from delayform.simulation.physics import identify_actuation
+
+    profile = robot_profile(name)
+    for factor in (0.5, 1.0):
+        chassis = profile.chassis.with_changes(servo_gain=profile.chassis.servo_gain * factor)
+        ident = identify_actuation(chassis, profile.limits)
+        assert ident.time_constant == pytest.approx(chassis.servo_time_constant(profile.limits.wheel_radius), rel=0.06)
+        assert ident.gain == pytest.approx(1.0, abs=5e-3)
+        assert ident.dead_time < 0.005
+        assert ident.effective_delay == pytest.approx(ident.dead_time + ident.time_constant + chassis.control_period / 2)
+        assert ident.rms_error < 0.02 * ident.step_speed
+
+
+def test_the_identified_lag_changes_verdicts_where_the_dominant_root_crosses():
+    """The chart with tau_a (CTCR) against the dominant root with tau_a (root finding) at the pairs that change."""
+    from delayform.analysis.roots.dominant import dominant_root
+    from delayform.simulation.physics import actuation_verdict, identify_actuation
+
+    create3 = robot_profile("create3")
+    ta = identify_actuation(create3.chassis, create3.limits).effective_delay
+    verdict = actuation_verdict(paper_six(), 1.0, 0.5, 4.0, 4.0, ta, resolution=41)
+    assert verdict.lost.any()
+    rows, cols = np.nonzero(verdict.lost)
+    for k in np.linspace(0, rows.size - 1, 3).astype(int):
+        t1, t2 = verdict.tau1[cols[k]], verdict.tau2[rows[k]]
+        assert dominant_root(paper_six(), 1.0, 0.5, t1, t2).root.real < 0
+        assert dominant_root(paper_six(), 1.0, 0.5, t1, t2, actuation_delay=ta).root.real > 0
+    assert "loses stability" in verdict.describe()

@@ -176,6 +176,14 @@ _EXPORTS: dict[str, str] = {
     # actuation delay (issue 21, item 4)
     "actuated_factor": "analysis.roots.actuated",
     "ActuatedStabilityMap": "analysis.ctcr.actuated",
+    # robots with mass in a physics engine (model="physics")
+    "Chassis": "simulation.physics",
+    "compare_with_kinematic": "simulation.physics",
+    "KinematicComparison": "simulation.physics",
+    "identify_actuation": "simulation.physics",
+    "ServoIdentification": "simulation.physics",
+    "actuation_verdict": "simulation.physics",
+    "ActuationVerdict": "simulation.physics",
     # Lyapunov-Krasovskii certificates for time-varying delays of linear DDEs
     "time_varying_delay_margin": "analysis.certificates",
     "certify_time_varying": "analysis.certificates",

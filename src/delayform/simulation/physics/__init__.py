@@ -4,8 +4,27 @@
 (:func:`~delayform.simulation.physics.engine.integrate_physics`); the
 robot's numbers are a :class:`Chassis` beside its
 :class:`~delayform.simulation.robots.RobotLimits`.
+:func:`compare_with_kinematic` says what the dynamics cost against the
+kinematic model; :func:`identify_actuation` measures the robot's own lag and
+:func:`actuation_verdict` asks the exact chart again with it.
 """
 
 from delayform.simulation.physics.chassis import CREATE_CHASSIS, Chassis
+from delayform.simulation.physics.compare import (
+    ActuationVerdict,
+    KinematicComparison,
+    actuation_verdict,
+    compare_with_kinematic,
+)
+from delayform.simulation.physics.identify import ServoIdentification, identify_actuation
 
-__all__ = ["Chassis", "CREATE_CHASSIS"]
+__all__ = [
+    "Chassis",
+    "CREATE_CHASSIS",
+    "compare_with_kinematic",
+    "KinematicComparison",
+    "identify_actuation",
+    "ServoIdentification",
+    "actuation_verdict",
+    "ActuationVerdict",
+]
