@@ -110,7 +110,7 @@ def test_head_on_bodies_touch_and_do_not_pass_through():
     _, X, _, _, _ = _drive(profile, w, w, 4.0, poses=poses)
     gap = np.hypot(*(X[:, 0] - X[:, 1]).T)
     assert gap.min() <= 2 * R + 1e-3  # they met ...
-    assert gap.min() >= 2 * R - 5e-3  # ... and pushed: no deeper than the engine's soft contact
+    assert gap.min() >= 2 * R - 2e-3  # ... and pushed at full torque: no deeper than the soft contact's 2 mm
     assert np.all(X[:, 0, 0] < X[:, 1, 0])  # nobody passed through
 
 

@@ -86,7 +86,7 @@ def _robot(i: int, chassis: Chassis, limits: RobotLimits, pose: tuple[float, flo
         f'<inertial pos="{_g(com_x)} 0 {_g(body_z)}" mass="{_g(chassis.mass)}" '
         f'diaginertia="{_g(ixx)} {_g(ixx)} {_g(izz)}"/>'
         f'<geom type="cylinder" size="{_g(radius)} {_g(0.5 * chassis.height)}" pos="0 0 {_g(body_z)}" '
-        f'{_BODY} friction="0.3 0.005 0.0001" mass="0"/>'
+        f'{_BODY} friction="0.3 0.005 0.0001" solref="0.004 1" mass="0"/>'
         f'<geom type="sphere" size="{_g(caster_r)}" pos="{_g(caster_x)} 0 {_g(caster_r - r)}" {_WHEEL} '
         f'friction="0 0 0" condim="1" mass="0"/>'
         f"{wheels}</body>"
