@@ -74,10 +74,6 @@ def simulate_command(scenario: Path | None, model: str | None, duration: float |
     given = _limits_given(overrides)
     sc = with_actuation(_scenario(scenario, seed=seed, **overrides), actuation_delay)
     sim = _simulation_spec(sc, model=model, duration=duration, dt=dt, assignment=assignment)
-    if sim.model == "physics":
-        from delayform._extras import require_extra
-
-        require_extra("physics")  # the engine comes with an extra: say which, before any work
     if mcap is not None:
         from delayform._extras import require_extra
         from delayform.deploy.recording import check_mcap_path
