@@ -511,6 +511,12 @@ def estimate_cost(setup: Setup, runs: int) -> tuple[float, float]:
     # the safety filter: about 4 x 50 microseconds per step for a small team (docs/benchmarks.md, issue 21)
     per_step += 2e-4 + 2e-6 * n if setup.safety is not None else 0.0
     seconds = runs * steps * per_step
+    if setup.model == "physics":  # the engine's time, on the robot's control ticks
+        from delayform.simulation.physics.engine import physics_resources, tick_grid
+
+        period, substeps = tick_grid(setup.robot.chassis)
+        extra_bytes, one = physics_resources(n, math.ceil(setup.duration / period - 1e-9), substeps)
+        nbytes, seconds = nbytes + extra_bytes, runs * one
     return nbytes, seconds
 
 
