@@ -22,6 +22,11 @@ Agent models (:mod:`delayform.simulation.robots`)
     (:class:`delayform.simulation.robots.LimitedUnicycle`), using the
     neighbours' delayed states from the history. The saturations are
     continuous but not smooth: **stated order 2**.
+``physics``
+    Differential-drive bodies with mass, wheel servos, tyres and contacts
+    stepped by MuJoCo, each robot's controller (the same functions as the
+    saturated unicycle) ticking at its control period
+    (:mod:`delayform.simulation.physics`).
 Over an imperfect ``network``
     The same agent models (the double integrator, from which ideal robots
     are rebuilt, or the saturated unicycle) driven by what each agent hears
@@ -245,7 +250,11 @@ def simulate(
         two shortcuts below (give either ``robot`` or the shortcuts).
     model
         Shortcut for ``Robot.model``: ``"unicycle"`` (differential-drive robot,
-        eq. transform2; the default) or ``"double_integrator"``.
+        eq. transform2; the default), ``"double_integrator"``, or ``"physics"``:
+        robots with mass, wheel servos and contacts in a physics engine
+        (:mod:`delayform.simulation.physics`; the ``physics`` extra), whose
+        controller ticks at the chassis' control period; ``dt`` is then the
+        sampling of the saved run (rounded to whole ticks).
     limits
         Shortcut for ``Robot.limits``: actuator limits of the robots
         (:class:`RobotLimits`, e.g. :data:`IROBOT_CREATE`): the saturated
@@ -264,7 +273,8 @@ def simulate(
         Seed of the random initial state.
     duration, dt
         Length of the run and the fixed step (s); the run ends at
-        ``ceil(duration / dt) dt``.
+        ``ceil(duration / dt) dt`` (for ``"physics"``: at a whole number of
+        control ticks, sampled every ``round(dt / period)`` ticks).
     rest_speed
         Ideal robots whose speed (m/s) and commanded acceleration (m/s^2)
         are both below this hold their heading (:data:`REST_SPEED`).
