@@ -646,7 +646,7 @@ def collect(setup: Setup, runs: int, seed: int, outcomes: Sequence[RunOutcome]) 
         One :class:`RunOutcome` per run.
     """
     ordered = sorted(outcomes, key=lambda o: o.index)
-    names = ("|dv/dt|", "|omega|") if setup.model == "unicycle" else ("|u|", "")
+    names = ("|dv/dt|", "|omega|") if setup.model != "double_integrator" else ("|u|", "")
     return MonteCarloResult(
         setup=setup, runs=runs, seed=seed,
         times=ordered[0].error_times,
