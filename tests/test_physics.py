@@ -229,7 +229,7 @@ def test_stiffer_servos_and_grippier_tyres_converge_to_the_kinematic_model():
 
 
 def test_comparison_reports_positions_and_settling_of_both_runs():
-    from delayform.simulation.physics import compare_with_kinematic
+    from delayform.simulation.physics import KinematicComparison, compare_with_kinematic
 
     cmp = compare_with_kinematic(paper_six(), 1.0, 1.5, 0.3, 0.2, "hexagon", initial_positions=RING / 2,
                                  initial_headings=HEADINGS, duration=6.0, dt=0.01)  # fmt: skip
@@ -240,6 +240,8 @@ def test_comparison_reports_positions_and_settling_of_both_runs():
     direct = np.hypot(*(cmp.physics.positions[-1] - cmp.kinematic.positions[-1]).T).max()
     assert cmp.final_deviation == pytest.approx(direct, rel=1e-9)  # both sampled at 6 s
     assert "cm of the kinematic robots" in cmp.describe()
+    again = KinematicComparison.of(cmp.physics, cmp.kinematic)
+    np.testing.assert_array_equal(again.deviation, cmp.deviation)
     with pytest.raises(SimulationInputError, match="physics"):
         compare_with_kinematic(paper_six(), 1.0, 1.5, 0.3, 0.2, "hexagon", robot=Robot(), duration=1.0, dt=0.01)
 

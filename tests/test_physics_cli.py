@@ -67,6 +67,10 @@ def test_simulate_physics_settles_at_the_design_and_not_at_point_c(tmp_path: Pat
     summary = json.loads(good.stdout)
     assert dominant_root(paper_six(), 1.0, 1.5, 0.3, 0.2).root.real < 0
     assert summary["status"] == "settled" and summary["model"] == "physics"
+    # what the dynamics cost, beside the kinematic robots with the same limits
+    assert summary["kinematic"]["status"] == "settled"
+    assert 0.0 < summary["kinematic"]["max_deviation"] < 0.1
+    assert abs(summary["kinematic"]["settling_time"] - summary["settling_time"]) < 1.0
     bad = run_in_process("simulate", EXAMPLE, "--model", "physics", "--D", "0.5", "--tau1", "1", "--tau2", "2",
                          "--out", "c", "--json", cwd=tmp_path)  # fmt: skip
     assert bad.returncode == 0, bad.stderr

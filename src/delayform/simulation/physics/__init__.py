@@ -15,6 +15,7 @@ from delayform.simulation.physics.compare import (
     KinematicComparison,
     actuation_verdict,
     compare_with_kinematic,
+    kinematic_twin,
 )
 from delayform.simulation.physics.identify import ServoIdentification, identify_actuation
 
@@ -23,6 +24,7 @@ __all__ = [
     "CREATE_CHASSIS",
     "compare_with_kinematic",
     "KinematicComparison",
+    "kinematic_twin",
     "identify_actuation",
     "ServoIdentification",
     "actuation_verdict",

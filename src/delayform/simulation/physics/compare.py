@@ -25,7 +25,7 @@ from delayform.simulation.robots import Robot
 from delayform.simulation.trajectory import Trajectory
 from delayform.topology import Topology
 
-__all__ = ["KinematicComparison", "compare_with_kinematic", "ActuationVerdict", "actuation_verdict"]
+__all__ = ["KinematicComparison", "compare_with_kinematic", "kinematic_twin", "ActuationVerdict", "actuation_verdict"]
 
 _Array = NDArray[np.float64]
 
@@ -50,6 +50,25 @@ class KinematicComparison:
     kinematic: Trajectory
     times: _Array
     deviation: _Array
+
+    @classmethod
+    def of(cls, physics: Trajectory, kinematic: Trajectory) -> KinematicComparison:
+        """The comparison of two runs from the same start (the kinematic run interpolated at the physics samples).
+
+        Parameters
+        ----------
+        physics, kinematic
+            A ``model="physics"`` run and the kinematic run of :func:`kinematic_twin`.
+        """
+        times, kt = physics.times, kinematic.times
+        idx = np.clip(np.searchsorted(kt, times, side="right") - 1, 0, max(kt.size - 2, 0))
+        nxt = np.minimum(idx + 1, kt.size - 1)
+        span = np.where(kt[nxt] > kt[idx], kt[nxt] - kt[idx], 1.0)
+        w = np.clip((times - kt[idx]) / span, 0.0, 1.0)[:, None, None]
+        at = (1.0 - w) * kinematic.positions[idx] + w * kinematic.positions[nxt]
+        inside = times <= kt[-1] + 1e-12
+        deviation = np.hypot(*(physics.positions[inside] - at[inside]).transpose(2, 0, 1)).max(axis=1)
+        return cls(physics=physics, kinematic=kinematic, times=times[inside], deviation=deviation)
 
     @property
     def max_deviation(self) -> float:
@@ -143,16 +162,19 @@ def compare_with_kinematic(
     common = dict(initial_positions=initial_positions, initial_headings=initial_headings,
                   initial_speed=initial_speed, seed=seed, duration=duration, dt=dt)  # fmt: skip
     phys = simulate(topology, P, D, tau1, tau2, formation, robot=robot, **common)
-    kin_robot = replace(robot, model="unicycle", chassis=None, radius=robot.body_radius)
-    kin = simulate(topology, P, D, tau1, tau2, formation, robot=kin_robot, **common)
-    times = phys.times
-    # the kinematic positions at the physics samples, per robot and coordinate (linear)
-    idx = np.clip(np.searchsorted(kin.times, times, side="right") - 1, 0, kin.times.size - 2)
-    w = ((times - kin.times[idx]) / (kin.times[idx + 1] - kin.times[idx]))[:, None, None]
-    at = (1.0 - w) * kin.positions[idx] + w * kin.positions[idx + 1]
-    inside = times <= kin.times[-1] + 1e-12
-    deviation = np.hypot(*(phys.positions[inside] - at[inside]).transpose(2, 0, 1)).max(axis=1)
-    return KinematicComparison(physics=phys, kinematic=kin, times=times[inside], deviation=deviation)
+    kin = simulate(topology, P, D, tau1, tau2, formation, robot=kinematic_twin(robot), **common)
+    return KinematicComparison.of(phys, kin)
+
+
+def kinematic_twin(robot: Robot) -> Robot:
+    """The kinematic robot with a physics robot's limits and body: ``model="unicycle"``, same limits and radius.
+
+    Parameters
+    ----------
+    robot
+        A ``Robot(model="physics", ...)``.
+    """
+    return replace(robot, model="unicycle", chassis=None, radius=robot.body_radius)
 
 
 @validated(SimulationInputError)
