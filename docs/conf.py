@@ -7,10 +7,10 @@ Markdown pages in docs/ stay as they are, and MyST-NB executes the tutorial
 notebooks during the build, so they can never go stale.
 
 The API reference is generated at build time from ``delayform.__all__``,
-one page per name, grouped by concept (``REFERENCE_GROUPS``: the module a
-name lives in decides its group), so a name another engineer adds to
-``_EXPORTS`` is documented without touching this file; a name in no group
-lands in "Other names" rather than disappearing.
+one page per name, grouped by concept as ``delayform._GROUPS`` groups them
+(the groups of docs/api.md), so a name another engineer adds to a group is
+documented without touching this file; a name in no group lands in "Other
+names" rather than disappearing.
 """
 
 from __future__ import annotations
@@ -110,54 +110,38 @@ def _directive(name: str, obj: object) -> str:
     return f".. autodata:: delayform.{name}\n   :annotation:\n"
 
 
-#: The reference's groups, in the order a user looks for things: (file stem, title, what the
-#: group answers, module prefixes). A name goes to the group of the longest prefix of the module
-#: it is defined in, or of its own name in ``GROUP_OF_NAME`` (constants have no module).
-REFERENCE_GROUPS: tuple[tuple[str, str, str, tuple[str, ...]], ...] = (
-    ("problem", "Teams, topologies and formations",
-     "The problem's nouns: who listens to whom, the shape the team takes, and where it ends up.",
-     ("delayform.topology", "delayform.formation")),
-    ("quasipolynomials", "Quasi-polynomials",
-     "The characteristic factors of a team and quasi-polynomials in any number of delays.",
-     ("delayform.characteristic", "delayform.quasipolynomial")),
-    ("ctcr", "Stability maps (CTCR)",
-     "Exact maps of the stable delay pairs: crossing curves, root tendencies, unstable-root counts.",
-     ("delayform.analysis.ctcr",)),
-    ("roots", "Roots",
-     "Rightmost and dominant roots with their certificates, every root in a rectangle, neutral spectra.",
-     ("delayform.analysis.roots", "delayform.analysis.neutral")),
-    ("plane", "Regions and spectrum sets",
-     "The eigenvalue plane: one answer for every graph, delays safe for a class of teams, large teams.",
-     ("delayform.analysis.plane",)),
-    ("networks", "Network guarantees",
-     "Per-link delays, delay boxes, jitter margins, packet loss in the mean square, time-varying delays.",
-     ("delayform.analysis.network", "delayform.analysis.certificates")),
-    ("design", "Design",
-     "Delays and gains chosen for the fastest certified decay.",
-     ("delayform.design",)),
-    ("simulation", "Simulation",
-     "Robots and their limits, bodies and contacts, slot assignment, the safety filter, trajectories.",
-     ("delayform.simulation",)),
-    ("simulated-networks", "Simulated networks",
-     "Imperfect networks in a simulation: per-link delays, variation, jitter, loss, sampling, noise.",
-     ("delayform.simulation.network",)),
-    ("sweeps", "Monte Carlo and sweeps",
-     "Many runs at once, in one process or on Dask workers, and their quantiles.",
-     ("delayform.simulation.montecarlo", "delayform.sweeps")),
-    ("scenarios", "Scenarios, reports and the explorer",
-     "A problem written down once (TOML), its report page and the interactive explorer.",
-     ("delayform.scenario", "delayform.report", "delayform.app", "delayform.packaged")),
-    ("deployment", "Deployment",
-     "From a design to robots: profiles, the on-robot controller, recordings, the fit check.",
-     ("delayform.deploy", "delayform.report.check")),
-    ("loops", "python-control loops",
-     "Exact delay margins and delayed PD gains for python-control systems.",
-     ("delayform.loops", "delayform.design.loop_gains")),
-    ("errors", "Errors",
-     "The exception tree: every refusal is one of these, a subclass of a built-in.",
-     ("delayform.errors",)),
-)
-GROUP_OF_NAME = {"PAPER_POINTS": "ctcr", "PROFILES": "deployment", "errors": "errors"}
+#: What each group of the reference answers, by its title. The groups themselves, their order and
+#: their members are ``delayform._GROUPS`` (the same groups as docs/api.md), so a name another
+#: engineer adds to a group there is documented without touching this file.
+GROUP_SUMMARY: dict[str, str] = {
+    "Topologies and the problem's nouns":
+        "Who listens to whom, the team and its delays, the shape the team takes and where it ends up.",
+    "Characteristic equations":
+        "The characteristic factors of a team and quasi-polynomials in any number of delays.",
+    "Analysis: stability maps":
+        "Exact maps of the stable delay pairs: crossing curves, root tendencies, unstable-root counts.",
+    "Analysis: roots":
+        "Rightmost and dominant roots with their certificates, every root in a rectangle, neutral spectra.",
+    "Analysis: regions and spectrum sets":
+        "The eigenvalue plane: one answer for every graph, delays safe for a class of teams, large teams.",
+    "Analysis: certificates":
+        "Lyapunov-Krasovskii certificates for linear systems with time-varying delays.",
+    "Analysis: networks":
+        "Per-link delays, delay boxes, jitter margins and packet loss in the mean square, certified.",
+    "Analysis: python-control loops":
+        "Exact delay margins of python-control loops and their quasi-polynomials.",
+    "Design": "Delays and gains chosen for the fastest certified decay, for teams and for loops.",
+    "Simulation":
+        "Robots and their limits, bodies and contacts, slot assignment, the safety filter, trajectories.",
+    "Simulation: imperfect networks":
+        "Imperfect networks in a simulation: per-link delays, variation, jitter, loss, sampling, noise.",
+    "Simulation: Monte Carlo and sweeps":
+        "Many runs at once, in one process or on Dask workers, and their quantiles.",
+    "Deployment": "From a design to robots: profiles, the on-robot controller, recordings, the fit check.",
+    "Outputs: scenarios, reports and the explorer":
+        "A problem written down once (TOML), its report page, the interactive explorer and the shipped examples.",
+    "Errors": "The exception tree: every refusal is one of these, a subclass of a built-in; and the warnings.",
+}
 #: constants carry no docstring of their own (theirs would be their type's)
 CONSTANT_SUMMARY = {
     "PAPER_POINTS": "The delay pairs a-e of the paper's stability figure: a, b, d, e stable, c not.",
@@ -165,19 +149,20 @@ CONSTANT_SUMMARY = {
     "IROBOT_CREATE": "The iRobot Create's limits (wheel speeds, turn rate; an assumed acceleration).",
     "errors": "The exception tree (module).",
 }
-OTHER_GROUP = ("other", "Other names", "Names not yet placed in a group.")
+#: names of ``__all__`` in no group of ``delayform._GROUPS``
+OTHER_GROUP = "Other names"
 
 
-def _group_of(name: str, obj: object) -> str:
-    if name in GROUP_OF_NAME:
-        return GROUP_OF_NAME[name]
-    module = obj.__name__ if inspect.ismodule(obj) else getattr(obj, "__module__", None) or ""
-    best, stem = -1, OTHER_GROUP[0]
-    for key, _title, _what, prefixes in REFERENCE_GROUPS:
-        for prefix in prefixes:
-            if (module == prefix or module.startswith(prefix + ".")) and len(prefix) > best:
-                best, stem = len(prefix), key
-    return stem
+def _group_stem(title: str) -> str:
+    """The file stem of a group's page: ``"Analysis: roots"`` -> ``"analysis-roots"``."""
+    return re.sub(r"[^a-z0-9]+", "-", title.lower()).strip("-")
+
+
+def _group_of(name: str) -> str:
+    for title, members in delayform._GROUPS.items():
+        if name in members:
+            return title
+    return "Errors" if name == "errors" else OTHER_GROUP
 
 
 def _order(name: str) -> tuple[int, int]:
@@ -210,21 +195,20 @@ def write_api_reference() -> None:
     for name in names:
         obj = getattr(delayform, name)
         (GENERATED / f"{name}.rst").write_text(f"{_heading(f'``delayform.{name}``')}\n{_directive(name, obj)}")
-        members.setdefault(_group_of(name, obj), []).append(name)
-    groups = [g[:3] for g in REFERENCE_GROUPS if g[0] in members]
-    if OTHER_GROUP[0] in members:
-        groups.append(OTHER_GROUP)
-    for stem, title, what in groups:
+        members.setdefault(_group_of(name), []).append(name)
+    titles = [t for t in [*delayform._GROUPS, OTHER_GROUP] if t in members]
+    for title in titles:
         rows = "".join(
             f"   * - :doc:`delayform.{n} <{n}>`\n     - {CONSTANT_SUMMARY.get(n) or _summary(getattr(delayform, n))}\n"
-            for n in sorted(members[stem], key=_order)
+            for n in sorted(members[title], key=_order)
         )
-        toc = "".join(f"   {n}\n" for n in sorted(members[stem], key=_order))
-        (GENERATED / f"group-{stem}.rst").write_text(
+        toc = "".join(f"   {n}\n" for n in sorted(members[title], key=_order))
+        what = GROUP_SUMMARY.get(title, "Names not yet placed in a group of ``delayform._GROUPS``.")
+        (GENERATED / f"group-{_group_stem(title)}.rst").write_text(
             f"{_heading(title)}\n{what}\n\n.. list-table::\n   :widths: 30 70\n\n{rows}\n"
             f".. toctree::\n   :hidden:\n\n{toc}"
         )
-    toc = "".join(f"   group-{stem}\n" for stem, _t, _w in groups)
+    toc = "".join(f"   group-{_group_stem(title)}\n" for title in titles)
     (GENERATED / "index.rst").write_text(
         f"{_heading('API reference')}\n"
         "Every name in ``delayform.__all__``, from its docstring (generated at build time), grouped\n"

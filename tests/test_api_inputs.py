@@ -188,6 +188,23 @@ def test_api_md_states_the_rule_it_follows() -> None:
     assert "in **bold** are importable from `delayform`" in text
 
 
+def test_api_md_has_the_package_groups_in_their_order() -> None:
+    """docs/api.md, the reference and ``delayform._GROUPS`` group the public names the same way."""
+    text = (ROOT / "docs" / "api.md").read_text(encoding="utf-8")
+    headings = [h for h in re.findall(r"^## (.+)$", text, flags=re.M) if h != "Conventions"]
+    assert headings == list(delayform._GROUPS)
+
+
+def test_every_public_name_is_in_one_group_and_every_exception_is_exported() -> None:
+    sizes = sum(len(names) for names in delayform._GROUPS.values())
+    assert sizes == len(delayform._EXPORTS), "a name is in two groups of delayform._GROUPS"
+    import delayform.errors as errors
+
+    raised = {n for n, obj in vars(errors).items() if isinstance(obj, type) and issubclass(obj, BaseException)
+              and obj.__module__ == errors.__name__}  # fmt: skip
+    assert raised <= set(delayform._GROUPS["Errors"]), sorted(raised - set(delayform._GROUPS["Errors"]))
+
+
 # ================================================================ the issue's examples (item 7)
 @pytest.mark.parametrize(
     "call",

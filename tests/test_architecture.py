@@ -1,8 +1,10 @@
 """The package's data flows one way: topology -> factors -> analysis -> design -> simulation -> outputs.
 
 Every ``import`` of a delayform module, at the top of a file or inside a
-function, must point to the same stage or an earlier one, and no two modules
-may import each other (directly or through a cycle).
+function, must point to the same stage or an earlier one; no two modules may
+import each other (directly or through a cycle), nor may two packages (each
+subpackage of ``analysis/`` counts as a package of its own); and no package
+takes another's private (underscored) names.
 """
 
 from __future__ import annotations
@@ -32,20 +34,30 @@ STAGES: dict[str, int] = {
     "characteristic": 2,
     "quasipolynomial": 2,  # after characteristic (converts its TwoDelayQuasiPolynomial)
     "formation": 2,
-    "analysis": 3,
-    "analysis.certificates": 3,  # LMIs of linear DDEs: imports only errors (no quasi-polynomials needed)
-    "design": 4,
-    "loops": 4,  # python-control loops: builds quasi-polynomials, counts their roots (issue 23)
-    "simulation": 5,
-    "deploy": 5,  # robot profiles, the on-robot controller, MCAP recordings: after simulation, beside it
-    "sweeps": 6,
-    "scenario": 7,
-    "report": 8,
+    # analysis: each subpackage is a stage of its own
+    "analysis.roots": 3,  # the bottom: roots of quasi-polynomials and of the team's factors, certified counts
+    # neutral counts roots with roots' argument principle (so above it) and ctcr uses its difference
+    # operator for general quasi-polynomials (so below ctcr)
+    "analysis.neutral": 4,
+    # the team's certificates check the nominal roots with roots (so above it); network's jitter
+    # margin builds on them (so below network); they need neither ctcr nor neutral
+    "analysis.certificates": 4,
+    "analysis.ctcr": 5,  # the CTCR map: counts at degenerate crossings with roots, neutral's difference operator
+    "loops": 5,  # python-control loops: builds quasi-polynomials, counts their roots with roots
+    "analysis.network": 6,  # per-link delays, boxes, jitter, loss: on the CTCR map, the certificates and roots
+    "analysis.plane": 6,  # the eigenvalue plane: a CTCR map for each eigenvalue
+    "analysis": 7,  # the package's __init__: lends neutral's and network's solvers to roots (roots.delegated)
+    "design": 8,
+    "simulation": 9,
+    "deploy": 9,  # robot profiles, the on-robot controller, MCAP recordings: after simulation, beside it
+    "sweeps": 10,
+    "scenario": 11,
+    "report": 12,
     # the explorer is served by a CLI command (cli/explore.py), so it comes before the CLI
-    "app": 9,
-    "cli": 10,
-    "__main__": 11,
-    "": 11,  # delayform/__init__.py: lazy re-exports of everything
+    "app": 13,
+    "cli": 14,
+    "__main__": 15,
+    "": 15,  # delayform/__init__.py: lazy re-exports of everything
 }
 
 
@@ -63,39 +75,65 @@ def _stage(name: str) -> int:
     raise AssertionError(name)
 
 
-def _imports(path: Path, module: str) -> set[str]:
+def _imports(path: Path, module: str) -> set[tuple[str, str]]:
+    """``(target, name)`` of every delayform import: the module (or package) and the name taken from it.
+
+    ``from a.b import c`` gives ``("a.b.c", "")`` when ``c`` is a module of its own
+    (importing a submodule is not taking a name of the package), else ``("a.b", "c")``;
+    ``import a.b`` gives ``("a.b", "")``.
+    """
     tree = ast.parse(path.read_text(), filename=str(path))
-    found: set[str] = set()
+    found: set[tuple[str, str]] = set()
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):
-            names = [a.name for a in node.names]
+            pairs = [(a.name, "") for a in node.names]
         elif isinstance(node, ast.ImportFrom):
             if node.level:  # relative import
                 base = module.split(".")[: len(module.split(".")) - node.level + (path.name == "__init__.py")]
-                names = [".".join(base + ([node.module] if node.module else []))]
+                source = ".".join(base + ([node.module] if node.module else []))
+                source = "delayform." + source if source else "delayform"
             else:
-                names = [node.module or ""]
-                names += [f"{node.module}.{a.name}" for a in node.names if node.module == "delayform"]
+                source = node.module or ""
+            pairs = [(f"{source}.{a.name}", "") if _is_module(f"{source}.{a.name}") else (source, a.name)
+                     for a in node.names]  # fmt: skip
         else:
             continue
-        for name in names:
-            if name.startswith("delayform."):
-                found.add(name.removeprefix("delayform."))
+        for target, name in pairs:
+            if target == "delayform" or target.startswith("delayform."):
+                found.add((target.removeprefix("delayform").removeprefix("."), name))
     return found
 
 
+def _is_module(dotted: str) -> bool:
+    parts = dotted.split(".")
+    if parts[0] != "delayform":
+        return False
+    where = PACKAGE.joinpath(*parts[1:])
+    return where.with_suffix(".py").is_file() or (where / "__init__.py").is_file()
+
+
+def _files() -> dict[str, Path]:
+    return {_module_name(p): p for p in PACKAGE.rglob("*.py")}
+
+
 def _graph() -> nx.DiGraph:
-    files = {_module_name(p): p for p in PACKAGE.rglob("*.py")}
+    files = _files()
     g = nx.DiGraph()
     for module, path in files.items():
         g.add_node(module)
-        for target in _imports(path, module):
+        for target, _ in _imports(path, module):
             # "analysis.roots.dominant.dominant_root" -> the module "analysis.roots.dominant"
             while target and target not in files:
                 target = target.rpartition(".")[0]
-            if target and target != module:
+            if target != module:
                 g.add_edge(module, target)
     return g
+
+
+def _unit(module: str) -> str:
+    """The package a module belongs to: a subpackage of analysis, else its top-level package or module."""
+    parts = module.split(".")
+    return ".".join(parts[:2]) if parts[0] == "analysis" and len(parts) > 1 else parts[0]
 
 
 def test_no_module_imports_a_later_stage() -> None:
@@ -109,6 +147,35 @@ def test_no_import_cycles() -> None:
     g.remove_node("")  # the package root re-exports lazily from every module
     cycles = list(nx.simple_cycles(g))
     assert not cycles, f"import cycles: {cycles}"
+
+
+def test_no_cycles_between_packages() -> None:
+    """Modules without a cycle can still make one between their packages (roots -> network -> roots)."""
+    units = nx.DiGraph()
+    for a, b in _graph().edges:
+        if a != "" and _unit(a) != _unit(b):
+            units.add_edge(_unit(a), _unit(b))
+    cycles = list(nx.simple_cycles(units))
+    assert not cycles, f"import cycles between packages: {cycles}"
+
+
+def _private(module: str, unit: str, name: str) -> bool:
+    """An underscored name, or an underscored module inside its package (``loops._read``, not ``_validation``)."""
+    inside = module.split(".")[len(unit.split(".")):]
+    return any(p.startswith("_") and not p.startswith("__") for p in inside + ([name] if name else []))
+
+
+def test_no_private_name_is_imported_across_packages() -> None:
+    """What two packages share is a public, documented name of the module that defines it."""
+    files = _files()
+    found = []
+    for module, path in files.items():
+        for target, name in _imports(path, module):
+            while target and target not in files:
+                target = target.rpartition(".")[0]
+            if module != "" and _unit(target) != _unit(module) and _private(target, _unit(target), name):
+                found.append(f"{module} imports {name or '(module)'} from {target}")
+    assert not found, "private names imported across packages:\n" + "\n".join(sorted(found))
 
 
 @pytest.mark.parametrize("name", sorted(delayform.__all__))

@@ -5,6 +5,8 @@ from __future__ import annotations
 import importlib
 import inspect
 import pkgutil
+import re
+from pathlib import Path
 
 import pytest
 
@@ -57,3 +59,44 @@ def test_readme_python_example_runs():
     assert blocks, "README has no Python example"
     for block in blocks:
         exec(compile(block, "README.md", "exec"), {})
+
+
+# ================================================================ no tracker numbers in what users read
+ROOT = Path(__file__).resolve().parents[1]
+#: "issue 20", "issues 11 and 12", "issue #7": numbers of our tracker, which say nothing to a user
+#: (what a change did belongs in the CHANGELOG, in words)
+ISSUE = re.compile(r"\bissues? *#?\d+", re.IGNORECASE)
+#: simulation/ is being split into packages on another branch; its last three references go with
+#: the script that rewrites the paper's LaTeX labels after that merge (then this test must pass)
+ELSEWHERE = ("src/delayform/simulation/",)
+
+
+def _user_facing() -> list[Path]:
+    files = [ROOT / "README.md"]
+    for top in ("src", "docs"):
+        files += [p for p in (ROOT / top).rglob("*") if p.is_file() and "__pycache__" not in p.parts
+                  and p.suffix in {".py", ".md", ".js", ".css", ".html", ".ipynb", ".toml", ".txt"}]  # fmt: skip
+    return sorted(files)
+
+
+def _issue_references(inside: bool) -> list[str]:
+    found = []
+    for path in _user_facing():
+        rel = path.relative_to(ROOT).as_posix()
+        if rel.startswith(ELSEWHERE) != inside:
+            continue
+        for number, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1):
+            if ISSUE.search(line):
+                found.append(f"{rel}:{number}: {line.strip()[:120]}")
+    return found
+
+
+def test_no_issue_numbers_in_src_docs_or_readme() -> None:
+    found = _issue_references(inside=False)
+    assert not found, "issue numbers in user-facing text:\n" + "\n".join(found)
+
+
+@pytest.mark.xfail(strict=True, reason="simulation/ keeps three comments with issue numbers until the split merges")
+def test_no_issue_numbers_in_simulation() -> None:
+    found = _issue_references(inside=True)
+    assert not found, "issue numbers in user-facing text:\n" + "\n".join(found)

@@ -31,7 +31,7 @@ from ref_spectrum import reference_dominant_root
 
 from delayform.analysis.ctcr.stability_map import PAPER_POINTS, stability_map
 from delayform.analysis.roots.dominant import SETTLING_FACTOR
-from delayform.design._gain_roots import _lines, rightmost_roots, root_gradients
+from delayform.analysis.roots.family.gains import gain_lines, rightmost_roots, root_gradients
 from delayform.design.gains import GainDesign, box_is_stable, design_gains
 from delayform.errors import DelayError, GainError, InputError, NoStableGainsError
 from delayform.topology import paper_six
@@ -102,10 +102,13 @@ def test_exact_gain_plane_boundary(designs: dict[str, GainDesign]) -> None:
 
 @settings(max_examples=30)
 @given(
-    P=st.floats(0.05, 3.0), D=st.floats(0.05, 3.0), t1=st.floats(0.01, 3.0), t2=st.floats(0.0, 3.0)
+    P=st.floats(0.05, 3.0), D=st.floats(0.05, 3.0), t1=st.floats(0.01, 3.0),
+    # zero, or a delay whose Pade polynomial is representable: near 1e-190 its 16th power underflows
+    # and the reference has no leading coefficient left (the certified roots are right there too)
+    t2=st.just(0.0) | st.floats(1e-6, 3.0),
 )
 def test_batched_certified_roots_agree_with_pade_roots(P: float, D: float, t1: float, t2: float) -> None:
-    L = _lines(P, D, t1, t2)
+    L = gain_lines(P, D, t1, t2)
     for group in TEAM.eigenvalue_groups:
         s = rightmost_roots(group, L)[0][0]
         ref = ref_gains.factor_rightmost(complex(group.lam), np.array([P]), np.array([D]), t1, t2)[0]
@@ -116,8 +119,8 @@ def test_root_gradients_match_finite_differences() -> None:
     P, D, t1, t2, h = 0.7, 1.3, 1.1, 0.6, 1e-6
     for group in TEAM.eigenvalue_groups:
         lam = complex(group.lam)
-        s = rightmost_roots(group, _lines(P, D, t1, t2))[0]
-        grads = root_gradients(lam, _lines(P, D, t1, t2), s)
+        s = rightmost_roots(group, gain_lines(P, D, t1, t2))[0]
+        grads = root_gradients(lam, gain_lines(P, D, t1, t2), s)
         args = [P, D, t1, t2]
         for k, g in enumerate(grads):
             up, down = list(args), list(args)

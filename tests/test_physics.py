@@ -15,15 +15,28 @@ import pytest
 
 pytest.importorskip("mujoco")
 
-from delayform.deploy.profiles import PROFILES, RobotProfile, robot_profile  # noqa: E402
+import delayform.simulation.physics as physics  # noqa: E402
 from delayform.errors import RobotProfileError, SimulationInputError  # noqa: E402
 from delayform.formation import formation_forcing  # noqa: E402
-from delayform.simulation import IROBOT_CREATE, simulate  # noqa: E402
-from delayform.simulation.network import LinkDelays, Network  # noqa: E402
-from delayform.simulation.physics import CREATE_CHASSIS, Chassis  # noqa: E402
+from delayform.model import (  # noqa: E402
+    CREATE_CHASSIS,
+    IROBOT_CREATE,
+    PROFILES,
+    Chassis,
+    Delays,
+    LinkDelays,
+    Network,
+    Robot,
+    RobotProfile,
+    Start,
+    Team,
+    robot_profile,
+)
+from delayform.simulation import monte_carlo, simulate  # noqa: E402
+from delayform.simulation.compat import MONTE_CARLO_KEYWORDS  # noqa: E402
+from delayform.simulation.models import INTEGRATORS, PhysicsModel  # noqa: E402
 from delayform.simulation.physics.engine import PhysicsTeam, integrate_physics, tick_grid  # noqa: E402
 from delayform.simulation.physics.mjcf import team_mjcf  # noqa: E402
-from delayform.simulation.robots import Robot  # noqa: E402
 from delayform.topology import complete, paper_six  # noqa: E402
 
 #: examples/create3_hexagon.toml's start: a ring twice as wide as the 1 m hexagon
@@ -158,6 +171,39 @@ def test_network_with_the_design_delays_on_every_link_is_the_plain_run():
     assert np.abs(late.positions[-1] - plain.positions[-1]).max() > 1e-3  # the network reaches the run
 
 
+def test_the_noun_form_runs_the_profile_s_chassis_as_the_loose_form_does():
+    """Robot(model="physics", profile=...) is one entry of the integrator table, reached from both call forms."""
+    burger = robot_profile("turtlebot3_burger")
+    robot = Robot(model="physics", profile="turtlebot3_burger")
+    assert robot.chassis is burger.chassis and robot.limits == burger.limits
+    assert isinstance(INTEGRATORS["physics"], PhysicsModel) and physics.Chassis is Chassis
+    nouns = simulate(Team(paper_six(), 1.0, 1.5), Delays(0.3, 0.2), "hexagon", robot=robot,
+                     start=Start(RING / 4, HEADINGS, 1e-3), duration=1.0, dt=0.03)  # fmt: skip
+    loose = simulate(paper_six(), 1.0, 1.5, 0.3, 0.2, "hexagon", robot=Robot(model="physics", limits=burger.limits,
+                     chassis=burger.chassis), initial_positions=RING / 4, initial_headings=HEADINGS,
+                     initial_speed=1e-3, duration=1.0, dt=0.03)  # fmt: skip
+    np.testing.assert_array_equal(nouns.positions, loose.positions)
+    # dt is the sampling, on whole control ticks (3 of 10 ms), and the run ends on the duration's tick;
+    # the trajectory's step is the tick
+    np.testing.assert_allclose(np.diff(nouns.times[:-1]), 0.03, atol=1e-12)
+    assert nouns.times[-1] == pytest.approx(1.0)
+    assert nouns.dt == burger.chassis.control_period
+
+
+def test_monte_carlo_s_chassis_travels_on_the_robot():
+    light = CREATE_CHASSIS.with_changes(mass=2.0)
+    assert MONTE_CARLO_KEYWORDS["chassis"] == "Robot.chassis"
+    loose = monte_carlo(paper_six(), 1.0, 1.5, 0.3, 0.2, "hexagon", model="physics", chassis=light,
+                        initial_positions=RING / 2, runs=1, duration=0.5, dt=0.05)  # fmt: skip
+    nouns = monte_carlo(Team(paper_six(), 1.0, 1.5), Delays(0.3, 0.2), "hexagon",
+                        robot=Robot(model="physics", chassis=light), start=Start(RING / 2),
+                        runs=1, duration=0.5, dt=0.05)  # fmt: skip
+    assert loose.setup.robot.chassis == nouns.setup.robot.chassis == light
+    np.testing.assert_array_equal(loose.final_errors, nouns.final_errors)
+    with pytest.raises(SimulationInputError, match="physics"):  # the loose form's model stays the double integrator
+        monte_carlo(paper_six(), 1.0, 1.5, 0.3, 0.2, "hexagon", chassis=light, runs=1, duration=0.5, dt=0.05)
+
+
 def test_tick_grid_rounds_the_control_period_to_engine_steps():
     # the period stays exact; the engine's step is the longest up to 2 ms that divides it
     assert tick_grid(CREATE_CHASSIS.with_changes(control_period=0.033)) == (0.033, 17)
@@ -191,6 +237,8 @@ def test_profile_without_physical_numbers_is_refused_naming_them():
     bare = RobotProfile(name="mine", title="Mine", limits=IROBOT_CREATE)
     with pytest.raises(RobotProfileError, match="missing: mass, height, wheel_mass"):
         bare.physics_chassis()
+    with pytest.raises(RobotProfileError, match="'mine' has no physical numbers"):
+        Robot(model="physics", profile=bare)
 
 
 def test_every_profile_names_a_source_or_an_assumption_for_each_physical_number():
@@ -242,6 +290,9 @@ def test_comparison_reports_positions_and_settling_of_both_runs():
     assert "cm of the kinematic robots" in cmp.describe()
     again = KinematicComparison.of(cmp.physics, cmp.kinematic)
     np.testing.assert_array_equal(again.deviation, cmp.deviation)
+    nouns = compare_with_kinematic(Team(paper_six(), 1.0, 1.5), Delays(0.3, 0.2), "hexagon",
+                                   start=Start(RING / 2, HEADINGS), duration=6.0, dt=0.01)  # fmt: skip
+    np.testing.assert_array_equal(nouns.deviation, cmp.deviation)  # the loose form is the noun form
     with pytest.raises(SimulationInputError, match="physics"):
         compare_with_kinematic(paper_six(), 1.0, 1.5, 0.3, 0.2, "hexagon", robot=Robot(), duration=1.0, dt=0.01)
 

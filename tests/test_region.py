@@ -15,7 +15,7 @@ from ref_region import rhp_count
 
 from delayform.analysis.plane.spectrum_bounds import spectrum_bound
 from delayform.analysis.plane.spectrum_sets import SpectrumSet, parse_spectrum, safe_delays
-from delayform.analysis.ctcr.stability_map import PAPER_POINTS, _lam_factor, crossing_map, stability_map
+from delayform.analysis.ctcr.stability_map import PAPER_POINTS, lam_factor, crossing_map, stability_map
 from delayform.analysis.plane.region import lambda_region
 from delayform.analysis.roots.dominant import dominant_root, rightmost_root
 from delayform.characteristic import factors
@@ -120,7 +120,7 @@ def _reference_safe(P: float, D: float, lams: np.ndarray, T1: np.ndarray, T2: np
     """Safe where every sampled eigenvalue's factor has NU = 0 in its exact CTCR map."""
     ok = np.ones(T1.shape, bool)
     for lam in lams:
-        ok &= crossing_map(_lam_factor(P, D, lam), w1, w2).unstable_count(T1, T2) == 0
+        ok &= crossing_map(lam_factor(P, D, lam), w1, w2).unstable_count(T1, T2) == 0
     return ok
 
 

@@ -243,12 +243,12 @@ def test_the_neighbour_list_keeps_every_pair_that_can_bind():
 def test_small_teams_linear_path_with_the_filter_is_the_generic_loop(tau, monkeypatch):
     """The blocked linear path where the filter is idle (simulation.filtered) against the generic
     RK4 loop filtering every stage: same motion to rounding, same steps at which the filter acted."""
-    import delayform.simulation.runner as runner
+    import delayform.simulation.models as models
 
     z = named_formation("hexagon", 6, spacing=2.0)
     kw = dict(duration=40.0, dt=0.02, safety="barrier")
     fast = simulate(paper_six(), 1.0, 0.5, *tau, z, **kw)
-    monkeypatch.setattr(runner, "integrate_filtered", lambda *a, **k: None)  # the generic loop
+    monkeypatch.setattr(models, "integrate_filtered", lambda *a, **k: None)  # the generic loop
     slow = simulate(paper_six(), 1.0, 0.5, *tau, z, **kw)
     assert fast.safety.was_active and fast.safety.infeasible.any()  # both kinds of filtered step happened
     assert np.abs(fast.positions - slow.positions).max() < 1e-9

@@ -201,12 +201,12 @@ def test_ideal_robot_heading_speed_and_turn_rate_match_the_unicycle_equations(se
 
 def test_paper_robots_match_an_error_controlled_integration_of_the_unicycle():
     """The issue's must-show: the paper's start (speed 1e-3, random headings), point a, dt = 0.01."""
-    from delayform.simulation.runner import _initial_state
+    from delayform.model import Start
 
     topo = paper_six()
     desired = named_formation("hexagon", 6, spacing=2.0)
     traj = simulate(topo, P, D, *POINT_A, desired, duration=150.0, dt=0.01, seed=0)
-    x0, th0, v0 = _initial_state(6, None, None, 1e-3, 0)
+    x0, th0, v0 = Start(seed=0).draw(6)
     ref = method_of_steps(topo, *POINT_A, desired, x0, th0, v0, 60.0, "unicycle", rtol=1e-7, atol=1e-9)
     for T in (10.0, 20.0, 30.0, 60.0):
         k = int(round(T / 0.01))

@@ -30,7 +30,7 @@ from hypothesis import strategies as st
 
 from delayform import QuasiPolynomial, certify_time_varying, rightmost_root, time_varying_delay_margin
 from delayform.analysis.certificates.krasovskii import SystemData, constant_delay
-from delayform.analysis.certificates.lmi import leading_minors_positive, recheck, solve
+from delayform.analysis.certificates.lmi import dominant_after_congruence, leading_minors_positive, recheck, solve
 from delayform.errors import DelayError, InputError
 
 A0 = np.array([[-2.0, 0.0], [0.0, -0.9]])
@@ -129,6 +129,23 @@ def test_exact_positive_definiteness_beyond_floating_point() -> None:
     hilbert = np.array([[Fraction(1, i + j + 1) for j in range(8)] for i in range(8)], dtype=object)
     assert leading_minors_positive(hilbert)
     assert not leading_minors_positive(-hilbert)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(2, 12), st.floats(-1.0, 1.0), st.integers(0, 2**31 - 1))
+def test_the_congruence_test_never_calls_an_indefinite_matrix_positive(m: int, shift: float, seed: int) -> None:
+    # random symmetric rational matrices near the boundary: the fast test may only say "positive" when
+    # Bareiss's leading minors (an independent exact method) agree
+    rng = np.random.default_rng(seed)
+    B = rng.standard_normal((m, m))
+    S = B @ B.T / m
+    S -= (float(np.linalg.eigvalsh(S)[0]) + shift * 1e-3) * np.eye(m)
+    M = np.array([[Fraction(float(v)) for v in row] for row in S], dtype=object)
+    M = (M + M.T) / 2
+    if dominant_after_congruence(M):
+        assert leading_minors_positive(M)
+    if shift < -0.1:  # clearly positive definite (smallest eigenvalue 1e-4): the fast test proves it
+        assert dominant_after_congruence(M)
 
 
 def test_arbitrarily_fast_variation() -> None:

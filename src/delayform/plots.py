@@ -26,7 +26,7 @@ def _axes(ax: Axes | None, **subplot_kw: object) -> Axes:
     return new
 
 
-# === section: CTCR stability charts (issue 3) ===
+# === section: CTCR stability charts ===
 from collections.abc import Mapping, Sequence  # noqa: E402
 from pathlib import Path  # noqa: E402
 
@@ -177,7 +177,7 @@ def save_figure(
     return paths
 
 
-# === section: spectrum, dominant-root maps (issue 4) ===
+# === section: spectrum, dominant-root maps ===
 def plot_dominant_surface(result: Any, ax: Axes | None = None) -> Axes:
     """Surface of Re(dominant root) over the delay plane with the plane Re s = 0 (paper Fig. dominant).
 
@@ -222,7 +222,7 @@ def _meshgrid_ij(a: Any, b: Any) -> tuple[Any, Any]:
     return np.meshgrid(a, b, indexing="ij")
 
 
-# === section: formation and simulation figures (issue 5) ===
+# === section: formation and simulation figures ===
 from typing import Any  # noqa: E402
 
 
@@ -389,7 +389,7 @@ def save_trajectory_gif(traj: Any, path: Any, *, frames: int = 80, fps: int = 15
     return path
 
 
-# === section: imperfect networks and Monte Carlo (issue 14) ===
+# === section: imperfect networks and Monte Carlo ===
 def plot_error_bands(
     times: Any, quantiles: Any, q: Sequence[float], ax: Axes | None = None, *, title: str = ""
 ) -> Axes:
@@ -485,7 +485,7 @@ def plot_metric_grid(
     return ax
 
 
-# === section: gain plane (issue 12) ===
+# === section: gain plane ===
 def plot_gain_plane(
     result: Any, ax: Axes | None = None, points: Mapping[str, tuple[float, float]] | None = None,
     *, levels: int = 20,
@@ -545,7 +545,7 @@ def plot_gain_plane(
     return ax
 
 
-# === section: the eigenvalue plane and certificates for classes of teams (issue 11) ===
+# === section: the eigenvalue plane and certificates for classes of teams ===
 def lambda_region_plot(
     region: Any, ax: Axes | None = None, eigenvalues: Any = None, *, radius: float = 1.6, resolution: int = 301
 ) -> Axes:
@@ -650,7 +650,7 @@ def safe_delay_chart(
     return ax
 
 
-# === section: delay margins of python-control loops (issue 23) ===
+# === section: delay margins of python-control loops ===
 def plot_delay_margin(result: Any, ax: Axes | None = None) -> Axes:
     """Nyquist plot of a :class:`~delayform.loops.DelayMargin`'s loop, unit circle and crossovers.
 

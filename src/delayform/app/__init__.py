@@ -16,7 +16,7 @@ installed ``plotly`` package; the server (Starlette on uvicorn) listens on
 from delayform.app.explorer import Animation, ChartData, Explorer, PointReport, RootsReport, crossing_frequency_bound
 from delayform.app.params import ExplorerLimits
 from delayform.app.plane import RegionReport, region_report
-from delayform.app.scenario_toml import scenario_toml
+from delayform.scenario.write import scenario_toml
 from delayform.app.server import LOOPBACK, RunningExplorer, check_host, create_app, serve, start
 
 __all__ = [

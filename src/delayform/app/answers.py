@@ -122,7 +122,7 @@ class PointReport(_AtPoint):
 
 @dataclass(frozen=True, eq=False)
 class GuaranteeReport(_AtPoint):
-    """What is certified at one clicked delay pair beyond the chart (issue 20).
+    """What is certified at one clicked delay pair beyond the chart.
 
     Attributes
     ----------

@@ -54,7 +54,7 @@ from delayform.app.answers import (GUARANTEE_AGENTS, Animation, ChartData, Guara
                                    _num, crossing_frequency_bound)  # fmt: skip
 from delayform.app.params import ExplorerLimits, Param
 from delayform.app.plane import RegionReport, region_report
-from delayform.app.scenario_toml import scenario_toml
+from delayform.scenario.write import scenario_toml
 from delayform.characteristic import factors
 from delayform.errors import InputError, NotConvergedError
 from delayform.scenario import Scenario
@@ -310,7 +310,7 @@ class Explorer:
         return PointReport(P, D, tau1, tau2, count, dom)
 
     def guarantee(self, P: float, D: float, tau1: float, tau2: float) -> GuaranteeReport:
-        """The certified jitter margin at one delay pair (issue 20), for teams up to :data:`GUARANTEE_AGENTS`.
+        """The certified jitter margin at one delay pair, for teams up to :data:`GUARANTEE_AGENTS`.
 
         Parameters
         ----------

@@ -1,4 +1,4 @@
-"""The explorer's jitter-margin layer: the certified margin as contour lines on the chart (issue 20).
+"""The explorer's jitter-margin layer: the certified margin as contour lines on the chart.
 
 ``GET /api/jitter_map?P=&D=&tau1_max=&tau2_max=&grid=`` answers with
 :func:`~delayform.analysis.network.jitter_margin_map` on ``grid x grid`` cell

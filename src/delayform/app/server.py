@@ -8,7 +8,7 @@ Endpoints (all ``GET``; every number is checked by :mod:`delayform.app.params`):
     /api/scenario              the scenario, the limits, the defaults of every parameter
     /api/chart                 P, D, tau1_max, tau2_max, grid -> exact curves and NU shading
     /api/point                 tau1, tau2 [, P, D] -> stable, unstable_count, dominant_root [re, im]
-    /api/guarantee             tau1, tau2 [, P, D] -> jitter_margin (s, certified; issue 20)
+    /api/guarantee             tau1, tau2 [, P, D] -> jitter_margin (s, certified)
     /api/jitter_map            P, D, tau1_max, tau2_max, grid -> the certified margin on the chart's window
     /api/guarantees            as /api/simulate -> the certificates for its network beside the run's status
     /api/roots                 tau1, tau2 [, P, D] -> the roots of every factor near the imaginary axis

@@ -1,4 +1,4 @@
-"""What is guaranteed beside what the robots' run observed, in the explorer (issue 20, part 5).
+"""What is guaranteed beside what the robots' run observed, in the explorer.
 
 ``GET /api/guarantees`` takes the parameters of ``/api/simulate`` and answers with
 the certificates of :func:`delayform.report.guarantees.network_guarantees` that

@@ -23,7 +23,7 @@ import click
 
 # the command modules register their commands on the group when imported
 from delayform.cli import analysis, check, design, explore, gains, montecarlo, region, reports, simulation, sweep  # noqa: F401
-from delayform.cli import guarantees  # noqa: F401  (issue 20)
+from delayform.cli import guarantees  # noqa: F401  (guarantees for real networks)
 from delayform.cli._common import _fail, cli
 from delayform.errors import DelayformError, InputError, MissingExtraError
 

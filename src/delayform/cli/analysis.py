@@ -91,7 +91,7 @@ def factors_command(scenario: Path | None, as_json: bool, **overrides: Any) -> N
               help="Delay pair to mark and classify, e.g. --point a=0.3,0.2 (repeatable) [default: chart.points].")
 @actuation_option
 @click.option("--jitter-margin", "jitter", is_flag=True,
-              help="Draw contour lines of the certified jitter margin over the stable region (issue 20).")
+              help="Draw contour lines of the certified jitter margin over the stable region.")
 @click.option("--jitter-grid", type=click.IntRange(2, 200), default=24, show_default=True,
               help="Grid points per axis of the jitter-margin map (with --jitter-margin).")
 def chart_command(scenario: Path | None, tau1_max: float | None, tau2_max: float | None,

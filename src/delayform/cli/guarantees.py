@@ -1,4 +1,4 @@
-"""Guarantees for real networks (issue 20): links, box, jitter.
+"""Guarantees for real networks: links, box, jitter.
 
 Each command prints its certificate (text, or JSON with ``--json``) and writes
 no file, so a rejected input leaves nothing behind. Per-link delays come from

@@ -61,7 +61,7 @@ def _build_full_report(sc: Scenario, directory: Path, *, paper: bool,
         extra = {} if jitter_grid is None else {"jitter_grid": jitter_grid}
         sections = paper_sections(sc, directory, progress=step) if paper else \
             scenario_sections(sc, directory, progress=step, **extra)
-        if paper:  # issue 12: what new gains do where the paper can only add delay
+        if paper:  # gain design: what new gains do where the paper can only add delay
             from delayform.report import gain_comparison_section
 
             step("gain design vs delay scheduling")

@@ -21,7 +21,7 @@ multiple, and with many local minima. So, as HANSO and TDS-STABIL do:
 1. **A coarse certified map** of the gain plane: alpha at every point of a
    grid over the bounds, every factor's rightmost root certified by the
    argument principle, all grid points of a factor in one batch
-   (:mod:`delayform.design._gain_roots`).
+   (:mod:`delayform.analysis.roots.family.gains`).
 2. **Gradient sampling** (Burke, Lewis and Overton 2005) from the best few
    local minima of the map: the gradient of alpha is that of its active root,
    d Re s / dP = Re(-(dq/dP) / (dq/ds)) by implicit differentiation of
@@ -55,13 +55,12 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from delayform._display import FigureRepr  # Jupyter shows the figure (issue 23)
+from delayform._display import FigureRepr  # Jupyter shows the figure
 from delayform._validation import check_delay, validated
-from delayform.analysis.roots.problem import _problem_of_factor
-from delayform.analysis.roots.single import _check_reach
+from delayform.analysis.roots.single import require_reach
 from delayform.analysis.roots.dominant import SETTLING_FACTOR, dominant_root, dominant_root_map
 from delayform.characteristic import CharacteristicFactor
-from delayform.design._gain_roots import _lines, rightmost_roots, root_gradients
+from delayform.analysis.roots.family.gains import gain_lines, rightmost_roots, root_gradients
 from delayform.errors import DelayError, GainError, InputError, NoStableGainsError
 from delayform.resources import require
 from delayform.topology import Topology
@@ -240,7 +239,7 @@ class GainDesign(FigureRepr):
 class _Objective:
     """max over factors and over the delay pairs of Re(rightmost root), and its gradient in (P, D).
 
-    Every evaluation is certified (:func:`~delayform.design._gain_roots.rightmost_roots`);
+    Every evaluation is certified (:func:`~delayform.analysis.roots.family.gains.rightmost_roots`);
     all points of a call share one batch per factor. After :meth:`keep_seeds`
     on a grid of gains, Newton starts from the roots at the nearest grid point
     (roots move continuously with the gains) instead of a new discretization;
@@ -288,7 +287,7 @@ class _Objective:
         """Values (n,), gradients (n, 2), active roots (n,) and active delay index (n,) at gains X (n, 2)."""
         X = np.asarray(X, dtype=np.float64).reshape(-1, 2)
         n, m = X.shape[0], self._delays.shape[0]
-        L = _lines(X[:, 0, None], X[:, 1, None], self._delays[None, :, 0], self._delays[None, :, 1])
+        L = gain_lines(X[:, 0, None], X[:, 1, None], self._delays[None, :, 0], self._delays[None, :, 1])
         results = [rightmost_roots(g, L, s) for g, s in zip(self.groups, self._seeds(X), strict=True)]
         if self._keep:
             self._bank = (np.unique(X[:, 0]), np.unique(X[:, 1]), [r[1] for r in results])
@@ -439,12 +438,12 @@ def box_is_stable(smap: StabilityMap, tau1_box: tuple[float, float], tau2_box: t
     -------
     bool
     """
-    from delayform.analysis.ctcr.stability_map import _CHORD_TOL
+    from delayform.analysis.ctcr.phase import CHORD_TOL
 
     (a0, a1), (b0, b1) = tau1_box, tau2_box
     if a1 > smap.tau1_max or b1 > smap.tau2_max:
         raise DelayError("the box must lie inside the map's window")
-    margin = 4.0 * _CHORD_TOL * max(smap.tau1_max, smap.tau2_max)
+    margin = 4.0 * CHORD_TOL * max(smap.tau1_max, smap.tau2_max)
     x0, x1, y0, y1 = a0 - margin, a1 + margin, b0 - margin, b1 + margin
     for c in smap.curves:
         if _polyline_meets_box(c.tau1, c.tau2, (x0, x1, y0, y1)):
@@ -681,7 +680,7 @@ def design_gains(
         )
     delays = _box_samples(box1, box2) if robust else np.array([[box1[0], box2[0]]])
     for group in topology.eigenvalue_groups:  # the largest gains and delays bound the roots' reach
-        _check_reach(_problem_of_factor(CharacteristicFactor(group, pb[1], db[1])), box1[1], box2[1])
+        require_reach(CharacteristicFactor(group, pb[1], db[1]), box1[1], box2[1])
     need = float(grid * grid * delays.shape[0] * len(topology.eigenvalue_groups))
     require(
         what=(f"gain design with a {grid} x {grid} gain-plane map at {delays.shape[0]} delay pair(s) "

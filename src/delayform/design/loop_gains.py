@@ -1,4 +1,4 @@
-"""Gain design for a python-control plant under delayed PD feedback (issue 23).
+"""Gain design for a python-control plant under delayed PD feedback.
 
 The plant G = N / D (any SISO loop :func:`delayform.loops.loop_polynomials`
 reads) is driven by the paper's protocol structure (eq. protocol): a

@@ -20,10 +20,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from delayform._validation import check_delay, validated
-from delayform.analysis.roots.generator import _igd_seeds
-from delayform.analysis.roots.problem import _cluster, _polish, _Problem, _problem_of_factor
-from delayform.analysis.roots.rightmost import _BATCH_SEEDS, _solve_rightmost
-from delayform.analysis.roots.dominant import SETTLING_FACTOR, _checked_factors, dominant_root, dominant_root_map
+from delayform.analysis.roots.dominant import SETTLING_FACTOR, checked_factors, dominant_root, dominant_root_map
+from delayform.analysis.roots.warm import WarmRightmost
 from delayform.characteristic import CharacteristicFactor
 from delayform.errors import DelayError, InputError, NoStableDelaysError
 from delayform.topology import Topology
@@ -142,7 +140,7 @@ def schedule_delays(
         raise DelayError(f"tau_min {lo} must not exceed tau_max {hi}")
     if isinstance(grid, bool) or not isinstance(grid, (int, np.integer)) or grid < 2:
         raise InputError(f"grid must be an integer >= 2, got {grid!r}")
-    fs = _checked_factors(topology, P, D)
+    fs = checked_factors(topology, P, D)
     ta = check_delay("actuation_delay", actuation_delay)
     ax1 = np.linspace(lo[0], hi[0], grid) if hi[0] > lo[0] else np.array([lo[0]])
     ax2 = np.linspace(lo[1], hi[1], grid) if hi[1] > lo[1] else np.array([lo[1]])
@@ -163,7 +161,14 @@ def schedule_delays(
 
         objective = certified
     else:
-        objective = _WarmDominant(tuple(_problem_of_factor(f) for f in fs), np.array(lo), np.array(hi))
+        # uncertified, warm-started values steer the search; the pair it ends at is certified below
+        warm = WarmRightmost(fs)
+
+        def steered(x: NDArray[np.float64]) -> float:
+            t = np.clip(x, lo, hi)
+            return warm(float(t[0]), float(t[1]))
+
+        objective = steered
 
     flat = np.argsort(coarse.real, axis=None)[:2]
     candidates = [coarse.best()[:2]]
@@ -185,41 +190,6 @@ def schedule_delays(
         raise NoStableDelaysError("delay scheduling ended on an unstable pair")
     hardware = dominant_root(topology, P, D, lo[0], lo[1], actuation_delay=ta)
     return DelaySchedule(final.tau1, final.tau2, final.root, final.factor, hardware.root, ta)
-
-
-class _WarmDominant:
-    """Re(dominant root) as a function of (tau1, tau2), warm-started for a local search.
-
-    Each factor's roots at the previous evaluation seed Newton at the next
-    (the search moves little between evaluations). These values only steer
-    the search: they are not certified, the point the search ends at is
-    (:func:`schedule_delays` recomputes it with :func:`dominant_root`).
-    """
-
-    def __init__(
-        self, problems: tuple[_Problem, ...], lo: NDArray[np.float64], hi: NDArray[np.float64]
-    ) -> None:
-        self.problems, self.lo, self.hi = problems, lo, hi
-        self.seeds: list[NDArray[np.complex128] | None] = [None] * len(problems)
-
-    def __call__(self, x: NDArray[np.float64]) -> float:
-        t = np.clip(x, self.lo, self.hi)
-        t1, t2 = np.array([float(t[0])]), np.array([float(t[1])])
-        best = -np.inf
-        for k, prob in enumerate(self.problems):
-            seeds = self.seeds[k]
-            if seeds is None:  # several roots, so a runner-up that overtakes is followed too
-                seeds = _igd_seeds(prob, t1, t2, scale=1.5, k=_BATCH_SEEDS)[0]
-                seeds = seeds[np.isfinite(seeds)]
-            roots, ok = _polish(prob, seeds, t1, t2)
-            found = roots[ok]
-            if found.size == 0:
-                self.seeds[k] = None
-                found = _solve_rightmost(prob, float(t1[0]), float(t2[0])).roots
-            else:
-                self.seeds[k] = _cluster(found)
-            best = max(best, float(found.real.max()))
-        return best
 
 
 def _refine(

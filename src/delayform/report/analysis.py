@@ -291,7 +291,7 @@ def _time_constant(s: complex) -> float:
     return float(1.0 / abs(s.real)) if s.real < 0 else float("inf")
 
 
-# === section: the eigenvalue plane (issue 11) ===
+# === section: the eigenvalue plane ===
 def region_section(scenario: Scenario, out: Path, *, tau1: float | None = None, tau2: float | None = None) -> Section:
     """The stable region of the eigenvalue plane at the scenario's delays, with the team's eigenvalues.
 

@@ -111,7 +111,7 @@ def schedule_section(
 
 
 
-#: Bounds of P and D searched when none are given (those of issue 12 and the paper's scale).
+#: Bounds of P and D searched when none are given (the paper's scale and a margin around it).
 DEFAULT_GAIN_BOUNDS = (0.05, 3.0)
 
 

@@ -1,4 +1,4 @@
-"""What is guaranteed beside what was observed (issue 20, part 5).
+"""What is guaranteed beside what was observed.
 
 :func:`network_guarantees` lists the certificates of
 :mod:`delayform.analysis.network` that apply to a scenario's network: the exact
@@ -158,17 +158,16 @@ def _jitter(topology: Any, P: float, D: float, t1: Any, t2: Any, network: Any, s
 def _mean_square(topology: Any, P: float, D: float, t1: Any, t2: Any, rate: float, loss: Any) -> Guarantee:
     """The exact mean-square certificate for sampled links with Bernoulli or Gilbert-Elliott loss."""
     from delayform.analysis.network import bursty_mean_square_stability, mean_square_stability
-    from delayform.simulation.network import GilbertElliott
+    from delayform.model import BernoulliLoss, GilbertElliott
 
     bursty = isinstance(loss, GilbertElliott) and not loss.is_off
     name = "sampling and bursty loss (mean square, exact)" if bursty else "sampling and loss (mean square, exact)"
     try:
         if bursty:
-            ms = bursty_mean_square_stability(topology, P, D, t1, t2, rate=rate, p_good_to_bad=loss.p_good_to_bad,
-                                              p_bad_to_good=loss.p_bad_to_good, loss_good=loss.loss_good,
-                                              loss_bad=loss.loss_bad)  # fmt: skip
+            ms = bursty_mean_square_stability(topology, P, D, t1, t2, rate=rate, loss=loss)
         else:
-            ms = mean_square_stability(topology, P, D, t1, t2, rate=rate, loss=0.0 if loss is None else loss.probability)
+            ms = mean_square_stability(topology, P, D, t1, t2, rate=rate,
+                                       loss=loss if isinstance(loss, BernoulliLoss) else 0.0)  # an idle chain loses nothing
     except ValueError as exc:  # delays not whole multiples of the period; too many chains (ResourceLimitError)
         return Guarantee(name.replace(", exact", ""), None, str(exc))
     decay = f"expected decay rate {ms.decay_rate:.4g} 1/s" if ms.stable else "not mean-square stable"

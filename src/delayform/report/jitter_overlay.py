@@ -1,4 +1,4 @@
-"""The certified jitter margin drawn on the stability chart (issue 20, part 3).
+"""The certified jitter margin drawn on the stability chart.
 
 :func:`jitter_overlay` computes :func:`~delayform.analysis.network.jitter_margin_map`
 on a grid of cell centres of the chart window (the axes themselves are left out:

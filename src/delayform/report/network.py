@@ -160,7 +160,7 @@ GUARANTEE_AGENTS = 30
 
 
 def _beside_guarantees(scenario: Scenario, net: Any, mc: Any) -> tuple[tuple[tuple[str, str], ...], dict[str, Any], list[str]]:
-    """The Monte Carlo table and summary with the applicable certificates (issue 20) and any contradiction."""
+    """The Monte Carlo table and summary with the applicable certificates and any contradiction."""
     from delayform.report.guarantees import (
         bug_rows, contradictions, guarantee_rows, network_guarantees, summary_of, with_actuation_delay,
         with_actuator_limits,

@@ -172,7 +172,7 @@ def highlights(sections: Sequence[Section]) -> tuple[tuple[str, str], ...]:
     if "roots" in by_key:
         roots = by_key["roots"]
         rows.append((f"dominant root at ({roots['tau1']:g}, {roots['tau2']:g})", _fmt_complex(roots["dominant_root"])))
-    if "montecarlo" in by_key:  # what is guaranteed beside what the runs observed (issue 20); a bug first
+    if "montecarlo" in by_key:  # what is guaranteed beside what the runs observed; a bug first
         mc = by_key["montecarlo"]
         held = [g["name"] for g in mc.get("guarantees", []) if g["holds"] is True]
         diverged = sum(mc.get("statuses", {}).get(k, 0) for k in ("diverging", "stopped"))

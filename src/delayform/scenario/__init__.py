@@ -104,8 +104,10 @@ from delayform.scenario.parse import (
     parse_network_table,
     parse_scenario,
 )
+from delayform.scenario.write import scenario_toml
 
 __all__ = [
+    "scenario_toml",
     "Scenario",
     "TopologySpec",
     "FormationSpec",

@@ -367,12 +367,12 @@ class Scenario:
 
     @property
     def robot_spec(self) -> Robot:
-        """The ``[robot]`` table (and ``simulation.model``) as one :class:`~delayform.simulation.robots.Robot`."""
+        """The ``[robot]`` table (and ``simulation.model``) as one :class:`~delayform.model.Robot` (with the profile's chassis for ``"physics"``)."""
         model = self.simulation.model
         limits = self.robot if model != "double_integrator" else None  # limits apply to robots only
         chassis = None
         if model == "physics" and self.robot_profile is not None:  # the profile's mass, tyres and servos
-            from delayform.deploy.profiles import robot_profile
+            from delayform.model.profiles import robot_profile
 
             chassis = robot_profile(self.robot_profile).physics_chassis()
         return Robot(model=model, limits=limits, radius=self.radius, safety=self.safety,

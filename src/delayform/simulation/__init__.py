@@ -4,7 +4,10 @@ Modules, by concept: :mod:`~delayform.simulation.integrator` (RK4 with a
 bounded Hermite history), :mod:`~delayform.simulation.robots` (agent models,
 robot limits, ideal commands), :mod:`~delayform.simulation.commands` (the
 commands each robot executes), :mod:`~delayform.simulation.trajectory` (the
-result and its metrics), :mod:`~delayform.simulation.runner` (``simulate``),
+result and its metrics), :mod:`~delayform.simulation.models` (the integrator
+table, one entry per agent model), :mod:`~delayform.simulation.options` (how a
+run is carried out), :mod:`~delayform.simulation.runner` (``simulate``;
+:mod:`~delayform.simulation.compat` keeps its loose call form),
 :mod:`~delayform.simulation.network` (imperfect networks),
 :mod:`~delayform.simulation.reception` (what each agent hears, the per-link
 integrator), :mod:`~delayform.simulation.montecarlo` (seeded Monte Carlo runs).
@@ -26,6 +29,8 @@ from delayform.simulation.network import (
 )
 from delayform.simulation.bodies import Approach, Contact, closest_approach
 from delayform.simulation.robots import IROBOT_CREATE, REST_SPEED, Robot, RobotLimits
+from delayform.simulation.models import INTEGRATORS
+from delayform.simulation.options import RunOptions
 from delayform.simulation.runner import MODELS, paper_simulations, simulate
 from delayform.simulation.trajectory import SETTLING_FRACTION, STATUSES, Trajectory
 
@@ -44,6 +49,8 @@ __all__ = [
     "LimitExceedance",
     "Trajectory",
     "simulate",
+    "RunOptions",
+    "INTEGRATORS",
     "stated_order",
     "paper_simulations",
     "Network",

@@ -15,17 +15,18 @@ process, a local Dask cluster, a remote one: :mod:`delayform.sweeps`).
 
 Executors
 ---------
-The runs are handed to an *executor*: any object with
+The runs are handed to an *executor* (:class:`~delayform.simulation.options.Executor`:
 ``map(fn, tasks, progress=None) -> list`` returning the results in the order
-of ``tasks`` (:class:`SerialExecutor` here; Dask ones in :mod:`delayform.sweeps`).
+of ``tasks``; :class:`SerialExecutor` here, Dask ones in :mod:`delayform.sweeps`),
+given in :class:`~delayform.simulation.options.RunOptions`.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
-from typing import Any, Protocol, runtime_checkable
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -35,9 +36,11 @@ from delayform._validation import validated
 from delayform.errors import SimulationInputError
 from delayform.resources import require
 from delayform.formation import check_formation
-from delayform.simulation.network import Network
+from delayform.model import MODELS, REST_SPEED, Delays, Network, Robot, Team
+from delayform.model.start import Start
+from delayform.simulation.compat import MONTE_CARLO_KEYWORDS, accepts_loose_calls
+from delayform.simulation.options import Executor, Progress, RunOptions, SerialExecutor
 from delayform.simulation.reception import network_memory
-from delayform.simulation.robots import MODELS, Robot
 from delayform.simulation.runner import simulate
 from delayform.topology import Topology
 
@@ -58,9 +61,6 @@ __all__ = [
 ]
 
 _Array = NDArray[np.float64]
-
-#: Called with (runs done, runs in all) as runs finish.
-Progress = Callable[[int, int], None]
 
 @validated(SimulationInputError)
 def run_quantile(values: ArrayLike, q: ArrayLike) -> _Array:
@@ -133,7 +133,7 @@ class Setup:
     formation
         ``(n, 2)`` desired positions.
     model
-        ``"double_integrator"`` or ``"unicycle"``.
+        ``"double_integrator"``, ``"unicycle"`` or ``"physics"`` (:data:`~delayform.model.MODELS`).
     network
         The imperfect network, or None for the ideal one.
     duration, dt
@@ -154,9 +154,13 @@ class Setup:
         The safety filter of every run (``"barrier"``), or None.
     actuation_delay
         tau_a (s) of every run: each robot applies its command that late.
+    rest_speed
+        Speed below which ideal robots hold their heading (``Robot.rest_speed``).
+    save_every
+        Saving stride of every run (``RunOptions.save_every``); None: simulate's default.
     chassis
         For ``model="physics"``: the robots' mass, tyres and servos
-        (:class:`~delayform.simulation.physics.Chassis`); None: the Create's.
+        (:class:`~delayform.model.Chassis`); None: the Create's.
     """
 
     topology: Topology
@@ -177,13 +181,16 @@ class Setup:
     assignment: str = "given"
     safety: Any = None
     actuation_delay: float = 0.0
+    rest_speed: float = REST_SPEED
+    save_every: int | None = None
     chassis: Any = None
 
     @property
     def robot(self) -> Robot:
         """The robot of every run (model, limits, body radius, safety filter, actuation delay, chassis)."""
         return Robot(model=self.model, limits=self.limits, radius=self.radius, safety=self.safety,
-                     actuation_delay=self.actuation_delay, chassis=self.chassis)  # fmt: skip
+                     actuation_delay=self.actuation_delay, rest_speed=self.rest_speed,
+                     chassis=self.chassis)  # fmt: skip
 
     def with_changes(self, **changes: Any) -> Setup:
         """A copy with some fields replaced (sweeps).
@@ -255,10 +262,10 @@ def simulate_run(task: tuple[Setup, int, tuple[int, int]]) -> RunOutcome:
     setup, index, (initial_seed, network_seed) = task
     network = None if setup.network is None else setup.network.with_seed(network_seed)
     traj = simulate(
-        setup.topology, setup.P, setup.D, setup.tau1, setup.tau2, setup.formation,
-        robot=setup.robot, initial_positions=setup.initial_positions,
-        initial_headings=setup.initial_headings, initial_speed=setup.initial_speed,
-        seed=initial_seed, duration=setup.duration, dt=setup.dt, network=network, assignment=setup.assignment,
+        Team(setup.topology, setup.P, setup.D), Delays(setup.tau1, setup.tau2), setup.formation,
+        robot=setup.robot, network=network,
+        start=Start(setup.initial_positions, setup.initial_headings, setup.initial_speed, initial_seed),
+        duration=setup.duration, dt=setup.dt, options=RunOptions(setup.save_every, setup.assignment),
     )  # fmt: skip
     if setup.model != "double_integrator":  # robots: |dv/dt| and |omega|
         peaks = (float(np.abs(traj.inputs[..., 0]).max()), float(np.abs(traj.inputs[..., 1]).max()))
@@ -277,40 +284,6 @@ def simulate_run(task: tuple[Setup, int, tuple[int, int]]) -> RunOutcome:
         min_distance=float(traj.min_distance),
         contacts=len(traj.contacts),
     )
-
-
-# --------------------------------------------------------------- executors
-@runtime_checkable  # so that monte_carlo(executor="dask") is refused up front (delayform._validation)
-class Executor(Protocol):
-    """Runs tasks somewhere and returns their results in the order of the tasks."""
-
-    def map(self, fn: Callable[[Any], Any], tasks: Sequence[Any], progress: Progress | None = None) -> list[Any]:
-        """``[fn(t) for t in tasks]``, calling ``progress(done, total)`` as results arrive."""
-        ...
-
-
-@validated()
-class SerialExecutor:
-    """Runs every task in this process, one after another."""
-
-    def map(self, fn: Callable[[Any], Any], tasks: Sequence[Any], progress: Progress | None = None) -> list[Any]:
-        """``[fn(t) for t in tasks]``, calling ``progress(done, total)`` after each.
-
-        Parameters
-        ----------
-        fn
-            A function of one task.
-        tasks
-            The tasks.
-        progress
-            Optional callback ``(done, total)``.
-        """
-        out = []
-        for task in tasks:
-            out.append(fn(task))
-            if progress is not None:
-                progress(len(out), len(tasks))
-        return out
 
 
 # ------------------------------------------------------------------ result
@@ -629,7 +602,7 @@ def _check_runs(runs: object, seed: object) -> tuple[int, int]:
     if isinstance(runs, bool) or not isinstance(runs, (int, np.integer)) or runs < 1:
         raise SimulationInputError(f"runs must be a positive integer, got {runs!r}")
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise SimulationInputError(f"seed must be a non-negative integer, got {seed!r}")
+        raise SimulationInputError(f"seed must be a non-negative integer (the Monte Carlo's, in start), got {seed!r}")
     return int(runs), int(seed)
 
 
@@ -662,77 +635,38 @@ def collect(setup: Setup, runs: int, seed: int, outcomes: Sequence[RunOutcome]) 
     )  # fmt: skip
 
 
-@validated()
+@accepts_loose_calls(MONTE_CARLO_KEYWORDS, default_model="double_integrator")
+@validated(SimulationInputError)
 def monte_carlo(
-    topology: Topology,
-    P: float,
-    D: float,
-    tau1: float,
-    tau2: float,
+    team: Team,
+    delays: Delays,
     formation: ArrayLike | str,
     *,
-    model: str = "double_integrator",
+    robot: Robot | None = None,
     network: Network | None = None,
-    runs: int,
-    seed: int = 0,
+    start: Start | None = None,
     duration: float,
     dt: float,
-    initial_positions: ArrayLike | None = None,
-    initial_headings: ArrayLike | None = None,
-    initial_speed: float = 1e-3,
-    limits: Any = None,
-    radius: float | None = None,
-    assignment: str = "given",
-    safety: Any = None,
-    actuation_delay: float = 0.0,
-    chassis: Any = None,
-    executor: Executor | None = None,
-    progress: Progress | None = None,
+    runs: int,
+    options: RunOptions | None = None,
 ) -> MonteCarloResult:
     """N seeded runs of eq. formation over ``network``: distributions of settling, error and commands.
 
     Parameters
     ----------
-    topology, P, D, tau1, tau2, formation
-        As for :func:`~delayform.simulation.simulate`: team, gains of eq.
-        protocol, nominal delays and the desired shape (array or name).
-    model
-        ``"double_integrator"`` (default), ``"unicycle"`` or ``"physics"``; over a non-ideal
-        network the unicycle is the ideal robot rebuilt from the double
-        integrator (:mod:`delayform.simulation.network`).
-    network
-        The imperfect network (its seed is replaced per run); None: ideal.
+    team, delays, formation, robot, network, duration, dt, options
+        As for :func:`~delayform.simulation.simulate`, with the same
+        defaults; the network's seed is replaced per run, and
+        ``options.executor`` says where the runs go (:class:`SerialExecutor`
+        by default; :func:`delayform.sweeps.executor` for Dask; its
+        ``workers`` attribute, if any, enters the memory and time guard),
+        ``options.progress`` is called with ``(runs done, runs)``.
+    start
+        As for :func:`~delayform.simulation.simulate`; what it does not give
+        is drawn per run, and its ``seed`` (a non-negative integer) seeds
+        everything random (:func:`run_seeds`).
     runs
         Number of runs, positive.
-    seed
-        Seed of everything random (:func:`run_seeds`).
-    duration, dt
-        Length of each run and step (s).
-    initial_positions, initial_headings
-        Fixed initial state; None draws it per run.
-    initial_speed
-        Initial speed (the paper's 1e-3).
-    limits
-        Actuator limits of the robots (:class:`~delayform.simulation.robots.RobotLimits`),
-        or None for ideal ones: the saturated unicycle driven by what each robot hears.
-    radius
-        Body radius (m) for contacts (``contact_probability``); None: the
-        :class:`~delayform.simulation.robots.Robot` default (0 for double integrators).
-    assignment
-        ``"given"`` or ``"optimal"`` slots in every run (``simulate(..., assignment=...)``).
-    safety
-        The safety filter of every run (``"barrier"``), or None.
-    actuation_delay
-        tau_a >= 0 (s): each robot applies its command that late, in every run.
-    chassis
-        For ``model="physics"`` (robots with mass in a physics engine): the
-        robots' :class:`~delayform.simulation.physics.Chassis`; None: the Create's.
-    executor
-        Where the runs go (:class:`SerialExecutor` by default; see
-        :func:`delayform.sweeps.executor` for Dask); its ``workers``
-        attribute, if any, enters the memory and time guard.
-    progress
-        Optional callback ``(runs done, runs)``.
 
     Returns
     -------
@@ -745,23 +679,40 @@ def monte_carlo(
     ResourceLimitError
         A Monte Carlo beyond this machine's memory or time budget (:mod:`delayform.resources`).
 
+    Notes
+    -----
+    The loose form of earlier versions, ``monte_carlo(topology, P, D, tau1,
+    tau2, formation, model=..., runs=..., seed=..., executor=..., ...)``, is
+    still taken (:data:`~delayform.simulation.compat.MONTE_CARLO_KEYWORDS`);
+    its agent model was ``"double_integrator"`` unless named, and stays so.
+
     Examples
     --------
+    >>> from delayform.model import BernoulliLoss, Delays, Network, Start, Team
     >>> from delayform.topology import ring
-    >>> from delayform.simulation.network import BernoulliLoss, Network
-    >>> mc = monte_carlo(ring(3), 1.0, 0.5, 0.3, 0.2, "polygon", network=Network(loss=BernoulliLoss(0.2)),
-    ...                  runs=3, seed=1, duration=5.0, dt=0.05)
+    >>> mc = monte_carlo(Team(ring(3), 1.0, 0.5), Delays(0.3, 0.2), "polygon", network=Network(loss=BernoulliLoss(0.2)),
+    ...                  start=Start(seed=1), runs=3, duration=5.0, dt=0.05)
     >>> mc.errors.shape[0], mc.settling_times.shape
     (3, (3,))
     """
-    runs, seed = _check_runs(runs, seed)
-    setup = make_setup(
-        topology, P, D, tau1, tau2, formation, model=model, network=network, duration=duration, dt=dt,
-        initial_positions=initial_positions, initial_headings=initial_headings, initial_speed=initial_speed,
-        limits=limits, radius=radius, assignment=assignment, safety=safety, actuation_delay=actuation_delay,
-        chassis=chassis,
-    )  # fmt: skip
-    guard(setup, runs, int(getattr(executor, "workers", 1)))
+    robot = Robot() if robot is None else robot
+    start = Start() if start is None else start
+    options = RunOptions() if options is None else options
+    runs, seed = _check_runs(runs, start.seed)
+    tau1, tau2 = delays.pair if delays.kind == "uniform" else (delays.tau1, delays.tau2)  # simulate refuses per-link
+    actuation = delays.actuation or robot.actuation_delay
+    if delays.actuation and robot.actuation_delay and delays.actuation != robot.actuation_delay:
+        raise SimulationInputError("two actuation delays, in the delays and in the robot: give it in one place")
+    setup = checked(Setup(
+        topology=team.topology, P=team.P, D=team.D, tau1=tau1, tau2=tau2,  # type: ignore[arg-type]
+        formation=check_formation(formation, team.n), model=robot.model, network=network, duration=duration, dt=dt,
+        initial_positions=None if start.positions is None else np.asarray(start.positions),
+        initial_headings=None if start.headings is None else np.asarray(start.headings),
+        initial_speed=start.speed, limits=robot.limits, radius=robot.radius,  # type: ignore[arg-type]
+        assignment=options.assignment, safety=robot.safety, actuation_delay=actuation,
+        rest_speed=robot.rest_speed, save_every=options.save_every, chassis=robot.chassis,
+    ))  # fmt: skip
+    guard(setup, runs, int(getattr(options.executor, "workers", 1)))
     tasks = [(setup, r, s) for r, s in enumerate(run_seeds(seed, runs))]
-    outcomes = (executor or SerialExecutor()).map(simulate_run, tasks, progress)
+    outcomes = (options.executor or SerialExecutor()).map(simulate_run, tasks, options.progress)
     return collect(setup, runs, seed, outcomes)

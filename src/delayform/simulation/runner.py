@@ -29,9 +29,11 @@ Agent models (:mod:`delayform.simulation.robots`)
     (:mod:`delayform.simulation.physics`).
 Over an imperfect ``network``
     The same agent models (the double integrator, from which ideal robots
-    are rebuilt, or the saturated unicycle) driven by what each agent hears
+    are rebuilt, the saturated unicycle, or the robots with mass) driven by what each agent hears
     (:func:`delayform.simulation.reception.integrate_network`).
 
+Each agent model is one entry of the integrator table
+:data:`delayform.simulation.models.INTEGRATORS`, named by ``Robot.model``.
 History and integrator: :mod:`delayform.simulation.integrator` (RK4 with
 Hermite look-ups, stated order 4 for on-grid delays).
 The state is constant before ``t = 0``: positions ``x0`` and Cartesian
@@ -53,10 +55,9 @@ import math
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from typing import Any
 
-from delayform._validation import check_delay, check_gains, check_magnitude, check_positive, validated
-from delayform.errors import SimulationInputError
+from delayform._validation import check_positive, validated
+from delayform.errors import DelayError, SimulationInputError
 from delayform.formation import (
     centroid_weights,
     check_formation,
@@ -64,32 +65,15 @@ from delayform.formation import (
     named_formation,
 )
 from delayform.resources import require
-from delayform.simulation.commands import RobotCommands
-from delayform.simulation.integrator import (
-    Progress,
-    Samples,
-    effective_delay,
-    history_steps,
-    integrate,
-    integrate_linear,
-    stated_order,
-)
-from delayform.simulation.network import Network
-from delayform.simulation.reception import integrate_network
-from delayform.simulation.robots import (
-    IROBOT_CREATE,
-    MODELS,
-    REST_SPEED,
-    DoubleIntegrator,
-    LimitedUnicycle,
-    Robot,
-    RobotLimits,
-    ideal_commands,
-)
-from delayform.simulation.assignment import assign_slots, check_assignment
+from delayform.model import MODELS, Delays, Network, Robot, RobotLimits, Team
+from delayform.model.start import Start
+from delayform.simulation.assignment import assign_slots
 from delayform.simulation.bodies import approach_cost, closest_approach
-from delayform.simulation.filtered import integrate_filtered
-from delayform.simulation.safety import BarrierFilter, FilteredAgent, SafetyReport
+from delayform.simulation.compat import SIMULATE_KEYWORDS, accepts_loose_calls
+from delayform.simulation.integrator import Samples, history_steps, effective_delay
+from delayform.simulation.models import INTEGRATORS, Motion, RunPlan
+from delayform.simulation.options import RunOptions
+from delayform.simulation.safety import SafetyReport
 from delayform.simulation.trajectory import (
     Trajectory,
     contact_warning,
@@ -97,7 +81,7 @@ from delayform.simulation.trajectory import (
     run_status,
     settling_time,
 )
-from delayform.topology import Topology, paper_six
+from delayform.topology import paper_six
 
 __all__ = ["MODELS", "simulate", "paper_simulations", "estimate_resources"]
 
@@ -114,59 +98,6 @@ _SAVE_BUDGET = 2_000_000
 _LINEAR_BYTES = 6 * 2**30
 
 _Array = NDArray[np.float64]
-
-
-def _check_array(name: str, value: ArrayLike, shape: tuple[int, ...]) -> _Array:
-    try:
-        arr = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise SimulationInputError(f"{name} must be numbers of shape {shape}") from exc
-    if arr.shape != shape:
-        if arr.ndim == 0 and len(shape) == 1:
-            return _check_array(name, np.full(shape, float(arr)), shape)
-        raise SimulationInputError(f"{name} must have shape {shape}, got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise SimulationInputError(f"{name} must be finite")
-    # lengths and speeds; angles too (at 1e6 rad a float64 still resolves 1e-10 rad, at 1e300 nothing)
-    unit = {"initial_positions": "m", "initial_headings": "rad"}.get(name, "m/s")
-    check_magnitude(name, arr, SimulationInputError, unit)
-    return arr
-
-
-def _rng(seed: object) -> np.random.Generator:
-    """``numpy.random.default_rng(seed)`` for a seed numpy takes, else SimulationInputError."""
-    if isinstance(seed, np.random.Generator):
-        return seed
-    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0):
-        raise SimulationInputError(f"seed must be a non-negative integer, a numpy Generator or None, got {seed!r}")
-    return np.random.default_rng(seed)
-
-
-def _initial_state(
-    n: int,
-    initial_positions: ArrayLike | None,
-    initial_headings: ArrayLike | None,
-    initial_speed: ArrayLike,
-    seed: int | np.random.Generator | None,
-) -> tuple[_Array, _Array, _Array]:
-    """Positions, headings, speeds; missing ones drawn with ``seed``.
-
-    Random positions are uniform in ``[-L, L]^2`` with ``L = 5 max(1, sqrt(n / 6))``
-    (the density of the paper's six robots in a 10 x 10 square), headings
-    uniform in ``[-pi, pi)``.
-    """
-    rng = _rng(seed)
-    half = 5.0 * max(1.0, math.sqrt(n / 6.0))
-    if initial_positions is None:
-        x0 = rng.uniform(-half, half, size=(n, 2))
-    else:
-        x0 = _check_array("initial_positions", initial_positions, (n, 2))
-    if initial_headings is None:
-        th0 = rng.uniform(-np.pi, np.pi, size=n)
-    else:
-        th0 = _check_array("initial_headings", initial_headings, (n,))
-    v0 = _check_array("initial_speed", initial_speed, (n,))
-    return x0, th0, v0
 
 
 def estimate_resources(
@@ -206,111 +137,65 @@ def estimate_resources(
 
 
 # ------------------------------------------------------------------- core
+@accepts_loose_calls(SIMULATE_KEYWORDS, default_model="unicycle")
 @validated(SimulationInputError)
 def simulate(
-    topology: Topology,
-    P: float,
-    D: float,
-    tau1: float,
-    tau2: float,
+    team: Team,
+    delays: Delays,
     formation: ArrayLike | str,
     *,
     robot: Robot | None = None,
-    model: str | None = None,
-    limits: RobotLimits | None = None,
-    initial_positions: ArrayLike | None = None,
-    initial_headings: ArrayLike | None = None,
-    initial_speed: ArrayLike = 1e-3,
-    seed: int | np.random.Generator | None = 0,
+    network: Network | None = None,
+    start: Start | None = None,
     duration: float,
     dt: float,
-    rest_speed: float = REST_SPEED,
-    save_every: int | None = None,
-    progress: Progress | None = None,
-    network: Network | None = None,
-    assignment: str = "given",
-    safety: str | BarrierFilter | None = None,
-    actuation_delay: float | None = None,
+    options: RunOptions | None = None,
 ) -> Trajectory:
-    """Simulate n agents under eq. formation with delays tau1 (positions) and tau2 (velocities).
+    """Simulate the team under eq. formation with delays tau1 (positions) and tau2 (velocities).
 
     Parameters
     ----------
-    topology
-        Communication topology; C is applied as a sparse product above 64 agents.
-    P, D
-        Positive gains of eq. protocol.
-    tau1, tau2
-        Non-negative delays (s); a non-zero delay must be at least ``dt``.
+    team
+        Topology and gains (:class:`~delayform.model.Team`, checked when
+        made); C is applied as a sparse product above 64 agents.
+    delays
+        Uniform delays (:class:`~delayform.model.Delays`); a non-zero delay
+        must be at least ``dt``. Its actuation delay, if any, is the robots'
+        (give it there or in ``robot``, not both). Delays that differ per
+        link run over a network: ``network=Network(delays=LinkDelays(tau1,
+        tau2))`` beside the nominal pair.
     formation
         ``(n, 2)`` desired positions or a shape name (:data:`delayform.formation.SHAPES`).
     robot
-        What belongs to the robot (:class:`~delayform.simulation.robots.Robot`:
-        model, limits, body radius). None: ``Robot(model, limits)`` from the
-        two shortcuts below (give either ``robot`` or the shortcuts).
-    model
-        Shortcut for ``Robot.model``: ``"unicycle"`` (differential-drive robot,
-        eq. transform2; the default), ``"double_integrator"``, or ``"physics"``:
-        robots with mass, wheel servos and contacts in a physics engine
-        (:mod:`delayform.simulation.physics`; the ``physics`` extra), whose
-        controller ticks at the chassis' control period; ``dt`` is then the
-        sampling of the saved run (rounded to whole ticks).
-    limits
-        Shortcut for ``Robot.limits``: actuator limits of the robots
-        (:class:`RobotLimits`, e.g. :data:`IROBOT_CREATE`): the saturated
-        unicycle is integrated. None (default): ideal robots, whose wheel
-        speeds are reported for the geometry of :data:`IROBOT_CREATE`.
-    initial_positions
-        ``(n, 2)``; default: uniform random (see ``_initial_state``) from ``seed``.
-    initial_headings
-        ``(n,)`` radians; default: uniform random from ``seed``.
-    initial_speed
-        Scalar or ``(n,)`` signed speeds (m/s); default 1e-3 as in the paper.
-        The initial Cartesian velocity is ``speed (cos theta, sin theta)``.
+        What belongs to the robot (:class:`~delayform.model.Robot`: model,
+        limits or profile, body radius, safety filter, actuation delay,
+        rest speed); its model names the entry of the integrator table
+        :data:`~delayform.simulation.models.INTEGRATORS`. None: ``Robot()``,
+        ideal differential-drive robots (eq. transform2) whose wheel speeds
+        are reported for the geometry of :data:`~delayform.model.IROBOT_CREATE`.
+        ``Robot(model="physics")``: robots with mass, wheel servos and
+        contacts in a physics engine (:mod:`delayform.simulation.physics`;
+        the ``physics`` extra), whose controller ticks at the chassis'
+        control period; ``dt`` is then the sampling of the saved run
+        (rounded to whole ticks).
+    network
+        An imperfect network (:class:`~delayform.model.Network`: per-link and
+        varying delays, jitter, loss, sampling, noise), integrated by
+        :func:`~delayform.simulation.reception.integrate_network`. None or the
+        ideal network: the paper's, exactly the ordinary integrators.
+    start
+        Where the robots start (:class:`~delayform.model.Start`: positions,
+        headings, speed, the seed of what is drawn). None: ``Start()``,
+        random positions and headings from seed 0 at the paper's 1e-3 m/s.
         Ideal robots cannot start at exactly zero speed (eq. transform2
-        divides by v there): give a speed or ``limits``.
-    seed
-        Seed of the random initial state.
+        divides by v there).
     duration, dt
         Length of the run and the fixed step (s); the run ends at
         ``ceil(duration / dt) dt`` (for ``"physics"``: at a whole number of
         control ticks, sampled every ``round(dt / period)`` ticks).
-    rest_speed
-        Ideal robots whose speed (m/s) and commanded acceleration (m/s^2)
-        are both below this hold their heading (:data:`REST_SPEED`).
-    save_every
-        Keep every ``save_every``-th step; default: every step while
-        ``samples x n <= 2e6``, else the smallest stride that fits.
-    progress
-        Optional callback ``progress(steps_done, steps)``, called now and then.
-    network
-        An imperfect network (:class:`~delayform.simulation.network.Network`:
-        per-link and varying delays, jitter, loss, sampling, noise), integrated
-        by :func:`~delayform.simulation.reception.integrate_network`: the
-        double integrator (ideal robots are rebuilt from it), or with
-        ``limits`` the saturated unicycle driven by what each robot hears.
-        None or the ideal network: the paths above, unchanged.
-    actuation_delay
-        Shortcut for :attr:`Robot.actuation_delay` (s, >= 0; at least dt when
-        non-zero): each robot executes its command that much later (a command
-        buffer, linear between steps: :mod:`delayform.simulation.actuation`;
-        stated order 2). Double integrators and robots with ``limits``, over any
-        ``network``; with ``safety`` double integrators only (the filter predicts
-        each robot tau_a ahead, docs/theory.md); ideal robots (no limits) refuse it.
-    assignment
-        ``"given"`` (default): robot i takes slot i of ``formation``.
-        ``"optimal"``: the slots that minimise the total squared distance from
-        each robot's start to its predicted final position
-        (:func:`~delayform.simulation.assignment.assign_slots`; exact for
-        balanced teams, certified or bounded otherwise). It relabels the
-        slots only: the stability analysis is unchanged (docs/theory.md).
-    safety
-        Shortcut for ``Robot.safety``: ``"barrier"`` (or a
-        :class:`~delayform.simulation.safety.BarrierFilter`) filters every
-        command through control barrier functions that keep the bodies
-        apart (:mod:`delayform.simulation.safety`); the run's ``safety``
-        says when it acted, and a team it stopped short of the formation has
-        status ``"deadlock"``. None (default): no filter.
+    options
+        Saving stride, slot assignment and a progress callback
+        (:class:`~delayform.simulation.options.RunOptions`); None: the defaults.
 
     Returns
     -------
@@ -328,24 +213,33 @@ def simulate(
     ResourceLimitError
         When the run would need more memory or time than the machine has.
 
+    Notes
+    -----
+    The loose form of earlier versions, ``simulate(topology, P, D, tau1, tau2,
+    formation, model=..., limits=..., initial_positions=..., seed=...,
+    save_every=..., ...)``, is still taken: each keyword goes to its noun
+    (:data:`~delayform.simulation.compat.SIMULATE_KEYWORDS`).
+
     Examples
     --------
+    >>> from delayform.model import Delays, Team
     >>> from delayform.topology import paper_six
-    >>> traj = simulate(paper_six(), 1.0, 0.5, 0.3, 0.2, "hexagon", duration=60.0, dt=0.05)
+    >>> traj = simulate(Team(paper_six(), 1.0, 0.5), Delays(0.3, 0.2), "hexagon", duration=60.0, dt=0.05)
     >>> traj.status, bool(traj.formation_error[-1] < 0.02 * traj.formation_error[0])
     ('settled', True)
     """
-    if not isinstance(topology, Topology):
-        raise SimulationInputError(f"topology must be a Topology, got {type(topology).__name__}")
-    P, D = check_gains(P, D)
-    tau1, tau2 = check_delay("tau1", tau1), check_delay("tau2", tau2)
+    robot = Robot() if robot is None else robot
+    start = Start() if start is None else start
+    options = RunOptions() if options is None else options
+    if options.executor is not None:
+        raise SimulationInputError("an executor runs the runs of a Monte Carlo; simulate makes one run")
+    topology, P, D = team.topology, team.P, team.D
+    tau1, tau2 = _uniform(delays)
     dt = check_positive("dt", dt, SimulationInputError)
     duration = check_positive("duration", duration, SimulationInputError)
-    rest_speed = check_positive("rest_speed", rest_speed, SimulationInputError)
-    robot = _robot(robot, model, limits, safety, actuation_delay)
-    model, limits, ta = robot.model, robot.limits, robot.actuation_delay
-    if network is not None and not isinstance(network, Network):
-        raise SimulationInputError(f"network must be a Network, got {type(network).__name__}")
+    robot = _with_actuation(robot, delays)
+    integrator = INTEGRATORS[robot.model]
+    limits, ta = robot.limits, robot.actuation_delay
     if network is not None and network.is_ideal:
         network = None  # the paper's network: exactly the ordinary integrators
     check_actuation(robot, network, dt)
@@ -357,38 +251,25 @@ def simulate(
     n = topology.n
     desired = check_formation(formation, n)
     robot.check_slots(desired)
-    check_assignment(assignment)
-    x0, th0, speed0 = _initial_state(n, initial_positions, initial_headings, initial_speed, seed)
-    if model == "unicycle" and limits is None and np.any(speed0 == 0.0):
-        raise SimulationInputError(
-            "ideal robots cannot start at exactly zero speed (eq. transform2 divides by v); "
-            "give initial_speed != 0 (the paper uses 1e-3) or limits"
-        )
-    if limits is not None and np.abs(speed0).max() > limits.speed_cap:
-        raise SimulationInputError(
-            f"initial_speed {np.abs(speed0).max():g} m/s exceeds the robots' speed limit {limits.speed_cap:g} m/s"
-        )
+    x0, th0, speed0 = start.draw(n)
+    integrator.check(robot, speed0)
     v0 = speed0[:, None] * np.column_stack([np.cos(th0), np.sin(th0)])
     slots = np.arange(n)
-    if assignment == "optimal":
+    if options.assignment == "optimal":
         slots = assign_slots(topology, P, D, tau1, tau2, desired, x0, v0).slots
         desired = desired[slots]
-    if model == "physics":
-        traj = _physics(topology, desired, robot, P, D, tau1, tau2, dt, duration, (x0, th0, speed0),
-                        save_every, network, progress, rest_speed)  # fmt: skip
-        return dataclasses.replace(traj, slots=slots)
     steps = max(1, math.ceil(duration / dt - 1e-9))
+    save_every = options.save_every
     if save_every is None:
         save_every = max(1, math.ceil((steps + 1) * n / _SAVE_BUDGET))
-    elif isinstance(save_every, bool) or not isinstance(save_every, int) or save_every < 1:
-        raise SimulationInputError(f"save_every must be a positive integer, got {save_every!r}")
     # a delay longer than the run reads only the constant history (integrator doc)
     eff1, eff2 = effective_delay(tau1, dt, steps), effective_delay(tau2, dt, steps)
     filtered = robot.safety is not None
+    generic = integrator.generic(robot)
     # small ideal filtered teams keep the linear path's records (simulation.filtered)
-    hybrid = filtered and network is None and limits is None and ta == 0.0 and n <= _DENSE_AGENTS
+    hybrid = filtered and network is None and not generic and ta == 0.0 and n <= _DENSE_AGENTS
     nbytes, seconds, linear = estimate_resources(
-        n, steps, save_every, eff1, eff2, dt, limited=limits is not None or (filtered and not hybrid),
+        n, steps, save_every, eff1, eff2, dt, limited=generic or (filtered and not hybrid),
         nnz=topology.C_sparse.nnz,
     )
     # a step count past 1e12 said in full would be a line of digits
@@ -396,81 +277,39 @@ def simulate(
     require(what=f"this simulation ({count} steps of {n:,} agents)", nbytes=nbytes, seconds=seconds,
             setting="the duration (--duration), the number of agents, or the number of steps (a longer step dt, --dt, or a larger save_every)")  # fmt: skip
 
-    C = topology.C_sparse.toarray() if n <= _DENSE_AGENTS else topology.C_sparse
-    F = formation_forcing(topology, P, desired)
-    run: Samples | None = None
-    if hybrid and linear:
-        # small ideal teams: the blocked linear path wherever the filter is idle (simulation.filtered)
-        run = integrate_filtered(x0, v0, C, F, P, D, eff1, eff2, dt, steps, save_every,
-                                 2.0 * robot.body_radius + robot.safety.margin, robot.safety.rate, progress)  # fmt: skip
-    if run is not None:
-        pass
-    elif network is not None or limits is not None or filtered:
-        agent: Any = DoubleIntegrator(x0, v0) if limits is None else LimitedUnicycle(x0, th0, speed0, limits)
-        if filtered:
-            agent = FilteredAgent(agent, robot.safety, robot.body_radius)
-        if network is not None:
-            run = integrate_network(agent, topology, F, P, D, tau1, tau2, network=network, dt=dt, steps=steps,
-                                    save_every=save_every, progress=progress, actuation_delay=ta)  # fmt: skip
-        else:
-            run = integrate(agent, C, F, P, D, eff1, eff2, dt, steps, save_every, progress, ta)
-    else:
-        if linear and ta == 0.0:
-            run = integrate_linear(x0, v0, C, F, P, D, eff1, eff2, dt, steps, save_every, progress)
-        if run is None:
-            run = integrate(DoubleIntegrator(x0, v0), C, F, P, D, eff1, eff2, dt, steps, save_every, progress, ta)
-    if progress is not None:
-        progress(steps, steps)
-    traj = _trajectory(topology, desired, robot, P, D, tau1, tau2, dt, duration, th0, run, rest_speed)
+    plan = RunPlan(
+        topology=topology, P=P, D=D, tau1=tau1, tau2=tau2, eff1=eff1, eff2=eff2, dt=dt, steps=steps,
+        save_every=save_every, duration=duration, C=topology.C_sparse.toarray() if n <= _DENSE_AGENTS else topology.C_sparse,
+        F=formation_forcing(topology, P, desired), x0=x0, v0=v0, th0=th0, speed0=speed0, robot=robot,
+        network=network, actuation=ta, linear=linear, hybrid=hybrid, progress=options.progress,
+    )  # fmt: skip
+    run = integrator.integrate(plan)
+    if options.progress is not None:
+        options.progress(steps, steps)
+    traj = _trajectory(plan, desired, duration, run, integrator.motion(plan, run))
     return dataclasses.replace(traj, slots=slots)
 
 
-def _physics(
-    topology: Topology, desired: _Array, robot: Robot, P: float, D: float, tau1: float, tau2: float,
-    dt: float, duration: float, start: tuple[_Array, _Array, _Array], save_every: int | None,
-    network: Network | None, progress: Progress | None, rest_speed: float,
-) -> Trajectory:  # fmt: skip
-    """A run of robots with mass (:mod:`delayform.simulation.physics`): samples every ``dt``, on the control ticks."""
-    from delayform.simulation.physics.engine import integrate_physics, physics_resources, tick_grid
-
-    assert robot.limits is not None and robot.chassis is not None
-    period, substeps = tick_grid(robot.chassis)
-    ticks = max(1, math.ceil(duration / period - 1e-9))
-    n = topology.n
-    stride = max(1, round(dt / period))
-    if save_every is None:
-        save_every = max(1, math.ceil((ticks // stride + 1) * n / _SAVE_BUDGET))
-    elif isinstance(save_every, bool) or not isinstance(save_every, int) or save_every < 1:
-        raise SimulationInputError(f"save_every must be a positive integer, got {save_every!r}")
-    nbytes, seconds = physics_resources(n, ticks, substeps)
-    nbytes += approach_cost(n, ticks // (stride * save_every) + 2)[0]
-    require(what=f"this physics run ({ticks:,} control ticks of {n:,} robots)", nbytes=nbytes, seconds=seconds,
-            setting="the duration (--duration) or the number of robots")  # fmt: skip
-    x0, th0, speed0 = start
-    F = formation_forcing(topology, P, desired)
-    run = integrate_physics(topology, F, P, D, tau1, tau2, chassis=robot.chassis, limits=robot.limits,
-                            x0=x0, th0=th0, speed0=speed0, duration=duration, save_every=stride * save_every,
-                            network=network, progress=progress)  # fmt: skip
-    if progress is not None:
-        progress(ticks, ticks)
-    return _trajectory(topology, desired, robot, P, D, tau1, tau2, period, duration, th0, run, rest_speed)
-
-
-def _robot(
-    robot: Robot | None, model: str | None, limits: RobotLimits | None, safety: object,
-    actuation_delay: float | None = None,
-) -> Robot:
-    """The robot of a run: ``robot``, or one built from the shortcuts (model, limits, safety, actuation_delay)."""
-    if robot is None:
-        return Robot(model="unicycle" if model is None else model, limits=limits, safety=safety,
-                     actuation_delay=0.0 if actuation_delay is None else actuation_delay)  # fmt: skip
-    if not isinstance(robot, Robot):
-        raise SimulationInputError(f"robot must be a Robot, got {type(robot).__name__}")
-    if model is not None or limits is not None or safety is not None or actuation_delay is not None:
-        raise SimulationInputError(
-            "give the model, limits, safety and actuation_delay either in robot or as keywords, not both"
+def _uniform(delays: Delays) -> tuple[float, float]:
+    """The pair of uniform delays; per-link ones are refused with the way to run them."""
+    if delays.kind != "uniform":
+        raise DelayError(
+            "simulate takes uniform delays (one pair on every link); run delays that differ per link over "
+            "network=Network(delays=LinkDelays(tau1, tau2)) with the nominal pair in Delays"
         )
-    return robot
+    return delays.pair
+
+
+def _with_actuation(robot: Robot, delays: Delays) -> Robot:
+    """The robot with the actuation delay of ``delays`` (one place for it: refuse two different ones)."""
+    if delays.actuation == 0.0 or delays.actuation == robot.actuation_delay:
+        return robot
+    if robot.actuation_delay != 0.0:
+        raise DelayError(
+            f"two actuation delays: {delays.actuation:g} s in the delays and {robot.actuation_delay:g} s in the "
+            "robot; give it in one place"
+        )
+    return dataclasses.replace(robot, actuation_delay=delays.actuation)
 
 
 def check_actuation(robot: Robot, network: Network | None, dt: float) -> None:
@@ -494,40 +333,11 @@ def check_actuation(robot: Robot, network: Network | None, dt: float) -> None:
         )
 
 
-def _trajectory(
-    topology: Topology,
-    desired: _Array,
-    robot: Robot,
-    P: float,
-    D: float,
-    tau1: float,
-    tau2: float,
-    dt: float,
-    duration: float,
-    th0: _Array,
-    run: Samples,
-    rest_speed: float,
-) -> Trajectory:
-    model, limits = robot.model, robot.limits
-    times, pos, vel, acc = run.times, run.positions, run.velocities, run.accelerations
-    commands = None
-    if model == "double_integrator":
-        head, spd, inp = np.arctan2(vel[..., 1], vel[..., 0]), np.hypot(vel[..., 0], vel[..., 1]), acc
-    elif limits is None:
-        theta, spd, omega, vdot = ideal_commands(vel, acc, th0, rest_speed=rest_speed)
-        head = np.angle(np.exp(1j * theta))
-        inp = np.stack([vdot, omega], axis=-1)
-        commands = RobotCommands.from_motion(times, spd, omega, vdot, IROBOT_CREATE)
-    else:
-        assert run.states is not None and limits is not None
-        head, spd = np.angle(np.exp(1j * run.states[..., 2])), run.states[..., 3].copy()
-        ex = run.extras
-        inp = np.stack([ex["dv_dt"], ex["omega"]], axis=-1)
-        commands = RobotCommands.from_motion(
-            times, spd, ex["omega"], ex["dv_dt"], limits,
-            ideal_turn_rate=ex["ideal_omega"], ideal_acceleration=ex["ideal_dv_dt"], limited=True,
-            speed_held=ex["speed_held"] > 0.5,
-        )  # fmt: skip
+def _trajectory(plan: RunPlan, desired: _Array, duration: float, run: Samples, motion: Motion) -> Trajectory:
+    """The run's Trajectory: formation error, settling, limits, safety and contacts judged on the samples."""
+    robot, limits, topology = plan.robot, plan.robot.limits, plan.topology
+    times, pos, vel = run.times, run.positions, run.velocities
+    commands, spd = motion.commands, motion.speeds
     error = formation_error(pos, desired)
     settled = settling_time(times, error, 1.0 + float(np.abs(pos[0]).max()))
     status, warnings = run_status(times, error, settled, run.stopped, duration)
@@ -546,10 +356,10 @@ def _trajectory(
     if approach.contacts:
         warnings += (contact_warning(approach.contacts),)
     return Trajectory(
-        times=times, positions=pos, velocities=vel, headings=head, speeds=spd, inputs=inp,
-        desired=desired, model=model, P=P, D=D, tau1=tau1, tau2=tau2, dt=dt,
-        stated_order=2 if limits is not None or report is not None or robot.actuation_delay > 0.0
-        else stated_order(tau1, tau2, dt),
+        times=times, positions=pos, velocities=vel, headings=motion.headings, speeds=spd, inputs=motion.inputs,
+        desired=desired, model=robot.model, P=plan.P, D=plan.D, tau1=plan.tau1, tau2=plan.tau2,
+        dt=plan.dt if motion.step is None else motion.step,
+        stated_order=motion.stated_order,
         actuation_delay=robot.actuation_delay,
         formation_error=error, settling_time=settled,
         final_centroid=centroid_weights(topology) @ pos[-1],
@@ -611,10 +421,11 @@ def paper_simulations(
     (Trajectory, Trajectory)
         The runs at point a and at point b.
     """
-    topo = paper_six()
-    shape = named_formation("hexagon", topo.n, spacing=spacing)
+    team = Team(paper_six(), 1.0, 0.5)
+    shape = named_formation("hexagon", team.n, spacing=spacing)
+    robot, start = Robot(limits=limits), Start(seed=seed)
     runs = tuple(
-        simulate(topo, 1.0, 0.5, t1, t2, shape, seed=seed, duration=duration, dt=dt, limits=limits)
+        simulate(team, Delays(t1, t2), shape, robot=robot, start=start, duration=duration, dt=dt)
         for t1, t2 in ((0.3, 0.2), (2.0, 1.0))
     )
     return runs[0], runs[1]

@@ -99,17 +99,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from delayform._extras import require_extra
 from delayform._validation import validated
 from delayform.errors import SimulationInputError
+from delayform.model.robot import SAFETY_FILTERS, BarrierFilter, check_safety
 from delayform.simulation.bodies import _complex
 
 __all__ = ["SAFETY_FILTERS", "BarrierFilter", "FilteredAgent", "SafetyReport", "barrier_commands", "check_safety"]
 
 _Array = NDArray[np.float64]
-
-#: what ``simulate(..., safety=...)`` accepts by name
-SAFETY_FILTERS = ("barrier",)
 
 #: teams up to this size test every pair; larger ones use a KD-tree per step
 _ALL_PAIRS = 64
@@ -128,60 +125,6 @@ _GUESS_ROUNDS = 3
 
 #: a constraint counts as satisfied within this relative tolerance
 _FEASIBLE = 1e-9
-
-
-@validated(SimulationInputError)
-@dataclass(frozen=True)
-class BarrierFilter:
-    """The control-barrier-function safety filter (module doc).
-
-    Attributes
-    ----------
-    rate
-        k (1/s): the barrier's double pole; larger lets robots approach faster
-        and brake harder. Default 2.
-    margin
-        Added to the sum of the radii (m): the safe distance ``Ds``. Default 0.02.
-
-    Raises
-    ------
-    MissingExtraError
-        Without Clarabel (the ``safety`` extra), which solves its joint QP.
-    """
-
-    rate: float = 2.0
-    margin: float = 0.02
-
-    def __post_init__(self) -> None:
-        # its joint QP (Clarabel) is reached only mid-run, when constraints conflict: refuse up front
-        require_extra("safety")
-        for name in ("rate", "margin"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
-                raise SimulationInputError(f"safety.{name} must be a number, got {value!r}")
-            if not math.isfinite(value) or value < 0 or (name == "rate" and value == 0):
-                raise SimulationInputError(f"safety.{name} must be finite and {'positive' if name == 'rate' else 'non-negative'}, got {value!r}")
-            object.__setattr__(self, name, float(value))
-
-
-def check_safety(safety: object) -> BarrierFilter | None:
-    """``None``, a :class:`BarrierFilter`, or a name of :data:`SAFETY_FILTERS` -> the filter (or None).
-
-    Parameters
-    ----------
-    safety
-        What ``simulate(..., safety=...)`` or ``Robot(safety=...)`` was given.
-
-    Raises
-    ------
-    SimulationInputError
-        For anything else.
-    """
-    if safety is None or isinstance(safety, BarrierFilter):
-        return safety
-    if isinstance(safety, str) and safety in SAFETY_FILTERS:
-        return BarrierFilter()
-    raise SimulationInputError(f"unknown safety filter {safety!r}; choose one of {', '.join(SAFETY_FILTERS)} or None")
 
 
 class _Neighbours:

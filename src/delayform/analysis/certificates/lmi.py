@@ -18,10 +18,11 @@ solver's word that none exists.
 The solver's status is never the certificate. :func:`recheck` rounds the
 returned variables to a dyadic grid, rebuilds every ``M_i`` from them in
 floating point (smallest eigenvalue above a relative margin) and in exact
-rational arithmetic (every leading principal minor positive, computed
-fraction-free by Bareiss's elimination: the pivots of an exact LDL^T are
-their ratios), from the same rounded variables and the exactly represented
-data.
+rational arithmetic (first an exact congruence X' M X, X from a float
+Cholesky factor, shown strictly diagonally dominant; failing that, every
+leading principal minor positive, computed fraction-free by Bareiss's
+elimination: the pivots of an exact LDL^T are their ratios), from the same
+rounded variables and the exactly represented data.
 """
 
 from __future__ import annotations
@@ -34,12 +35,13 @@ from fractions import Fraction
 from typing import Any
 
 import numpy as np
+import scipy.linalg
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
 from delayform._extras import require_extra
 
-__all__ = ["LmiProblem", "Variables", "Recheck", "SdpSolution", "solve", "recheck", "exact_check", "leading_minors_positive",
+__all__ = ["LmiProblem", "Variables", "Recheck", "SdpSolution", "solve", "recheck", "exact_check", "leading_minors_positive", "dominant_after_congruence",
            "solver_says_infeasible", "svec"]
 
 #: Bits of the dyadic grid the decision variables are rounded to before the re-check.
@@ -214,6 +216,8 @@ def solve(problem: LmiProblem) -> SdpSolution:
     settings = clarabel.DefaultSettings()
     settings.verbose = False
     settings.max_iter = 200
+    # faer's supernodal LDL^T: the PSD cones make dense KKT blocks, where it is 4-5x faster than qdldl
+    settings.direct_solve_method = "faer"
     sol = clarabel.DefaultSolver(sp.csc_matrix((nv + 1, nv + 1)), q, A, b, cones, settings).solve()
     z = np.asarray(sol.x, dtype=float)
     t = float(z[nv]) if z.size == nv + 1 and np.all(np.isfinite(z)) else math.nan
@@ -306,7 +310,45 @@ def exact_check(problem: LmiProblem, rational: tuple[Fraction, ...]) -> bool | N
     if sum(M.shape[0] for M in sizes.values()) > EXACT_LIMIT:
         return None
     mats = problem.build(problem.variables.unpack(np.array(rational, dtype=object)), True)
-    return all(leading_minors_positive(M) for M in mats.values())
+    return all(dominant_after_congruence(M) or leading_minors_positive(M) for M in mats.values())
+
+
+def _integers(M: NDArray[Any]) -> NDArray[Any]:
+    """The rational matrix ``M`` times the least common denominator of its entries: Python ints, same signs."""
+    ratios = [[Fraction(v).as_integer_ratio() for v in row] for row in M]
+    den = 1
+    for row in ratios:
+        for _, d in row:
+            den = den * d // math.gcd(den, d)
+    return np.array([[n * (den // d) for n, d in row] for row in ratios], dtype=object)
+
+
+def dominant_after_congruence(M: NDArray[Any]) -> bool:
+    """A fast exact sufficient test of positive definiteness: X' M X strictly diagonally dominant.
+
+    X = L^-T from a floating-point Cholesky factor L of M (so X' M X is close to
+    the identity) is a matrix of floats, hence of exact dyadic rationals; the
+    product X' M X is formed exactly in integers (both scaled by a common
+    denominator). A symmetric matrix with a positive diagonal that is strictly
+    diagonally dominant is positive definite (Gershgorin), and X is triangular
+    with a non-zero diagonal, so M is then positive definite too (Sylvester's
+    law of inertia). False means only "not shown this way": the products
+    stay the size of the entries, where Bareiss's minors grow with the
+    dimension, so this is much cheaper when it succeeds.
+    """
+    approx = np.array([[float(v) for v in row] for row in M])
+    try:
+        L = np.linalg.cholesky(0.5 * (approx + approx.T))
+    except np.linalg.LinAlgError:
+        return False
+    X = scipy.linalg.solve_triangular(L, np.eye(L.shape[0]), lower=True).T
+    if not np.all(np.isfinite(X)) or np.any(np.diag(X) == 0.0):
+        return False
+    Xi = _integers(X)
+    T = Xi.T @ _integers(M) @ Xi
+    diag = np.diagonal(T)
+    off = np.sum(np.abs(T), axis=1) - diag
+    return bool(all(d > 0 for d in diag) and all(d > o for d, o in zip(diag, off, strict=True)))
 
 
 def recheck(problem: LmiProblem, x: NDArray[np.float64], *, exact: bool = True) -> Recheck:

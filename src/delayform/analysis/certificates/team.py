@@ -36,7 +36,7 @@ from numpy.typing import NDArray
 
 from delayform.analysis.certificates.intervals import IntervalDelays
 from delayform.analysis.certificates.margin import DelayCertificate, _Attempt
-from delayform.analysis.certificates.several import Functional, attempt, search_delta
+from delayform.analysis.certificates.several import Functional, attempt
 from delayform._validation import check_delay, validated
 from delayform.characteristic import CharacteristicFactor, factors
 from delayform.errors import InputError
@@ -94,7 +94,7 @@ class TeamDelayMargin:
     tried
         Every (delta, verdict) of the search.
     tolerance
-        Gap to the first uncertified delta.
+        Bound on the gap to the first uncertified delta (the search's relative width times delta).
     reason
         Why delta is 0 without a search (unstable nominal delays, tau1 = 0); empty otherwise.
     """
@@ -123,7 +123,16 @@ def mode_system(f: CharacteristicFactor) -> Mode:
 
 
 class _Modes:
-    """The team's distinct modes, hardest first, with the cheapest functional that held or failed per deviation."""
+    """The team's distinct modes, hardest first, searched one at a time below the smallest margin so far.
+
+    The team margin is the smallest mode margin, so a mode only needs a search when it fails at
+    the current smallest margin U: the hardest mode (rightmost root nearest the axis) is searched
+    first, every other one is then usually a single cheap solve at U. Per mode the functionals of
+    ``levels`` are tried cheapest first and a mode never returns to a cheaper one (a functional
+    that fails at delta fails at every larger one: the intervals are nested). Between a certified
+    and an uncertified delta the next one is interpolated on the solver's optimum margin t(delta)
+    (regula falsi, kept inside the middle 80 % of the bracket), which takes fewer solves than halving.
+    """
 
     def __init__(self, fs: tuple[CharacteristicFactor, ...], t1: float, t2: float, right: list[complex],
                  levels: tuple[Functional, ...]) -> None:  # fmt: skip
@@ -132,38 +141,74 @@ class _Modes:
         self.fs = [fs[i] for i in order]
         self.systems = [mode_system(f) for f in self.fs]
         self.t = (t1, t2)
-        self.failed: list[dict[int, float]] = [{} for _ in self.fs]  # level -> smallest delta it failed at
-        # the widest deviation certified per mode: its certificate covers every smaller one (the intervals are nested)
-        self.held: list[tuple[float, _Attempt, int] | None] = [None for _ in self.fs]
-        self.limiting = 0
+        self.level = [0 for _ in self.fs]  # the cheapest functional not yet failed, per mode
+        self.tried: list[tuple[float, str]] = []
 
-    def check(self, i: int, delta: float) -> tuple[_Attempt, int] | None:
-        held = self.held[i]
-        if held is not None and held[0] >= delta:
-            return held[1], held[2]
+    def check(self, i: int, delta: float) -> tuple[_Attempt | None, float]:
+        """(the attempt that holds or None, the solver margin of the last functional tried) for mode i at delta."""
         A0, ak, e = self.systems[i]
         data = IntervalDelays(A0, ak, tuple(max(t - delta, 0.0) for t in self.t), tuple(t + delta for t in self.t), None, e)
-        for level, fun in enumerate(self.levels):
-            if delta >= self.failed[i].get(level, math.inf):  # it failed at a smaller deviation already
-                continue
-            att = attempt(data, fun, exact=False)
+        t = -math.inf
+        while self.level[i] < len(self.levels):
+            att = attempt(data, self.levels[self.level[i]], exact=False)
+            t = att.cert.solver_margin if math.isfinite(att.cert.solver_margin) else -math.inf
             if att.cert.holds:
-                self.held[i] = (delta, att, level)
-                return att, level
-            self.failed[i][level] = min(delta, self.failed[i].get(level, math.inf))
-        return None
+                self.tried.append((delta, f"mode {i}: holds"))
+                return att, t
+            if self.level[i] == len(self.levels) - 1:
+                break
+            self.level[i] += 1
+        self.tried.append((delta, f"mode {i}: not certified"))
+        return None, t
 
-    def all_hold(self, delta: float) -> list[tuple[_Attempt, int]] | None:
-        """Every mode certified at delta (the last limiting mode first: a failure ends the check early)."""
-        order = [self.limiting] + [i for i in range(len(self.fs)) if i != self.limiting]
-        out: dict[int, tuple[_Attempt, int]] = {}
-        for i in order:
-            got = self.check(i, delta)
-            if got is None:
-                self.limiting = i
-                return None
-            out[i] = got
-        return [out[i] for i in range(len(self.fs))]
+    def margin(self, i: int, lo: float, hi: float, t_lo: float | None, t_hi: float, rtol: float,
+               floor: float) -> tuple[float, _Attempt | None]:  # fmt: skip
+        """Largest certified delta of mode i in [lo, hi): hi failed (margin t_hi), lo held (t_lo) or is 0."""
+        best: _Attempt | None = None
+        level = self.level[i]
+        while hi - lo > rtol * max(lo, floor):
+            width = hi - lo
+            mid = 0.5 * (lo + hi)
+            if t_lo is not None and t_lo > 0.0 > t_hi and self.level[i] == level:
+                mid = lo + width * min(max(t_lo / (t_lo - t_hi), 0.2), 0.8)
+            if lo == 0.0 and best is None and mid < floor:
+                break
+            att, t = self.check(i, mid)
+            if att is not None:
+                lo, t_lo, best = mid, t, att
+            else:
+                hi, t_hi = mid, t
+            level = self.level[i]
+        return lo, best
+
+    def search(self, start: float, cap: float, rtol: float) -> tuple[float, list[_Attempt | None], int]:
+        """The team margin: (delta, each mode's attempt at delta or beyond, the limiting mode)."""
+        found: list[_Attempt | None] = [None for _ in self.fs]
+        limiting, upper = 0, cap
+        # the hardest mode: grow from ``start`` until a failure (or the cap), then narrow down
+        d, t_lo, lo = min(start, cap), None, 0.0
+        while True:
+            att, t = self.check(0, d)
+            if att is None:
+                upper, found[0] = self.margin(0, lo, d, t_lo, t, rtol, 1e-3 * start)
+                if found[0] is None:
+                    return 0.0, found, 0
+                break
+            lo, t_lo, found[0] = d, t, att
+            if d >= cap:
+                upper = d
+                break
+            d = min(2.0 * d, cap)
+        for i in range(1, len(self.fs)):  # every other mode: certified at the current margin, or searched below it
+            att, t = self.check(i, upper)
+            if att is not None:
+                found[i] = att
+                continue
+            upper, found[i] = self.margin(i, 0.0, upper, None, t, rtol, 1e-3 * start)
+            limiting = i
+            if found[i] is None:
+                return 0.0, found, i
+        return upper, found, limiting
 
 
 @validated()
@@ -215,15 +260,18 @@ def team_delay_margin(topology: Topology, P: float, D: float, tau1: float, tau2:
     modes = _Modes(fs, t1, t2, right, levels)
     start = 0.05 * max(t1, t2, 0.2)
     # beyond tau1 the position delay may be 0, where the centroid's zero is double: nothing to certify
-    delta, found, tried, gap = search_delta(modes.all_hold, start, t1 * (1.0 - 1e-9), rtol)
-    while found is not None:
-        certs = [att.confirmed() for att, _ in found]
-        if all(c.holds for c in certs):
-            out = tuple(ModeMargin(f.lam, f.is_centroid, levels[lv].describe(), c)
-                        for f, (_, lv), c in zip(modes.fs, found, certs, strict=True))  # fmt: skip
-            return TeamDelayMargin(delta, modes.fs[modes.limiting].lam, out, tried=tuple(tried), tolerance=gap)
-        tried.append((delta, "failed the exact re-check"))
-        delta *= 0.5
-        found = modes.all_hold(delta) if delta > 1e-3 * start else None
-    return TeamDelayMargin(0.0, modes.fs[modes.limiting].lam, (), tried=tuple(tried), tolerance=gap,
+    delta, found, limiting = modes.search(start, t1 * (1.0 - 1e-9), rtol)
+    gap = rtol * delta
+    while delta > 0.0:
+        certs = [att.confirmed() for att in found if att is not None]
+        if len(certs) == len(found) and all(c.holds for c in certs):
+            out = tuple(ModeMargin(f.lam, f.is_centroid, att.cert.method, c)
+                        for f, att, c in zip(modes.fs, found, certs, strict=True))  # fmt: skip
+            return TeamDelayMargin(delta, modes.fs[limiting].lam, out, tried=tuple(modes.tried), tolerance=gap)
+        modes.tried.append((delta, "failed the exact re-check"))
+        delta *= 0.5  # rare: step back and certify every mode again there
+        found = [modes.check(i, delta)[0] for i in range(len(modes.fs))] if delta > 1e-3 * start else []
+        if not found or any(att is None for att in found):
+            break
+    return TeamDelayMargin(0.0, modes.fs[limiting].lam, (), tried=tuple(modes.tried), tolerance=gap,
                            reason="no deviation of the delays could be certified")  # fmt: skip

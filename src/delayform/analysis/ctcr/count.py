@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from delayform.analysis.ctcr.phase import _CHORD_TOL, _deriv, _horner
+from delayform.analysis.ctcr.phase import CHORD_TOL, _deriv, _horner
 from delayform.analysis.ctcr.curves import CrossingCurve, _ZeroLine
 from delayform.analysis.ctcr.degenerate import crossing_changes
 from delayform.characteristic import TwoDelayQuasiPolynomial
@@ -82,9 +82,9 @@ def _horizontal_crossings(
     x0, y0, x1, y1, w, src, om0, om1, weight, at_turn = seg[sid].T
     yy = uy[yi]
     frac = (yy - y0) / (y1 - y0)
-    # The polyline is within ~_CHORD_TOL * scale of the curve in each coordinate, so the
+    # The polyline is within ~CHORD_TOL * scale of the curve in each coordinate, so the
     # crossing moves at most about that much times (1 + |dtau1/dtau2|).
-    band = 8.0 * _CHORD_TOL * scale * (1.0 + np.abs((x1 - x0) / (y1 - y0)))
+    band = 8.0 * CHORD_TOL * scale * (1.0 + np.abs((x1 - x0) / (y1 - y0)))
     band[at_turn > 0] = -1.0  # keep the polyline's crossing next to a turning point
     xc = _exact_crossing(traced, src.astype(np.int64), om0 + frac * (om1 - om0), x0 + frac * (x1 - x0), yy, band)
     turn = w == 0

@@ -22,7 +22,7 @@ imaginary.
 Here such a point gets no formula: the change of NU is counted beside it.
 With a small rectangle ``R = [-r, r] x [omega - r, omega + r]`` around
 ``j omega`` and its right half ``R+ = [0, r] x [...]``, the certified
-argument-principle count (:func:`delayform.analysis.roots.argument_principle._region_count`,
+argument-principle count (:func:`delayform.analysis.roots.argument_principle.count_in_region`,
 Lipschitz-certified sampling) gives the roots in ``R+`` at ``tau_k - delta``
 and ``tau_k + delta``; their difference is the number of roots that crossed
 the axis inside R, multiplicity counted, whatever the order of contact.
@@ -40,8 +40,7 @@ import numpy as np
 import numpy.polynomial.polynomial as npoly
 from numpy.typing import NDArray
 
-from delayform.analysis.roots.argument_principle import _region_count
-from delayform.analysis.roots.problem import _Problem
+from delayform.analysis.roots.argument_principle import count_in_region
 from delayform.characteristic import TwoDelayQuasiPolynomial, tendency_sign
 from delayform.errors import NotConvergedError
 
@@ -202,12 +201,12 @@ def local_change(qp: TwoDelayQuasiPolynomial, omega: float, tau1: float, tau2: f
     NotConvergedError
         When no step gives certified, consistent counts.
     """
-    prob = _Problem(terms=qp.terms(), A=np.zeros((0, 0), complex), delayed=())
+    terms = qp.terms()
     r = _BOX * max(1.0, abs(omega))
     whole = (-r, r, omega - r, omega + r)
     right = (0.0, r, omega - r, omega + r)
     base = tau1 if delay == 1 else tau2
-    at = _region_count(prob, tau1, tau2, whole)
+    at = count_in_region(terms, tau1, tau2, whole)
 
     def moved(d: float) -> tuple[float, float]:
         return (tau1 + d, tau2) if delay == 1 else (tau1, tau2 + d)
@@ -222,8 +221,8 @@ def local_change(qp: TwoDelayQuasiPolynomial, omega: float, tau1: float, tau2: f
             if min(p1, p2) < 0.0:
                 counts.append(None)
                 continue
-            full = _region_count(prob, p1, p2, whole)
-            half = _region_count(prob, p1, p2, right)
+            full = count_in_region(terms, p1, p2, whole)
+            half = count_in_region(terms, p1, p2, right)
             counts.append(half if (full is not None and full == at) else None)
         if at is not None and counts[0] is not None and counts[1] is not None:
             return int(counts[1] - counts[0])

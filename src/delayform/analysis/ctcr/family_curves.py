@@ -34,7 +34,7 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from delayform.analysis.ctcr.phase import _MAX_POINTS, _MAX_ROUNDS, _OMEGA_FLOOR, TWO_PI, _CHORD_TOL, _MAX_CHORD
+from delayform.analysis.ctcr.phase import _MAX_POINTS, _MAX_ROUNDS, _OMEGA_FLOOR, TWO_PI, CHORD_TOL, _MAX_CHORD
 from delayform.analysis.ctcr.curves import CrossingCurve, _Part
 from delayform.characteristic import tendency_sign
 
@@ -394,7 +394,7 @@ def _chord_needs(
         dev = np.abs(tau_m - 0.5 * (tau_a + tau_b))
         dev_shift = TWO_PI * n_far * np.abs(m_inv - 0.5 * (ia + ib))
         chord = np.abs(tau_b - tau_a) + TWO_PI * n_far * np.abs(ib - ia)
-        need |= (dev + dev_shift > _CHORD_TOL * scale) | (chord > _MAX_CHORD * scale)
+        need |= (dev + dev_shift > CHORD_TOL * scale) | (chord > _MAX_CHORD * scale)
     return need
 
 

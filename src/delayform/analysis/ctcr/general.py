@@ -1,4 +1,4 @@
-"""CTCR for any two-delay quasi-polynomial: commensurate terms, z1 z2^2, ... (issue 19, item 1).
+"""CTCR for any two-delay quasi-polynomial: commensurate terms, z1 z2^2, ...
 
 A :class:`~delayform.quasipolynomial.QuasiPolynomial` in two delays is
 ``q(s) = sum_{a,b} p_ab(s) z1^a z2^b`` with ``z_k = e^{-tau_k s}``. When its

@@ -20,8 +20,9 @@ from delayform.analysis.ctcr.single import line_frequencies
 from delayform.characteristic import DELAY_MULTIPLES, TwoDelayQuasiPolynomial
 
 TWO_PI = 2.0 * np.pi
-#: Chord deviation (fraction of the window size) below which a curve piece is not refined.
-_CHORD_TOL = 2e-4
+#: Chord deviation (fraction of the window size) below which a curve piece is not refined: every
+#: polyline of a map lies within this times the window of its curve (the design uses it as a margin).
+CHORD_TOL = 2e-4
 #: Longest chord (fraction of the window size) kept without refinement.
 _MAX_CHORD = 0.02
 _MAX_ROUNDS = 26
@@ -239,7 +240,7 @@ def _needs_refinement(
         dev = np.abs(tau_m - 0.5 * (tau_a + tau_b))
         dev_shift = TWO_PI * n_far * np.abs(m_inv - 0.5 * (inv[:-1] + inv[1:]))
         chord = np.abs(tau_b - tau_a) + TWO_PI * n_far * np.abs(inv[1:] - inv[:-1])
-        need |= (dev + dev_shift > _CHORD_TOL * scale) | (chord > _MAX_CHORD * scale)
+        need |= (dev + dev_shift > CHORD_TOL * scale) | (chord > _MAX_CHORD * scale)
     need |= _turning_needs(om, u2, m_om, m2, window[1], scale)
     return need & relevant
 

@@ -105,7 +105,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from delayform._display import FigureRepr  # Jupyter shows the figure (issue 23)
+from delayform._display import FigureRepr  # Jupyter shows the figure
 from delayform._validation import check_delay, check_delay_array, check_positive, validated
 from delayform.analysis.ctcr.actuated import ActuatedStabilityMap, actuated_stability_map
 # the curves and the count live in one module per concept; names other modules and
@@ -119,7 +119,7 @@ from delayform.analysis.ctcr.count import (  # noqa: F401
 )
 from delayform.analysis.ctcr.family_curves import family_axis_crossings, family_curves
 from delayform.analysis.ctcr.phase import (  # noqa: F401
-    _CHORD_TOL,
+    CHORD_TOL,
     _MAX_CHORD,
     _OMEGA_FLOOR,
     TWO_PI,
@@ -490,7 +490,7 @@ def stability_map(
         if not f.group.is_complex_pair:
             parts = [_Part(f.quasi_polynomial, 2 * mult, idx, complex(f.lam))]
         else:
-            parts = [_Part(_lam_factor(f.P, f.D, lam), 2 * mult, idx, complex(lam)) for lam in (f.lam, np.conj(f.lam))]
+            parts = [_Part(lam_factor(f.P, f.D, lam), 2 * mult, idx, complex(lam)) for lam in (f.lam, np.conj(f.lam))]
         sources.append((f.quasi_polynomial, mult, parts))
     # with an actuation delay the crossing frequencies obey the same bound (|e^{-j w tau_a}| = 1)
     _guard_window([p.qp for _, _, parts in sources for p in parts], t1, t2)
@@ -499,7 +499,19 @@ def stability_map(
     return _assemble(sources, t1, t2)
 
 
-def _lam_factor(P: float, D: float, lam: complex) -> TwoDelayQuasiPolynomial:
-    """``s^2 + D s + P - lam (D s e^{-tau2 s} + P e^{-tau1 s})``, a (complex) three-term qp."""
+def lam_factor(P: float, D: float, lam: complex) -> TwoDelayQuasiPolynomial:
+    """The factor of one eigenvalue ``lam`` of C, ``s^2 + D s + P - lam (D s e^{-tau2 s} + P e^{-tau1 s})``.
+
+    A (complex, for complex ``lam``) three-term quasi-polynomial: the map of a
+    conjugate pair is drawn from the factor of each member, and the eigenvalue
+    plane (:mod:`delayform.analysis.plane`) maps any ``lam`` with it.
+
+    Parameters
+    ----------
+    P, D
+        The gains.
+    lam
+        An eigenvalue of C (any complex number).
+    """
     return TwoDelayQuasiPolynomial([P, D, 1.0], [-lam * P], [0.0, -lam * D])
 

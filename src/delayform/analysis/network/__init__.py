@@ -1,4 +1,4 @@
-"""Guarantees for real networks: per-link delays, boxes of delays, jitter (issue 20).
+"""Guarantees for real networks: per-link delays, boxes of delays, jitter, packet loss.
 
 ``links``           per-link delays, their checks, the N x N matrix quasi-polynomial
 ``discretization``  Chebyshev collocation of the 2N-state DDE (seeds)

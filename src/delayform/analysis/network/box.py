@@ -1,4 +1,4 @@
-"""A box of constant per-link delays, certified stable (issue 20, part 2).
+"""A box of constant per-link delays, certified stable.
 
 Question: is the team stable for *every* assignment of constant delays with
 ``tau1_ik in [lo1, hi1]`` and ``tau2_ik in [lo2, hi2]`` on every link, each link

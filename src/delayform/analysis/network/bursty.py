@@ -1,4 +1,4 @@
-"""Bursty (Gilbert-Elliott) packet loss, exactly in the mean square (issue 20, part 4, extended).
+"""Bursty (Gilbert-Elliott) packet loss, exactly in the mean square.
 
 Model: the sampled team of :mod:`~delayform.analysis.network.loss` (period h, delays
 whole multiples of h, hold-last-value), but every stream (link and kind: position
@@ -55,6 +55,7 @@ from delayform._validation import validated
 from delayform.analysis.network.links import link_team
 from delayform.analysis.network.loss import MeanSquareStability, _lags, _lift, _Lifted, lifted_size, require_lift
 from delayform.errors import InputError, ResourceLimitError
+from delayform.model.network import GilbertElliott
 from delayform.topology import Topology
 
 __all__ = ["MAX_CHAINS", "bursty_mean_square_stability"]
@@ -112,10 +113,24 @@ def _probability(name: str, value: object) -> float:
     return out
 
 
+def _chain(loss: GilbertElliott | None, *numbers: float | None) -> tuple[float, float, float, float]:
+    """``(p_good_to_bad, p_bad_to_good, loss_good, loss_bad)`` of the loss model or of the four numbers, not both."""
+    names = ("p_good_to_bad", "p_bad_to_good", "loss_good", "loss_bad")
+    if loss is not None:
+        if any(x is not None for x in numbers):
+            raise InputError("give the chain as loss=GilbertElliott(...) or as its four numbers, not both")
+        return loss.p_good_to_bad, loss.p_bad_to_good, loss.loss_good, loss.loss_bad
+    if numbers[0] is None or numbers[1] is None:
+        raise InputError("give the chain: loss=GilbertElliott(p_good_to_bad, p_bad_to_good), or those two numbers")
+    values = (*numbers[:2], 0.0 if numbers[2] is None else numbers[2], 1.0 if numbers[3] is None else numbers[3])
+    return tuple(_probability(n, v) for n, v in zip(names, values))  # type: ignore[return-value]
+
+
 @validated()
 def bursty_mean_square_stability(
     topology: Topology, P: float, D: float, tau1: ArrayLike, tau2: ArrayLike, *, rate: float,
-    p_good_to_bad: float, p_bad_to_good: float, loss_good: float = 0.0, loss_bad: float = 1.0,
+    loss: GilbertElliott | None = None, p_good_to_bad: float | None = None, p_bad_to_good: float | None = None,
+    loss_good: float | None = None, loss_bad: float | None = None,
 ) -> MeanSquareStability:  # fmt: skip
     """Exact mean-square stability and decay rate under Gilbert-Elliott (bursty) packet loss.
 
@@ -125,8 +140,12 @@ def bursty_mean_square_stability(
         The team, its gains and its (per-link) delays, each a whole multiple of the period.
     rate
         Packets per second and stream (the period is h = 1 / rate).
+    loss
+        The chain of every stream, a :class:`~delayform.model.GilbertElliott`
+        (the network's own loss model).
     p_good_to_bad, p_bad_to_good, loss_good, loss_bad
-        The chain of every stream, as :class:`~delayform.simulation.network.GilbertElliott`.
+        The same chain as four numbers (``loss_good`` 0 and ``loss_bad`` 1
+        unless given), instead of ``loss``.
 
     Returns
     -------
@@ -145,7 +164,8 @@ def bursty_mean_square_stability(
     Examples
     --------
     >>> from delayform.topology import ring
-    >>> r = bursty_mean_square_stability(ring(3), 1.0, 1.0, 0.2, 0.1, rate=10.0, p_good_to_bad=0.1, p_bad_to_good=0.3)
+    >>> from delayform.model import GilbertElliott
+    >>> r = bursty_mean_square_stability(ring(3), 1.0, 1.0, 0.2, 0.1, rate=10.0, loss=GilbertElliott(0.1, 0.3))
     >>> r.stable
     True
     """
@@ -154,8 +174,7 @@ def bursty_mean_square_stability(
     team = link_team(topology, P, D, tau1, tau2)
     if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not math.isfinite(rate) or rate <= 0:
         raise InputError(f"rate must be a positive number of packets per second, got {rate!r}")
-    a, b = _probability("p_good_to_bad", p_good_to_bad), _probability("p_bad_to_good", p_bad_to_good)
-    lg, lb = _probability("loss_good", loss_good), _probability("loss_bad", loss_bad)
+    a, b, lg, lb = _chain(loss, p_good_to_bad, p_bad_to_good, loss_good, loss_bad)
     h = 1.0 / float(rate)
     m1, m2 = _lags("tau1", team.tau1, h), _lags("tau2", team.tau2, h)
     L = team.rows.size

@@ -29,7 +29,7 @@ from delayform._validation import check_gains, real_numbers
 from delayform.errors import DelayError, InputError
 from delayform.topology import Topology
 
-__all__ = ["LinkTeam", "link_team"]
+__all__ = ["LinkTeam", "link_team", "uniform_link_delays"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -173,3 +173,38 @@ def link_team(topology: Topology, P: float, D: float, tau1: ArrayLike, tau2: Arr
     t1 = _per_link("tau1", tau1, topology.n, mask)
     t2 = _per_link("tau2", tau2, topology.n, mask)
     return LinkTeam(C, P, D, rows.astype(np.int64), cols.astype(np.int64), C[mask], t1, t2)
+
+
+def uniform_link_delays(topology: Topology, P: float, D: float, tau1: ArrayLike, tau2: ArrayLike) -> tuple[float, float]:
+    """The two delays of per-link arrays equal on every link, for the actuated factors; else DelayError.
+
+    The per-link matrix quasi-polynomial has no actuation terms, so an
+    actuation delay with delays that differ between links is refused rather
+    than answered without it.
+
+    Parameters
+    ----------
+    topology, P, D, tau1, tau2
+        As for :func:`link_team`.
+
+    Returns
+    -------
+    tuple of float
+        ``(tau1, tau2)`` on every link (0.0 for a team without links).
+
+    Raises
+    ------
+    DelayError
+        When a delay differs between links, or as :func:`link_team` does.
+    """
+    team = link_team(topology, P, D, tau1, tau2)
+    out = []
+    for name, values in (("tau1", team.tau1), ("tau2", team.tau2)):
+        if values.size and np.ptp(values) > 0.0:
+            raise DelayError(
+                f"actuation_delay with per-link {name} that differs between links "
+                f"({values.min():g} to {values.max():g} s) is not solved: the per-link determinant has "
+                "no actuation terms; give equal delays on every link or actuation_delay = 0"
+            )
+        out.append(float(values[0]) if values.size else 0.0)
+    return out[0], out[1]

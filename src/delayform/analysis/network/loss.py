@@ -1,4 +1,4 @@
-"""Packet loss, exactly in the mean square (issue 20, part 4).
+"""Packet loss, exactly in the mean square.
 
 Model (the simulator's, :mod:`delayform.simulation.network`, with ``Sampling`` and
 ``BernoulliLoss``): every agent samples its position and velocity every h = 1/rate
@@ -41,6 +41,7 @@ from numpy.typing import ArrayLike, NDArray
 from delayform.analysis.network.links import LinkTeam, link_team
 from delayform._validation import validated
 from delayform.errors import DelayError, InputError
+from delayform.model.network import BernoulliLoss
 from delayform.topology import Topology
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
@@ -269,7 +270,8 @@ def _lags(name: str, taus: NDArray[np.float64], h: float) -> NDArray[np.int64]:
 
 @validated()
 def mean_square_stability(
-    topology: Topology, P: float, D: float, tau1: ArrayLike, tau2: ArrayLike, *, rate: float, loss: ArrayLike
+    topology: Topology, P: float, D: float, tau1: ArrayLike, tau2: ArrayLike, *, rate: float,
+    loss: BernoulliLoss | ArrayLike,
 ) -> MeanSquareStability:
     """Exact mean-square stability and decay rate of the sampled team under independent packet loss.
 
@@ -282,7 +284,9 @@ def mean_square_stability(
     rate
         Packets per second and stream (the period is h = 1 / rate).
     loss
-        Probability that a packet is lost: a number, or an N x N array per link.
+        The network's loss model, a :class:`~delayform.model.BernoulliLoss`,
+        or its probability that a packet is lost: a number, or an N x N
+        array per link.
 
     Returns
     -------
@@ -299,6 +303,8 @@ def mean_square_stability(
     if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not math.isfinite(rate) or rate <= 0:
         raise InputError(f"rate must be a positive number of packets per second, got {rate!r}")
     h = 1.0 / float(rate)
+    if isinstance(loss, BernoulliLoss):
+        loss = loss.probability
     try:
         lp = np.asarray(loss, dtype=np.float64)
     except (TypeError, ValueError):

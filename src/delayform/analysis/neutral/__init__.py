@@ -1,4 +1,4 @@
-"""Neutral quasi-polynomials: difference operator, essential spectrum, strong stability, roots (issue 19, item 5)."""
+"""Neutral quasi-polynomials: difference operator, essential spectrum, strong stability, roots."""
 
 from delayform.analysis.neutral.difference import DifferenceOperator, difference_operator
 from delayform.analysis.neutral.spectrum import (

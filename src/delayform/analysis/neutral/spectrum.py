@@ -62,8 +62,8 @@ from delayform.analysis.neutral.nominal import (
     nominal_min_modulus,
     nominally_essentially_stable,
 )
-from delayform.analysis.roots.argument_principle import _region_count
-from delayform.analysis.roots.problem import _evaluate, _Problem
+from delayform.analysis.roots.argument_principle import count_in_region
+from delayform.analysis.roots.problem import Terms, evaluate
 from delayform.characteristic import TwoDelayQuasiPolynomial
 from delayform._validation import validated
 from delayform.errors import (
@@ -91,32 +91,31 @@ _MAX_REACH = 5e3
 _MAX_BOXES = 20_000
 
 
-def _problem_at(qp: QuasiPolynomial, taus: tuple[float, ...]) -> _Problem:
+def _terms_at(qp: QuasiPolynomial, taus: tuple[float, ...]) -> Terms:
     """q at fixed delays as terms ``(p_k, h_k, 0)`` evaluated with ``tau1 = 1, tau2 = 0``."""
     h = qp.delays_of_terms(*taus)
-    terms = tuple((c, h[k], 0) for k, c in qp.terms.items())
-    return _Problem(terms=terms, A=np.zeros((0, 0), complex), delayed=())  # type: ignore[arg-type]
+    return tuple((c, h[k], 0) for k, c in qp.terms.items())  # type: ignore[misc]
 
 
-def _q(prob: _Problem, s: complex) -> tuple[complex, complex, float]:
-    q, dq, mag = _evaluate(prob.terms, np.asarray(s, complex), np.asarray(1.0), np.asarray(0.0))
+def _q(terms: Terms, s: complex) -> tuple[complex, complex, float]:
+    q, dq, mag = evaluate(terms, np.asarray(s, complex), np.asarray(1.0), np.asarray(0.0))
     return complex(q), complex(dq), float(mag)
 
 
-def _newton(prob: _Problem, s: complex) -> tuple[complex, bool]:
+def _newton(terms: Terms, s: complex) -> tuple[complex, bool]:
     for _ in range(_NEWTON):
-        q, dq, _ = _q(prob, s)
+        q, dq, _ = _q(terms, s)
         if dq == 0 or not np.isfinite(q):
             break
         step = q / dq
         s = s - step
         if abs(step) <= 4e-16 * (1.0 + abs(s)):
             break
-    q, _, mag = _q(prob, s)
+    q, _, mag = _q(terms, s)
     return s, bool(np.isfinite(q) and abs(q) <= _RESIDUAL * mag)
 
 
-def _derivative_problem(qp: QuasiPolynomial, taus: tuple[float, ...], order: int) -> _Problem:
+def _derivative_terms(qp: QuasiPolynomial, taus: tuple[float, ...], order: int) -> Terms:
     """The terms of q^(order) (Leibniz on each p_k e^{-h_k s}), for polishing a multiple root."""
     h = qp.delays_of_terms(*taus)
     terms = []
@@ -127,24 +126,24 @@ def _derivative_problem(qp: QuasiPolynomial, taus: tuple[float, ...], order: int
             w = math.comb(order, j) * (-h[k]) ** (order - j)
             acc[: d.size] += w * d
         terms.append((np.trim_zeros(acc, "b") if np.any(acc) else np.zeros(1, complex), h[k], 0))
-    return _Problem(terms=tuple(terms), A=np.zeros((0, 0), complex), delayed=())  # type: ignore[arg-type]
+    return tuple(terms)
 
 
 def _vanishes(qp: QuasiPolynomial, taus: tuple[float, ...], s: complex, n: int) -> bool:
     """q^(j)(s) ~ 0 for j < n - 1, each relative to its terms' moduli, to 1e3 eps^((n-j)/n)."""
     for j in range(n - 1):
-        q, _, mag = _q(_derivative_problem(qp, taus, j), s)
+        q, _, mag = _q(_derivative_terms(qp, taus, j), s)
         if not abs(q) <= 1e3 * np.finfo(float).eps ** ((n - j) / n) * mag:
             return False
     return True
 
 
-def _count(prob: _Problem, box: tuple[float, float, float, float]) -> int | None:
-    return _region_count(prob, 1.0, 0.0, box)
+def _count(terms: Terms, box: tuple[float, float, float, float]) -> int | None:
+    return count_in_region(terms, 1.0, 0.0, box)
 
 
 def _solve_box(
-    qp: QuasiPolynomial, taus: tuple[float, ...], prob: _Problem, box: tuple[float, float, float, float],
+    qp: QuasiPolynomial, taus: tuple[float, ...], terms: Terms, box: tuple[float, float, float, float],
     n: int, out: list[tuple[complex, int]], budget: list[int],
 ) -> None:
     x0, x1, y0, y1 = box
@@ -156,7 +155,7 @@ def _solve_box(
     centre = complex(0.5 * (x0 + x1), 0.5 * (y0 + y1))
     size = max(x1 - x0, y1 - y0)
     if n == 1:
-        s, ok = _newton(prob, centre)
+        s, ok = _newton(terms, centre)
         if ok and x0 <= s.real <= x1 and y0 <= s.imag <= y1:
             out.append((s, 1))
             return
@@ -164,13 +163,13 @@ def _solve_box(
         # try the n roots as one of multiplicity n first (the certified sampling is slow
         # next to a multiple root): a zero of q^(n-1) in the box where q, ..., q^(n-2) vanish
         # to the accuracy double precision allows (about eps^((n-j)/n) for q^(j))
-        s, ok = _newton(_derivative_problem(qp, taus, n - 1), centre)
+        s, ok = _newton(_derivative_terms(qp, taus, n - 1), centre)
         if ok and x0 <= s.real <= x1 and y0 <= s.imag <= y1 and _vanishes(qp, taus, s, n):
             out.append((s, n))
             return
     if size <= 1e-7 * max(1.0, abs(centre)):
         # a cluster that does not separate: one root of multiplicity n, the root of q^(n-1)
-        s, _ = _newton(_derivative_problem(qp, taus, n - 1), centre)
+        s, _ = _newton(_derivative_terms(qp, taus, n - 1), centre)
         out.append((s if abs(s - centre) <= size else centre, n))
         return
     # split the longer side near its middle; move the cut when it passes through a root
@@ -181,15 +180,15 @@ def _solve_box(
         else:
             cut = y0 + frac * (y1 - y0)
             halves = [(x0, x1, y0, cut), (x0, x1, cut, y1)]
-        counts = [_count(prob, b) for b in halves]
+        counts = [_count(terms, b) for b in halves]
         if all(c is not None for c in counts) and sum(counts) == n:  # type: ignore[arg-type]
             for b, c in zip(halves, counts, strict=True):
-                _solve_box(qp, taus, prob, b, int(c), out, budget)  # type: ignore[arg-type]
+                _solve_box(qp, taus, terms, b, int(c), out, budget)  # type: ignore[arg-type]
             return
     if n > 1:
         # no cut separates them: a multiple root (its neighbourhood is too flat for the
         # certified sampling); its multiplicity is the box's certified count
-        s, _ = _newton(_derivative_problem(qp, taus, n - 1), centre)
+        s, _ = _newton(_derivative_terms(qp, taus, n - 1), centre)
         if x0 <= s.real <= x1 and y0 <= s.imag <= y1:
             out.append((s, n))
             return
@@ -197,12 +196,12 @@ def _solve_box(
 
 
 def _roots_in(qp: QuasiPolynomial, taus: tuple[float, ...], region: tuple[float, float, float, float]) -> list[tuple[complex, int]]:
-    prob = _problem_at(qp, taus)
-    n = _count(prob, region)
+    terms = _terms_at(qp, taus)
+    n = _count(terms, region)
     if n is None:
         raise NotConvergedError(f"a root lies on (or within rounding of) the boundary of the region {region}")
     out: list[tuple[complex, int]] = []
-    _solve_box(qp, taus, prob, region, n, out, [_MAX_BOXES])
+    _solve_box(qp, taus, terms, region, n, out, [_MAX_BOXES])
     return sorted(out, key=lambda r: (-r[0].real, -r[0].imag))
 
 
@@ -424,7 +423,7 @@ def neutral_count_right_of(qp: QuasiPolynomial | TwoDelayQuasiPolynomial, *taus:
     box = _search_box(g, D, taus, float(c))
     if box is None:
         raise NotConvergedError(f"cannot bound the roots right of Re s = {float(c):g} (essential abscissa {cN:.12g})")
-    n = _count(_problem_at(g, taus), box)
+    n = _count(_terms_at(g, taus), box)
     if n is None:
         raise NotConvergedError(f"a root lies on (or within rounding of) the line Re s = {float(c):g}")
     return n

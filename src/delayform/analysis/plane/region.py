@@ -59,7 +59,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from delayform._display import FigureRepr  # Jupyter shows the figure (issue 23)
+from delayform._display import FigureRepr  # Jupyter shows the figure
 from delayform._validation import check_complex_array, check_delay, check_gains, validated
 from delayform.analysis.plane.boundary_curve import ab_terms, omega_limit
 from delayform.errors import InputError, ResourceLimitError

@@ -66,10 +66,10 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from delayform._display import FigureRepr  # Jupyter shows the figure (issue 23)
+from delayform._display import FigureRepr  # Jupyter shows the figure
 from delayform._validation import check_delay_array, check_gains, check_positive, validated
 from delayform.analysis.plane.boundary_curve import omega_limit
-from delayform.analysis.ctcr.stability_map import StabilityMap, _lam_factor, crossing_map
+from delayform.analysis.ctcr.stability_map import StabilityMap, lam_factor, crossing_map
 from delayform.analysis.plane.envelope import envelope_of_family, tangency_parabola
 from delayform.errors import DelayError, InputError
 from delayform.resources import require
@@ -635,7 +635,7 @@ def safe_delays(
     bases = [] if reason else [S.base]
     if S.kind == "interval" and S.high < 1.0 and not reason:
         bases.append(complex(S.high))
-    maps = tuple(crossing_map(_lam_factor(P, D, lam), t1, t2) for lam in bases)
+    maps = tuple(crossing_map(lam_factor(P, D, lam), t1, t2) for lam in bases)
     return SafeDelayMap(P, D, t1, t2, S, maps, reason)
 
 

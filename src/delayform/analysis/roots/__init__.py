@@ -8,6 +8,7 @@
 ``family/``             every factor of eq. factorized at many delay pairs at once, vectorized
 ``dominant``            the formation's dominant root, dominant-root maps
 ``team_roots``          every root of every factor in a rectangle, for a whole team
+``warm``                uncertified, warm-started rightmost real parts that steer local searches
 """
 
 from delayform.analysis.roots.dominant import (

@@ -21,10 +21,10 @@ from delayform.analysis.roots.problem import (
     _nth_derivative,
     _abs_poly,
     _abs_poly_der,
-    _evaluate,
+    evaluate,
     _horner,
     _Problem,
-    _Terms,
+    Terms,
 )
 
 #: Largest distance of the certifying line Re s = c from the roots it separates.
@@ -37,7 +37,7 @@ _MAX_SAMPLES = 400_000
 # argument principle with certified sampling
 # =====================================================================
 def _lipschitz(
-    terms: _Terms, rho: NDArray[np.float64], re_min: NDArray[np.float64], t1: Any, t2: Any
+    terms: Terms, rho: NDArray[np.float64], re_min: NDArray[np.float64], t1: Any, t2: Any
 ) -> NDArray[np.float64]:
     """Bound of |q'(s)| over |s| <= rho, Re s >= re_min (moduli of coefficients)."""
     out = np.zeros(np.broadcast_shapes(np.shape(rho), np.shape(re_min), np.shape(t1), np.shape(t2)))
@@ -50,7 +50,7 @@ def _lipschitz(
 
 
 def _segment_winding(
-    terms: _Terms, t1: float, t2: float, s0: complex, s1: complex, *, budget: int
+    terms: Terms, t1: float, t2: float, s0: complex, s1: complex, *, budget: int
 ) -> tuple[float, int] | None:
     """Certified change of arg q along the segment s0 -> s1, and samples used.
 
@@ -65,7 +65,7 @@ def _segment_winding(
         if t.size > budget:
             return None
         s = s0 + t * (s1 - s0)
-        q, _, _ = _evaluate(terms, s, a1, a2)
+        q, _, _ = evaluate(terms, s, a1, a2)
         absq = np.abs(q)
         if not np.all(np.isfinite(absq)) or np.any(absq == 0.0):
             return None
@@ -84,7 +84,7 @@ def _segment_winding(
     return None
 
 
-def _taylor_order(terms: _Terms) -> int:
+def _taylor_order(terms: Terms) -> int:
     """1 + the largest multiplicity a root of q can have, capped at 12.
 
     A quasi-polynomial with terms of degrees d_k has no root of multiplicity
@@ -95,7 +95,7 @@ def _taylor_order(terms: _Terms) -> int:
 
 
 def _taylor_passes(
-    terms: _Terms, a: NDArray[np.complex128], absq: NDArray[np.float64], rho: NDArray[np.float64],
+    terms: Terms, a: NDArray[np.complex128], absq: NDArray[np.float64], rho: NDArray[np.float64],
     re_min: NDArray[np.float64], delta: NDArray[np.float64], t1: float, t2: float,
 ) -> NDArray[np.bool_]:
     """True where q has no zero within ``delta`` of ``a`` by Taylor's theorem of order K.
@@ -131,15 +131,38 @@ def _taylor_passes(
         return bound + M * delta**K / fact < absq
 
 
-def _region_count(
-    prob: _Problem, t1: float, t2: float, region: Region, *, budget: int = _MAX_SAMPLES
+def count_in_region(
+    terms: Terms, t1: float, t2: float, region: Region, *, budget: int = _MAX_SAMPLES
 ) -> int | None:
-    """Certified number of roots of q inside the rectangle (multiplicity counted)."""
+    """Certified number of roots of q inside a rectangle (multiplicity counted), or None.
+
+    The winding of q along the rectangle's four edges, sampled with the
+    Lipschitz-certified step (no root is skipped between samples): the count
+    that the root finders, the neutral solver and the CTCR degenerate
+    crossings rely on.
+
+    Parameters
+    ----------
+    terms
+        The quasi-polynomial (:data:`~delayform.analysis.roots.problem.Terms`).
+    t1, t2
+        The delays it is evaluated at (each term's delay is ``a t1 + b t2``).
+    region
+        ``(x0, x1, y0, y1)``: the rectangle x0 <= Re s <= x1, y0 <= Im s <= y1.
+    budget
+        Most samples spent on one edge.
+
+    Returns
+    -------
+    int or None
+        None when a root lies on (or within rounding of) an edge, or the
+        budget ran out: no count is then certified.
+    """
     x0, x1, y0, y1 = region
     corners = [complex(x0, y0), complex(x1, y0), complex(x1, y1), complex(x0, y1)]
     total = 0.0
     for k in range(4):
-        piece = _segment_winding(prob.terms, t1, t2, corners[k], corners[(k + 1) % 4], budget=budget)
+        piece = _segment_winding(terms, t1, t2, corners[k], corners[(k + 1) % 4], budget=budget)
         if piece is None:
             return None
         total += piece[0]
@@ -148,7 +171,7 @@ def _region_count(
 
 
 def _cauchy_radius(
-    terms: _Terms, c: NDArray[np.float64], t1: NDArray[np.float64], t2: NDArray[np.float64]
+    terms: Terms, c: NDArray[np.float64], t1: NDArray[np.float64], t2: NDArray[np.float64]
 ) -> NDArray[np.float64]:
     """Omega with |g1(s)| > sum_k |g_k(s)| e^{-h_k c} whenever |s| >= Omega (Rouche on Re s = c).
 
@@ -196,7 +219,7 @@ def _cauchy_radius(
 
 
 def _tail_winding(
-    terms: _Terms, g1_roots: NDArray[np.complex128], s_end: NDArray[np.complex128],
+    terms: Terms, g1_roots: NDArray[np.complex128], s_end: NDArray[np.complex128],
     t1: NDArray[np.float64], t2: NDArray[np.float64], *, upper: bool,
 ) -> NDArray[np.float64]:
     """Arg change of q from c + i Omega up to c + i inf (upper) or from c - i inf to c - i Omega.
@@ -204,7 +227,7 @@ def _tail_winding(
     There |q/g1 - 1| < 1, so arg q = arg g1 + Arg(q/g1), with Arg(q/g1) -> 0
     at infinity and arg g1 moving by sum over its roots z of the angle of s - z.
     """
-    q, _, _ = _evaluate(terms, s_end, t1, t2)
+    q, _, _ = evaluate(terms, s_end, t1, t2)
     g1 = _horner(terms[0][0], s_end)
     ratio = np.angle(q / g1)
     ang = np.angle(s_end[..., None] - g1_roots)
@@ -213,7 +236,7 @@ def _tail_winding(
     return (ang + np.pi / 2).sum(axis=-1) + ratio
 
 
-def _g1_roots(terms: _Terms) -> NDArray[np.complex128]:
+def _g1_roots(terms: Terms) -> NDArray[np.complex128]:
     g1 = terms[0][0]
     return np.roots(g1[::-1]) if g1.size > 1 else np.zeros(0, dtype=np.complex128)
 
@@ -322,13 +345,13 @@ def _count_right_batch(
     omega = _cauchy_radius(prob.terms, c, t1, t2)
     real = all(np.all(cf.imag == 0.0) for cf, _, _ in prob.terms)
 
-    def evaluate(line: NDArray[np.int64], s: NDArray[np.complex128]) -> NDArray[np.complex128]:
-        return _evaluate(prob.terms, s, t1[line], t2[line], magnitude=False)[0]
+    def q_on(line: NDArray[np.int64], s: NDArray[np.complex128]) -> NDArray[np.complex128]:
+        return evaluate(prob.terms, s, t1[line], t2[line], magnitude=False)[0]
 
     def lipschitz(line: NDArray[np.int64], rho: NDArray[np.float64]) -> NDArray[np.float64]:
         return _lipschitz(prob.terms, rho, c[line], t1[line], t2[line])
 
-    total, failed = adaptive_winding(c, omega, evaluate, lipschitz, real=real, initial=initial,
+    total, failed = adaptive_winding(c, omega, q_on, lipschitz, real=real, initial=initial,
                                      max_segments=max_segments)  # fmt: skip
     roots = _g1_roots(prob.terms)
     top = _tail_winding(prob.terms, roots, c + 1j * omega, t1, t2, upper=True)

@@ -37,9 +37,10 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from delayform.analysis.network.links import link_team
-from delayform.analysis.network.per_link import LinkDominantRoot, link_dominant_root
 from delayform._validation import check_delay, check_gains, validated
+from delayform.analysis.roots import delegated
+from delayform.model import Delays, Team
+from delayform.model.loose import accepts_loose_team
 from delayform.analysis.roots.actuated import actuated_beside_drift, actuated_factor, actuated_rightmost
 from delayform.analysis.roots.family.solve import family_grid, family_rightmost
 from delayform.analysis.roots.problem import (
@@ -210,7 +211,20 @@ def _decay_time(root: complex) -> float:
     return 1.0 / -root.real if root.real < 0.0 else math.inf
 
 
-def _checked_factors(topology: Topology, P: float, D: float) -> tuple[CharacteristicFactor, ...]:
+def checked_factors(topology: Topology, P: float, D: float) -> tuple[CharacteristicFactor, ...]:
+    """The factors of eq. factorized of a team, its topology and gains checked first.
+
+    The same tuple for repeated calls on one (frozen) topology and gains.
+
+    Raises
+    ------
+    InputError
+        When ``topology`` is not a :class:`~delayform.topology.Topology`.
+    TopologyError
+        Without a spanning tree (Lemma 3).
+    GainError
+        For gains that are not positive or out of range.
+    """
     if not isinstance(topology, Topology):
         raise InputError(f"topology must be a Topology, got {type(topology).__name__}")
     topology.require_spanning_tree()
@@ -225,34 +239,31 @@ def _factors_of(topology: Topology, P: float, D: float) -> tuple[CharacteristicF
     return factors(topology, P, D)
 
 
+@accepts_loose_team(actuation="actuation_delay")
 @validated()
-def dominant_root(
-    topology: Topology, P: float, D: float, tau1: float | ArrayLike, tau2: float | ArrayLike, *,
-    actuation_delay: float = 0.0,
-) -> DominantRoot | LinkDominantRoot:
+def dominant_root(team: Team, delays: Delays) -> DominantRoot | delegated.PerLinkRoot:
     """The dominant root of the formation and its time constant.
 
-    With N x N arrays of per-link delays (``tau1[i, k]``: what agent i hears
-    from k) the answer is the certified dominant root of det of the N x N matrix
-    quasi-polynomial, a :class:`~delayform.analysis.network.LinkDominantRoot`
+    Which computation answers is said by :attr:`Delays.kind`: uniform delays
+    go through the factors of eq. factorized; per-link delays
+    (``tau1[i, k]``: what agent i hears from k) give the certified dominant
+    root of det of the N x N matrix quasi-polynomial, a
+    :class:`~delayform.analysis.network.LinkDominantRoot`
     (:mod:`delayform.analysis.network.per_link`).
 
     Parameters
     ----------
-    topology
-        Communication topology; it must have a spanning tree (Lemma 3).
-    P, D
-        Positive gains of eq. protocol.
-    tau1, tau2
-        Non-negative delays on positions and velocities, or N x N arrays of
-        per-link delays (entries without a link ignored).
-    actuation_delay
-        tau_a >= 0 (s): each robot applies its command tau_a late, so every
-        factor gains the delayed own-state terms
+    team
+        Topology (with a spanning tree, Lemma 3) and the positive gains of eq. protocol.
+    delays
+        tau1, tau2 on positions and velocities, uniform or per link (entries
+        without a link ignored), and the actuation delay tau_a >= 0 (s): each
+        robot applies its command tau_a late, so every factor gains the
+        delayed own-state terms
         (:func:`~delayform.analysis.roots.actuated.actuated_factor`); 0
         (default) is the paper's model, solved by the vectorized family path.
-        With per-link arrays it needs the same delays on every link (they are
-        then the scalar delays); otherwise DelayError.
+        With per-link delays tau_a needs the same delays on every link (they
+        are then the uniform pair); otherwise DelayError.
 
     Returns
     -------
@@ -260,20 +271,29 @@ def dominant_root(
         The rightmost root over the factors of eq. factorized, excluding the
         persistent root 0 of eq. factor1 (its other roots count).
 
+    Notes
+    -----
+    The loose form ``dominant_root(topology, P, D, tau1, tau2, actuation_delay=0.0)``
+    of earlier versions is still taken (:func:`delayform.model.loose.accepts_loose_team`).
+
     Examples
     --------
+    >>> from delayform.model import Delays, Team
     >>> from delayform.topology import paper_six
-    >>> r = dominant_root(paper_six(), 1.0, 0.5, 1.0, 2.0)  # point c of Fig. stability
+    >>> r = dominant_root(Team(paper_six(), 1.0, 0.5), Delays(1.0, 2.0))  # point c of Fig. stability
     >>> r.is_stable, round(r.root.real, 4)
     (False, 0.0836)
     """
-    ta = check_delay("actuation_delay", actuation_delay)
-    if np.ndim(tau1) or np.ndim(tau2):  # per-link delays: the matrix quasi-polynomial, no factorization
+    topology, P, D, ta = team.topology, team.P, team.D, delays.actuation
+    if delays.kind == "per_link":  # the matrix quasi-polynomial, no factorization
+        delays.check_team(team.n)
+        per_link = delegated.per_link()  # solved by analysis/network, which sits above roots
         if ta == 0.0:
-            return link_dominant_root(topology, P, D, tau1, tau2)
-        tau1, tau2 = _uniform_link_delays(topology, P, D, tau1, tau2)
-    t1, t2 = check_delay("tau1", tau1), check_delay("tau2", tau2)
-    fs = _checked_factors(topology, P, D)
+            return per_link.dominant_root(topology, P, D, delays.tau1, delays.tau2)
+        t1, t2 = per_link.uniform_delays(topology, P, D, delays.tau1, delays.tau2)
+    else:
+        t1, t2 = delays.pair
+    fs = checked_factors(topology, P, D)
     if ta > 0.0:
         return _actuated_dominant(fs, t1, t2, ta)
     # all factors in one batch (one stacked discretization, one vectorized certificate); long delays
@@ -292,26 +312,6 @@ def dominant_root(
         beside = formation[0] if nxt is None or formation[0].real >= nxt.real else nxt
     return DominantRoot(best[0], best[1], t1, t2, formation_root=formation[0], centroid_root=centroid_root,
                         beside_drift=beside)  # fmt: skip
-
-
-def _uniform_link_delays(topology: Topology, P: float, D: float, tau1: ArrayLike, tau2: ArrayLike) -> tuple[float, float]:
-    """The two delays of per-link arrays equal on every link, for the actuated factors; else DelayError.
-
-    The per-link matrix quasi-polynomial has no actuation terms, so an
-    actuation delay with delays that differ between links is refused rather
-    than answered without it.
-    """
-    team = link_team(topology, P, D, tau1, tau2)
-    out = []
-    for name, values in (("tau1", team.tau1), ("tau2", team.tau2)):
-        if values.size and np.ptp(values) > 0.0:
-            raise DelayError(
-                f"actuation_delay with per-link {name} that differs between links "
-                f"({values.min():g} to {values.max():g} s) is not solved: the per-link determinant has "
-                "no actuation terms; give equal delays on every link or actuation_delay = 0"
-            )
-        out.append(float(values[0]) if values.size else 0.0)
-    return out[0], out[1]
 
 
 def _actuated_dominant(fs: tuple[CharacteristicFactor, ...], t1: float, t2: float, ta: float) -> DominantRoot:
@@ -465,7 +465,7 @@ def dominant_root_map(
         When the grid would need more memory or time than the machine allows.
     DelayError
         When the grid's delays need a discretization beyond the machine's
-        memory or time budget (there is no fixed reach since issue 19).
+        memory or time budget (there is no fixed reach: long delays get a finer discretization).
 
     Examples
     --------
@@ -474,7 +474,7 @@ def dominant_root_map(
     >>> m.stable.tolist()
     [[True, True], [True, False]]
     """
-    fs = _checked_factors(topology, P, D)
+    fs = checked_factors(topology, P, D)
     ax1 = _grid_axis("tau1_values", tau1_values)
     ax2 = _grid_axis("tau2_values", tau2_values)
     ta = check_delay("actuation_delay", actuation_delay)

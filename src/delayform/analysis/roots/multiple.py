@@ -20,7 +20,7 @@ candidate of multiplicity m >= 2 by the test of :func:`_loose_multiplicity`):
    is the centre of the cluster, accurate to that order, which is what
    double precision allows.
 2. The multiplicity is then *certified*: the argument principle
-   (:func:`~delayform.analysis.roots.argument_principle._region_count`) counts
+   (:func:`~delayform.analysis.roots.argument_principle.count_in_region`) counts
    the roots in a small square about the point, enclosing the seeds that
    reached it; only when that count equals m are the seeds replaced by the
    one point of multiplicity m. Otherwise they stay as they were (and the
@@ -34,7 +34,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from delayform.analysis.roots.argument_principle import _region_count
+from delayform.analysis.roots.argument_principle import count_in_region
 from delayform.analysis.roots.problem import _cluster, _multiplicity, _nth_derivative, _Problem
 
 #: |q^(j)| below this fraction of its terms' moduli counts as "zero" for a multiplicity candidate
@@ -120,7 +120,7 @@ def distinct_roots(
         if abs(qm[0]) > 0.0:
             w = max(w, (1e4 * eps * float(mag0[0]) * math.factorial(m) / abs(qm[0])) ** (1.0 / m))
         for _ in range(3):  # a root on the square's edge: a slightly larger square
-            n = _region_count(prob, t1, t2, (z.real - w, z.real + w, z.imag - w, z.imag + w),
+            n = count_in_region(prob.terms, t1, t2, (z.real - w, z.real + w, z.imag - w, z.imag + w),
                               budget=_COUNT_BUDGET)  # fmt: skip
             if n is not None:
                 break

@@ -1,9 +1,12 @@
 """The problem solved for roots: a quasi-polynomial, its DDE realization, evaluation and Newton polishing.
 
-Internal to :mod:`delayform.analysis.roots.dominant` (method in its module
-docstring): eq. genfactor terms, q and dq/ds evaluated with broadcasting,
-Newton's method on q itself (Maehly's deflation of the persistent root 0 of
-eq. factor1) and the multiplicity of polished roots.
+The root finders' own (method in the module docstring of
+:mod:`delayform.analysis.roots.dominant`): eq. genfactor terms, q and dq/ds
+evaluated with broadcasting, Newton's method on q itself (Maehly's deflation
+of the persistent root 0 of eq. factor1) and the multiplicity of polished
+roots. :data:`Terms`, :data:`Region` and :func:`evaluate` are public: the
+neutral solver and the CTCR count at degenerate crossings evaluate
+quasi-polynomials with them.
 """
 
 from __future__ import annotations
@@ -32,8 +35,12 @@ _NEWTON_MAXITER = 50
 #: [-h, 0] would overflow; the polishing and the certificate use the exact q).
 _TINY_DELAY = 1e-10
 
+#: A rectangle ``(x0, x1, y0, y1)`` of the complex plane: x0 <= Re s <= x1, y0 <= Im s <= y1.
 Region = tuple[float, float, float, float]
-_Terms = tuple[tuple[NDArray[np.complex128], int, int], ...]
+#: A quasi-polynomial as the solvers evaluate it: terms ``(c, a, b)`` standing for
+#: ``p(s) e^{-(a tau1 + b tau2) s}`` with ``p``'s coefficients ``c`` in increasing powers of s
+#: (the principal term first, ``a = b = 0``); ``a`` and ``b`` may be any non-negative reals.
+Terms = tuple[tuple[NDArray[np.complex128], int, int], ...]
 
 
 # =====================================================================
@@ -51,7 +58,7 @@ class _Problem:
     ``deflate_zero`` removes the persistent root s = 0 of eq. factor1.
     """
 
-    terms: _Terms
+    terms: Terms
     A: NDArray[np.complex128]
     delayed: tuple[tuple[NDArray[np.complex128], int, int], ...]
     mirror: bool = False
@@ -103,13 +110,13 @@ def _problem_of_quasi(qp: QuasiPolynomial, taus: tuple[float, ...]) -> _Problem:
             "the quasi-polynomial is then of another degree or type (give other delays)"
         )
     rows = [(principal, 0.0)] + sorted(((c, h) for h, c in merged.items()), key=lambda ch: ch[1])
-    terms: _Terms = tuple((np.trim_zeros(c, "b") if np.any(c) else c[:1], h, 0) for c, h in rows)  # type: ignore[misc]
+    terms: Terms = tuple((np.trim_zeros(c, "b") if np.any(c) else c[:1], h, 0) for c, h in rows)  # type: ignore[misc]
     terms = tuple(term for term in terms if term is terms[0] or np.any(term[0]))
     A, delayed = _companion(terms)
     return _Problem(terms=terms, A=A, delayed=delayed, scale=_polynomial_scale(terms))
 
 
-def _polynomial_scale(terms: _Terms) -> float:
+def _polynomial_scale(terms: Terms) -> float:
     """Radius of the roots of the principal and of the delay-free polynomial (at least 1).
 
     The scale of the rightmost roots, for the discretization's first degree
@@ -131,7 +138,7 @@ def _polynomial_scale(terms: _Terms) -> float:
 UNIT_DELAYS = (1.0, 0.0)
 
 
-def _companion(terms: _Terms) -> tuple[NDArray[np.complex128], tuple[tuple[NDArray[np.complex128], Any, Any], ...]]:
+def _companion(terms: Terms) -> tuple[NDArray[np.complex128], tuple[tuple[NDArray[np.complex128], Any, Any], ...]]:
     """A DDE realization x' = A x + sum B_k x(t - h_k) of a retarded quasi-polynomial, balanced.
 
     With x_i = y^(i) / rho^i (i = 0..N-1) and the principal polynomial made
@@ -174,7 +181,7 @@ def _problem_of_factor(factor: CharacteristicFactor) -> _Problem:
     """
     P, D, lam = factor.P, factor.D, complex(factor.lam)
     if factor.group.is_complex_pair:
-        terms: _Terms = (
+        terms: Terms = (
             (np.array([P, D, 1.0], dtype=np.complex128), 0, 0),
             (np.array([-lam * P], dtype=np.complex128), 1, 0),
             (np.array([0.0, -lam * D], dtype=np.complex128), 0, 1),
@@ -218,13 +225,28 @@ def _derivative_coefficients(key: bytes, size: int) -> NDArray[np.complex128]:
     return npoly.polyder(c) if size > 1 else np.zeros(1, dtype=np.complex128)
 
 
-def _evaluate(
-    terms: _Terms, s: NDArray[np.complex128], t1: NDArray[np.float64], t2: NDArray[np.float64],
+def evaluate(
+    terms: Terms, s: NDArray[np.complex128], t1: NDArray[np.float64], t2: NDArray[np.float64],
     *, magnitude: bool = True,
 ) -> tuple[NDArray[np.complex128], NDArray[np.complex128], NDArray[np.float64]]:
-    """q(s), dq/ds and sum of |monomial terms| (the residual's scale), broadcasting.
+    """q(s), dq/ds and the sum of |monomial terms| (the residual's scale), broadcasting.
 
-    With ``magnitude=False`` the third array is empty (Newton iterations skip it).
+    Parameters
+    ----------
+    terms
+        The quasi-polynomial (:data:`Terms`).
+    s
+        Points of the complex plane.
+    t1, t2
+        The delays (broadcast with ``s``).
+    magnitude
+        False: the third array is empty (Newton iterations skip it).
+
+    Returns
+    -------
+    q, dq, mag
+        Arrays of the broadcast shape; overflow far left gives inf or NaN,
+        which the callers filter.
     """
     shape = np.broadcast_shapes(np.shape(s), np.shape(t1), np.shape(t2))
     q = np.zeros(shape, dtype=np.complex128)
@@ -275,7 +297,7 @@ def _polish(
         if act.size == 0:
             break
         sa = s[act]
-        q, dq, _ = _evaluate(prob.terms, sa, b1[act], b2[act], magnitude=False)
+        q, dq, _ = evaluate(prob.terms, sa, b1[act], b2[act], magnitude=False)
         with np.errstate(all="ignore"):
             step = q / (dq - q / sa) if prob.deflate_zero else q / dq
         bad = ~np.isfinite(step)
@@ -290,7 +312,7 @@ def _polish(
     zero_ok = np.ones(shape, dtype=bool)
     if prob.deflate_zero:
         s, zero_ok = _deflated_zero(prob, s, b1, b2)
-    q, _, mag = _evaluate(prob.terms, s, b1, b2)
+    q, _, mag = evaluate(prob.terms, s, b1, b2)
     with np.errstate(all="ignore"):
         ok = finite.reshape(shape) & np.isfinite(mag) & (np.abs(q) <= RESIDUAL_TOL * mag)
     return s, ok & zero_ok
@@ -354,7 +376,7 @@ def _cluster(roots: NDArray[np.complex128]) -> NDArray[np.complex128]:
 
 
 def _nth_derivative(
-    terms: _Terms, s: NDArray[np.complex128], t1: float, t2: float, k: int
+    terms: Terms, s: NDArray[np.complex128], t1: float, t2: float, k: int
 ) -> tuple[NDArray[np.complex128], NDArray[np.float64]]:
     """d^k q / ds^k and the sum of the moduli of its terms (Leibniz rule on p(s) e^{-h s})."""
     val = np.zeros(s.shape, dtype=np.complex128)

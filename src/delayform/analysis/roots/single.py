@@ -62,6 +62,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from delayform._validation import check_delay, validated
+from delayform.analysis.roots import delegated
 from delayform.analysis.roots.family.solve import family_rightmost
 from delayform.analysis.roots.generator import (
     _eigenvalues_at,
@@ -80,7 +81,7 @@ from delayform.analysis.roots.problem import (
     Region,
     _cluster,
     _abs_poly,
-    _evaluate,
+    evaluate,
     _mirror_problem,
     _multiplicity,
     _polish,
@@ -92,14 +93,14 @@ from delayform.analysis.roots.problem import (
 )
 from delayform.analysis.roots.long_delay import is_long
 from delayform.analysis.roots.rightmost import _BATCH_SEEDS, _certify, _pick_rightmost, _solve_rightmost
-from delayform.analysis.roots.argument_principle import _count_right_single, _region_count
+from delayform.analysis.roots.argument_principle import _count_right_single, count_in_region
 from delayform.analysis.roots.multiple import distinct_roots
 from delayform.characteristic import CharacteristicFactor, TwoDelayQuasiPolynomial
 from delayform.errors import InputError, NotConvergedError, QuasiPolynomialError
 from delayform.quasipolynomial import QuasiPolynomial
 
 __all__ = ["RESIDUAL_TOL", "roots_in", "rightmost_root", "count_roots_right_of", "relative_residual",
-           "delay_reach"]
+           "delay_reach", "require_reach"]
 
 
 def relative_residual(
@@ -143,7 +144,7 @@ def relative_residual(
         return np.abs(q) / mag
     if len(delays) != 2:
         raise InputError(f"relative_residual(qp, s, tau1, tau2): got {len(delays)} delay(s)")
-    q, _, mag = _evaluate(
+    q, _, mag = evaluate(
         qp.terms(), s_arr, np.asarray(delays[0], dtype=float), np.asarray(delays[1], dtype=float)
     )
     return np.abs(q) / mag
@@ -162,6 +163,27 @@ def _check_reach(prob: _Problem, t1: float, t2: float) -> None:
     N = _needed_degree(h, _root_scale(prob))
     if N > MAX_DEGREE:
         _require_degree(prob, N, h)
+
+
+def require_reach(factor: CharacteristicFactor, tau1: float, tau2: float) -> None:
+    """Refuse delays whose discretization of this factor exceeds the machine's memory or time budget.
+
+    The rule of the maps and of gain design, which discretize at every pair
+    (:func:`delay_reach` gives the square of delays it accepts).
+
+    Parameters
+    ----------
+    factor
+        A factor of eq. factorized at its gains.
+    tau1, tau2
+        The largest delays the computation will meet.
+
+    Raises
+    ------
+    DelayError
+        Naming the delays and what to change.
+    """
+    _check_reach(_problem_of_factor(factor), tau1, tau2)
 
 
 # =====================================================================
@@ -327,10 +349,8 @@ def roots_in(
     >>> roots_in(q, 0.0, 0.0, (-3, 0, -1, 1)).real.round(12)
     array([-1., -2.])
     """
-    if _neutral(qp):  # hook: analysis/neutral (argument-principle subdivision)
-        from delayform.analysis.neutral.spectrum import neutral_roots_in  # imports roots: not at the top
-
-        r, m = neutral_roots_in(qp, *delays_and_region[:-1], region=delays_and_region[-1])  # type: ignore[arg-type]
+    if _neutral(qp):  # solved by analysis/neutral (argument-principle subdivision), which sits above roots
+        r, m = delegated.neutral().roots_in(qp, *delays_and_region[:-1], region=delays_and_region[-1])  # type: ignore[arg-type]
         return np.repeat(r, m)
     call = _call(qp, delays_and_region, ("region",), "roots_in")
     prob, t1, t2 = call.prob, call.t1, call.t2
@@ -343,7 +363,7 @@ def roots_in(
     # when mirroring, roots of the lam-factor in the mirrored region are needed too
     yy = max(abs(y0), abs(y1))
     count_regions = [region] if not base.mirror else [(x0, x1, -yy, yy)]
-    expected = _region_count(base, t1, t2, count_regions[0])
+    expected = count_in_region(base.terms, t1, t2, count_regions[0])
     # a root on the boundary (e.g. a real root on Im s = 0): count on a slightly larger
     # rectangle and report the roots of the closed one, boundary roots included
     size = max(abs(v) for v in region) + 1.0
@@ -354,7 +374,7 @@ def roots_in(
         rx0, rx1, ry0, ry1 = count_regions[0]
         count_regions = [(rx0 - d, rx1 + d, ry0 - d, ry1 + d)]
         region = (x0 - d, x1 + d, y0 - d, y1 + d)
-        expected = _region_count(base, t1, t2, count_regions[0])
+        expected = count_in_region(base.terms, t1, t2, count_regions[0])
     if expected is None:
         raise NotConvergedError(
             f"roots lie on (or within rounding of) the boundary of the rectangle {asked} "
@@ -451,10 +471,8 @@ def count_roots_right_of(
     NotConvergedError
         When a root lies on (or within rounding of) the line.
     """
-    if _neutral(qp):  # hook: analysis/neutral (only right of the essential spectrum)
-        from delayform.analysis.neutral.spectrum import neutral_count_right_of
-
-        return neutral_count_right_of(qp, *delays_and_c[:-1], c=_check_abscissa(delays_and_c[-1]))  # type: ignore[arg-type]
+    if _neutral(qp):  # solved by analysis/neutral (only right of the essential spectrum)
+        return delegated.neutral().count_right_of(qp, *delays_and_c[:-1], c=_check_abscissa(delays_and_c[-1]))  # type: ignore[arg-type]
     call = _call(qp, delays_and_c, ("c",), "count_roots_right_of")
     prob, t1, t2 = call.prob, call.t1, call.t2
     c = _check_abscissa(call.rest[0])
@@ -500,10 +518,8 @@ def rightmost_root(qp: QuasiPolynomial | TwoDelayQuasiPolynomial | Characteristi
     >>> round(s.real, 6), round(s.imag, 6)
     (-0.605021, 1.788188)
     """
-    if _neutral(qp):  # hook: analysis/neutral (EssentialSpectrumError when none lies right of it)
-        from delayform.analysis.neutral.spectrum import neutral_rightmost_root
-
-        return neutral_rightmost_root(qp, *delays)  # type: ignore[arg-type]
+    if _neutral(qp):  # solved by analysis/neutral (EssentialSpectrumError when none lies right of it)
+        return delegated.neutral().rightmost_root(qp, *delays)  # type: ignore[arg-type]
     call = _call(qp, delays, (), "rightmost_root")
     t1, t2 = call.t1, call.t2
     if isinstance(qp, CharacteristicFactor):  # a factor of eq. factorized: the vectorized family path

@@ -41,7 +41,7 @@ from delayform.analysis.roots.family.seeds import _generator_blocks
 from delayform.analysis.roots.generator import _initial_degree, _require_resolvable
 from delayform.analysis.roots.problem import _TINY_DELAY, Region, _cluster, _multiplicity, _problem_of_factor
 from delayform.analysis.roots.single import _check_region, _in_region, roots_in
-from delayform.analysis.roots.dominant import _checked_factors
+from delayform.analysis.roots.dominant import checked_factors
 from delayform.characteristic import CharacteristicFactor
 from delayform.topology import Topology
 
@@ -106,7 +106,7 @@ def factor_roots_in(
     >>> [len(roots) for _, roots in per_factor]
     [2, 1, 1, 1, 2]
     """
-    fs = _checked_factors(topology, P, D)
+    fs = checked_factors(topology, P, D)
     t1, t2 = check_delay("tau1", tau1), check_delay("tau2", tau2)
     region = _check_region(region)
     ta = check_delay("actuation_delay", actuation_delay)

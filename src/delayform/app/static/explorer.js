@@ -130,7 +130,7 @@ async function selectPoint(p) {
   $("point-ms").textContent = `${ms.toFixed(0)} ms`;
   document.body.dataset.pointMs = ms.toFixed(1);
   document.body.dataset.point = `${p.tau1},${p.tau2}`;
-  // what is certified beyond the chart: any per-link delay variation within +-delta (issue 20)
+  // what is certified beyond the chart: any per-link delay variation within +-delta
   $("jitter-margin").textContent = "\u2026";
   getJSON("/api/guarantee", { ...p, ...gains() }).then((g) => {
     if (seq !== state.pointSeq) return;

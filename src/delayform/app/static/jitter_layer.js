@@ -1,4 +1,4 @@
-// delayform explorer: the certified jitter-margin layer (issue 20). A toggle under "Chart window"
+// delayform explorer: the certified jitter-margin layer. A toggle under "Chart window"
 // asks /api/jitter_map for the margin on the chart's window and draws it as labelled contour lines
 // over the stable region; the chart's own redraw (Plotly.react) drops the trace, so it is drawn
 // again each time the chart is ready. Uses $, num, gains, say and fmt from explorer.js.

@@ -1,4 +1,4 @@
-// delayform explorer: what is guaranteed beside what the robots' run observed (issue 20). After each
+// delayform explorer: what is guaranteed beside what the robots' run observed. After each
 // run (explorer.js sets data-sim-point) it asks /api/guarantees with the run's own parameters and
 // lists the certificates for its network, the run's status, and in red any contradiction: a run
 // that diverged where a certificate holds is a bug. Uses $, gains, num, toggleParams from explorer.js.

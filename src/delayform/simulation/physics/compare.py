@@ -14,6 +14,7 @@ verdict, and what the dominant root becomes at a design point.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from types import MappingProxyType
 from typing import Any
 
 import numpy as np
@@ -21,7 +22,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from delayform._validation import check_delay, check_gains, validated
 from delayform.errors import SimulationInputError
-from delayform.simulation.robots import Robot
+from delayform.model import Delays, Network, Robot, Start, Team
+from delayform.simulation.compat import SIMULATE_KEYWORDS, accepts_loose_calls
 from delayform.simulation.trajectory import Trajectory
 from delayform.topology import Topology
 
@@ -114,20 +116,20 @@ class KinematicComparison:
         return ax
 
 
+#: the old keywords the loose form of :func:`compare_with_kinematic` takes: the robot's and the start's
+_LOOSE_KEYWORDS = MappingProxyType({k: v for k, v in SIMULATE_KEYWORDS.items() if not v.startswith("RunOptions.")})
+
+
+@accepts_loose_calls(_LOOSE_KEYWORDS, default_model="physics")
 @validated(SimulationInputError)
 def compare_with_kinematic(
-    topology: Topology,
-    P: float,
-    D: float,
-    tau1: float,
-    tau2: float,
+    team: Team,
+    delays: Delays,
     formation: ArrayLike | str,
     *,
     robot: Robot | None = None,
-    initial_positions: ArrayLike | None = None,
-    initial_headings: ArrayLike | None = None,
-    initial_speed: ArrayLike = 1e-3,
-    seed: int = 0,
+    network: Network | None = None,
+    start: Start | None = None,
     duration: float,
     dt: float,
 ) -> KinematicComparison:
@@ -135,13 +137,16 @@ def compare_with_kinematic(
 
     Parameters
     ----------
-    topology, P, D, tau1, tau2, formation
+    team, delays, formation
         As for :func:`~delayform.simulation.simulate` (eq. protocol and eq. formation).
     robot
         A ``Robot(model="physics", ...)``: limits and chassis; None: the
         Create's. The kinematic run uses the same limits and body radius.
-    initial_positions, initial_headings, initial_speed, seed
-        The common start (random ones drawn once from ``seed``).
+    network
+        The network both runs hear through; None: the paper's.
+    start
+        The common start (:class:`~delayform.model.Start`; random positions
+        and headings are drawn once from its seed).
     duration, dt
         Length of both runs; the kinematic run's step and the physics run's sampling (s).
 
@@ -153,16 +158,21 @@ def compare_with_kinematic(
     ------
     SimulationInputError
         For a robot that is not a physics robot, and the errors of ``simulate``.
+
+    Notes
+    -----
+    The loose form ``compare_with_kinematic(topology, P, D, tau1, tau2,
+    formation, robot=..., initial_positions=..., seed=..., duration=...,
+    dt=...)`` is taken as :func:`~delayform.simulation.simulate` takes it.
     """
     from delayform.simulation.runner import simulate
 
     robot = Robot(model="physics") if robot is None else robot
     if not isinstance(robot, Robot) or robot.model != "physics":
         raise SimulationInputError("robot must be a Robot(model='physics', ...): its limits drive both runs")
-    common = dict(initial_positions=initial_positions, initial_headings=initial_headings,
-                  initial_speed=initial_speed, seed=seed, duration=duration, dt=dt)  # fmt: skip
-    phys = simulate(topology, P, D, tau1, tau2, formation, robot=robot, **common)
-    kin = simulate(topology, P, D, tau1, tau2, formation, robot=kinematic_twin(robot), **common)
+    phys = simulate(team, delays, formation, robot=robot, network=network, start=start, duration=duration, dt=dt)
+    kin = simulate(team, delays, formation, robot=kinematic_twin(robot), network=network, start=start,
+                   duration=duration, dt=dt)  # fmt: skip
     return KinematicComparison.of(phys, kin)
 
 

@@ -10,7 +10,7 @@ wheel commands held in between: zero-order hold) robot i
 2. hears its neighbours' positions sent ``tau1`` earlier and velocities
    sent ``tau2`` earlier, exactly as the kinematic models do (values between
    ticks are interpolated linearly in the recorded ticks; over a
-   :class:`~delayform.simulation.network.Network` the send times of
+   :class:`~delayform.model.Network` the send times of
    :func:`~delayform.simulation.reception.reception`);
 3. computes eq. protocol plus the forcing of eq. formation, and turns it
    into (dv/dt, omega) by the softened feedback linearization of eq.
@@ -23,7 +23,7 @@ wheel commands held in between: zero-order hold) robot i
    (:func:`~delayform.simulation.robots.wheel_speeds`, clipped to
    ``max_wheel_speed``) to the two wheel servos.
 
-The engine then steps the bodies (steps of at most :data:`~delayform.simulation.physics.chassis.TIMESTEP`
+The engine then steps the bodies (steps of at most :data:`~delayform.model.chassis.TIMESTEP`
 that divide the period)
 until the next tick: servos with finite gain and torque, tyres that slip
 when the friction cone is left, bodies that push each other.
@@ -42,10 +42,10 @@ from numpy.typing import NDArray
 
 from delayform._extras import require_extra
 from delayform.simulation.integrator import Progress, Samples
-from delayform.simulation.network import Network
-from delayform.simulation.physics.chassis import Chassis
+from delayform.model import Network, RobotLimits
+from delayform.model.chassis import Chassis
 from delayform.simulation.physics.mjcf import QPOS_PER_ROBOT, QVEL_PER_ROBOT, team_mjcf
-from delayform.simulation.robots import LimitedUnicycle, RobotLimits, wheel_speeds
+from delayform.simulation.robots import LimitedUnicycle, wheel_speeds
 from delayform.topology import Topology
 
 __all__ = ["integrate_physics", "tick_grid", "PhysicsTeam"]
@@ -59,7 +59,7 @@ _BLOWUP = 1e8
 def tick_grid(chassis: Chassis) -> tuple[float, int]:
     """The control period and the engine steps per tick (:meth:`Chassis.engine_grid`).
 
-    >>> from delayform.simulation.physics.chassis import CREATE_CHASSIS
+    >>> from delayform.model.chassis import CREATE_CHASSIS
     >>> tick_grid(CREATE_CHASSIS)
     (0.01, 5)
     """

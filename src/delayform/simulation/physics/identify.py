@@ -39,8 +39,8 @@ from scipy.optimize import least_squares
 
 from delayform._validation import validated
 from delayform.errors import SimulationInputError
-from delayform.simulation.physics.chassis import Chassis
-from delayform.simulation.robots import RobotLimits
+from delayform.model.chassis import Chassis
+from delayform.model import RobotLimits
 
 __all__ = ["ServoIdentification", "identify_actuation"]
 

@@ -1,7 +1,7 @@
 """The team as one MuJoCo model, written as MJCF by code from the robot's numbers.
 
-Every robot is the same differential drive (:class:`~delayform.simulation.physics.chassis.Chassis`
-and :class:`~delayform.simulation.robots.RobotLimits`): a body on a free
+Every robot is the same differential drive (:class:`~delayform.model.chassis.Chassis`
+and :class:`~delayform.model.RobotLimits`): a body on a free
 joint whose collision shape is a vertical cylinder of the robot's radius,
 two drive wheels on hinges about the axle, and a frictionless sphere for
 the caster. A wheel touches the floor as a sphere of the wheel radius: on
@@ -23,7 +23,7 @@ Body origin at the middle of the axle, at the wheel radius above the floor.
 The body's mass sits a third of the way to the caster (inside the triangle
 of the contacts, so the robot does not tip), with the yaw inertia of the
 chassis; the caster's radius is half the wheel's. The engine step and
-solver are set in :func:`team_mjcf`; the step is :data:`~delayform.simulation.physics.chassis.TIMESTEP`.
+solver are set in :func:`team_mjcf`; the step is :data:`~delayform.model.chassis.TIMESTEP`.
 """
 
 from __future__ import annotations
@@ -31,8 +31,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from delayform.simulation.physics.chassis import Chassis
-from delayform.simulation.robots import RobotLimits
+from delayform.model.chassis import Chassis
+from delayform.model import RobotLimits
 
 __all__ = ["team_mjcf", "QPOS_PER_ROBOT", "QVEL_PER_ROBOT"]
 
@@ -115,8 +115,8 @@ def team_mjcf(chassis: Chassis, limits: RobotLimits, poses: _Array) -> str:
 
     Examples
     --------
-    >>> from delayform.simulation.robots import IROBOT_CREATE
-    >>> from delayform.simulation.physics.chassis import CREATE_CHASSIS
+    >>> from delayform.model import IROBOT_CREATE
+    >>> from delayform.model.chassis import CREATE_CHASSIS
     >>> xml = team_mjcf(CREATE_CHASSIS, IROBOT_CREATE, np.zeros((2, 3)) + [[0, 0, 0], [1, 0, 0]])
     >>> xml.count("<freejoint")
     2

@@ -5,4 +5,5 @@
 ``polish``  Halley and Newton steps on q itself, vectorized over rows
 ``walk``    the argument-principle certificate along lines Re s = c
 ``solve``   lines, certification and continuation: the drivers
+``gains``   the same for many gains at once (gain design)
 """

@@ -1,7 +1,8 @@
 """Certified rightmost roots of the formation's factors for many (P, D, tau1, tau2) at once.
 
 :mod:`delayform.analysis.roots.dominant` batches over delays for fixed gains (one
-quasi-polynomial, many delay pairs). Gain design needs the other direction:
+quasi-polynomial, many delay pairs). Gain design (:mod:`delayform.design.gains`)
+needs the other direction:
 many gains (and, for the robust design, many delays) per factor. Every factor
 of eq. factorized is, through its eigenvalue lam of C (a conjugate pair
 through lam alone, as in :mod:`delayform.analysis.roots.dominant`),
@@ -33,21 +34,30 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from delayform.analysis.roots.family.solve import _certify_afresh, _certify_rows, _fresh_seeds
-from delayform.analysis.roots.family.polish import _q
-from delayform.analysis.roots.rightmost import _BATCH_SEEDS
-from delayform.analysis.roots.family.rows import _Rows
-from delayform.analysis.roots.single import rightmost_root
 from delayform.analysis.roots.dominant import _centroid_rightmost
+from delayform.analysis.roots.family.polish import _q
+from delayform.analysis.roots.family.rows import _Rows
+from delayform.analysis.roots.family.solve import _certify_afresh, _certify_rows, _fresh_seeds
+from delayform.analysis.roots.rightmost import _BATCH_SEEDS
+from delayform.analysis.roots.single import rightmost_root
 from delayform.characteristic import CharacteristicFactor
 from delayform.topology import EigenvalueGroup
+
+__all__ = ["GainLines", "gain_lines", "rightmost_roots", "root_gradients"]
 
 _Arr = NDArray[np.float64]
 _CArr = NDArray[np.complex128]
 
+
 @dataclass(frozen=True)
-class _Lines:
-    """A batch: line i is the factor at gains (P[i], D[i]) and delays (t1[i], t2[i])."""
+class GainLines:
+    """A batch of lines: line i is a factor at gains (P[i], D[i]) and delays (t1[i], t2[i]).
+
+    Attributes
+    ----------
+    P, D, t1, t2
+        Flat float arrays of one length (see :func:`gain_lines`).
+    """
 
     P: _Arr
     D: _Arr
@@ -56,26 +66,47 @@ class _Lines:
 
     @property
     def size(self) -> int:
+        """The number of lines."""
         return int(self.P.size)
 
-    def take(self, idx: NDArray[np.int64]) -> _Lines:
-        return _Lines(self.P[idx], self.D[idx], self.t1[idx], self.t2[idx])
+    def take(self, idx: NDArray[np.int64]) -> GainLines:
+        """The lines at the indices ``idx``."""
+        return GainLines(self.P[idx], self.D[idx], self.t1[idx], self.t2[idx])
 
 
-def _lines(P: object, D: object, t1: object, t2: object) -> _Lines:
+def gain_lines(P: object, D: object, t1: object, t2: object) -> GainLines:
+    """The lines of gains and delays broadcast together and flattened (C order).
+
+    Parameters
+    ----------
+    P, D, t1, t2
+        Gains and delays, numbers or arrays of broadcastable shapes.
+    """
     arrays = np.broadcast_arrays(*(np.asarray(v, dtype=np.float64) for v in (P, D, t1, t2)))
-    return _Lines(*(np.ascontiguousarray(a).ravel() for a in arrays))
+    return GainLines(*(np.ascontiguousarray(a).ravel() for a in arrays))
 
 
 def rightmost_roots(
-    group: EigenvalueGroup, L: _Lines, seeds: _CArr | None = None
+    group: EigenvalueGroup, L: GainLines, seeds: _CArr | None = None
 ) -> tuple[_CArr, _CArr]:
     """Certified rightmost root (Im >= 0 member) of the factor of ``group`` on every line.
 
-    ``seeds`` (B, K), e.g. the roots of a nearby line (roots move continuously
-    with the gains), replace the discretization where the certificate accepts
-    them. Returns the rightmost roots and every line's distinct roots found
-    (NaN-padded), the seeds for the next nearby batch.
+    Parameters
+    ----------
+    group
+        The eigenvalue group of C whose factor is solved.
+    L
+        The lines (:func:`gain_lines`).
+    seeds
+        (B, K) seeds, e.g. the roots of a nearby line (roots move continuously
+        with the gains): they replace the discretization where the certificate
+        accepts them.
+
+    Returns
+    -------
+    roots, found
+        The rightmost roots, and every line's distinct roots found
+        (NaN-padded), the seeds for the next nearby batch.
     """
     B = L.size
     rows = _Rows(np.full(B, complex(group.lam)), L.t1, L.t2, np.full(B, not group.is_complex_pair),
@@ -118,9 +149,11 @@ def _merge_rows(found: _CArr, rows: NDArray[np.int64], new: _CArr) -> _CArr:
 
 
 def root_gradients(
-    lam: complex, L: _Lines, s: _CArr
+    lam: complex, L: GainLines, s: _CArr
 ) -> tuple[_Arr, _Arr, _Arr, _Arr]:
-    """d Re s / d(P, D, tau1, tau2) of simple roots s, by implicit differentiation of q(s) = 0.
+    """d Re s / d(P, D, tau1, tau2) of simple roots ``s`` of the factor of ``lam`` on the lines ``L``.
+
+    By implicit differentiation of q(s) = 0.
 
     ds/dx = -(dq/dx) / (dq/ds) with dq/dP = 1 - lam e^{-tau1 s},
     dq/dD = s (1 - lam e^{-tau2 s}), dq/dtau1 = lam P s e^{-tau1 s} and

@@ -1,12 +1,14 @@
 """The physical numbers of a differential-drive robot: chassis, wheels, caster, tyres and wheel servos.
 
-A :class:`Chassis` completes a :class:`~delayform.simulation.robots.RobotLimits`
+A :class:`Chassis` completes a :class:`~delayform.model.RobotLimits`
 (wheel radius, track, speed limits, body radius) with what a physics engine
 needs: mass and yaw inertia, body height, wheel mass and width, where the
 caster sits, the tyres' friction, the wheel servo's gain and torque limit,
 and the period of the loop that sends the wheel commands. Robot profiles
-(:mod:`delayform.deploy.profiles`) give each number its source, or mark it
-as an assumption where the maker documents none.
+(:mod:`delayform.model.profiles`) give each number its source, or mark it
+as an assumption where the maker documents none. A
+:class:`~delayform.model.Robot` with ``model="physics"`` carries one; the
+engine that steps it is :mod:`delayform.simulation.physics`.
 
 Conventions
 -----------
@@ -42,7 +44,7 @@ class Chassis:
         Mass of the body without its two drive wheels (kg).
     height
         Height of the body's cylinder (m); its radius is the robot's
-        :attr:`~delayform.simulation.robots.RobotLimits.radius`.
+        :attr:`~delayform.model.RobotLimits.radius`.
     wheel_mass
         Mass of one drive wheel (kg).
     wheel_width
@@ -138,7 +140,7 @@ class Chassis:
         return inertia / self.servo_gain
 
 
-#: The iRobot Create's (the paper's robot, :data:`~delayform.simulation.robots.IROBOT_CREATE`),
+#: The iRobot Create's (the paper's robot, :data:`~delayform.model.IROBOT_CREATE`),
 #: used by ``simulate(..., model="physics")`` when no chassis is given. iRobot's Open Interface
 #: specification documents none of these numbers: every one is an ASSUMPTION (the robot
 #: profile ``create`` names each): 3.6 kg, a Roomba-class body 7 cm high, 0.1 kg wheels 2 cm wide,
