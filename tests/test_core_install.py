@@ -102,6 +102,8 @@ from delayform.deploy.recording import check_mcap_path
 from delayform.loops import delay_margin
 from delayform.app import create_app
 from delayform import time_varying_delay_margin
+from delayform import simulate
+from delayform.topology import paper_six
 calls = {
     "cluster": [lambda: check_workers(1), lambda: parse_scheduler("tcp://127.0.0.1:8786")],
     "ros": [lambda: check_mcap_path("run.mcap")],
@@ -109,6 +111,7 @@ calls = {
     "control": [lambda: delay_margin(object())],
     "explore": [lambda: create_app(None)],
     "certificates": [lambda: time_varying_delay_margin([[-2.0, 0.0], [0.0, -0.9]], [[-1.0, 0.0], [-1.0, -1.0]])],
+    "physics": [lambda: simulate(paper_six(), 1.0, 0.5, 0.3, 0.2, "hexagon", model="physics", duration=1.0, dt=0.01)],
 }
 for extra, fns in calls.items():
     for fn in fns:
@@ -123,8 +126,8 @@ for extra, fns in calls.items():
     done = _core("code", code, cwd=tmp_path)
     assert done.returncode == 0, done.stderr[-3000:]
     lines = done.stdout.splitlines()
-    assert len(lines) == 7
-    extras = ["cluster", "cluster", "ros", "safety", "control", "explore", "certificates"]
+    assert len(lines) == 8
+    extras = ["cluster", "cluster", "ros", "safety", "control", "explore", "certificates", "physics"]
     for line, extra in zip(lines, extras, strict=True):
         assert line.endswith(f"pip install 'delayform[{extra}]'"), line
     assert not list(tmp_path.iterdir()), "a refused call wrote a file"
@@ -156,6 +159,9 @@ NEEDS_AN_EXTRA = {
     "simulate --mcap": (["simulate", "--out", "out", "--mcap", "run.mcap"], "ros"),
     "simulate --safety": (["simulate", "--out", "out", "--safety", "barrier"], "safety"),
     "fleet": (["fleet", "--out", "out", "--duration", "2"], "fleet"),
+
+    "simulate --model physics": (["simulate", "--out", "out", "--model", "physics"], "physics"),
+    "montecarlo --model physics": (["montecarlo", "--out", "out", "--runs", "2", "--model", "physics"], "physics"),
 }
 
 

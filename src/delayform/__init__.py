@@ -133,6 +133,14 @@ _GROUPS: dict[str, dict[str, str]] = {
         "SlotAssignment": "simulation.assignment",
         "BarrierFilter": "model",
         "SafetyReport": "simulation.safety",
+        # robots with mass in a physics engine (Robot(model="physics"))
+        "Chassis": "model",
+        "compare_with_kinematic": "simulation.physics",
+        "KinematicComparison": "simulation.physics",
+        "identify_actuation": "simulation.physics",
+        "ServoIdentification": "simulation.physics",
+        "actuation_verdict": "simulation.physics",
+        "ActuationVerdict": "simulation.physics",
     },
     "Simulation: imperfect networks": {
         "Network": "model",

@@ -27,6 +27,7 @@ EXTRAS: dict[str, tuple[str, tuple[str, ...]]] = {
     "safety": ("the safety filter (safety = \"barrier\")", ("clarabel",)),
     # the same solver, for the semidefinite programs of the time-varying delay certificates
     "certificates": ("the time-varying delay certificates (Lyapunov-Krasovskii LMIs)", ("clarabel",)),
+    "physics": ("robots with mass in a physics engine (model = \"physics\")", ("mujoco",)),
 }
 
 
@@ -44,7 +45,7 @@ def require_extra(extra: str) -> None:
     Parameters
     ----------
     extra
-        A key of :data:`EXTRAS`: ``"explore"``, ``"cluster"``, ``"ros"``, ``"control"``, ``"safety"`` or ``"certificates"``.
+        A key of :data:`EXTRAS`: ``"explore"``, ``"cluster"``, ``"ros"``, ``"control"``, ``"safety"``, ``"certificates"`` or ``"physics"``.
 
     Raises
     ------

@@ -485,13 +485,17 @@ class Explorer:
         s = self.scenario
         dt = self._run_step(tau1, tau2, duration)
         robot, net = self._switches(limits, network, loss, jitter)
+        spec = s.robot_spec
+        if s.simulation.model == "physics":  # robots with mass: always the profile's limits and chassis
+            robot = spec.limits
 
         def run() -> tuple[Trajectory, int]:
             with np.errstate(over="ignore", invalid="ignore"):  # an unstable run may overflow; cut below
                 tr = simulate(
                     s.topology, P, D, tau1, tau2, s.desired_positions(),
                     robot=Robot(model=s.simulation.model, limits=robot, radius=s.radius, safety=s.safety,
-                                actuation_delay=s.actuation_delay), assignment=s.simulation.assignment,
+                                actuation_delay=s.actuation_delay, chassis=spec.chassis),
+                    assignment=s.simulation.assignment,
                     network=net,
                     initial_positions=s.initial_positions(), initial_headings=s.initial_headings(),
                     initial_speed=s.initial.speed, seed=s.initial.seed, duration=duration, dt=dt,

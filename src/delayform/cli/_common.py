@@ -191,7 +191,7 @@ def _robot(robot: Any, use_limits: bool | None, given: dict[str, Any], model: st
         robot = robot_profile(name).limits
     if use_limits or given:
         robot = replace(robot or IROBOT_CREATE, **given)
-    if robot is not None and model != "unicycle":
+    if robot is not None and model == "double_integrator":
         raise click.UsageError("actuator limits apply to robots: use --model unicycle or --no-limits")
     return robot
 
@@ -341,6 +341,10 @@ def _simulation_spec(scenario: Scenario, *, model: str | None, duration: float |
                           dt=sim.dt if dt is None else dt, assignment=assignment or sim.assignment)  # fmt: skip
     if spec.dt >= spec.duration:
         raise click.BadParameter(f"the step must be smaller than the duration {spec.duration:g}", param_hint="--dt")
+    if spec.model == "physics":
+        from delayform._extras import require_extra
+
+        require_extra("physics")  # the engine comes with an extra: say which, before any work
     return spec
 
 

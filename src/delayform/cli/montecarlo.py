@@ -63,7 +63,7 @@ def _network(base: Any, *, loss: float | None, burst: tuple[float, float] | None
 @click.option("--runs", type=click.IntRange(min=1), default=40, show_default=True, help="Number of seeded runs.")
 @click.option("--workers", type=click.IntRange(min=1), help="Run on a local Dask cluster of this many processes.")
 @click.option("--scheduler", metavar="ADDRESS", help="Run on an existing Dask cluster, e.g. tcp://10.0.0.5:8786.")
-@click.option("--model", type=click.Choice(("unicycle", "double_integrator")),
+@click.option("--model", type=click.Choice(("unicycle", "double_integrator", "physics")),
               help="Agent model [default: simulation.model].")
 @click.option("--duration", type=POSITIVE, help="Simulated time per run in seconds [default: simulation.duration].")
 @click.option("--dt", type=POSITIVE, help="Time step in seconds [default: simulation.dt].")

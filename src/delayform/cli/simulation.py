@@ -33,7 +33,7 @@ _MCAP_FOLDER = "the folder of the MCAP file"
 
 @cli.command("simulate")
 @scenario_options
-@click.option("--model", type=click.Choice(("unicycle", "double_integrator")),
+@click.option("--model", type=click.Choice(("unicycle", "double_integrator", "physics")),
               help="Agent model [default: simulation.model].")
 @click.option("--duration", type=POSITIVE, help="Simulated time in seconds [default: simulation.duration].")
 @click.option("--dt", type=POSITIVE, help="Time step in seconds [default: simulation.dt].")

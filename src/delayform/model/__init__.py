@@ -3,13 +3,15 @@
 Everything delayform computes is about a :class:`Team` (who hears whom, with
 which gains) under :class:`Delays` (how late they hear it); a simulation adds
 the :class:`Robot` (agent model, limits or the real robot's
-:class:`RobotProfile`, body, safety filter), the :class:`Network` (per-link
+:class:`RobotProfile`, body, safety filter, and for robots with mass the
+:class:`Chassis`), the :class:`Network` (per-link
 and varying delays, jitter, loss, sampling, noise) and the :class:`Start`
 (where the robots are at t = 0). Each noun checks its own
 fields once, when it is built, so the layers above take it whole and never
 check or rename its parts again.
 """
 
+from delayform.model.chassis import CREATE_CHASSIS, Chassis
 from delayform.model.delays import Delays
 from delayform.model.limits import IROBOT_CREATE, RobotLimits
 from delayform.model.network import (
@@ -37,6 +39,8 @@ __all__ = [
     "IROBOT_CREATE",
     "RobotProfile",
     "Arena",
+    "Chassis",
+    "CREATE_CHASSIS",
     "PROFILES",
     "robot_profile",
     "profile_names",

@@ -2,7 +2,9 @@
 
 A profile is a named :class:`~delayform.model.RobotLimits` with
 the source of every number, the arena where the platform has one and the
-control period its makers use. ``simulate(..., limits=profile.limits)``,
+control period its makers use, and the physical numbers of its chassis
+(:class:`~delayform.model.Chassis`: mass, inertia, tyres,
+wheel servos) for ``model="physics"``. ``simulate(..., limits=profile.limits)``,
 ``--robot NAME`` and ``[robot] profile = "NAME"`` apply it to a run and to
 the commands it exports; ``delayform check`` compares a design with it.
 
@@ -22,10 +24,12 @@ from __future__ import annotations
 import difflib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from dataclasses import fields as dataclass_fields
 from types import MappingProxyType
 
 from delayform._validation import validated
 from delayform.errors import RobotProfileError
+from delayform.model.chassis import CREATE_CHASSIS, Chassis
 from delayform.model.limits import IROBOT_CREATE, RobotLimits
 
 __all__ = ["RobotProfile", "Arena", "PROFILES", "robot_profile", "profile_names"]
@@ -79,6 +83,10 @@ class RobotProfile:
         The platform's arena, or None for robots that run anywhere.
     command_topic
         Where the robot takes ``geometry_msgs/msg/Twist`` (ROS 2), or None.
+    chassis
+        Mass, inertia, tyres and wheel servos for ``model="physics"``
+        (sources under ``"chassis.<field>"``), or None for a robot whose
+        physical numbers are not known (the physics model refuses it).
     """
 
     name: str
@@ -88,9 +96,26 @@ class RobotProfile:
     control_period: float | None = None
     arena: Arena | None = None
     command_topic: str | None = None
+    chassis: Chassis | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "sources", MappingProxyType(dict(self.sources)))
+        if self.chassis is not None and not isinstance(self.chassis, Chassis):
+            raise RobotProfileError(f"chassis must be a Chassis or None, got {type(self.chassis).__name__}")
+
+    def physics_chassis(self) -> Chassis:
+        """The chassis for ``model="physics"``; refused, naming what is missing, when the profile has none.
+
+        Raises
+        ------
+        RobotProfileError
+            For a profile without physical numbers.
+        """
+        if self.chassis is None:
+            missing = ", ".join(f.name for f in dataclass_fields(Chassis) if f.name != "yaw_inertia")
+            raise RobotProfileError(f"robot profile {self.name!r} has no physical numbers for model='physics'; "
+                                    f"missing: {missing}")  # fmt: skip
+        return self.chassis
 
     def describe(self) -> str:
         """One line: title and limits."""
@@ -108,6 +133,23 @@ _TB3_SPEC = "ROBOTIS e-Manual, TurtleBot3 'Specifications' (Burger column)"
 _TB3_CODE = "ROBOTIS turtlebot3 (ROS 2) burger parameters: wheel radius 0.033 m, separation 0.160 m"
 _TB3_NAV = "ROBOTIS turtlebot3_navigation2 param/burger.yaml: robot_radius 0.105"
 _ASSUMED_ACCEL = "assumption: the maker documents no acceleration limit"
+_TB3_URDF = "ROBOTIS turtlebot3, turtlebot3_description/urdf/turtlebot3_burger.urdf"
+_XL430 = "ROBOTIS e-Manual, DYNAMIXEL XL430-W250-T: stall torque 1.4 N m at 11.1 V"
+_ASSUMED_SERVO = "assumption: not documented; a wheel speed loop of 25 ms time constant (Chassis.servo_time_constant)"
+_ASSUMED_TORQUE = "assumption: not documented; three times the torque the acceleration limit needs"
+_ASSUMED_TYRE = "assumption: rubber on a hard floor"
+_ROBOTARIUM_MAG = "Wilson et al., 'The Robotarium', IEEE Control Systems Magazine 40(1), 2020"
+
+
+def _physics_sources(**given: str) -> dict[str, str]:
+    """``chassis.<field>`` -> source; fields not given are assumptions the maker does not document."""
+    out = {f"chassis.{f.name}": "assumption: not documented by the maker" for f in dataclass_fields(Chassis)}
+    out["chassis.servo_gain"] = _ASSUMED_SERVO
+    out["chassis.max_torque"] = _ASSUMED_TORQUE
+    out["chassis.tyre_friction"] = _ASSUMED_TYRE
+    out["chassis.yaw_inertia"] = "derived: a uniform cylinder, mass radius^2 / 2"
+    out.update({f"chassis.{k}": v for k, v in given.items()})
+    return out
 
 #: the paper's robot and today's defaults (:data:`IROBOT_CREATE`)
 _CREATE = RobotProfile(
@@ -123,7 +165,9 @@ _CREATE = RobotProfile(
         "max_acceleration": _ASSUMED_ACCEL,
         "radius": "0.34 m across (IROBOT_CREATE)",
         "control_period": "assumption: the OI streams sensor packets every 15 ms; no command period is fixed",
+        **_physics_sources(control_period="assumption: 10 ms"),
     },
+    chassis=CREATE_CHASSIS,
 )
 
 _CREATE2 = RobotProfile(
@@ -140,8 +184,10 @@ _CREATE2 = RobotProfile(
         "max_acceleration": _ASSUMED_ACCEL,
         "radius": "assumption: 0.34 m across, as the Create",
         "control_period": "assumption: 15 ms, the OI's sensor streaming period",
+        **_physics_sources(control_period="the profile's control period (an assumption, above)"),
     },
     control_period=0.015,
+    chassis=CREATE_CHASSIS.with_changes(control_period=0.015),
 )
 
 _CREATE3 = RobotProfile(
@@ -158,9 +204,18 @@ _CREATE3 = RobotProfile(
         "max_acceleration": f"{_C3_SAFETY}: wheel_accel_limit defaults to its maximum, 900 mm/s^2",
         "radius": f"{_C3_URDF}: body collision cylinder radius 16.4 cm",
         "control_period": f"{_C3_SIM}: controller update_rate 100 Hz (cmd_vel_timeout 0.25 s)",
+        **_physics_sources(
+            mass=f"{_C3_URDF}: body_mass 2.300 plus bumper_mass 0.1",
+            height=f"{_C3_URDF}: body_length 6 cm",
+            caster_offset=f"{_C3_URDF}: caster_position_x 12.5 cm",
+            control_period=f"{_C3_SIM}: update_rate 100 Hz",
+            wheel_mass="assumption: not documented (0.1 kg)",
+        ),
     },
     control_period=0.01,
     command_topic="/cmd_vel",
+    chassis=Chassis(mass=2.4, height=0.06, wheel_mass=0.1, wheel_width=0.02, caster_offset=0.125,
+                    tyre_friction=0.8, servo_gain=0.07, max_torque=0.15, control_period=0.01),  # fmt: skip
 )
 
 _GRITSBOT = RobotProfile(
@@ -178,9 +233,15 @@ _GRITSBOT = RobotProfile(
         "radius": f"{_ROBOTARIUM}: robot_diameter 0.11 (collisions are checked at 0.135 m between centres)",
         "control_period": f"{_ROBOTARIUM}: time_step 0.033",
         "arena": f"{_ROBOTARIUM}: boundaries [-1.6, -1, 3.2, 2] (lower left corner, width, height)",
+        **_physics_sources(
+            mass=f"assumption: 0.3 kg; {_ROBOTARIUM_MAG} describes the GRITSbot X without its mass",
+            control_period=f"{_ROBOTARIUM}: time_step 0.033",
+        ),
     },
     control_period=0.033,
     arena=Arena(-1.6, -1.0, 3.2, 2.0),
+    chassis=Chassis(mass=0.3, height=0.07, wheel_mass=0.01, wheel_width=0.006, caster_offset=0.04,
+                    tyre_friction=0.8, servo_gain=0.0017, max_torque=0.005, control_period=0.033),  # fmt: skip
 )
 
 _BURGER = RobotProfile(
@@ -197,8 +258,22 @@ _BURGER = RobotProfile(
         "max_acceleration": _ASSUMED_ACCEL,
         "radius": f"{_TB3_NAV} (the body is 138 x 178 mm)",
         "control_period": "assumption: none documented for cmd_vel",
+        **_physics_sources(
+            mass=f"{_TB3_SPEC}: 1 kg with SBC, battery and sensors; {_TB3_URDF}: base_link 0.826 kg plus the "
+                 "lidar's 0.114 kg (the wheels apart)",
+            yaw_inertia=f"{_TB3_URDF}: base_link izz 2.006e-3",
+            height=f"{_TB3_URDF}: base collision box 0.143 m high",
+            wheel_mass=f"{_TB3_URDF}: 2.85e-2 kg",
+            wheel_width=f"{_TB3_URDF}: wheel cylinder 0.018 m long",
+            caster_offset=f"{_TB3_URDF}: caster_back_joint at x = -0.081 (behind the axle)",
+            max_torque=_XL430,
+            control_period="assumption: 10 ms",
+        ),
     },
     command_topic="/cmd_vel",
+    chassis=Chassis(mass=0.94, height=0.143, wheel_mass=0.0285, wheel_width=0.018, caster_offset=-0.081,
+                    tyre_friction=0.8, servo_gain=0.022, max_torque=1.4, control_period=0.01,
+                    yaw_inertia=2.006e-3),  # fmt: skip
 )
 
 #: every profile by name

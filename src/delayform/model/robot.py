@@ -6,7 +6,8 @@ A :class:`Robot` gathers what belongs to the robot in a simulation, as
 :mod:`delayform.simulation.models`), the actuator limits
 (:class:`~delayform.model.RobotLimits`) or the real robot they come from
 (:class:`~delayform.model.RobotProfile`), the body's radius, the safety
-filter (:class:`BarrierFilter`) and the actuation delay.
+filter (:class:`BarrierFilter`), the actuation delay and, for robots with
+mass, the :class:`~delayform.model.Chassis`.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from numpy.typing import NDArray
 from delayform._extras import require_extra
 from delayform._validation import check_delay, check_positive, validated
 from delayform.errors import SimulationInputError
+from delayform.model.chassis import CREATE_CHASSIS, Chassis
 from delayform.model.limits import IROBOT_CREATE, RobotLimits
 from delayform.model.profiles import RobotProfile, robot_profile
 
@@ -27,8 +29,9 @@ __all__ = ["Robot", "MODELS", "REST_SPEED", "SAFETY_FILTERS", "BarrierFilter", "
 _Array = NDArray[np.float64]
 
 #: agent models a :class:`Robot` names; each is one entry of the integrator table
-#: :data:`delayform.simulation.models.INTEGRATORS` (a test checks that the two agree)
-MODELS = ("double_integrator", "unicycle")
+#: :data:`delayform.simulation.models.INTEGRATORS` (a test checks that the two agree);
+#: ``"physics"``: robots with mass in a physics engine (:mod:`delayform.simulation.physics`)
+MODELS = ("double_integrator", "unicycle", "physics")
 
 #: below this speed (m/s) and acceleration (m/s^2) a robot is at rest and holds
 #: its heading: the iRobot Create's drive command has a resolution of 1 mm/s
@@ -109,10 +112,14 @@ class Robot:
     Attributes
     ----------
     model
-        ``"unicycle"`` (differential-drive robot, eq. transform2) or
-        ``"double_integrator"`` (point agents, ``x'' = u``).
+        ``"unicycle"`` (differential-drive robot, eq. transform2),
+        ``"double_integrator"`` (point agents, ``x'' = u``) or ``"physics"``
+        (differential-drive bodies with mass, wheel servos and contacts in
+        a physics engine: :mod:`delayform.simulation.physics`, the
+        ``physics`` extra).
     limits
-        Actuator limits (:class:`RobotLimits`); None for ideal robots.
+        Actuator limits (:class:`RobotLimits`); None for ideal robots (for
+        ``"physics"``: the profile's, else :data:`IROBOT_CREATE`).
     radius
         Radius (m) of the disc containing the body, for contacts. None
         (default): ``limits.radius``, else the Create's 0.17 m for robots
@@ -133,13 +140,22 @@ class Robot:
     rest_speed
         Ideal robots whose speed (m/s) and commanded acceleration (m/s^2)
         are both below this hold their heading (:data:`REST_SPEED`).
+    chassis
+        For ``model="physics"`` only: mass, inertia, tyres and wheel servos
+        (:class:`~delayform.model.Chassis`). None: the profile's (refused,
+        naming what is missing, for a profile without one), else the
+        Create's (:data:`~delayform.model.CREATE_CHASSIS`).
 
     Raises
     ------
     SimulationInputError
-        For an unknown model, limits on point agents, or a bad number.
+        For an unknown model, limits on point agents, a chassis on a
+        kinematic model, a safety filter or an actuation delay on robots
+        with mass (their servos are their lag; the bodies push each other),
+        or a bad number.
     RobotProfileError
-        For an unknown profile name.
+        For an unknown profile name, or a profile without a chassis for
+        ``model="physics"``.
 
     Examples
     --------
@@ -154,6 +170,7 @@ class Robot:
     actuation_delay: float = 0.0
     profile: RobotProfile | str | None = None
     rest_speed: float = REST_SPEED
+    chassis: Chassis | None = None
 
     def __post_init__(self) -> None:
         if self.profile is not None:
@@ -172,9 +189,30 @@ class Robot:
             raise SimulationInputError(f"limits must be a RobotLimits or None, got {type(self.limits).__name__}")
         if self.limits is not None and self.model == "double_integrator":
             raise SimulationInputError("limits apply to robots: use model='unicycle'")
+        if self.model == "physics":
+            self._physics_defaults()
+        elif self.chassis is not None:
+            raise SimulationInputError("a chassis (mass, servos, tyres) applies to model='physics' only")
         if self.radius is not None:
             object.__setattr__(self, "radius", _nonnegative("radius", self.radius, "m"))
         object.__setattr__(self, "rest_speed", check_positive("rest_speed", self.rest_speed, SimulationInputError))
+
+    def _physics_defaults(self) -> None:
+        """The profile's (else the Create's) limits and chassis where none are given; refuse what the engine does not model."""
+        if self.chassis is None:
+            profile = self.profile
+            chassis = profile.physics_chassis() if isinstance(profile, RobotProfile) else CREATE_CHASSIS
+            object.__setattr__(self, "chassis", chassis)
+        elif not isinstance(self.chassis, Chassis):
+            raise SimulationInputError(f"chassis must be a Chassis, got {type(self.chassis).__name__}")
+        if self.limits is None:
+            object.__setattr__(self, "limits", IROBOT_CREATE)
+        if self.safety is not None:
+            raise SimulationInputError("the safety filter is not modelled for model='physics': the bodies "
+                                       "push each other instead (use model='unicycle' for the filter)")  # fmt: skip
+        if self.actuation_delay > 0.0:
+            raise SimulationInputError("model='physics' has its own actuation lag (the wheel servos): give "
+                                       "actuation_delay with model='unicycle' or 'double_integrator'")  # fmt: skip
 
     @property
     def body_radius(self) -> float:

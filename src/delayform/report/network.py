@@ -198,7 +198,7 @@ def scenario_setup(scenario: Scenario) -> Any:
         model=sim.model, network=scenario.network, duration=sim.duration, dt=sim.dt,
         initial_positions=scenario.initial_positions(), initial_headings=scenario.initial_headings(),
         initial_speed=scenario.initial.speed, limits=scenario.robot, radius=scenario.radius, assignment=sim.assignment, safety=scenario.safety,
-        actuation_delay=scenario.actuation_delay,
+        actuation_delay=scenario.actuation_delay, chassis=scenario.robot_spec.chassis,
     )  # fmt: skip
 
 

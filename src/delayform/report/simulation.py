@@ -194,6 +194,23 @@ def simulation_section(
         ("final formation error", f"{_fmt(summary['final_error'])} m"),
         ("closest approach of two agents", f"{_fmt(summary['min_distance'])} m at t = {_fmt(traj.closest_at)} s"),
     ]
+    if sim.model == "physics":  # what the dynamics cost: the kinematic robots with the same limits, same start
+        from delayform.simulation.physics.compare import KinematicComparison, kinematic_twin
+
+        kin = simulate(
+            scenario.topology, scenario.P, scenario.D, tau1, tau2, scenario.desired_positions(),
+            robot=kinematic_twin(robot), initial_positions=scenario.initial_positions(),
+            initial_headings=scenario.initial_headings(), initial_speed=scenario.initial.speed,
+            seed=scenario.initial.seed, duration=sim.duration, dt=sim.dt, assignment=sim.assignment,
+            network=scenario.network if network else None,
+        )  # fmt: skip
+        cmp = KinematicComparison.of(traj, kin)
+        summary["kinematic"] = {
+            "max_deviation": cmp.max_deviation, "final_deviation": cmp.final_deviation,
+            "settling_time": float(kin.settling_time) if np.isfinite(kin.settling_time) else None,
+            "status": kin.status,
+        }  # fmt: skip
+        table.append(("beside the kinematic model", cmp.describe()))
     if sim.assignment != "given" and traj.slots is not None:
         table.append(("slots (robot: slot)", f"{sim.assignment}: " + ", ".join(
             f"{i + 1}: {k + 1}" for i, k in enumerate(traj.slots))))  # fmt: skip
@@ -222,6 +239,9 @@ def simulation_section(
     if sim.model == "unicycle":
         robots = ("differential-drive robots with actuator limits (saturated unicycle)" if limits is not None
                   else "ideal differential-drive robots (unicycle, feedback linearization eq. transform2)")  # fmt: skip
+    elif sim.model == "physics":
+        robots = ("differential-drive robots with mass, wheel servos and contacts in a physics engine "
+                  f"(controller ticks every {robot.chassis.control_period:g} s)")  # fmt: skip
     return Section(
         key=f"simulation_{label}",
         title=f"Simulation at {label}: (tau1, tau2) = ({tau1:g}, {tau2:g}) s" + ("" if per_link is None else ", per-link delays over [network]"),

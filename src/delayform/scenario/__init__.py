@@ -28,7 +28,7 @@ table and key; anything else is an error)::
     # positions = [[x, y], ...]         # one desired position per agent
 
     [simulation]                        # optional
-    model = "unicycle"                  # unicycle | double_integrator
+    model = "unicycle"                  # unicycle | double_integrator | physics
     duration = 150.0                    # seconds
     dt = 0.01                           # seconds
 

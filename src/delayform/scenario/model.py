@@ -18,7 +18,7 @@ from delayform.simulation.robots import Robot, RobotLimits
 from delayform.topology import Topology
 
 TOPOLOGY_NAMES = ("paper_six", "ring", "complete", "star", "random_digraph")
-MODELS = ("unicycle", "double_integrator")
+MODELS = ("unicycle", "double_integrator", "physics")
 
 #: The paper's example (Section "Simulation Examples"): the six robots of
 #: Fig. topol, P = 1, D = 0.5, point a, a hexagon, the chart window [0, 8]^2
@@ -367,10 +367,16 @@ class Scenario:
 
     @property
     def robot_spec(self) -> Robot:
-        """The ``[robot]`` table (and ``simulation.model``) as one :class:`~delayform.simulation.robots.Robot`."""
-        limits = self.robot if self.simulation.model == "unicycle" else None  # limits apply to robots only
-        return Robot(model=self.simulation.model, limits=limits, radius=self.radius, safety=self.safety,
-                     actuation_delay=self.actuation_delay)  # fmt: skip
+        """The ``[robot]`` table (and ``simulation.model``) as one :class:`~delayform.model.Robot` (with the profile's chassis for ``"physics"``)."""
+        model = self.simulation.model
+        limits = self.robot if model != "double_integrator" else None  # limits apply to robots only
+        chassis = None
+        if model == "physics" and self.robot_profile is not None:  # the profile's mass, tyres and servos
+            from delayform.model.profiles import robot_profile
+
+            chassis = robot_profile(self.robot_profile).physics_chassis()
+        return Robot(model=model, limits=limits, radius=self.radius, safety=self.safety,
+                     actuation_delay=self.actuation_delay, chassis=chassis)  # fmt: skip
 
     def summary(self) -> dict[str, Any]:
         """The scenario as plain JSON-ready values, for summaries and report tables."""

@@ -207,7 +207,7 @@ def _robot(reader: _Reader, data: Mapping[str, Any] | None, model: str) -> tuple
         raise ScenarioError(f"{reader.source}: robot: {exc}") from None
     if not enabled:
         return None, name
-    if model != "unicycle":
+    if model == "double_integrator":
         raise reader.error("robot.limits", "false for simulation.model = 'double_integrator' (limits apply to robots)",
                            enabled)  # fmt: skip
     return robot, name

@@ -39,18 +39,19 @@ _F = TypeVar("_F", bound=Callable[..., Any])
 LOOSE_POSITIONAL = (*LOOSE_TEAM, "formation")
 
 _ROBOT = {"model": "model", "limits": "limits", "safety": "safety", "actuation_delay": "actuation_delay",
-          "rest_speed": "rest_speed", "radius": "radius"}  # fmt: skip
+          "rest_speed": "rest_speed", "radius": "radius", "chassis": "chassis"}  # fmt: skip
 _START = {"initial_positions": "positions", "initial_headings": "headings", "initial_speed": "speed", "seed": "seed"}
 _OPTIONS = {"save_every": "save_every", "assignment": "assignment", "progress": "progress", "executor": "executor"}
 
 #: each old keyword of ``simulate`` -> where it goes now ("Noun.field")
 SIMULATE_KEYWORDS: Mapping[str, str] = MappingProxyType(
-    {**{k: f"Robot.{v}" for k, v in _ROBOT.items() if k != "radius"},
+    {**{k: f"Robot.{v}" for k, v in _ROBOT.items() if k not in ("radius", "chassis")},
      **{k: f"Start.{v}" for k, v in _START.items()},
      **{k: f"RunOptions.{v}" for k, v in _OPTIONS.items() if k != "executor"}}  # fmt: skip
 )
 
-#: each old keyword of ``monte_carlo`` -> where it goes now (its ``seed`` seeds every run's start and network)
+#: each old keyword of ``monte_carlo`` -> where it goes now (its ``seed`` seeds every run's start and network;
+#: ``chassis``, of robots with mass, goes to ``Robot.chassis``)
 MONTE_CARLO_KEYWORDS: Mapping[str, str] = MappingProxyType(
     {**{k: f"Robot.{v}" for k, v in _ROBOT.items() if k != "rest_speed"},
      **{k: f"Start.{v}" for k, v in _START.items()},

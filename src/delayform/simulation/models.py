@@ -22,6 +22,13 @@ Entries
     (:func:`~delayform.simulation.robots.ideal_commands`). With limits the
     true unicycle ``(x, y, theta, v)`` with saturated inputs
     (:class:`~delayform.simulation.robots.LimitedUnicycle`); stated order 2.
+``physics``
+    Differential-drive bodies with mass, wheel servos, tyres and contacts
+    stepped by MuJoCo (:func:`~delayform.simulation.physics.engine.integrate_physics`,
+    the ``physics`` extra), each robot's controller (the saturated unicycle's
+    functions) ticking at its chassis' control period; the run's ``dt`` is
+    the sampling, rounded to whole ticks. The engine's own memory and time
+    are checked before its model is built.
 
 A new agent model is one new class with the four methods of
 :class:`AgentIntegrator` and one entry here, under the name it adds to
@@ -30,6 +37,7 @@ A new agent model is one new class with the four methods of
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from types import MappingProxyType
@@ -39,7 +47,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from delayform.errors import SimulationInputError
-from delayform.model import IROBOT_CREATE, Network, Robot
+from delayform.model import IROBOT_CREATE, Network, Robot, RobotLimits
+from delayform.resources import require
+from delayform.simulation.bodies import approach_cost
 from delayform.simulation.commands import RobotCommands
 from delayform.simulation.filtered import integrate_filtered
 from delayform.simulation.integrator import Progress, Samples, integrate, integrate_linear, stated_order
@@ -48,7 +58,8 @@ from delayform.simulation.robots import DoubleIntegrator, LimitedUnicycle, ideal
 from delayform.simulation.safety import FilteredAgent
 from delayform.topology import Topology
 
-__all__ = ["RunPlan", "Motion", "AgentIntegrator", "DoubleIntegratorModel", "UnicycleModel", "INTEGRATORS"]
+__all__ = ["RunPlan", "Motion", "AgentIntegrator", "DoubleIntegratorModel", "UnicycleModel", "PhysicsModel",
+           "INTEGRATORS"]
 
 _Array = NDArray[np.float64]
 
@@ -66,6 +77,9 @@ class RunPlan:
         uses (a delay longer than the run reads only the constant history).
     dt, steps, save_every
         Step (s), number of steps and saving stride.
+    duration
+        The run's length as given (s); an integrator on its own clock (the
+        physics engine's control ticks) ends on it.
     C, F
         The weight matrix (dense for small teams, sparse above) and the
         formation forcing ``P (I - C) z_desired``.
@@ -94,6 +108,7 @@ class RunPlan:
     dt: float
     steps: int
     save_every: int
+    duration: float
     C: Any
     F: _Array
     x0: _Array
@@ -110,13 +125,18 @@ class RunPlan:
 
 @dataclass(frozen=True, eq=False)
 class Motion:
-    """What an integrator reports of the robots besides their positions: ``(T, n)`` headings and speeds, inputs, commands."""
+    """What an integrator reports of the robots besides their positions: ``(T, n)`` headings and speeds, inputs, commands.
+
+    ``step`` is the integrator's own step (s) when it is not the run's ``dt``
+    (the physics engine's control period), else None.
+    """
 
     headings: _Array
     speeds: _Array
     inputs: _Array
     commands: RobotCommands | None
     stated_order: int
+    step: float | None = None
 
 
 class AgentIntegrator(Protocol):
@@ -152,6 +172,28 @@ def run_agent(plan: RunPlan, agent: Any) -> Samples:
                                  progress=plan.progress, actuation_delay=plan.actuation)  # fmt: skip
     return integrate(agent, plan.C, plan.F, plan.P, plan.D, plan.eff1, plan.eff2, plan.dt, plan.steps,
                      plan.save_every, plan.progress, plan.actuation)  # fmt: skip
+
+
+def _check_speed(limits: RobotLimits, speed0: _Array) -> None:
+    """Refuse robots that start faster than their limits."""
+    if np.abs(speed0).max() > limits.speed_cap:
+        raise SimulationInputError(
+            f"initial_speed {np.abs(speed0).max():g} m/s exceeds the robots' speed limit {limits.speed_cap:g} m/s"
+        )
+
+
+def _limited_motion(run: Samples, limits: RobotLimits, step: float | None = None) -> Motion:
+    """Headings, speeds and the executed commands of robots with limits (the states and extras of LimitedUnicycle)."""
+    assert run.states is not None
+    ex = run.extras
+    spd = run.states[..., 3].copy()
+    commands = RobotCommands.from_motion(
+        run.times, spd, ex["omega"], ex["dv_dt"], limits,
+        ideal_turn_rate=ex["ideal_omega"], ideal_acceleration=ex["ideal_dv_dt"], limited=True,
+        speed_held=ex["speed_held"] > 0.5,
+    )  # fmt: skip
+    head = np.angle(np.exp(1j * run.states[..., 2]))
+    return Motion(head, spd, np.stack([ex["dv_dt"], ex["omega"]], axis=-1), commands, 2, step)
 
 
 def _order(plan: RunPlan) -> int:
@@ -213,10 +255,8 @@ class UnicycleModel:
                 "ideal robots cannot start at exactly zero speed (eq. transform2 divides by v); "
                 "give initial_speed != 0 (the paper uses 1e-3) or limits"
             )
-        if limits is not None and np.abs(speed0).max() > limits.speed_cap:
-            raise SimulationInputError(
-                f"initial_speed {np.abs(speed0).max():g} m/s exceeds the robots' speed limit {limits.speed_cap:g} m/s"
-            )
+        if limits is not None:
+            _check_speed(limits, speed0)
 
     def generic(self, robot: Robot) -> bool:
         """Robots with limits need the generic loop."""
@@ -237,19 +277,48 @@ class UnicycleModel:
                                                      rest_speed=plan.robot.rest_speed)  # fmt: skip
             commands = RobotCommands.from_motion(times, spd, omega, vdot, IROBOT_CREATE)
             return Motion(np.angle(np.exp(1j * theta)), spd, np.stack([vdot, omega], axis=-1), commands, _order(plan))
-        assert run.states is not None
-        ex = run.extras
-        spd = run.states[..., 3].copy()
-        commands = RobotCommands.from_motion(
-            times, spd, ex["omega"], ex["dv_dt"], limits,
-            ideal_turn_rate=ex["ideal_omega"], ideal_acceleration=ex["ideal_dv_dt"], limited=True,
-            speed_held=ex["speed_held"] > 0.5,
-        )  # fmt: skip
-        head = np.angle(np.exp(1j * run.states[..., 2]))
-        return Motion(head, spd, np.stack([ex["dv_dt"], ex["omega"]], axis=-1), commands, 2)
+        return _limited_motion(run, limits)
+
+
+class PhysicsModel:
+    """Robots with mass in the MuJoCo engine, on their controllers' ticks (module doc; :mod:`delayform.simulation.physics`)."""
+
+    name = "physics"
+
+    def check(self, robot: Robot, speed0: _Array) -> None:
+        """Refuse robots faster than their limits (the Robot gave them the Create's where none were given)."""
+        assert robot.limits is not None
+        _check_speed(robot.limits, speed0)
+
+    def generic(self, robot: Robot) -> bool:
+        """Not the linear paths; the engine's own cost is checked in :meth:`integrate`."""
+        return True
+
+    def integrate(self, plan: RunPlan) -> Samples:
+        """The engine's run, sampled every ``round(dt / period)`` ticks times the saving stride."""
+        from delayform.simulation.physics.engine import integrate_physics, physics_resources, tick_grid
+
+        robot, n = plan.robot, plan.topology.n
+        assert robot.limits is not None and robot.chassis is not None
+        period, substeps = tick_grid(robot.chassis)
+        ticks = max(1, math.ceil(plan.duration / period - 1e-9))
+        stride = max(1, round(plan.dt / period)) * plan.save_every
+        nbytes, seconds = physics_resources(n, ticks, substeps)
+        nbytes += approach_cost(n, ticks // stride + 2)[0]
+        require(what=f"this physics run ({ticks:,} control ticks of {n:,} robots)", nbytes=nbytes, seconds=seconds,
+                setting="the duration (--duration) or the number of robots")  # fmt: skip
+        return integrate_physics(plan.topology, plan.F, plan.P, plan.D, plan.tau1, plan.tau2, chassis=robot.chassis,
+                                 limits=robot.limits, x0=plan.x0, th0=plan.th0, speed0=plan.speed0,
+                                 duration=plan.duration, save_every=stride, network=plan.network,
+                                 progress=plan.progress)  # fmt: skip
+
+    def motion(self, plan: RunPlan, run: Samples) -> Motion:
+        """What the controllers commanded and executed, as for robots with limits; the step is the control period."""
+        assert plan.robot.limits is not None and plan.robot.chassis is not None
+        return _limited_motion(run, plan.robot.limits, plan.robot.chassis.control_period)
 
 
 #: the integrator of each agent model, keyed by :attr:`Robot.model <delayform.model.Robot.model>`
 INTEGRATORS: Mapping[str, AgentIntegrator] = MappingProxyType(
-    {"double_integrator": DoubleIntegratorModel(), "unicycle": UnicycleModel()}
+    {"double_integrator": DoubleIntegratorModel(), "unicycle": UnicycleModel(), "physics": PhysicsModel()}
 )

@@ -133,7 +133,7 @@ class Setup:
     formation
         ``(n, 2)`` desired positions.
     model
-        ``"double_integrator"`` or ``"unicycle"``.
+        ``"double_integrator"``, ``"unicycle"`` or ``"physics"`` (:data:`~delayform.model.MODELS`).
     network
         The imperfect network, or None for the ideal one.
     duration, dt
@@ -158,6 +158,9 @@ class Setup:
         Speed below which ideal robots hold their heading (``Robot.rest_speed``).
     save_every
         Saving stride of every run (``RunOptions.save_every``); None: simulate's default.
+    chassis
+        For ``model="physics"``: the robots' mass, tyres and servos
+        (:class:`~delayform.model.Chassis`); None: the Create's.
     """
 
     topology: Topology
@@ -180,12 +183,14 @@ class Setup:
     actuation_delay: float = 0.0
     rest_speed: float = REST_SPEED
     save_every: int | None = None
+    chassis: Any = None
 
     @property
     def robot(self) -> Robot:
-        """The robot of every run (model, limits, body radius, safety filter, actuation delay)."""
+        """The robot of every run (model, limits, body radius, safety filter, actuation delay, chassis)."""
         return Robot(model=self.model, limits=self.limits, radius=self.radius, safety=self.safety,
-                     actuation_delay=self.actuation_delay, rest_speed=self.rest_speed)  # fmt: skip
+                     actuation_delay=self.actuation_delay, rest_speed=self.rest_speed,
+                     chassis=self.chassis)  # fmt: skip
 
     def with_changes(self, **changes: Any) -> Setup:
         """A copy with some fields replaced (sweeps).
@@ -262,7 +267,7 @@ def simulate_run(task: tuple[Setup, int, tuple[int, int]]) -> RunOutcome:
         start=Start(setup.initial_positions, setup.initial_headings, setup.initial_speed, initial_seed),
         duration=setup.duration, dt=setup.dt, options=RunOptions(setup.save_every, setup.assignment),
     )  # fmt: skip
-    if setup.model == "unicycle":
+    if setup.model != "double_integrator":  # robots: |dv/dt| and |omega|
         peaks = (float(np.abs(traj.inputs[..., 0]).max()), float(np.abs(traj.inputs[..., 1]).max()))
     else:
         peaks = (float(np.hypot(traj.inputs[..., 0], traj.inputs[..., 1]).max()), 0.0)
@@ -479,6 +484,12 @@ def estimate_cost(setup: Setup, runs: int) -> tuple[float, float]:
     # the safety filter: about 4 x 50 microseconds per step for a small team (docs/benchmarks.md, issue 21)
     per_step += 2e-4 + 2e-6 * n if setup.safety is not None else 0.0
     seconds = runs * steps * per_step
+    if setup.model == "physics":  # the engine's time, on the robot's control ticks
+        from delayform.simulation.physics.engine import physics_resources, tick_grid
+
+        period, substeps = tick_grid(setup.robot.chassis)
+        extra_bytes, one = physics_resources(n, math.ceil(setup.duration / period - 1e-9), substeps)
+        nbytes, seconds = nbytes + extra_bytes, runs * one
     return nbytes, seconds
 
 
@@ -521,6 +532,7 @@ def make_setup(
     assignment: str = "given",
     safety: Any = None,
     actuation_delay: float = 0.0,
+    chassis: Any = None,
 ) -> Setup:
     """The checked scenario-like inputs of a Monte Carlo or of a sweep's base point.
 
@@ -548,6 +560,8 @@ def make_setup(
         The safety filter (``"barrier"``) or None.
     actuation_delay
         tau_a >= 0 (s) of every run (``Robot.actuation_delay``).
+    chassis
+        For ``model="physics"``: mass, tyres and servos (``Robot.chassis``).
 
     Raises
     ------
@@ -562,7 +576,7 @@ def make_setup(
         initial_positions=None if initial_positions is None else np.asarray(initial_positions, dtype=np.float64),
         initial_headings=None if initial_headings is None else np.asarray(initial_headings, dtype=np.float64),
         initial_speed=initial_speed, limits=limits, radius=radius, assignment=assignment, safety=safety,
-        actuation_delay=actuation_delay,
+        actuation_delay=actuation_delay, chassis=chassis,
     )  # fmt: skip
     return checked(setup)
 
@@ -605,7 +619,7 @@ def collect(setup: Setup, runs: int, seed: int, outcomes: Sequence[RunOutcome]) 
         One :class:`RunOutcome` per run.
     """
     ordered = sorted(outcomes, key=lambda o: o.index)
-    names = ("|dv/dt|", "|omega|") if setup.model == "unicycle" else ("|u|", "")
+    names = ("|dv/dt|", "|omega|") if setup.model != "double_integrator" else ("|u|", "")
     return MonteCarloResult(
         setup=setup, runs=runs, seed=seed,
         times=ordered[0].error_times,
@@ -696,7 +710,7 @@ def monte_carlo(
         initial_headings=None if start.headings is None else np.asarray(start.headings),
         initial_speed=start.speed, limits=robot.limits, radius=robot.radius,  # type: ignore[arg-type]
         assignment=options.assignment, safety=robot.safety, actuation_delay=actuation,
-        rest_speed=robot.rest_speed, save_every=options.save_every,
+        rest_speed=robot.rest_speed, save_every=options.save_every, chassis=robot.chassis,
     ))  # fmt: skip
     guard(setup, runs, int(getattr(options.executor, "workers", 1)))
     tasks = [(setup, r, s) for r, s in enumerate(run_seeds(seed, runs))]

@@ -22,9 +22,14 @@ Agent models (:mod:`delayform.simulation.robots`)
     (:class:`delayform.simulation.robots.LimitedUnicycle`), using the
     neighbours' delayed states from the history. The saturations are
     continuous but not smooth: **stated order 2**.
+``physics``
+    Differential-drive bodies with mass, wheel servos, tyres and contacts
+    stepped by MuJoCo, each robot's controller (the same functions as the
+    saturated unicycle) ticking at its control period
+    (:mod:`delayform.simulation.physics`).
 Over an imperfect ``network``
     The same agent models (the double integrator, from which ideal robots
-    are rebuilt, or the saturated unicycle) driven by what each agent hears
+    are rebuilt, the saturated unicycle, or the robots with mass) driven by what each agent hears
     (:func:`delayform.simulation.reception.integrate_network`).
 
 Each agent model is one entry of the integrator table
@@ -168,6 +173,11 @@ def simulate(
         :data:`~delayform.simulation.models.INTEGRATORS`. None: ``Robot()``,
         ideal differential-drive robots (eq. transform2) whose wheel speeds
         are reported for the geometry of :data:`~delayform.model.IROBOT_CREATE`.
+        ``Robot(model="physics")``: robots with mass, wheel servos and
+        contacts in a physics engine (:mod:`delayform.simulation.physics`;
+        the ``physics`` extra), whose controller ticks at the chassis'
+        control period; ``dt`` is then the sampling of the saved run
+        (rounded to whole ticks).
     network
         An imperfect network (:class:`~delayform.model.Network`: per-link and
         varying delays, jitter, loss, sampling, noise), integrated by
@@ -181,7 +191,8 @@ def simulate(
         divides by v there).
     duration, dt
         Length of the run and the fixed step (s); the run ends at
-        ``ceil(duration / dt) dt``.
+        ``ceil(duration / dt) dt`` (for ``"physics"``: at a whole number of
+        control ticks, sampled every ``round(dt / period)`` ticks).
     options
         Saving stride, slot assignment and a progress callback
         (:class:`~delayform.simulation.options.RunOptions`); None: the defaults.
@@ -268,7 +279,7 @@ def simulate(
 
     plan = RunPlan(
         topology=topology, P=P, D=D, tau1=tau1, tau2=tau2, eff1=eff1, eff2=eff2, dt=dt, steps=steps,
-        save_every=save_every, C=topology.C_sparse.toarray() if n <= _DENSE_AGENTS else topology.C_sparse,
+        save_every=save_every, duration=duration, C=topology.C_sparse.toarray() if n <= _DENSE_AGENTS else topology.C_sparse,
         F=formation_forcing(topology, P, desired), x0=x0, v0=v0, th0=th0, speed0=speed0, robot=robot,
         network=network, actuation=ta, linear=linear, hybrid=hybrid, progress=options.progress,
     )  # fmt: skip
@@ -346,7 +357,8 @@ def _trajectory(plan: RunPlan, desired: _Array, duration: float, run: Samples, m
         warnings += (contact_warning(approach.contacts),)
     return Trajectory(
         times=times, positions=pos, velocities=vel, headings=motion.headings, speeds=spd, inputs=motion.inputs,
-        desired=desired, model=robot.model, P=plan.P, D=plan.D, tau1=plan.tau1, tau2=plan.tau2, dt=plan.dt,
+        desired=desired, model=robot.model, P=plan.P, D=plan.D, tau1=plan.tau1, tau2=plan.tau2,
+        dt=plan.dt if motion.step is None else motion.step,
         stated_order=motion.stated_order,
         actuation_delay=robot.actuation_delay,
         formation_error=error, settling_time=settled,

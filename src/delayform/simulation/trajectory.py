@@ -219,7 +219,7 @@ class Trajectory(FigureRepr):
                 self.inputs.reshape(-1, 2),
             ]
         )
-        input_names = "dv_dt,omega" if self.model == "unicycle" else "u_x,u_y"
+        input_names = "u_x,u_y" if self.model == "double_integrator" else "dv_dt,omega"
         header = f"time,agent,x,y,heading,speed,{input_names}"
         with atomic_path(path) as tmp:
             np.savetxt(tmp, cols, delimiter=",", header=header, comments="", fmt="%.10g")
