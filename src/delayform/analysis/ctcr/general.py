@@ -253,27 +253,78 @@ def resultant_solutions(qp: TermsQP, omega: NDArray[np.float64]) -> list[NDArray
         Pt[:, :, K1 - a] += np.conj(v)[:, None] * z2[None, :] ** (K2 - b)
     R = np.linalg.det(sylvester(P[..., ::-1], Pt[..., ::-1]))
     coef = np.fft.fft(R, axis=1) / n_z  # R(z2_m) = sum_k coef_k z2_m^k on the n_z-th roots of unity
-    out: list[NDArray[np.float64]] = []
-    for i in range(s.size):
-        roots2 = unit_circle_roots(coef[i], 1e-11)
-        sols = []
-        terms_at = np.array([v[i] for v in vals])
-        for z in roots2:
-            poly1 = np.zeros(K1 + 1, complex)
-            for gk, (a, b) in zip(terms_at, reduced, strict=True):
-                poly1[a] += gk * z**b
-            nzp = np.flatnonzero(np.abs(poly1) > 0)
-            if nzp.size < 2:
-                continue
-            for w in np.roots(poly1[: nzp[-1] + 1][::-1]):
-                if abs(abs(w) - 1.0) > 1e-3:
-                    continue
-                for k in range(g):  # the g phases theta1 with e^{-j g theta1} = w
-                    th = newton_phases(terms_at, mult, (-np.angle(w) + TWO_PI * k) / g, -np.angle(z))
-                    if th is not None:
-                        sols.append(th)
-        out.append(_unique(np.array(sols).reshape(-1, 2)))
+    # candidates (sample, theta1, theta2) from the unit roots, then one batched Newton on q for all
+    terms_at = np.stack(vals, axis=1)  # (omega, term)
+    pairs = [(i, z) for i in range(s.size) for z in unit_circle_roots(coef[i], 1e-11)]
+    at = np.array([i for i, _ in pairs], np.int64)
+    z2s = np.array([z for _, z in pairs], complex)
+    poly1 = np.zeros((at.size, K1 + 1), complex)  # q(., z2) in w, ascending, one row per (omega, z2)
+    for k, (a, b) in enumerate(reduced):
+        poly1[:, a] += terms_at[at, k] * z2s**b
+    idx: list[int] = []
+    starts: list[tuple[float, float]] = []
+    for row, w in _poly_roots(poly1):
+        if abs(abs(w) - 1.0) > 1e-3:
+            continue
+        for k in range(g):  # the g phases theta1 with e^{-j g theta1} = w
+            idx.append(int(at[row]))
+            starts.append(((-np.angle(w) + TWO_PI * k) / g, -np.angle(z2s[row])))
+    where = np.asarray(idx, np.int64)
+    th, ok = _newton_phases_batch(terms_at[where], mult, np.asarray(starts, float).reshape(-1, 2))
+    where, th = where[ok], th[ok]
+    return [_unique(th[where == i]) for i in range(s.size)]
+
+
+def _poly_roots(poly: NDArray[np.complex128]) -> list[tuple[int, complex]]:
+    """(row, root) of every row's polynomial (ascending): full-degree rows by one batched eigensolve."""
+    out: list[tuple[int, complex]] = []
+    if poly.shape[0] == 0 or poly.shape[1] < 2:
+        return out
+    n = poly.shape[1] - 1
+    lead = poly[:, n]
+    full = np.abs(lead) > 1e-12 * np.max(np.abs(poly), axis=1)
+    rows = np.flatnonzero(full)
+    if rows.size:
+        comp = np.zeros((rows.size, n, n), complex)  # companion matrices of the monic rows
+        comp[:, 0, :] = -(poly[rows, ::-1][:, 1:] / lead[rows, None])
+        comp[:, np.arange(1, n), np.arange(n - 1)] = 1.0
+        roots = np.linalg.eigvals(comp)
+        out.extend((int(r), complex(w)) for r, ws in zip(rows, roots, strict=True) for w in ws)
+    for r in np.flatnonzero(~full):  # a degree drop: the roots of the rest (those at infinity dropped)
+        nz = np.flatnonzero(np.abs(poly[r]) > 0)
+        if nz.size >= 2:
+            out.extend((int(r), complex(w)) for w in np.roots(poly[r, : nz[-1] + 1][::-1]))
     return out
+
+
+def _newton_phases_batch(
+    g: NDArray[np.complex128], mult: NDArray[np.float64], th: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+    """:func:`newton_phases` for many starts at once: rows of g (terms at j omega) and of th (theta1, theta2).
+
+    Returns the polished phases in [0, 2 pi) and which of them solve q to 1e-11 of its terms' moduli.
+    """
+    t1, t2 = th[:, 0].copy(), th[:, 1].copy()
+    scale = np.sum(np.abs(g), axis=1)
+    live = np.ones(t1.size, bool)
+    for _ in range(30):
+        if not np.any(live):
+            break
+        e = g * np.exp(-1j * (mult[None, :, 0] * t1[:, None] + mult[None, :, 1] * t2[:, None]))
+        f = e.sum(axis=1)
+        d1 = (-1j * mult[None, :, 0] * e).sum(axis=1)
+        d2 = (-1j * mult[None, :, 1] * e).sum(axis=1)
+        det = d1.real * d2.imag - d2.real * d1.imag
+        # as one start would: stop where converged, or where J is singular (a tangency)
+        live &= (np.abs(f) > 1e-14 * scale) & (np.abs(det) > 1e-14 * (np.abs(d1) * np.abs(d2) + 1e-300))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            step1 = (f.real * d2.imag - d2.real * f.imag) / det
+            step2 = (d1.real * f.imag - f.real * d1.imag) / det
+        t1 = np.where(live, t1 - step1, t1)
+        t2 = np.where(live, t2 - step2, t2)
+    e = g * np.exp(-1j * (mult[None, :, 0] * t1[:, None] + mult[None, :, 1] * t2[:, None]))
+    ok = np.abs(e.sum(axis=1)) <= 1e-11 * scale
+    return np.column_stack([np.mod(t1, TWO_PI), np.mod(t2, TWO_PI)]), ok
 
 
 def unit_circle_roots(poly: NDArray[np.complex128], rel_tol: float) -> NDArray[np.complex128]:
@@ -324,8 +375,10 @@ def newton_phases(g: NDArray[np.complex128], mult: NDArray[np.float64], t1: floa
 
 
 def _unique(th: NDArray[np.float64]) -> NDArray[np.float64]:
-    keep: list[NDArray[np.float64]] = []
-    for row in th:
-        if all(np.max(np.abs(np.angle(np.exp(1j * (row - k))))) > 1e-7 for k in keep):
-            keep.append(row)
-    return np.array(keep).reshape(-1, 2)
+    """Rows of th once: a row within 1e-7 (torus, per phase) of an earlier kept row is dropped."""
+    d = np.abs(np.mod(th[:, None, :] - th[None, :, :] + np.pi, TWO_PI) - np.pi).max(axis=2)
+    keep: list[int] = []
+    for r in range(th.shape[0]):
+        if all(d[r, k] > 1e-7 for k in keep):
+            keep.append(r)
+    return th[keep].reshape(-1, 2)
