@@ -22,8 +22,9 @@ from delayform.analysis.ctcr.phase import (
     _PhasePath,
 )
 from delayform.analysis.ctcr.degenerate import crossing_changes, vertex_tendencies
-from delayform.analysis.ctcr.general import TermsQP, collapse, unit_roots_single
+from delayform.analysis.ctcr.general import TermsQP, collapse, monomial_factor, unit_roots_single
 from delayform.characteristic import TwoDelayQuasiPolynomial
+from delayform.errors import QuasiPolynomialError
 
 # ===================================================================== results
 @dataclass(frozen=True, eq=False)
@@ -215,6 +216,14 @@ def _part_curves(part: _Part, window: tuple[float, float], source: int) -> list[
     if _is_three_term(qp):
         paths = _three_term_paths(qp, window)
     else:
+        factor = monomial_factor(qp.terms())
+        if factor is not None:
+            a, b = factor
+            raise QuasiPolynomialError(
+                f"the quasi-polynomial has a factor in z1^{a} z2^{b} alone (a function of {a} tau1 + {b} tau2); "
+                "its crossings are whole lines the two-delay trace cannot follow: map its factors separately "
+                "(NU adds up)"
+            )
         paths = _general_paths(qp, window)
     out: list[CrossingCurve] = []
     for p in paths:
