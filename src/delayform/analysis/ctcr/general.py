@@ -23,6 +23,12 @@ eliminations that hold for any degrees K1 (in z1) and K2 (in z2):
   crossing frequencies.
 * When every power of z1 is a multiple of g, q is eliminated in ``w = z1^g``
   (in z1 the resultant would be a g-th power, with g-fold roots).
+* When every delayed term is a power of one monomial ``z1^a z2^b``, q is a
+  one-delay qp in ``a tau1 + b tau2`` and its crossings are straight lines
+  (:func:`~delayform.analysis.ctcr.curves.line_direction`); a q with a
+  *factor* in one monomial is refused (:func:`monomial_factor`): at that
+  factor's crossing frequencies whole lines of the torus solve q, which the
+  sweep in omega cannot see.
 
 Both are eliminations, not sign changes on a grid: a frequency or phase is
 found whenever it is a root of the eliminant, however close two of them lie.
