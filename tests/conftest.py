@@ -21,7 +21,10 @@ from hypothesis import HealthCheck, settings  # noqa: E402
 settings.register_profile(
     "delayform", deadline=None, suppress_health_check=[HealthCheck.too_slow], derandomize=True
 )
-settings.load_profile("delayform")
+# A long run of the properties draws fresh examples, seeded by --hypothesis-seed so that shards
+# differ: DELAYFORM_HYPOTHESIS_PROFILE=long (the number of examples: DELAYFORM_PROPERTY_EXAMPLES).
+settings.register_profile("long", parent=settings.get_profile("delayform"), derandomize=False, database=None)
+settings.load_profile(os.environ.get("DELAYFORM_HYPOTHESIS_PROFILE", "delayform"))
 
 
 @pytest.fixture

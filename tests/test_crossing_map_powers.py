@@ -17,6 +17,7 @@ Run the properties with many more examples locally:
 from __future__ import annotations
 
 import math
+import re
 import os
 
 import numpy as np
@@ -26,8 +27,9 @@ from hypothesis import assume, example, given, settings
 from hypothesis import strategies as st
 
 from delayform import QuasiPolynomial, count_roots_right_of, crossing_map, rightmost_root
+from delayform.analysis.ctcr.stability_map import curve_residual
 from delayform.analysis.ctcr.general import unit_roots_single
-from delayform.errors import NotConvergedError
+from delayform.errors import NotConvergedError, QuasiPolynomialError
 
 #: examples per property in the suite (seconds each); raise it by the environment for a long run
 EXAMPLES = int(os.environ.get("DELAYFORM_PROPERTY_EXAMPLES", "30"))
@@ -58,6 +60,22 @@ def retarded_qps(draw: st.DrawFn) -> dict[tuple[int, int], list[float]]:
         if k == (0, 0) or k in terms:
             continue
         terms[k] = [draw(_coefficient()) for _ in range(draw(st.integers(1, n)))]
+    return terms
+
+
+#: primitive directions (a, b): q depends on the delays through a tau1 + b tau2 alone
+_DIRECTIONS = [(1, 0), (0, 1), (1, 1), (1, 2), (2, 1), (1, 3), (3, 1), (2, 3), (3, 2), (1, 4), (4, 1), (3, 4), (4, 3)]
+
+
+@st.composite
+def monomial_qps(draw: st.DrawFn) -> dict[tuple[int, int], list[float]]:
+    """Monic principal polynomial of degree 1-4, delayed terms (z1^a z2^b)^m: one to three powers m, k <= 4."""
+    n = draw(st.integers(1, 4))
+    a, b = draw(st.sampled_from(_DIRECTIONS))
+    powers = draw(st.lists(st.integers(1, 4 // max(a, b)), min_size=1, max_size=3, unique=True))
+    terms = {(0, 0): [draw(_coefficient()) for _ in range(n)] + [1.0]}
+    for m in powers:
+        terms[(m * a, m * b)] = [draw(_coefficient()) for _ in range(draw(st.integers(1, n)))]
     return terms
 
 
@@ -93,8 +111,14 @@ _point = st.tuples(st.floats(0.0, WINDOW), st.one_of(st.just(0.0), st.floats(1e-
 @example({(0, 0): [1.0, 2.0, 1.0], (3, 1): [2.0], (0, 1): [0.01]}, [(1.0, 0.5), (0.3, 0.5)])
 @example({(0, 0): [1.0, 1.0], (3, 0): [2.0], (0, 1): [0.001]}, [(1.0, 0.5), (0.2, 0.5)])
 @example({(0, 0): [0.5, 1.0], (4, 0): [1.2], (0, 4): [0.3]}, [(0.9, 0.4), (0.1, 0.1)])
+# every term in (z1 z2)^k: a map without curves before the one-monomial path
+@example({(0, 0): [10.0, 4.370470253254392, 1.0, 1.0, 1.0], (4, 4): [9.99976974414163],
+          (2, 2): [0.013279192346630218, 6.390341292750604, -1.0, -0.015284861509589766]},
+         [(0.5, 0.5), (0.9641826686329382, 1.0)])
+# found by the long run on the code before the one-monomial path (terms in z1^2 z2 alone): NU 1 for 3
+@example({(0, 0): [-1.0, -1.0, -1.0, -1.0, 1.0], (2, 1): [-1.0, -1.0, -1.0]}, [(0.7454764257879972, 0.09218597398733899)])
 @settings(max_examples=EXAMPLES)
-@given(retarded_qps(), st.lists(_point, min_size=4, max_size=4))
+@given(st.one_of(retarded_qps(), monomial_qps()), st.lists(_point, min_size=4, max_size=4))
 def test_map_nu_equals_certified_count(terms: dict, points: list) -> None:
     _check_map(terms, points)
 
@@ -228,8 +252,12 @@ def _grid_newton_rightmost(terms: dict, t1: float, t2: float, left: float) -> co
     for (a, b), c in terms.items():
         low[: len(c)] += np.abs(c) * math.exp((a * t1 + b * t2) * max(0.0, -left))
     radius = max(1.0, float(low[:n].sum()))
+    # roots of a chain lie about 2 pi / h apart along Im s (h the largest delay): a grid coarser
+    # than that starts no Newton run near some of them (s + 10 + e^{-5.5 s}: a step of 1.25 against
+    # a spacing of 1.14 missed the rightmost pair); a quarter of the spacing
+    h = max(a * t1 + b * t2 for a, b in terms)
     re = np.linspace(left, radius, 60)
-    im = np.linspace(-radius, radius, 241)
+    im = np.linspace(-radius, radius, int(min(4001, max(241, np.ceil(4.0 * radius * h / np.pi) + 1))))
     s = (re[:, None] + 1j * im[None, :]).ravel()
     with np.errstate(all="ignore"):  # iterates that run off to the left overflow: dropped below
         for _ in range(60):
@@ -243,8 +271,11 @@ def _grid_newton_rightmost(terms: dict, t1: float, t2: float, left: float) -> co
     return complex(s[ok][np.argmax(s[ok].real)]) if np.any(ok) else None
 
 
+# found by the long run: the reference grid was coarser than the roots' spacing (the rightmost
+# root -0.41133 + 0.56058j is W_0 of the closed form s = -10 + W_k(-h e^{10 h}) / h, h = 5.5)
+@example({(0, 0): [10.0, 1.0], (1, 3): [1.0]}, 1.0, 1.5)
 @settings(max_examples=2 * EXAMPLES)
-@given(retarded_qps(), st.floats(0.0, 1.5), st.floats(0.0, 1.5))
+@given(st.one_of(retarded_qps(), monomial_qps()), st.floats(0.0, 1.5), st.floats(0.0, 1.5))
 def test_rightmost_root_against_grid_newton(terms: dict, t1: float, t2: float) -> None:
     qp = QuasiPolynomial(terms)
     r = rightmost_root(qp, t1, t2)
@@ -254,12 +285,59 @@ def test_rightmost_root_against_grid_newton(terms: dict, t1: float, t2: float) -
     assert abs(ref.real - r.real) <= 1e-7 * max(1.0, abs(r))  # and the rightmost is the one returned
 
 
-@pytest.mark.xfail(strict=True, reason="every term in (z1 z2)^k: the map finds no curve where NU changes 2 -> 4; not fixed yet")
 def test_map_of_equal_powers_on_both_delays():
     """Found by the map property at 500 examples: a qp in z1^k z2^k alone (a function of tau1 + tau2).
 
-    The certified count says 2 unstable roots at (0.5, 0.5) and 4 at (0.9, 1.0); the map has no curve.
+    The certified count says 2 unstable roots at (0.5, 0.5) and 4 at (0.96, 1.0); the map had no curve
+    (at a crossing frequency a whole line of the torus solves q, so the two-delay eliminant vanished
+    there and nowhere else). Now it is one line tau1 + tau2 = T, with T the one-delay crossing.
     """
     terms = {(0, 0): [10.0, 4.370470253254392, 1.0, 1.0, 1.0], (4, 4): [9.99976974414163],
              (2, 2): [0.013279192346630218, 6.390341292750604, -1.0, -0.015284861509589766]}
-    _check_map(terms, [(0.5, 0.5), (0.9641826686329382, 1.0)])
+    assert _check_map(terms, [(0.5, 0.5), (0.9641826686329382, 1.0), (0.2, 0.3), (0.3, 0.9)]) == 4
+    m = crossing_map(QuasiPolynomial(terms), 1.0, 1.0)
+    # one straight line tau1 + tau2 = T, T = theta / omega of the one-delay problem in w = (z1 z2)^2:
+    # its crossing is found by Newton on q at a random point of the line, independently of the map
+    (c,) = m.curves
+    np.testing.assert_allclose(c.tau1 + c.tau2, c.tau1[0] + c.tau2[0], rtol=1e-14)
+    T = float(c.tau1[0] + c.tau2[0])
+    qp = QuasiPolynomial(terms)
+    for t1 in (0.2, 0.6):
+        before, after = (count_roots_right_of(qp, t1, T - t1 + d, 0.0) for d in (-1e-3, 1e-3))
+        assert (before, after) == (2, 4)
+    assert curve_residual(m.traced[0], c).max() <= 1e-9
+
+
+# delayed terms all powers of one monomial z1^a z2^b: every direction, with more than one power
+@pytest.mark.parametrize("terms, points", [
+    ({(0, 0): [1.0, 2.0, 1.0], (1, 2): [0.3], (3, 6): [2.0]}, [(0.2, 0.1), (0.5, 0.5), (0.9, 0.2), (0.1, 0.9)]),
+    ({(0, 0): [0.5, 1.0], (2, 1): [1.2], (4, 2): [0.3]}, [(0.1, 0.1), (0.9, 0.9), (0.3, 0.8), (1.0, 0.0)]),
+    ({(0, 0): [1.0, 2.0, 1.0], (0, 3): [2.0]}, [(0.9, 0.1), (0.1, 0.9), (0.5, 0.5), (0.0, 0.6)]),
+    ({(0, 0): [2.0, 3.0, 1.0], (0, 1): [0.2, -2.0], (0, 2): [1.5]}, [(0.9, 0.1), (0.1, 0.9), (0.5, 0.5), (0.3, 0.7)]),
+    ({(0, 0): [1.0, 0.4, 1.0], (3, 4): [0.9, 0.2]}, [(0.9, 0.1), (0.1, 0.9), (0.5, 0.5), (0.99, 0.99)]),
+])
+def test_map_in_one_monomial(terms: dict, points: list) -> None:
+    m = crossing_map(QuasiPolynomial(terms), WINDOW, WINDOW)
+    assert m.curves  # every case crosses inside the window
+    assert _check_map(terms, points) >= len(points) - 1
+
+
+@pytest.mark.parametrize("factor, name", [({(0, 0): [1.0, 1.0], (1, 0): [2.0]}, "z1^1 z2^0"),
+                                          ({(0, 0): [1.0, 1.0], (1, 1): [2.0]}, "z1^1 z2^1"),
+                                          ({(0, 0): [1.0, 1.0], (0, 2): [2.0]}, "z1^0 z2^1")])
+def test_a_factor_in_one_monomial_is_refused(factor: dict, name: str) -> None:
+    """(s + 1 + 2 z1) (s^2 + s + 1 + z1 z2 + 0.5 z2) expanded: the first factor's lines tau1 = 1.2092 were missed.
+
+    The map said NU = 2 at (1.5, 0.3), the argument-principle count 4 (s + 1 + 2 e^{-tau1 s} crosses at
+    omega = sqrt 3, tau1 = 2 pi / (3 sqrt 3), closed form); now the product is refused, naming the monomial.
+    """
+    other = {(0, 0): [1.0, 1.0, 1.0], (1, 1): [1.0], (0, 1): [0.5]}
+    terms: dict[tuple[int, int], np.ndarray] = {}
+    for (a1, b1), c1 in factor.items():
+        for (a2, b2), c2 in other.items():
+            k = (a1 + a2, b1 + b2)
+            terms[k] = npoly.polyadd(terms.get(k, [0.0]), npoly.polymul(c1, c2))
+    with pytest.raises(QuasiPolynomialError, match=re.escape(name)):
+        crossing_map(QuasiPolynomial({k: list(v) for k, v in terms.items()}), 2.0, 2.0)
+    # each factor alone is mapped (the second is not in one monomial, the first is a line)
+    assert crossing_map(QuasiPolynomial(other), 2.0, 2.0).curves

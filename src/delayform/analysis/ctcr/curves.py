@@ -22,8 +22,9 @@ from delayform.analysis.ctcr.phase import (
     _PhasePath,
 )
 from delayform.analysis.ctcr.degenerate import crossing_changes, vertex_tendencies
-from delayform.analysis.ctcr.general import TermsQP, collapse, unit_roots_single
+from delayform.analysis.ctcr.general import TermsQP, collapse, monomial_factor, unit_roots_single
 from delayform.characteristic import TwoDelayQuasiPolynomial
+from delayform.errors import QuasiPolynomialError
 
 # ===================================================================== results
 @dataclass(frozen=True, eq=False)
@@ -207,15 +208,22 @@ def _is_three_term(qp: TwoDelayQuasiPolynomial) -> bool:
 
 def _part_curves(part: _Part, window: tuple[float, float], source: int) -> list[CrossingCurve]:
     qp = part.qp
-    has1 = any(c.size for c, a, _ in qp.terms() if a)
-    has2 = any(c.size for c, _, b in qp.terms() if b)
-    if not has1 and not has2:
+    if not any(c.size and (a or b) for c, a, b in qp.terms()):
         return []
-    if not has1 or not has2:
-        return _line_curves(part, window, source, vertical=has1)
+    direction = line_direction(qp)
+    if direction is not None:
+        return _line_curves(part, window, source, direction)
     if _is_three_term(qp):
         paths = _three_term_paths(qp, window)
     else:
+        factor = monomial_factor(qp.terms())
+        if factor is not None:
+            a, b = factor
+            raise QuasiPolynomialError(
+                f"the quasi-polynomial has a factor in z1^{a} z2^{b} alone (a function of {a} tau1 + {b} tau2); "
+                "its crossings are whole lines the two-delay trace cannot follow: map its factors separately "
+                "(NU adds up)"
+            )
         paths = _general_paths(qp, window)
     out: list[CrossingCurve] = []
     for p in paths:
@@ -223,25 +231,89 @@ def _part_curves(part: _Part, window: tuple[float, float], source: int) -> list[
     return out
 
 
-def _line_curves(part: _Part, window: tuple[float, float], source: int, *, vertical: bool) -> list[CrossingCurve]:
-    """A qp in one delay only: its crossings are straight lines across the window."""
+def line_direction(qp: TwoDelayQuasiPolynomial) -> tuple[int, int] | None:
+    """The primitive (a, b) of which every delayed term's (k1, k2) is a multiple, or None.
+
+    Then q depends on the delays only through ``T = a tau1 + b tau2``: it is
+    ``sum_j h_j(s) w^j`` with ``w = z1^a z2^b = e^{-T s}``, a one-delay qp in T,
+    and its crossing set is the family of straight lines ``a tau1 + b tau2 = T_i``.
+    (1, 0): tau1 alone; (0, 1): tau2 alone; (1, 1): tau1 + tau2; (1, 2), (2, 3), ...
+    The two-delay sweep cannot trace it: at a crossing frequency every point of
+    a line ``a theta1 + b theta2 = const`` of the torus solves q, so its
+    eliminant vanishes identically there, and at every other frequency there is
+    no solution at all.
+    """
+    keys = {(a, b) for c, a, b in qp.terms() if (a or b) and c.size and np.any(c != 0.0)}
+    if not keys:
+        return None
+    a0, b0 = next(iter(keys))
+    a, b = a0 // int(np.gcd(a0, b0)), b0 // int(np.gcd(a0, b0))
+    if all(k1 * b == k2 * a for k1, k2 in keys):
+        return a, b
+    return None
+
+
+def _line_polynomials(qp: TwoDelayQuasiPolynomial, direction: tuple[int, int]) -> list[NDArray[np.complex128]]:
+    """h_j(s) of ``q = sum_j h_j(s) w^j``, ``w = z1^a z2^b`` (:func:`line_direction`)."""
+    a, b = direction
+    h: dict[int, NDArray[np.complex128]] = {}
+    for c, k1, k2 in qp.terms():
+        j = k1 // a if a else k2 // b
+        acc = np.zeros(max(h.get(j, np.zeros(0)).size, c.size), complex)
+        acc[: h.get(j, np.zeros(0)).size] += h.get(j, np.zeros(0, complex))
+        acc[: c.size] += c
+        h[j] = acc
+    return [np.trim_zeros(h.get(j, np.zeros(0, complex)), "b") for j in range(max(h) + 1)]
+
+
+def _line_curves(
+    part: _Part, window: tuple[float, float], source: int, direction: tuple[int, int]
+) -> list[CrossingCurve]:
+    """A qp in ``T = a tau1 + b tau2`` alone: its crossings are the straight lines ``a tau1 + b tau2 = T_i``.
+
+    ``T_i = (theta + 2 pi i) / omega`` for the exact one-delay crossings (omega,
+    theta) of ``sum_j h_j(s) w^j`` (:func:`_one_delay_roots`); each line is drawn
+    across the window and 2 % beyond it, with the root tendencies of q itself
+    (``ds/dtau1 = a ds/dT``, ``ds/dtau2 = b ds/dT``: the same sign along the line).
+    """
     qp = part.qp
-    omegas, thetas = _unit_roots(qp, 1 if vertical else 2)
-    tmax, other = (window[0], window[1]) if vertical else (window[1], window[0])
+    a, b = direction
+    omegas, thetas = _one_delay_roots(_line_polynomials(qp, direction))
+    t1max, t2max = window
+    lo1, hi1, lo2, hi2 = -0.02 * t1max, 1.02 * t1max, -0.02 * t2max, 1.02 * t2max
+    tmax = a * t1max + b * t2max
     out = []
     for om, th in zip(omegas, thetas, strict=True):
         for i in range(int(np.floor(tmax * om / TWO_PI)) + 1):
-            tau = (th + TWO_PI * i) / om
-            if tau <= 0 or tau > tmax:
+            T = (th + TWO_PI * i) / om
+            if T <= 0 or T > tmax:
                 continue
-            a = np.array([tau, tau])
-            b = np.array([-0.02 * other, other * 1.02])
-            t1, t2 = (a, b) if vertical else (b, a)
+            ends = _clip_line(a, b, T, (lo1, hi1, lo2, hi2))
+            if ends is None:
+                continue
+            t1, t2 = ends
             w = np.array([om, om])
             rt1, rt2 = _tendency(qp, w, t1, t2)
-            out.append(CrossingCurve(t1, t2, w, rt1.astype(np.int8), rt2.astype(np.int8), "kernel" if i == 0 else "offspring",
-                                     (i, 0) if vertical else (0, i), part.weight, source, part.factor))
+            shift = (i, 0) if a else (0, i)
+            out.append(CrossingCurve(t1, t2, w, rt1.astype(np.int8), rt2.astype(np.int8),
+                                     "kernel" if i == 0 else "offspring", shift, part.weight, source, part.factor))
     return out
+
+
+def _clip_line(a: int, b: int, T: float, box: tuple[float, float, float, float]) -> tuple[NDArray, NDArray] | None:
+    """The two ends of the line ``a tau1 + b tau2 = T`` inside the box (lo1, hi1, lo2, hi2), or None."""
+    lo1, hi1, lo2, hi2 = box
+    if b == 0:
+        return (np.array([T / a, T / a]), np.array([lo2, hi2])) if lo1 <= T / a <= hi1 else None
+    if a == 0:
+        return (np.array([lo1, hi1]), np.array([T / b, T / b])) if lo2 <= T / b <= hi2 else None
+    # tau2 = (T - a tau1) / b decreases along tau1: clip tau1 to where tau2 lies in [lo2, hi2]
+    x0 = max(lo1, (T - b * hi2) / a)
+    x1 = min(hi1, (T - b * lo2) / a)
+    if not x0 < x1:
+        return None
+    x = np.array([x0, x1])
+    return x, (T - a * x) / b
 
 
 def _axis_crossings(parts: list[_Part], window: tuple[float, float], *, axis: int) -> tuple[NDArray, NDArray]:
@@ -272,7 +344,11 @@ def _unit_roots(qp: TwoDelayQuasiPolynomial, delay: int) -> tuple[NDArray, NDArr
     (commensurate terms) the frequency-eliminating resultant in z of
     :func:`~delayform.analysis.ctcr.general.unit_roots_single`.
     """
-    h = collapse(qp, delay)
+    return _one_delay_roots(collapse(qp, delay))
+
+
+def _one_delay_roots(h: list[NDArray[np.complex128]]) -> tuple[NDArray, NDArray]:
+    """(omega, theta) of ``sum_j h_j(j omega) e^{-j j theta} = 0`` (see :func:`_unit_roots`)."""
     if len(h) <= 3:
         h = h + [np.zeros(0, complex)] * (3 - len(h))
         return _single_delay_roots(h[0], h[1], h[2])

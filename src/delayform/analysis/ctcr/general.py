@@ -23,6 +23,12 @@ eliminations that hold for any degrees K1 (in z1) and K2 (in z2):
   crossing frequencies.
 * When every power of z1 is a multiple of g, q is eliminated in ``w = z1^g``
   (in z1 the resultant would be a g-th power, with g-fold roots).
+* When every delayed term is a power of one monomial ``z1^a z2^b``, q is a
+  one-delay qp in ``a tau1 + b tau2`` and its crossings are straight lines
+  (:func:`~delayform.analysis.ctcr.curves.line_direction`); a q with a
+  *factor* in one monomial is refused (:func:`monomial_factor`): at that
+  factor's crossing frequencies whole lines of the torus solve q, which the
+  sweep in omega cannot see.
 
 Both are eliminations, not sign changes on a grid: a frequency or phase is
 found whenever it is a root of the eliminant, however close two of them lie.
@@ -40,7 +46,8 @@ from delayform.characteristic import DELAY_MULTIPLES, TwoDelayQuasiPolynomial
 from delayform.errors import NeutralQuasiPolynomialError, QuasiPolynomialError
 from delayform.quasipolynomial import QuasiPolynomial
 
-__all__ = ["TermsQP", "as_traced", "resultant_solutions", "unit_roots_single", "collapse", "newton_phases", "unit_circle_roots"]
+__all__ = ["TermsQP", "as_traced", "resultant_solutions", "unit_roots_single", "collapse", "newton_phases", "unit_circle_roots",
+           "monomial_factor"]
 
 TWO_PI = 2.0 * np.pi
 
@@ -222,6 +229,85 @@ def omega_bound(qp: TwoDelayQuasiPolynomial | TermsQP) -> float:
     return float(max(1.0, lower.sum()) * 1.0001)
 
 
+# ===================================================================== a factor in one monomial
+def monomial_factor(terms: tuple[tuple[NDArray[np.complex128], int, int], ...]) -> tuple[int, int] | None:
+    """(a, b) when q has a factor ``F(s, z1^a z2^b)`` with delayed terms off that line, else None.
+
+    Such a factor's imaginary roots form whole lines ``a theta1 + b theta2 = const``
+    of the torus at isolated frequencies, which the two-delay sweep cannot see
+    (its eliminant vanishes identically there and nowhere else). Test: with
+    integers (c, d), ``a d - b c = 1``, the monomial change ``z1 = x^d y^-b``,
+    ``z2 = x^-c y^a`` makes ``z1^a z2^b = x``, and a term ``z1^k1 z2^k2`` becomes
+    ``x^(d k1 - c k2) y^(a k2 - b k1)``. q has a factor in x alone exactly when
+    the coefficients of the powers of y, polynomials in x, share a root
+    ``x != 0``: tested at two random s (a true factor shares one at every s).
+    Directions tried: every difference of two exponent vectors with a, b >= 0
+    (the Newton polygon's edges, which a factor's direction must be, are among
+    them; a direction with a < 0 < b, a factor like ``z1 + c z2``, would leave q
+    without its term (0, 0), which a quasi-polynomial has).
+    """
+    keys = [(a, b) for _, a, b in terms]
+    dirs = set()
+    for i, (a1, b1) in enumerate(keys):
+        for a2, b2 in keys[i + 1 :]:
+            da, db = a2 - a1, b2 - b1
+            g = int(np.gcd(da, db))
+            if g:
+                da, db = da // g, db // g
+                if da * db >= 0:
+                    dirs.add((abs(da), abs(db)))
+    rng = np.random.default_rng(0)
+    s0 = rng.normal(size=2) + 1j * rng.normal(size=2)
+    for a, b in sorted(dirs):
+        c, d = _bezout(a, b)
+        groups: dict[int, list[tuple[int, NDArray[np.complex128]]]] = {}
+        for coef, k1, k2 in terms:
+            groups.setdefault(a * k2 - b * k1, []).append((d * k1 - c * k2, coef))
+        if len(groups) > 1 and all(_share_a_root(list(groups.values()), z) for z in s0):
+            return a, b
+    return None
+
+
+def _bezout(a: int, b: int) -> tuple[int, int]:
+    """(c, d) with ``a d - b c = 1`` for coprime a, b."""
+    old_r, r, old_x, x, old_y, y = a, -b, 1, 0, 0, 1
+    while r:
+        k = old_r // r
+        old_r, r, old_x, x, old_y, y = r, old_r - k * r, x, old_x - k * x, y, old_y - k * y
+    # old_x a + old_y (-b) = old_r = +-1
+    return (old_y * old_r, old_x * old_r)
+
+
+def _share_a_root(groups: list[list[tuple[int, NDArray[np.complex128]]]], s: complex) -> bool:
+    """True when the Laurent polynomials in x (one per group, terms (power, coefficients in s)) share a root != 0 at s."""
+    polys = []
+    for group in groups:
+        lo = min(p for p, _ in group)
+        v = np.zeros(max(p for p, _ in group) - lo + 1, complex)
+        for p, coef in group:
+            v[p - lo] += npoly.polyval(s, coef)
+        nz = np.flatnonzero(np.abs(v) > 1e-14 * np.max(np.abs(v)))
+        if nz.size == 0:
+            continue
+        v = v[nz[0] : nz[-1] + 1]
+        if v.size == 1:
+            return False  # a monomial in x: no root x != 0 to share
+        polys.append(v)
+    if len(polys) < 2:
+        return False
+    base = min(polys, key=len)
+    for x in np.roots(base[::-1]):
+        ok = True
+        for v in polys:
+            mags = np.abs(v) * np.abs(x) ** np.arange(v.size)
+            if abs(npoly.polyval(x, v)) > 1e-8 * mags.sum():
+                ok = False
+                break
+        if ok:
+            return True
+    return False
+
+
 # ===================================================================== two delays (curves)
 def resultant_solutions(qp: TermsQP, omega: NDArray[np.float64]) -> list[NDArray[np.float64]]:
     """All (theta1, theta2) on the torus with q(j omega) = 0 at each omega (module docstring).
@@ -253,27 +339,78 @@ def resultant_solutions(qp: TermsQP, omega: NDArray[np.float64]) -> list[NDArray
         Pt[:, :, K1 - a] += np.conj(v)[:, None] * z2[None, :] ** (K2 - b)
     R = np.linalg.det(sylvester(P[..., ::-1], Pt[..., ::-1]))
     coef = np.fft.fft(R, axis=1) / n_z  # R(z2_m) = sum_k coef_k z2_m^k on the n_z-th roots of unity
-    out: list[NDArray[np.float64]] = []
-    for i in range(s.size):
-        roots2 = unit_circle_roots(coef[i], 1e-11)
-        sols = []
-        terms_at = np.array([v[i] for v in vals])
-        for z in roots2:
-            poly1 = np.zeros(K1 + 1, complex)
-            for gk, (a, b) in zip(terms_at, reduced, strict=True):
-                poly1[a] += gk * z**b
-            nzp = np.flatnonzero(np.abs(poly1) > 0)
-            if nzp.size < 2:
-                continue
-            for w in np.roots(poly1[: nzp[-1] + 1][::-1]):
-                if abs(abs(w) - 1.0) > 1e-3:
-                    continue
-                for k in range(g):  # the g phases theta1 with e^{-j g theta1} = w
-                    th = newton_phases(terms_at, mult, (-np.angle(w) + TWO_PI * k) / g, -np.angle(z))
-                    if th is not None:
-                        sols.append(th)
-        out.append(_unique(np.array(sols).reshape(-1, 2)))
+    # candidates (sample, theta1, theta2) from the unit roots, then one batched Newton on q for all
+    terms_at = np.stack(vals, axis=1)  # (omega, term)
+    pairs = [(i, z) for i in range(s.size) for z in unit_circle_roots(coef[i], 1e-11)]
+    at = np.array([i for i, _ in pairs], np.int64)
+    z2s = np.array([z for _, z in pairs], complex)
+    poly1 = np.zeros((at.size, K1 + 1), complex)  # q(., z2) in w, ascending, one row per (omega, z2)
+    for k, (a, b) in enumerate(reduced):
+        poly1[:, a] += terms_at[at, k] * z2s**b
+    idx: list[int] = []
+    starts: list[tuple[float, float]] = []
+    for row, w in _poly_roots(poly1):
+        if abs(abs(w) - 1.0) > 1e-3:
+            continue
+        for k in range(g):  # the g phases theta1 with e^{-j g theta1} = w
+            idx.append(int(at[row]))
+            starts.append(((-np.angle(w) + TWO_PI * k) / g, -np.angle(z2s[row])))
+    where = np.asarray(idx, np.int64)
+    th, ok = _newton_phases_batch(terms_at[where], mult, np.asarray(starts, float).reshape(-1, 2))
+    where, th = where[ok], th[ok]
+    return [_unique(th[where == i]) for i in range(s.size)]
+
+
+def _poly_roots(poly: NDArray[np.complex128]) -> list[tuple[int, complex]]:
+    """(row, root) of every row's polynomial (ascending): full-degree rows by one batched eigensolve."""
+    out: list[tuple[int, complex]] = []
+    if poly.shape[0] == 0 or poly.shape[1] < 2:
+        return out
+    n = poly.shape[1] - 1
+    lead = poly[:, n]
+    full = np.abs(lead) > 1e-12 * np.max(np.abs(poly), axis=1)
+    rows = np.flatnonzero(full)
+    if rows.size:
+        comp = np.zeros((rows.size, n, n), complex)  # companion matrices of the monic rows
+        comp[:, 0, :] = -(poly[rows, ::-1][:, 1:] / lead[rows, None])
+        comp[:, np.arange(1, n), np.arange(n - 1)] = 1.0
+        roots = np.linalg.eigvals(comp)
+        out.extend((int(r), complex(w)) for r, ws in zip(rows, roots, strict=True) for w in ws)
+    for r in np.flatnonzero(~full):  # a degree drop: the roots of the rest (those at infinity dropped)
+        nz = np.flatnonzero(np.abs(poly[r]) > 0)
+        if nz.size >= 2:
+            out.extend((int(r), complex(w)) for w in np.roots(poly[r, : nz[-1] + 1][::-1]))
     return out
+
+
+def _newton_phases_batch(
+    g: NDArray[np.complex128], mult: NDArray[np.float64], th: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+    """:func:`newton_phases` for many starts at once: rows of g (terms at j omega) and of th (theta1, theta2).
+
+    Returns the polished phases in [0, 2 pi) and which of them solve q to 1e-11 of its terms' moduli.
+    """
+    t1, t2 = th[:, 0].copy(), th[:, 1].copy()
+    scale = np.sum(np.abs(g), axis=1)
+    live = np.ones(t1.size, bool)
+    for _ in range(30):
+        if not np.any(live):
+            break
+        e = g * np.exp(-1j * (mult[None, :, 0] * t1[:, None] + mult[None, :, 1] * t2[:, None]))
+        f = e.sum(axis=1)
+        d1 = (-1j * mult[None, :, 0] * e).sum(axis=1)
+        d2 = (-1j * mult[None, :, 1] * e).sum(axis=1)
+        det = d1.real * d2.imag - d2.real * d1.imag
+        # as one start would: stop where converged, or where J is singular (a tangency)
+        live &= (np.abs(f) > 1e-14 * scale) & (np.abs(det) > 1e-14 * (np.abs(d1) * np.abs(d2) + 1e-300))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            step1 = (f.real * d2.imag - d2.real * f.imag) / det
+            step2 = (d1.real * f.imag - f.real * d1.imag) / det
+        t1 = np.where(live, t1 - step1, t1)
+        t2 = np.where(live, t2 - step2, t2)
+    e = g * np.exp(-1j * (mult[None, :, 0] * t1[:, None] + mult[None, :, 1] * t2[:, None]))
+    ok = np.abs(e.sum(axis=1)) <= 1e-11 * scale
+    return np.column_stack([np.mod(t1, TWO_PI), np.mod(t2, TWO_PI)]), ok
 
 
 def unit_circle_roots(poly: NDArray[np.complex128], rel_tol: float) -> NDArray[np.complex128]:
@@ -324,8 +461,10 @@ def newton_phases(g: NDArray[np.complex128], mult: NDArray[np.float64], t1: floa
 
 
 def _unique(th: NDArray[np.float64]) -> NDArray[np.float64]:
-    keep: list[NDArray[np.float64]] = []
-    for row in th:
-        if all(np.max(np.abs(np.angle(np.exp(1j * (row - k))))) > 1e-7 for k in keep):
-            keep.append(row)
-    return np.array(keep).reshape(-1, 2)
+    """Rows of th once: a row within 1e-7 (torus, per phase) of an earlier kept row is dropped."""
+    d = np.abs(np.mod(th[:, None, :] - th[None, :, :] + np.pi, TWO_PI) - np.pi).max(axis=2)
+    keep: list[int] = []
+    for r in range(th.shape[0]):
+        if all(d[r, k] > 1e-7 for k in keep):
+            keep.append(r)
+    return th[keep].reshape(-1, 2)
