@@ -39,12 +39,35 @@ def _close_figures():
         sys.modules["matplotlib.pyplot"].close("all")
 
 
+@pytest.hookimpl(tryfirst=True)  # before pytest-xdist reads the groups set here
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """The slow tests first, so that across xdist workers none of them starts last and runs alone.
+    """The slow tests first, and the tests that share a module's fixture on one xdist worker.
 
-    pytest-xdist deals the first quarter of the collection out one test at a time to its
-    workers: the long tests (the wheel, the documentation site, whole reports) start at once,
-    side by side, and the many short ones fill in around them. The order within each group,
-    and so every module's own order, is unchanged.
+    Slow first: the long tests (the wheel, the documentation site, whole reports) start at
+    once, side by side, and the many short ones fill in around them, so that none of them
+    starts last and runs alone. The order within each group, and so every module's own order,
+    is unchanged.
+
+    One worker per shared fixture: a module-scoped fixture (a stability map, a gain design, a
+    running explorer, the team's certified margin) is built once in each worker that runs a
+    test using it. Under ``--dist loadgroup`` (``make test``) the tests that use one are an
+    ``xdist_group`` named after their module, so it is built once, not once per worker (a test
+    given its own group, as the whole paper's run shared across modules, keeps it).
     """
+    for item in items:
+        if item.get_closest_marker("xdist_group") is None and _uses_a_module_fixture(item):
+            item.add_marker(pytest.mark.xdist_group(item.module.__name__))
     items.sort(key=lambda item: item.get_closest_marker("slow") is None)
+
+
+def _uses_a_module_fixture(item: pytest.Item) -> bool:
+    """Whether a test asks for a module-scoped fixture defined in its own module."""
+    info = getattr(item, "_fixtureinfo", None)
+    module = getattr(item, "module", None)
+    if info is None or module is None:  # a doctest
+        return False
+    return any(
+        d.scope == "module" and d.baseid == item.nodeid.split("::")[0]
+        for defs in info.name2fixturedefs.values()
+        for d in defs
+    )
