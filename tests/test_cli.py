@@ -341,7 +341,6 @@ def paper_output(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
 
 
 @pytest.mark.slow
-@pytest.mark.xdist_group("paper")  # one worker runs the paper once for this test and the browser's
 def test_paper_writes_every_file_it_lists(tmp_path_factory: pytest.TempPathFactory) -> None:
     out, printed = paper_output(tmp_path_factory)
     summary = json.loads((out / "summary.json").read_text())

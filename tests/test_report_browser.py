@@ -17,7 +17,7 @@ import pytest
 
 from test_cli import paper_output
 
-pytestmark = [pytest.mark.browser, pytest.mark.slow, pytest.mark.xdist_group("paper")]  # the paper run of test_cli
+pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 
