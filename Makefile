@@ -40,15 +40,18 @@ demo: install
 	$(BIN)/delayform paper --out $(OUT)
 
 # across the cores (pytest-xdist; `make test PYTEST_WORKERS=0` runs in one process); tests/conftest.py
-# starts the slow tests first so that no long one runs alone at the end
+# starts the slow tests first so that no long one runs alone at the end, and groups the tests that
+# share a module's fixture (a map, a design, a running explorer) so that one worker builds it once:
+# loadgroup hands out one test (or group) at a time in that order (no reordering by group size)
 PYTEST_WORKERS ?= auto
+PYTEST_DIST := --dist loadgroup --no-loadscope-reorder
 test: install-test browser
-	$(BIN)/python -m pytest -q -n $(PYTEST_WORKERS) src tests
+	$(BIN)/python -m pytest -q -n $(PYTEST_WORKERS) $(PYTEST_DIST) src tests
 
 # the edit loop: everything but the tests marked slow (the wheel, the site, whole reports, long runs);
 # `make test` still runs them all
 test-fast: install-test
-	$(BIN)/python -m pytest -q -n $(PYTEST_WORKERS) -m "not slow" src tests
+	$(BIN)/python -m pytest -q -n $(PYTEST_WORKERS) $(PYTEST_DIST) -m "not slow" src tests
 
 # The documentation site (Sphinx + numpydoc + MyST-NB, docs/conf.py says why): warnings are errors,
 # the tutorials in docs/tutorials/ are executed; tests/test_site.py runs the same build.

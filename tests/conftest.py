@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import os
+import re
+from pathlib import Path
 
 # One BLAS thread in each pytest-xdist worker: the workers already fill the cores, and OpenBLAS
 # splitting every call over threads the other worker needs made a 1092-state eigensolve 12 times
@@ -45,9 +47,41 @@ def _close_figures():
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     """The slow tests first, so that across xdist workers none of them starts last and runs alone.
 
-    pytest-xdist deals the first quarter of the collection out one test at a time to its
-    workers: the long tests (the wheel, the documentation site, whole reports) start at once,
-    side by side, and the many short ones fill in around them. The order within each group,
-    and so every module's own order, is unchanged.
+    The long tests (the wheel, the documentation site, whole reports) start at once, side by
+    side, and the many short ones fill in around them. The order within each group, and so every
+    module's own order, is unchanged.
     """
     items.sort(key=lambda item: item.get_closest_marker("slow") is None)
+
+
+#: the test modules that define a module-scoped fixture (a stability map, a gain design, a running
+#: explorer, the team's certified margin, the wheel): read from their source, so a new one counts
+_SHARED_FIXTURE = re.compile(r"@pytest\.fixture\(\s*scope=[\"']module[\"']")
+SHARED_FIXTURE_MODULES = frozenset(
+    f"tests/{p.name}" for p in Path(__file__).parent.glob("test_*.py") if _SHARED_FIXTURE.search(p.read_text("utf-8"))
+)
+
+
+@pytest.hookimpl(optionalhook=True)  # a pytest-xdist hook: no error where it is not installed
+def pytest_xdist_make_scheduler(config: pytest.Config, log: object) -> object | None:
+    """Under ``--dist loadgroup`` (``make test``): a module with a shared fixture runs on one worker.
+
+    A module-scoped fixture is built once in each worker that runs a test of its module; with
+    pytest-xdist's per-test scheduling both workers built the slow ones (the team's certified
+    margin, three gain designs, a 100 x 100 dominant-root map, three running explorers). Here
+    such a module is one unit of work, every other test its own unit, handed out one at a time
+    in collection order (slow tests first; ``--no-loadscope-reorder`` keeps that order), and an
+    explicit ``xdist_group`` mark still groups as pytest-xdist documents it.
+    """
+    if config.getvalue("dist") != "loadgroup":
+        return None
+    from xdist.scheduler import LoadScopeScheduling
+
+    class SharedFixtureScheduling(LoadScopeScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            if "@" in nodeid:  # an xdist_group mark
+                return nodeid.rsplit("@", 1)[-1]
+            module = nodeid.split("::", 1)[0]
+            return module if module in SHARED_FIXTURE_MODULES else nodeid
+
+    return SharedFixtureScheduling(config, log)

@@ -264,17 +264,18 @@ def test_simulate_csv_interrupted_leaves_the_previous_csv_and_exits_130(
 
 
 def test_a_gif_interrupted_is_not_left_half_written(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    from matplotlib.animation import PillowWriter
+    from PIL import Image
 
     from delayform.simulation import simulate
     from delayform.topology import ring
 
     traj = simulate(ring(3), 1.0, 0.5, 0.3, 0.2, "polygon", model="double_integrator", duration=1.0, dt=0.05)
 
-    def ctrl_c(self: object, *args: object) -> None:
+    def half_then_ctrl_c(self: object, fp: object, *args: object, **kwargs: object) -> None:
+        Path(str(fp)).write_bytes(b"GIF89a")  # the file's first bytes reach the disk, then Ctrl-C
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(PillowWriter, "finish", ctrl_c)
+    monkeypatch.setattr(Image.Image, "save", half_then_ctrl_c)
     with pytest.raises(KeyboardInterrupt):
         traj.save_gif(tmp_path / "run.gif", frames=3)
     assert list(tmp_path.iterdir()) == []

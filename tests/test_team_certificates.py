@@ -137,13 +137,31 @@ def test_cli_per_mode_refuses_per_link_delays(tmp_path):
     assert_one_line_error(proc, "--method per-mode", "small-gain margin only")
 
 
-@pytest.mark.slow  # one team margin at b in a subprocess
-def test_cli_best_prints_both_margins_with_what_they_cover(tmp_path):
+@pytest.mark.slow  # the team margin at b: team_b, shared with the tests above
+def test_cli_best_prints_both_margins_with_what_they_cover(tmp_path, team_b, monkeypatch):
+    """The command asks for the team margin at b once, with the library's defaults, and prints it.
+
+    That margin is team_b, computed once for this module and checked above against the spectrum
+    and the adversary: the command's own call is answered with it (and its arguments checked)
+    instead of a third computation of the same margin.
+    """
+    import delayform.analysis.certificates.team as team_module
     from test_cli import run
 
+    calls = []
+
+    def shared(topology, P, D, tau1, tau2, **options):
+        calls.append((topology, P, D, tau1, tau2, options))
+        return team_b
+
+    monkeypatch.setattr(team_module, "team_delay_margin", shared)
     proc = run("jitter", "--tau1", "2", "--tau2", "1", "--method", "best", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr
+    ((topology, P, D, tau1, tau2, options),) = calls
+    np.testing.assert_array_equal(topology.adjacency, paper_six().adjacency)
+    assert (P, D, tau1, tau2, options) == (1.0, 0.5, 2.0, 1.0, {})
     lines = proc.stdout.splitlines()
+    assert lines[0].startswith(f"jitter margin delta = {team_b.delta:.4g} s")
     assert "Lyapunov-Krasovskii per mode" in lines[0]
     assert lines[1].startswith("covers the same time-varying delays h1(t), h2(t) on every link")
     assert lines[2].startswith("per link, each delay varying on its own: 0.035")  # the small-gain margin
