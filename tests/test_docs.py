@@ -96,7 +96,6 @@ def test_no_issue_numbers_in_src_docs_or_readme() -> None:
     assert not found, "issue numbers in user-facing text:\n" + "\n".join(found)
 
 
-@pytest.mark.xfail(strict=True, reason="simulation/ keeps three comments with issue numbers until the split merges")
 def test_no_issue_numbers_in_simulation() -> None:
     found = _issue_references(inside=True)
     assert not found, "issue numbers in user-facing text:\n" + "\n".join(found)

@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from delayform._display import FigureRepr  # Jupyter shows the figure (issue 23)
+from delayform._display import FigureRepr  # Jupyter shows the figure
 from delayform._validation import validated
 from delayform.errors import SimulationInputError
 from delayform.resources import require
@@ -481,7 +481,7 @@ def estimate_cost(setup: Setup, runs: int) -> tuple[float, float]:
         packets = int(setup.duration / period) + 2
     nbytes = network_memory(links, steps, packets, n) + (steps + 1) * n * 8 * 8
     per_step = _STEP_SECONDS[0] + _STEP_SECONDS[1] * links + (_LIMITED_STEP_SECONDS if setup.limits is not None else 0.0)
-    # the safety filter: about 4 x 50 microseconds per step for a small team (docs/benchmarks.md, issue 21)
+    # the safety filter: about 4 x 50 microseconds per step for a small team (docs/benchmarks.md)
     per_step += 2e-4 + 2e-6 * n if setup.safety is not None else 0.0
     seconds = runs * steps * per_step
     if setup.model == "physics":  # the engine's time, on the robot's control ticks

@@ -11,7 +11,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from delayform._files import atomic_path, save_npz
-from delayform._display import FigureRepr  # Jupyter shows the figure (issue 23)
+from delayform._display import FigureRepr  # Jupyter shows the figure
 from delayform._validation import validated
 from delayform.errors import SimulationInputError
 from delayform.simulation.bodies import Contact
