@@ -352,6 +352,9 @@ def test_every_file_the_package_writes_goes_through_atomic_path() -> None:
                 into_memory = match.group(1) == "savefig" and match.group(2) == "data"  # a BytesIO
                 if match.group(2) != "tmp" and not receiver.endswith("tmp") and not into_memory:
                     offenders.append(f"{path.relative_to(package)}:{number}: {line.strip()}")
-            if opened.search(line) and "tmp" not in line:
+            # a child process's stderr is a stream written while it runs, in the fleet's own scratch
+            # folder (removed after the run): it cannot be renamed into place, and nobody reads it half-written
+            child_stream = path.name == "lifecycle.py" and 'open(err, "wb") as stderr' in line
+            if opened.search(line) and "tmp" not in line and not child_stream:
                 offenders.append(f"{path.relative_to(package)}:{number}: {line.strip()}")
     assert offenders == []

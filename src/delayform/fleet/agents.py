@@ -259,7 +259,10 @@ def robot_main(spec: dict[str, Any]) -> None:
         k += 1
     rec = np.array(received, dtype=np.float64).reshape(-1, 4)
     tk = np.array(ticks, dtype=np.float64).reshape(-1, 5)
-    np.savez(spec["log"], received=rec, ticks=tk, missed=missed, error=error, sent=np.array(stamps))
+    from delayform._files import atomic_path
+
+    with atomic_path(spec["log"]) as tmp:  # the parent reads the log whole or not at all
+        np.savez(tmp, received=rec, ticks=tk, missed=missed, error=error, sent=np.array(stamps))
     _say("done")
     _close(session)
 
@@ -328,8 +331,11 @@ def world_main(spec: dict[str, Any]) -> None:
             omegas.append(world.omega.copy())
             lateness.append(now - deadline)
         k += 1
-    np.savez(spec["log"], times=np.array(times), states=np.array(states).reshape(-1, n, 4),
-             omega=np.array(omegas).reshape(-1, n), lateness=np.array(lateness), applied=applied)  # fmt: skip
+    from delayform._files import atomic_path
+
+    with atomic_path(spec["log"]) as tmp:  # the parent reads the log whole or not at all
+        np.savez(tmp, times=np.array(times), states=np.array(states).reshape(-1, n, 4),
+                 omega=np.array(omegas).reshape(-1, n), lateness=np.array(lateness), applied=applied)  # fmt: skip
     _say("done")
     _close(session)
 

@@ -30,6 +30,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
+from delayform._files import atomic_path
 from delayform.errors import FleetRunError
 
 __all__ = ["Children", "terminate_as_exit"]
@@ -83,7 +84,8 @@ class Children:
     def start(self, name: str, spec: dict[str, Any]) -> None:
         """Start child ``name`` with its spec (``parent`` is added)."""
         path = self.folder / f"{name}.json"
-        path.write_text(json.dumps({**spec, "parent": os.getpid()}))
+        with atomic_path(path) as tmp:  # a child never reads half a spec
+            tmp.write_text(json.dumps({**spec, "parent": os.getpid()}))
         err = self.folder / f"{name}.err"
         self._errs[name] = err
         with open(err, "wb") as stderr:

@@ -290,7 +290,8 @@ def _save_draws(draws: Any, robot: int, folder: Path) -> str | None:
     if draws.noise is not None:
         arrays["noise"] = np.concatenate([draws.noise[0][:, mine], draws.noise[1][:, mine]], axis=-1)  # dx dy dvx dvy
     path = folder / f"draws_{robot}.npz"
-    np.savez(path, **arrays)
+    with atomic_path(path) as tmp:
+        np.savez(tmp, **arrays)
     return str(path)
 
 
