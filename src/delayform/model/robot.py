@@ -132,7 +132,9 @@ class Robot:
         ``x'' = u(t - tau_a)`` for double integrators; for robots the demands
         (dv/dt, omega) of eq. transform2, computed on the state when the
         command is made, are executed tau_a later under the limits of that
-        time (docs/theory.md, "Actuation delay"). 0 (default): the paper's model.
+        time (docs/theory.md, "Actuation delay"); for ``"physics"`` the wheel
+        targets reach the servos tau_a late, on top of the servos' own lag.
+        0 (default): the paper's model.
     profile
         The real robot (a :class:`~delayform.model.RobotProfile` or its name,
         e.g. ``"create"``), or None. Its limits are the robot's ``limits``
@@ -150,9 +152,7 @@ class Robot:
     ------
     SimulationInputError
         For an unknown model, limits on point agents, a chassis on a
-        kinematic model, a safety filter or an actuation delay on robots
-        with mass (their servos are their lag; the bodies push each other),
-        or a bad number.
+        kinematic model, or a bad number.
     RobotProfileError
         For an unknown profile name, or a profile without a chassis for
         ``model="physics"``.
@@ -198,7 +198,7 @@ class Robot:
         object.__setattr__(self, "rest_speed", check_positive("rest_speed", self.rest_speed, SimulationInputError))
 
     def _physics_defaults(self) -> None:
-        """The profile's (else the Create's) limits and chassis where none are given; refuse what the engine does not model."""
+        """The profile's (else the Create's) limits and chassis where none are given."""
         if self.chassis is None:
             profile = self.profile
             chassis = profile.physics_chassis() if isinstance(profile, RobotProfile) else CREATE_CHASSIS
@@ -207,12 +207,6 @@ class Robot:
             raise SimulationInputError(f"chassis must be a Chassis, got {type(self.chassis).__name__}")
         if self.limits is None:
             object.__setattr__(self, "limits", IROBOT_CREATE)
-        if self.safety is not None:
-            raise SimulationInputError("the safety filter is not modelled for model='physics': the bodies "
-                                       "push each other instead (use model='unicycle' for the filter)")  # fmt: skip
-        if self.actuation_delay > 0.0:
-            raise SimulationInputError("model='physics' has its own actuation lag (the wheel servos): give "
-                                       "actuation_delay with model='unicycle' or 'double_integrator'")  # fmt: skip
 
     @property
     def body_radius(self) -> float:

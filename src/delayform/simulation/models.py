@@ -310,7 +310,8 @@ class PhysicsModel:
         return integrate_physics(plan.topology, plan.F, plan.P, plan.D, plan.tau1, plan.tau2, chassis=robot.chassis,
                                  limits=robot.limits, x0=plan.x0, th0=plan.th0, speed0=plan.speed0,
                                  duration=plan.duration, save_every=stride, network=plan.network,
-                                 progress=plan.progress)  # fmt: skip
+                                 progress=plan.progress, safety=robot.safety, radius=robot.body_radius,
+                                 actuation_delay=plan.actuation)  # fmt: skip
 
     def motion(self, plan: RunPlan, run: Samples) -> Motion:
         """What the controllers commanded and executed, as for robots with limits; the step is the control period."""

@@ -616,6 +616,11 @@ class FilteredAgent:
             if nb.covers(x, need):  # else a pair left out might bind: again, with more pairs
                 return found
 
+    def filter(self, x: _Array, v: _Array, u: _Array) -> tuple[_Array, NDArray[np.bool_], NDArray[np.bool_]]:
+        """The filtered commands at positions ``x`` and velocities ``v`` (as measured, for robots with mass),
+        where the filter changed them, and where a polygon was empty."""
+        return self._filter(x, v, u)
+
     def rhs(self, state: _Array, u: _Array) -> tuple[_Array, _Array, tuple[_Array, ...]]:
         filtered, active, infeasible = self._filter(state[:, :2], self.agent.velocity(state), u)
         deriv, cart, extra = self.agent.rhs(state, filtered)

@@ -28,6 +28,23 @@ that divide the period)
 until the next tick: servos with finite gain and torque, tyres that slip
 when the friction cone is left, bodies that push each other.
 
+With a safety filter (``Robot(safety="barrier")``) step 3 first passes the
+Cartesian command through the control barrier functions of
+:mod:`delayform.simulation.safety`, evaluated on the measured positions and
+velocities (on-board sensing, no delay), as the kinematic models do. The
+filter's guarantee is for ``x'' = u``; the servos execute the command about
+``tau_s`` (the identified lag, :mod:`~delayform.simulation.physics.identify`)
+late, so two robots braking at ``a_max`` may come up to about
+``2 a_max tau_s^2`` closer than its distance (a fraction of a millimetre for
+the profiles), which its margin absorbs.
+
+With an actuation delay ``tau_a`` (``Robot(actuation_delay=)``) the wheel
+targets of step 4 wait in a queue (:class:`CommandQueue`) and reach the
+servos ``tau_a`` after the tick that made them; before that the wheels hold
+the initial speed without turning (the constant history, as the kinematic
+models' zero command). The robot's own lag is still there: the analysis'
+actuation delay of the run is ``tau_a`` plus the identified lag.
+
 What it does not model: motor electrical dynamics, gear backlash, wheel
 encoders' quantisation, a floor that is not flat, sensing noise other than
 the network's.
@@ -42,13 +59,14 @@ from numpy.typing import NDArray
 
 from delayform._extras import require_extra
 from delayform.simulation.integrator import Progress, Samples
-from delayform.model import Network, RobotLimits
+from delayform.model import BarrierFilter, Network, RobotLimits
 from delayform.model.chassis import Chassis
 from delayform.simulation.physics.mjcf import QPOS_PER_ROBOT, QVEL_PER_ROBOT, team_mjcf
 from delayform.simulation.robots import LimitedUnicycle, wheel_speeds
+from delayform.simulation.safety import FilteredAgent
 from delayform.topology import Topology
 
-__all__ = ["integrate_physics", "tick_grid", "PhysicsTeam"]
+__all__ = ["integrate_physics", "tick_grid", "PhysicsTeam", "CommandQueue"]
 
 _Array = NDArray[np.float64]
 
@@ -125,6 +143,61 @@ class PhysicsTeam:
         return bool(self.data.warning[self.mujoco.mjtWarning.mjWARN_BADQACC].number > 0)
 
 
+class CommandQueue:
+    """Wheel targets on their way to the servos: made at every tick, executed ``delay`` later.
+
+    The target in force at time t is the one made at tick ``floor((t - delay) / period)``
+    (the initial targets before the first arrives). The engine steps between
+    ticks with piecewise constant targets; where an arrival falls inside an
+    engine step (a delay that is not a whole number of engine steps) that step
+    takes the time-weighted mean of the two targets, which gives the servo
+    force's integral over the step (linear in the target below the torque limit).
+
+    Parameters
+    ----------
+    delay
+        tau_a (s), positive.
+    period
+        The control period (s).
+    substeps
+        Engine steps per period.
+    initial
+        ``(n, 2)`` targets before the first command arrives.
+    """
+
+    def __init__(self, delay: float, period: float, substeps: int, initial: _Array) -> None:
+        self.lag = delay / period * substeps  # in engine steps
+        self.substeps = substeps
+        self.initial = np.array(initial, dtype=np.float64)
+        self.size = math.ceil(delay / period) + 2
+        self.values = np.repeat(self.initial[None], self.size, axis=0)
+
+    def store(self, k: int, targets: _Array) -> None:
+        """Keep the targets made at tick k."""
+        self.values[k % self.size] = targets
+
+    def _made(self, j: int) -> _Array:
+        return self.initial if j < 0 else self.values[j % self.size]
+
+    def segments(self, k: int) -> list[tuple[int, _Array]]:
+        """The (engine steps, ``(n, 2)`` targets) runs from tick k to tick k + 1, in order."""
+        runs: list[tuple[int, _Array]] = []
+        key: tuple[int, float] | None = None
+        for e in range(k * self.substeps, (k + 1) * self.substeps):
+            start = (e - self.lag) / self.substeps  # in ticks of command time
+            j = math.floor(start + 1e-9)
+            # the share of the step before the next command arrives (1: none arrives inside)
+            old = min(1.0, max(0.0, (j + 1 - start) * self.substeps))
+            old = 1.0 if old > 1.0 - 1e-9 else old
+            if key == (j, old):
+                runs[-1] = (runs[-1][0] + 1, runs[-1][1])
+                continue
+            key = (j, old)
+            targets = self._made(j) if old == 1.0 else old * self._made(j) + (1.0 - old) * self._made(j + 1)
+            runs.append((1, targets))
+        return runs
+
+
 def _read(hist: _Array, s: _Array, k: int, who: NDArray[np.intp]) -> _Array:
     """Robot ``who[e]``'s record at fractional tick ``s[e]`` from ``hist[:k+1]`` (linear; constant before 0)."""
     s = np.clip(s, 0.0, float(k))
@@ -184,6 +257,9 @@ def integrate_physics(
     save_every: int,
     network: Network | None = None,
     progress: Progress | None = None,
+    safety: BarrierFilter | None = None,
+    radius: float = 0.0,
+    actuation_delay: float = 0.0,
 ) -> Samples:
     """Run the team in the engine (module doc) and sample it at every ``save_every``-th tick.
 
@@ -207,6 +283,10 @@ def integrate_physics(
         An imperfect network, or None for the constant delays.
     progress
         Optional ``progress(ticks_done, ticks)``, every 500 ticks.
+    safety, radius
+        A safety filter and the bodies' radius it keeps apart (module doc), or None.
+    actuation_delay
+        tau_a (s) between a tick and its wheel targets reaching the servos (module doc).
 
     Returns
     -------
@@ -214,13 +294,16 @@ def integrate_physics(
         Positions, velocities (measured), the commanded Cartesian
         acceleration, the states ``(x, y, theta, v)`` with the measured
         speed, and the extras of :class:`LimitedUnicycle` (executed and
-        demanded dv/dt and omega, where the speed limit held).
+        demanded dv/dt and omega, where the speed limit held; with a
+        filter, where it acted and where a polygon was empty).
     """
     period, substeps = tick_grid(chassis)
     ticks = max(1, math.ceil(duration / period - 1e-9))
     team = PhysicsTeam(chassis, limits, x0, th0, speed0)
     n = team.n
     uni = LimitedUnicycle(x0, th0, speed0, limits)
+    guard = None if safety is None else FilteredAgent(uni, safety, radius)
+    names = uni.extras if guard is None else guard.extras
     hearing = _Hearing(topology, tau1, tau2, period, ticks, network)
     pos_hist = np.empty((ticks + 1, n, 2))
     vel_hist = np.empty((ticks + 1, n, 2))
@@ -228,10 +311,13 @@ def integrate_physics(
     times = np.empty(n_saved)
     pos, vel, acc = (np.empty((n_saved, n, 2)) for _ in range(3))
     states = np.empty((n_saved, n, 4))
-    extras = {name: np.empty((n_saved, n)) for name in uni.extras}
+    extras = {name: np.empty((n_saved, n)) for name in names}
     limit = _BLOWUP * (1.0 + float(np.abs(x0).max(initial=0.0)))
     cap, wmax = limits.speed_cap, limits.max_wheel_speed
     v_set = np.array(speed0, dtype=np.float64)
+    queue = None
+    if actuation_delay > 0.0:
+        queue = CommandQueue(actuation_delay, period, substeps, np.column_stack(wheel_speeds(v_set, 0.0 * v_set, limits)))
     saved, stopped = 0, None
     for k in range(ticks + 1):
         if progress is not None and k % 500 == 0:
@@ -244,12 +330,17 @@ def integrate_physics(
         cx, cv = hearing.heard(k, pos_hist, vel_hist)
         u = P * (cx - X) + D * (cv - V) + F  # eq. protocol + forcing of eq. formation
         state = np.column_stack([X, theta, v_set])
+        flags: tuple[_Array, ...] = ()
+        if guard is not None:  # on the measured state, now (module doc)
+            u, active, infeasible = guard.filter(X, V, u)
+            flags = (active.astype(float), infeasible.astype(float))
         _, cart, extra = uni.apply(state, uni.command(state, u))  # eq. transform2 under the limits
+        extra = tuple(extra) + flags
         if k % save_every == 0 or k == ticks:
             times[saved] = k * period
             pos[saved], vel[saved], acc[saved] = X, V, cart
             states[saved] = np.column_stack([X, theta, speed])
-            for name, value in zip(uni.extras, extra):
+            for name, value in zip(names, extra):
                 extras[name][saved] = value
             saved += 1
         if k == ticks:
@@ -257,8 +348,15 @@ def integrate_physics(
         accel, omega = extra[0], extra[1]
         v_set = np.clip(v_set + accel * period, -cap, cap)
         left, right = wheel_speeds(v_set, omega, limits)
-        team.command(np.clip(left, -wmax, wmax), np.clip(right, -wmax, wmax))
-        team.step(substeps)
+        left, right = np.clip(left, -wmax, wmax), np.clip(right, -wmax, wmax)
+        if queue is None:
+            team.command(left, right)
+            team.step(substeps)
+            continue
+        queue.store(k, np.column_stack([left, right]))
+        for steps, targets in queue.segments(k):
+            team.command(targets[:, 0], targets[:, 1])
+            team.step(steps)
     return Samples(times[:saved], pos[:saved], vel[:saved], acc[:saved],
                    {k: v[:saved] for k, v in extras.items()}, states[:saved], stopped)  # fmt: skip
 
