@@ -309,7 +309,7 @@ def test_identification_recovers_the_servo_time_constant(name):
         assert ident.time_constant == pytest.approx(chassis.servo_time_constant(profile.limits.wheel_radius), rel=0.06)
         assert ident.gain == pytest.approx(1.0, abs=5e-3)
         assert ident.dead_time < 0.005
-        assert ident.effective_delay == pytest.approx(ident.dead_time + ident.time_constant + chassis.control_period / 2)
+        assert ident.effective_delay == pytest.approx(ident.dead_time + ident.time_constant)
         assert ident.rms_error < 0.02 * ident.step_speed
 
 

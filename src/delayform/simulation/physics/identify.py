@@ -14,17 +14,22 @@ The bridge to the analysis
 --------------------------
 The analysis models a late actuator as ``x'' = u(t - tau_a)`` (eq. protocol
 with an actuation delay, :func:`~delayform.analysis.roots.dominant.dominant_root`).
-The robot executes its acceleration through the zero-order hold of its
-controller (on average half a period late), the dead time and the lag; to
-first order in s, ``e^{-s L} / (1 + s T) e^{-s h / 2} = e^{-s (L + T + h / 2)}``,
-so the equivalent actuation delay is
+The robot's speed follows its set-point through the dead time and the lag,
+``e^{-s L} / (1 + s T)``, to first order in s ``e^{-s (L + T)}``, so the
+equivalent actuation delay is
 
-    tau_a = L + T + h / 2     (h: the control period),
+    tau_a = L + T.
 
-which matches the phase of the true actuator at low frequency and
-over-states it at high frequency (a lag's phase saturates at 90 degrees, a
-delay's does not): at the formation's crossing frequencies (about 1 rad/s)
-with T of tens of ms the two differ by well under a degree.
+The zero-order hold adds nothing to it: the controller integrates dv/dt
+over the coming period into the speed set-point at the tick (the end value
+of the period's ramp, sent at its start), half a period early, which
+cancels the hold's half period late. Measured: with a control period of
+50 ms the formation error of the Create 3 hexagon decays as the dominant
+root at ``L + T`` says, not at ``L + T + h / 2`` (tests/test_physics.py).
+The equivalent delay matches the phase of the true actuator at low
+frequency and over-states it at high frequency (a lag's phase saturates at
+90 degrees, a delay's does not): at the formation's crossing frequencies
+(about 1 rad/s) with T of tens of ms the two differ by well under a degree.
 """
 
 from __future__ import annotations
@@ -65,7 +70,8 @@ class ServoIdentification:
     dead_time
         L (s).
     control_period
-        h (s), the controller's period (zero-order hold).
+        h (s), the controller's period (zero-order hold; it does not enter
+        :attr:`effective_delay`, module doc).
     rms_error
         Root-mean-square residual of the fit (m/s).
     """
@@ -86,8 +92,8 @@ class ServoIdentification:
 
     @property
     def effective_delay(self) -> float:
-        """tau_a = L + T + h / 2 (s): the actuation delay for the analysis (module doc)."""
-        return self.dead_time + self.time_constant + 0.5 * self.control_period
+        """tau_a = L + T (s): the actuation delay for the analysis (module doc; the hold adds nothing)."""
+        return self.dead_time + self.time_constant
 
     def fitted(self, times: _Array | None = None) -> _Array:
         """The FOPDT model at ``times`` (default: :attr:`times`)."""
