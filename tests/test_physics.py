@@ -215,8 +215,6 @@ def test_tick_grid_rounds_the_control_period_to_engine_steps():
 @pytest.mark.parametrize(
     "kwargs, words",
     [
-        (dict(model="physics", safety="barrier"), "safety filter"),
-        (dict(model="physics", actuation_delay=0.05), "actuation lag"),
         (dict(model="unicycle", chassis=CREATE_CHASSIS), "physics"),
         (dict(model="physics", chassis="create3"), "Chassis"),
     ],

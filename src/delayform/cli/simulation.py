@@ -79,8 +79,8 @@ def simulate_command(scenario: Path | None, model: str | None, duration: float |
         from delayform.deploy.recording import check_mcap_path
 
         require_extra("ros")  # a core install writes no recordings: say which extra, before any work
-        if sim.model != "unicycle":
-            raise click.UsageError("--mcap records robots: use --model unicycle")
+        if sim.model == "double_integrator":
+            raise click.UsageError("--mcap records robots: use --model unicycle or physics")
         # its folder is created with --out's, below; what can be refused without creating it is refused now
         refuse_file_in_the_way(mcap.parent, _MCAP_FOLDER, "--mcap")
         if mcap.parent.is_dir():

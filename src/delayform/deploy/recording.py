@@ -228,7 +228,7 @@ def write_mcap(
     Parameters
     ----------
     trajectory
-        A run of robots (``model="unicycle"``, ideal or with limits): it
+        A run of robots (``model="unicycle"``, ideal or with limits, or ``"physics"``): it
         carries the commands the Twists hold.
     path
         The file to write; replaced atomically when complete.
@@ -268,7 +268,7 @@ def write_mcap(
     if not isinstance(trajectory, Trajectory):
         raise RecordingError(f"write_mcap takes a Trajectory, got {type(trajectory).__name__}")
     if trajectory.commands is None:
-        raise RecordingError("an MCAP recording holds robots' commands: simulate model 'unicycle', "
+        raise RecordingError("an MCAP recording holds robots' commands: simulate model 'unicycle' or 'physics', "
                              "not double integrators")  # fmt: skip
     kinds = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
     if compression not in kinds:
