@@ -175,3 +175,25 @@ def test_simulate_physics_writes_the_ros2_topics_of_the_kinematic_model(tmp_path
             assert (start.x, start.y) == pytest.approx((4.0, 0.0), abs=1e-3)  # the scenario's first robot
     assert topics["physics"] == topics["unicycle"]
     assert {"/robot_1/cmd_vel", "/robot_6/odom", "/tf", "/formation/links"} <= {t for t, _ in topics["physics"]}
+
+
+def test_the_scenario_s_safety_and_actuation_delay_reach_the_physics_run(tmp_path: Path) -> None:
+    import json
+
+    from cli_runner import run_in_process
+
+    example = str(Path(__file__).resolve().parents[1] / "examples" / "create3_hexagon.toml")
+    common = ("simulate", example, "--model", "physics", "--duration", "4", "--dt", "0.05", "--json")
+    filtered = run_in_process(*common, "--safety", "barrier", "--out", str(tmp_path / "f"))
+    assert filtered.returncode == 0, filtered.stderr
+    summary = json.loads(filtered.stdout)
+    assert summary["model"] == "physics"
+    assert summary["safety"]["safe_distance"] == pytest.approx(2 * CREATE3.limits.radius + 0.02)
+    assert "contacts_without_filter" in summary  # the same run without the filter, for its cost
+    plain = json.loads(run_in_process(*common, "--out", str(tmp_path / "p")).stdout)
+    late = run_in_process(*common, "--actuation-delay", "0.3", "--out", str(tmp_path / "a"))
+    assert late.returncode == 0, late.stderr
+    # a robot whose wheels wait 0.3 s has moved less after 4 s than the one without
+    assert json.loads(late.stdout)["final_error"] > plain["final_error"] + 0.05
+    both = run_in_process(*common, "--safety", "barrier", "--actuation-delay", "0.1", "--out", str(tmp_path / "b"))
+    assert both.returncode == 2 and "actuation delay with the safety filter" in both.stderr
