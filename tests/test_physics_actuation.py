@@ -117,6 +117,7 @@ def _hexagon(model: str, period: float = 0.01, **robot):
                     initial_positions=RING, initial_headings=HEADINGS, initial_speed=1e-3, duration=60.0, dt=0.01)  # fmt: skip
 
 
+@pytest.mark.slow
 def test_the_identified_lag_is_L_plus_T_without_half_a_period():
     """At 50 ms ticks the formation decays as the root at L + T says, not at L + T + h/2."""
     period = 0.05
@@ -128,6 +129,7 @@ def test_the_identified_lag_is_L_plus_T_without_half_a_period():
     assert abs(measured - half) > 0.012  # -0.139 is ruled out
 
 
+@pytest.mark.slow
 def test_an_actuation_delay_on_robots_with_mass_moves_the_decay_to_the_root_at_tau_a_plus_the_lag():
     """tau_a = 0.1 s at 50 ms ticks, a team on the move (where eq. transform2 is exact): the root at tau_a + L + T.
 
