@@ -11,6 +11,8 @@ Prints a markdown table for docs/benchmarks.md.
 2. 50 Create 3s on ``random_digraph(50, 0.1, seed=1)`` into an 8 x 7 grid of
    1 m spacing from the same grid twice as wide (random headings), 60 s, same
    two models. Goal: physics under 60 s.
+3. Run 1 with the safety filter (``safety="barrier"``) on both models: what
+   the filter costs on robots with mass. No goal.
 
 Wall and CPU time (``time.process_time``) of each run; the machine is shared,
 so the CPU time is the figure to read under load. Runs alternate between the
@@ -49,7 +51,8 @@ def _cases():
     headings = np.random.default_rng(3).uniform(-np.pi, np.pi, 50)
     fifty = dict(topology=random_digraph(50, 0.1, seed=1), formation=_grid(50, 1.0), initial_positions=start,
                  initial_headings=headings, D=1.5)  # fmt: skip
-    return c3, (("the paper's six Create 3s, 60 s", six, 5.0), ("50 Create 3s, random digraph, 60 s", fifty, 60.0))
+    return c3, (("the paper's six Create 3s, 60 s", six, 5.0, None), ("50 Create 3s, random digraph, 60 s", fifty, 60.0, None),
+                ("the paper's six Create 3s with the safety filter, 60 s", six, None, "barrier"))  # fmt: skip
 
 
 def _run(case: dict, robot: Robot) -> tuple[float, float, object]:
@@ -60,18 +63,28 @@ def _run(case: dict, robot: Robot) -> tuple[float, float, object]:
     return time.perf_counter() - wall, time.process_time() - cpu, traj
 
 
+def _verdict(cpu: float, goal: float | None) -> str:
+    """The goal and status columns."""
+    if goal is None:
+        return "none | -"
+    return f"< {goal:g} s | {'met' if cpu < goal else 'not met'}"
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--case", type=int, action="append", help="run only these cases (1, 2, 3; default all)")
     args = parser.parse_args()
     c3, cases = _cases()
-    physics = Robot(model="physics", limits=c3.limits, chassis=c3.chassis)
-    kinematic = Robot(model="unicycle", limits=c3.limits)
     print(f"load average at start: {os.getloadavg()[0]:.1f}")
     print("| run | physics CPU best / median (s) | wall median (s) | kinematic CPU best / median (s) | ratio | "
           "physics settles (s) | kinematic settles (s) | contacts | goal | status |")  # fmt: skip
     print("|---|---|---|---|---|---|---|---|---|---|")
-    for label, case, goal in cases:
+    for number, (label, case, goal, safety) in enumerate(cases, start=1):
+        if args.case and number not in args.case:
+            continue
+        physics = Robot(model="physics", limits=c3.limits, chassis=c3.chassis, safety=safety)
+        kinematic = Robot(model="unicycle", limits=c3.limits, safety=safety)
         p_cpu, p_wall, k_cpu = [], [], []
         for _ in range(args.repeat):
             w, c, tp = _run(case, physics)
@@ -82,7 +95,7 @@ def main() -> None:
         pm, km = statistics.median(p_cpu), statistics.median(k_cpu)
         print(f"| {label} | {min(p_cpu):.2f} / {pm:.2f} | {statistics.median(p_wall):.2f} | "
               f"{min(k_cpu):.2f} / {km:.2f} | {pm / km:.2g}x | {tp.settling_time:.4g} | {tk.settling_time:.4g} | "
-              f"{len(tp.contacts)} | < {goal:g} s | {'met' if pm < goal else 'not met'} |")  # fmt: skip
+              f"{len(tp.contacts)} | {_verdict(pm, goal)} |")  # fmt: skip
     print(f"load average at end: {os.getloadavg()[0]:.1f}")
 
 
