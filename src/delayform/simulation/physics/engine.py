@@ -35,7 +35,7 @@ velocities (on-board sensing, no delay), as the kinematic models do. The
 filter's guarantee is for ``x'' = u``; the servos execute the command about
 ``tau_s`` (the identified lag, :mod:`~delayform.simulation.physics.identify`)
 late, so two robots braking at ``a_max`` may come up to about
-``2 a_max tau_s^2`` closer than its distance (a fraction of a millimetre for
+``2 a_max tau_s^2`` closer than its distance (about a millimetre for
 the profiles), which its margin absorbs.
 
 With an actuation delay ``tau_a`` (``Robot(actuation_delay=)``) the wheel
