@@ -176,6 +176,9 @@ def test_simulate_physics_writes_the_ros2_topics_of_the_kinematic_model(tmp_path
             start = odom[0].pose.pose.position
             assert (start.x, start.y) == pytest.approx((4.0, 0.0), abs=1e-3)  # the scenario's first robot
     assert topics["physics"] == topics["unicycle"]
+    points = run_in_process("simulate", example, "--model", "double_integrator", "--no-limits", "--duration", "2",
+                            "--out", str(tmp_path / "di"), "--mcap", str(tmp_path / "di.mcap"))  # fmt: skip
+    assert points.returncode == 2 and "use --model unicycle or physics" in points.stderr
     assert {"/robot_1/cmd_vel", "/robot_6/odom", "/tf", "/formation/links"} <= {t for t, _ in topics["physics"]}
 
 
