@@ -9,10 +9,10 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-import delayform.simulation.bodies as bodies
+import delayform.simulation.bodies.approach as bodies
 from delayform.errors import SimulationInputError
 from delayform.simulation import IROBOT_CREATE, Robot, closest_approach, paper_simulations, simulate
-from delayform.simulation.bodies import sample_min_distance
+from delayform.simulation.bodies.approach import sample_min_distance
 from delayform.topology import paper_six, ring
 
 

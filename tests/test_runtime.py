@@ -24,7 +24,7 @@ import pytest
 import delayform
 from delayform._files import PARTIAL_MARK, atomic_path, staged_folder, write_text
 from delayform.errors import ClusterError
-from delayform.sweeps import check_scheduler, check_workers, executor_for, parse_scheduler, usable_cores
+from delayform.simulation.experiments.sweeps import check_scheduler, check_workers, executor_for, parse_scheduler, usable_cores
 
 SRC = Path(delayform.__file__).resolve().parents[1]
 

@@ -122,7 +122,7 @@ class SimulationInputError(InputError):
 
 
 class NetworkError(InputError):
-    """An imperfect-network model that cannot be simulated (:mod:`delayform.simulation.network`).
+    """An imperfect-network model that cannot be simulated (:mod:`delayform.model.network`).
 
     Raised for a probability outside [0, 1], a delay matrix of the wrong size,
     jitter or variation that would make a delay negative or shorter than the

@@ -18,7 +18,7 @@ from delayform.analysis.ctcr.stability_map import StabilityMap
 from delayform.analysis.network import JitterMargin
 from delayform.analysis.roots.dominant import DominantRoot
 from delayform.simulation import Trajectory
-from delayform.simulation.network import Network
+from delayform.model.network import Network
 
 __all__ = ["PointReport", "GuaranteeReport", "RootsReport", "ChartData", "Animation", "GUARANTEE_AGENTS",
            "crossing_frequency_bound"]

@@ -59,7 +59,7 @@ from delayform.characteristic import factors
 from delayform.errors import InputError, NotConvergedError
 from delayform.scenario import Scenario
 from delayform.simulation import IROBOT_CREATE, Robot, RobotLimits, Trajectory, simulate
-from delayform.simulation.network import BernoulliLoss, Jitter, Network
+from delayform.model.network import BernoulliLoss, Jitter, Network
 
 # the answers live in delayform.app.answers; importable from here as before
 __all__ = ["Explorer", "PointReport", "GuaranteeReport", "RootsReport", "ChartData", "Animation", "GUARANTEE_AGENTS",

@@ -103,7 +103,7 @@ def report_command(scenario: Path | None, actuation_delay: float | None, jitter_
     a Monte Carlo over it, with the certificates that cover it beside what the
     runs observed.
     """
-    from delayform.simulation.runner import check_actuation
+    from delayform.simulation.runs.runner import check_actuation
 
     sc = with_actuation(_scenario(scenario, **overrides), actuation_delay)
     from delayform.report.page import report_scenario

@@ -90,7 +90,7 @@ def simulate_command(scenario: Path | None, model: str | None, duration: float |
                  safety=sc.safety if safety is None else (None if safety == "none" else safety),
                  initial=replace(sc.initial, seed=sc.initial.seed if seed is None else seed))  # fmt: skip
     sc.robot_spec.check_slots(sc.desired_positions())  # bodies that overlap in formation: before writing
-    from delayform.simulation.runner import check_actuation
+    from delayform.simulation.runs.runner import check_actuation
 
     check_actuation(sc.robot_spec, sc.network, sim.dt)  # an actuation delay this run cannot model: before writing
     directory = _out_dir(out, sc)

@@ -10,9 +10,9 @@ forcing of eq. formation, per coordinate)::
 and turns u into the unicycle's inputs by eq. transform2, ``dv/dt = e . u``
 and ``omega = e_perp . u / v`` with ``e = (cos theta, sin theta)``: for a
 robot with limits, softened, clipped and braked exactly as the simulated
-saturated unicycle (:class:`delayform.simulation.robots.LimitedUnicycle`);
+saturated unicycle (:class:`delayform.simulation.models.robots.LimitedUnicycle`);
 for an ideal robot, the plain transform, holding the heading at rest
-(:func:`delayform.simulation.robots.ideal_commands`). Wheel speeds follow
+(:func:`delayform.simulation.models.robots.ideal_commands`). Wheel speeds follow
 from the differential drive's geometry.
 
 Which message is used
@@ -51,7 +51,7 @@ from delayform._validation import check_delay, check_gains, validated
 from delayform.deploy.profiles import RobotProfile
 from delayform.errors import ControllerInputError
 from delayform.formation import check_formation, formation_forcing
-from delayform.simulation.robots import IROBOT_CREATE, REST_SPEED, RobotLimits
+from delayform.simulation.models.robots import IROBOT_CREATE, REST_SPEED, RobotLimits
 from delayform.topology import Topology
 
 __all__ = ["FormationController", "NeighbourMessage", "Command"]

@@ -17,7 +17,7 @@ from numpy.typing import ArrayLike
 
 from delayform.deploy.profiles import Arena, RobotProfile
 from delayform.errors import RobotProfileError
-from delayform.simulation.robots import RobotLimits
+from delayform.simulation.models.robots import RobotLimits
 
 __all__ = ["FormationFit", "formation_fit", "require_formation_fit"]
 

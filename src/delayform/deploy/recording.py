@@ -80,8 +80,8 @@ from delayform.deploy._cdr import Layout, Slot
 from delayform.deploy.markers import body_markers, link_marker, link_pairs, slot_markers
 from delayform.errors import RecordingError
 from delayform.formation import centroid_weights, formation_forcing
-from delayform.simulation.network import Network
-from delayform.simulation.trajectory import Trajectory
+from delayform.model.network import Network
+from delayform.simulation.runs.trajectory import Trajectory
 from delayform.topology import Topology
 
 __all__ = ["write_mcap", "check_mcap_path", "recording_start", "odometry_layout", "twist_layout",

@@ -7,7 +7,7 @@ accelerations in m/s^2. A differential drive with wheel radius ``r`` and
 axle length ``L`` turns ``(v, omega)`` into wheel speeds
 ``left = (v - omega L / 2) / r`` and ``right = (v + omega L / 2) / r``; the
 saturated unicycle that obeys these limits is integrated in
-:mod:`delayform.simulation.robots`.
+:mod:`delayform.simulation.models.robots`.
 """
 
 from __future__ import annotations

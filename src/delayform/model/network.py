@@ -4,7 +4,7 @@ The analysis of the paper assumes that every agent hears every informer
 through two constant delays shared by all links: positions ``tau1`` and
 velocities ``tau2`` old (eq. protocol). A :class:`Network` describes how a
 real radio network departs from that, and
-:func:`delayform.simulation.reception.integrate_network` runs
+:func:`delayform.simulation.delayed.reception.integrate_network` runs
 eq. protocol plus the forcing of eq. formation with what each agent actually
 HEARS from each informer::
 
@@ -26,7 +26,7 @@ Links
 Continuous and packet streams
     Without jitter, loss, sampling or noise a stream is continuous: agent i
     hears ``x_k(t - d_ik(t))``, read from the computed solution by the cubic
-    Hermite interpolation of :mod:`delayform.simulation.integrator`, with
+    Hermite interpolation of :mod:`delayform.simulation.delayed.integrator`, with
     ``d_ik(t)`` the link's constant delay plus its smooth variation (the
     delay is that of the value heard at time t). With any of the four, the
     stream is a sequence of packets: agent k samples its state at
@@ -65,10 +65,10 @@ Double integrators are integrated directly. The unicycle is the ideal robot
 of Section "Feedback Linearization": under eq. transform2 its position obeys
 ``x'' = u`` exactly, so its motion is that of the double integrator and its
 heading, speed and commands ``(dv/dt, omega)`` are rebuilt from the velocity
-and acceleration (:func:`delayform.simulation.robots.ideal_commands`), as for
+and acceleration (:func:`delayform.simulation.models.robots.ideal_commands`), as for
 ideal robots without a network. Robots with actuator limits integrate the
 true unicycle (x, y, theta, v) with saturated inputs
-(:class:`delayform.simulation.robots.LimitedUnicycle`) computed from what
+(:class:`delayform.simulation.models.robots.LimitedUnicycle`) computed from what
 each robot hears; they send their Cartesian position and velocity
 ``v (cos theta, sin theta)``, and the stated order is 2 as without a network.
 """

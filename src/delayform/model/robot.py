@@ -3,7 +3,7 @@
 A :class:`Robot` gathers what belongs to the robot in a simulation, as
 :class:`~delayform.model.Network` gathers the network: the agent model
 (:data:`MODELS`; each name is one entry of the integrator table of
-:mod:`delayform.simulation.models`), the actuator limits
+:mod:`delayform.simulation.runs.integrators`), the actuator limits
 (:class:`~delayform.model.RobotLimits`) or the real robot they come from
 (:class:`~delayform.model.RobotProfile`), the body's radius, the safety
 filter (:class:`BarrierFilter`), the actuation delay and, for robots with
@@ -29,7 +29,7 @@ __all__ = ["Robot", "MODELS", "REST_SPEED", "SAFETY_FILTERS", "BarrierFilter", "
 _Array = NDArray[np.float64]
 
 #: agent models a :class:`Robot` names; each is one entry of the integrator table
-#: :data:`delayform.simulation.models.INTEGRATORS` (a test checks that the two agree);
+#: :data:`delayform.simulation.runs.integrators.INTEGRATORS` (a test checks that the two agree);
 #: ``"physics"``: robots with mass in a physics engine (:mod:`delayform.simulation.physics`)
 MODELS = ("double_integrator", "unicycle", "physics")
 

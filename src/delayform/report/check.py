@@ -53,7 +53,7 @@ from delayform.deploy.profiles import RobotProfile, robot_profile
 from delayform.errors import RobotProfileError
 from delayform.resources import sized_by
 from delayform.scenario import Scenario
-from delayform.simulation.trajectory import Trajectory  # loaded by the scenario already
+from delayform.simulation.runs.trajectory import Trajectory  # loaded by the scenario already
 
 __all__ = ["Verdict", "RobotCheck", "robot_check"]
 

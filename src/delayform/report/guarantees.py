@@ -48,7 +48,7 @@ def _link_delays(net: Any, tau1: float, tau2: float) -> tuple[Any, Any]:
 
 def network_guarantees(topology: Any, P: float, D: float, tau1: float, tau2: float, network: Any,
                        *, dt: float = 0.0) -> tuple[Guarantee, ...]:  # fmt: skip
-    """The certificates that apply to ``network`` (a :class:`~delayform.simulation.network.Network` or None).
+    """The certificates that apply to ``network`` (a :class:`~delayform.model.network.Network` or None).
 
     Parameters
     ----------

@@ -10,11 +10,11 @@ import numpy as np
 from delayform._validation import validated
 from delayform.errors import ScenarioError
 from delayform.scenario._reader import _check_sizes, _Reader
-from delayform.simulation.network import (
+from delayform.model.network import (
     LinkDelays,
     Network,
 )
-from delayform.simulation.robots import Robot, RobotLimits
+from delayform.simulation.models.robots import Robot, RobotLimits
 from delayform.topology import Topology
 
 TOPOLOGY_NAMES = ("paper_six", "ring", "complete", "star", "random_digraph")
@@ -115,7 +115,7 @@ class SimulationSpec:
     dt: float = 0.01
     #: whether the file gave the step; a default step follows the delays (:func:`default_step`)
     dt_given: bool = field(default=True, compare=False)
-    #: which robot takes which slot (delayform.simulation.assignment.ASSIGNMENTS)
+    #: which robot takes which slot (delayform.simulation.bodies.assignment.ASSIGNMENTS)
     assignment: str = "given"
 
 
@@ -226,15 +226,15 @@ class Scenario:
         :data:`delayform.deploy.PROFILES`), or None.
     radius
         ``[robot] radius`` (m), the bodies' size for contacts, or None for the
-        default of :class:`~delayform.simulation.robots.Robot`.
+        default of :class:`~delayform.simulation.models.robots.Robot`.
     safety
         ``[robot] safety``: the safety filter's name (``"barrier"``), or None.
     actuation_delay
         ``[robot] actuation_delay`` (s, default 0): each robot applies its
-        command that late (:attr:`~delayform.simulation.robots.Robot.actuation_delay`);
+        command that late (:attr:`~delayform.simulation.models.robots.Robot.actuation_delay`);
         the simulation and the dominant roots use it.
     network
-        The ``[network]`` table as a :class:`~delayform.simulation.network.Network`, or None.
+        The ``[network]`` table as a :class:`~delayform.model.network.Network`, or None.
     topology_spec
         How the topology was described in the file.
     source

@@ -2,7 +2,7 @@
 
 With a delay per link, agent i hears informer k's position ``tau1[i, k]`` and
 velocity ``tau2[i, k]`` old (the convention of
-:mod:`delayform.simulation.network`: entry ``[i, k]`` is what i receives from k).
+:mod:`delayform.model.network`: entry ``[i, k]`` is what i receives from k).
 Eq. protocol then reads
 
     x_i'' = -P x_i - D x_i' + sum_k C_ik (P x_k(t - tau1_ik) + D x_k'(t - tau2_ik)),

@@ -1,6 +1,6 @@
 """Packet loss, exactly in the mean square.
 
-Model (the simulator's, :mod:`delayform.simulation.network`, with ``Sampling`` and
+Model (the simulator's, :mod:`delayform.model.network`, with ``Sampling`` and
 ``BernoulliLoss``): every agent samples its position and velocity every h = 1/rate
 seconds; the packet of stream (i, k) sent at m h arrives m_ik h later (the delays are
 whole multiples of h) unless it is lost, independently with probability p_ik per

@@ -23,8 +23,8 @@ from numpy.typing import ArrayLike, NDArray
 from delayform._validation import check_delay, check_gains, validated
 from delayform.errors import SimulationInputError
 from delayform.model import Delays, Network, Robot, Start, Team
-from delayform.simulation.compat import SIMULATE_KEYWORDS, accepts_loose_calls
-from delayform.simulation.trajectory import Trajectory
+from delayform.simulation.runs.compat import SIMULATE_KEYWORDS, accepts_loose_calls
+from delayform.simulation.runs.trajectory import Trajectory
 from delayform.topology import Topology
 
 __all__ = ["KinematicComparison", "compare_with_kinematic", "kinematic_twin", "ActuationVerdict", "actuation_verdict"]
@@ -165,7 +165,7 @@ def compare_with_kinematic(
     formation, robot=..., initial_positions=..., seed=..., duration=...,
     dt=...)`` is taken as :func:`~delayform.simulation.simulate` takes it.
     """
-    from delayform.simulation.runner import simulate
+    from delayform.simulation.runs.runner import simulate
 
     robot = Robot(model="physics") if robot is None else robot
     if not isinstance(robot, Robot) or robot.model != "physics":

@@ -11,7 +11,7 @@ wheel commands held in between: zero-order hold) robot i
    sent ``tau2`` earlier, exactly as the kinematic models do (values between
    ticks are interpolated linearly in the recorded ticks; over a
    :class:`~delayform.model.Network` the send times of
-   :func:`~delayform.simulation.reception.reception`);
+   :func:`~delayform.simulation.delayed.reception.reception`);
 3. computes eq. protocol plus the forcing of eq. formation, and turns it
    into (dv/dt, omega) by the softened feedback linearization of eq.
    transform2 with the robot's limits: the same functions as the saturated
@@ -20,7 +20,7 @@ wheel commands held in between: zero-order hold) robot i
    speed set-point;
 4. integrates dv/dt over the period into its speed set-point (within the
    speed cap) and sends the wheel speeds of (set-point, omega)
-   (:func:`~delayform.simulation.robots.wheel_speeds`, clipped to
+   (:func:`~delayform.simulation.models.robots.wheel_speeds`, clipped to
    ``max_wheel_speed``) to the two wheel servos.
 
 The engine then steps the bodies (steps of at most :data:`~delayform.model.chassis.TIMESTEP`
@@ -41,11 +41,11 @@ import scipy.sparse as sp
 from numpy.typing import NDArray
 
 from delayform._extras import require_extra
-from delayform.simulation.integrator import Progress, Samples
+from delayform.simulation.delayed.integrator import Progress, Samples
 from delayform.model import Network, RobotLimits
 from delayform.model.chassis import Chassis
 from delayform.simulation.physics.mjcf import QPOS_PER_ROBOT, QVEL_PER_ROBOT, team_mjcf
-from delayform.simulation.robots import LimitedUnicycle, wheel_speeds
+from delayform.simulation.models.robots import LimitedUnicycle, wheel_speeds
 from delayform.topology import Topology
 
 __all__ = ["integrate_physics", "tick_grid", "PhysicsTeam"]
@@ -139,7 +139,7 @@ class _Hearing:
 
     def __init__(self, topology: Topology, tau1: float, tau2: float, period: float, ticks: int,
                  network: Network | None) -> None:  # fmt: skip
-        from delayform.simulation.reception import reception
+        from delayform.simulation.delayed.reception import reception
 
         self.period = period
         C = topology.C_sparse.tocoo()

@@ -14,10 +14,10 @@ from delayform._files import atomic_path, save_npz
 from delayform._display import FigureRepr  # Jupyter shows the figure
 from delayform._validation import validated
 from delayform.errors import SimulationInputError
-from delayform.simulation.bodies import Contact
-from delayform.simulation.commands import RobotCommands
-from delayform.simulation.robots import RobotLimits
-from delayform.simulation.safety import SafetyReport
+from delayform.simulation.bodies.approach import Contact
+from delayform.simulation.models.commands import RobotCommands
+from delayform.simulation.models.robots import RobotLimits
+from delayform.simulation.bodies.safety import SafetyReport
 
 __all__ = ["Trajectory", "SETTLING_FRACTION", "STATUSES"]
 
@@ -74,20 +74,20 @@ class Trajectory(FigureRepr):
     min_distance
         Smallest centre-to-centre distance of two robots over the run, exact
         for the interpolated motion between saved samples too
-        (:func:`~delayform.simulation.bodies.closest_approach`).
+        (:func:`~delayform.simulation.bodies.approach.closest_approach`).
     closest_at
         When it happened (s).
     radius
         The robots' body radius (m) used for contacts; 0 for point agents.
     contacts
-        Each time two bodies overlapped (:class:`~delayform.simulation.bodies.Contact`:
+        Each time two bodies overlapped (:class:`~delayform.simulation.bodies.approach.Contact`:
         which pair, when, how long, how close); a run with contacts says so
         in :attr:`warnings`.
     slots
         ``(n,)``: the slot of ``formation`` robot i took (``simulate(...,
         assignment=...)``); ``desired`` is already in this order.
     safety
-        When the safety filter acted (:class:`~delayform.simulation.safety.SafetyReport`),
+        When the safety filter acted (:class:`~delayform.simulation.bodies.safety.SafetyReport`),
         or None for a run without it.
     commands
         The robots' commands (:class:`RobotCommands`); None for double integrators.
@@ -141,7 +141,7 @@ class Trajectory(FigureRepr):
     warnings: tuple[str, ...] = ()
     labels: tuple[Any, ...] = field(default=())
     stopped_at: float | None = None
-    #: tau_a (s), the actuation delay of the run (:attr:`~delayform.simulation.robots.Robot.actuation_delay`)
+    #: tau_a (s), the actuation delay of the run (:attr:`~delayform.simulation.models.robots.Robot.actuation_delay`)
     actuation_delay: float = 0.0
 
     @property

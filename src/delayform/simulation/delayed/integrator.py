@@ -46,7 +46,7 @@ import numpy as np
 from numpy.lib.stride_tricks import as_strided
 from numpy.typing import NDArray
 
-from delayform.simulation.actuation import CommandBuffer
+from delayform.simulation.delayed.actuation import CommandBuffer
 
 __all__ = ["stated_order", "effective_delay", "BLOWUP"]
 
@@ -201,7 +201,7 @@ class _History:
 
 # ------------------------------------------------------------ generic loop
 class Agent(Protocol):
-    """What the generic loop needs of an agent model (see :mod:`delayform.simulation.robots`)."""
+    """What the generic loop needs of an agent model (see :mod:`delayform.simulation.models.robots`)."""
 
     state0: _Array
     extras: tuple[str, ...]
@@ -251,7 +251,7 @@ def integrate(
 
     ``progress(done, steps)`` is called every 1000 steps when given. With
     ``actuation_delay`` > 0 (at least dt) each stage executes the command of
-    ``actuation_delay`` earlier (:mod:`delayform.simulation.actuation`); the
+    ``actuation_delay`` earlier (:mod:`delayform.simulation.delayed.actuation`); the
     agent then needs ``command`` and ``apply``.
     """
     n = F.shape[0]

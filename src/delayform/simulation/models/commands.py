@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 from delayform._files import atomic_path, save_npz
 from delayform._validation import validated
 from delayform.errors import SimulationInputError
-from delayform.simulation.robots import RobotLimits, wheel_speeds
+from delayform.simulation.models.robots import RobotLimits, wheel_speeds
 
 __all__ = ["RobotCommands", "LimitExceedance"]
 

@@ -28,7 +28,7 @@ Robots with limits
 :class:`RobotLimits` describes a differential-drive robot; with limits the
 true unicycle state is integrated with saturated inputs
 (:class:`LimitedUnicycle`), and the ideal commands that exceeded a limit are
-reported by :class:`delayform.simulation.commands.RobotCommands`.
+reported by :class:`delayform.simulation.models.commands.RobotCommands`.
 """
 
 from __future__ import annotations
