@@ -206,3 +206,20 @@ def test_no_private_name_is_imported_across_packages() -> None:
 @pytest.mark.parametrize("name", sorted(delayform.__all__))
 def test_public_names_import_from_the_package_root(name: str) -> None:
     assert getattr(delayform, name) is not None
+
+
+@pytest.mark.parametrize("package", SPLIT)
+def test_each_subpackage_of_a_split_package_has_its_stage(package: str) -> None:
+    """A new subpackage of analysis/ or simulation/ says where it stands, rather than taking its parent's stage."""
+    subpackages = {p.parent.name for p in (PACKAGE / package).glob("*/__init__.py")}
+    assert subpackages, package
+    missing = sorted(s for s in subpackages if f"{package}.{s}" not in STAGES and not any(
+        key.startswith(f"{package}.{s}.") for key in STAGES))
+    assert not missing, f"subpackages of {package} without a stage: {missing}"
+
+
+def test_experiments_stand_on_runs_and_runs_on_models_delayed_and_bodies() -> None:
+    runs = _stage("simulation.runs.runner")
+    assert _stage("simulation.experiments.montecarlo") > runs
+    for below in ("simulation.models.robots", "simulation.delayed.integrator", "simulation.bodies.safety"):
+        assert _stage(below) < runs, below
