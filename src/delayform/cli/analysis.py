@@ -107,7 +107,6 @@ def chart_command(scenario: Path | None, tau1_max: float | None, tau2_max: float
     as jitter_margin_map.npz (refused up front beyond the time budget).
     """
     from delayform.report import chart_section
-    from delayform.report.jitter_overlay import check_overlay
 
     sc = with_actuation(_scenario(scenario, **overrides), actuation_delay)
     sc = sc.at_one_delay_pair("chart (the plane of equal delays on every link, its operating point marked)", PER_LINK)
@@ -131,9 +130,8 @@ def chart_command(scenario: Path | None, tau1_max: float | None, tau2_max: float
             )
     sc = replace(sc, chart=chart)
     grid = jitter_grid if jitter else 0
-    if grid:  # before --out is made: a refused map leaves nothing behind
-        check_overlay(sc, max([chart.tau1_max] + [sc.tau1]), max([chart.tau2_max] + [sc.tau2]), grid)
-    directory = _out_dir(out, sc)
+    # the folder is made by the chart's first write: a map it refuses (beyond the budget) leaves nothing behind
+    directory = _out_dir(out, sc, create=False)
     _emit(chart_section(sc, directory, jitter_grid=grid), directory, as_json=as_json)
 
 

@@ -127,6 +127,7 @@ def chart_section(scenario: Scenario, out: Path, *, jitter_grid: int = 0) -> Sec
     smap.plot(ax=ax, points={label: (a, b) for label, a, b in points})
     jitter_summary, jitter_rows = draw_overlay(jmap, ax) if jmap is not None else (None, [])
     ax.set_title(f"Stability chart: {scenario.name}, P = {scenario.P:g}, D = {scenario.D:g}")
+    out.mkdir(parents=True, exist_ok=True)  # the command line leaves the folder to the first write
     files = list(_save(fig, out, "stability_chart"))
     curve_rows, arrays = _curve_rows(smap)
     files.append(_write_csv(out / "ctcr_curves.csv", ("curve", "source", "kind", "tau1", "tau2", "omega"), curve_rows))

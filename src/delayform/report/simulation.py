@@ -103,6 +103,7 @@ def simulation_section(
         seed=scenario.initial.seed, duration=sim.duration, dt=sim.dt, progress=progress,
         assignment=sim.assignment, network=scenario.network if network else None,
     )  # fmt: skip
+    out.mkdir(parents=True, exist_ok=True)  # the command line leaves the folder to the first write
     stem = f"sim_{label}"
     files: list[str] = []
     figures = []
@@ -142,6 +143,7 @@ def simulation_section(
     if mcap is not None:
         from delayform.deploy.recording import write_mcap
 
+        mcap.parent.mkdir(parents=True, exist_ok=True)
         net = scenario.network if network and scenario.network is not None and not scenario.network.is_ideal else None
         files.append(str(write_mcap(traj, mcap, topology=scenario.topology, start_time=mcap_start,
                                     metadata=mcap_records(scenario, tau1, tau2), network=net).resolve()))
