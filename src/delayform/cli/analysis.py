@@ -75,7 +75,7 @@ def factors_command(scenario: Path | None, as_json: bool, **overrides: Any) -> N
         click.echo(f"C = Delta^-1 A: {topo.n} x {topo.n}, {nnz} non-zero entries, every row sums to 1")
     shown = ", ".join(format_number(v, digits=4) for v in eig[:_LIST_FACTORS])
     click.echo("eigenvalues of C: " + shown + (f" ... ({eig.size} in all)" if eig.size > _LIST_FACTORS else ""))
-    click.echo(f"Factors of the characteristic equation (eq. factorized), P = {P:g}, D = {D:g}:")
+    click.echo(f"Factors of the characteristic equation (paper, eq. 3), P = {P:g}, D = {D:g}:")
     for i, f in enumerate(fs[:_LIST_FACTORS], start=1):
         click.echo(f"  q{i}: {f.describe()}")
         click.echo(f"      {f.quasi_polynomial.describe()} = 0")

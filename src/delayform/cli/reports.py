@@ -77,7 +77,7 @@ def _build_full_report(sc: Scenario, directory: Path, *, paper: bool,
         if paper:
             title = "Formation control under two delays: the paper's example reproduced"
             intro = ("Cepeda-Gomez and Perico, Formation Control of Non-holonomic Vehicles under Time Delayed "
-                     "Communications, Section 'Simulation Examples': six robots (Fig. topol), P = 1, D = 0.5, "
+                     "Communications, Section 'Simulation Examples': six robots (paper, Fig. 2), P = 1, D = 0.5, "
                      "computed by delayform from scratch.")  # fmt: skip
         else:
             title = f"delayform report: {sc.name}"

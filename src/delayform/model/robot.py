@@ -112,7 +112,7 @@ class Robot:
     Attributes
     ----------
     model
-        ``"unicycle"`` (differential-drive robot, eq. transform2),
+        ``"unicycle"`` (differential-drive robot, the paper's eq. 19),
         ``"double_integrator"`` (point agents, ``x'' = u``) or ``"physics"``
         (differential-drive bodies with mass, wheel servos and contacts in
         a physics engine: :mod:`delayform.simulation.physics`, the
@@ -130,7 +130,7 @@ class Robot:
     actuation_delay
         tau_a >= 0 (s): each robot applies its command tau_a late,
         ``x'' = u(t - tau_a)`` for double integrators; for robots the demands
-        (dv/dt, omega) of eq. transform2, computed on the state when the
+        (dv/dt, omega) of the paper's eq. 19, computed on the state when the
         command is made, are executed tau_a later under the limits of that
         time (docs/theory.md, "Actuation delay"). 0 (default): the paper's model.
     profile

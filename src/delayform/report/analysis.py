@@ -66,7 +66,7 @@ def factors_section(scenario: Scenario, out: Path) -> Section:
         text=(
             f"C = Delta^-1 A of the topology {scenario.topology_spec.describe()} has {eig.size} eigenvalues; "
             f"each real one gives a second-order factor and each complex pair a fourth-order factor "
-            f"(eq. factorized). The factor of lam = 1 is the centroid factor with its root s = 0 at "
+            f"(paper, eq. 3). The factor of lam = 1 is the centroid factor with its root s = 0 at "
             f"every delay; the others are the disagreement dynamics. Gains P = {scenario.P:g}, D = {scenario.D:g}."
         ),
         table=tuple(table),
@@ -383,7 +383,7 @@ def safe_delays_section(
     out
         Folder the section writes its files into.
     P, D
-        Gains of eq. protocol.
+        Gains of the paper's eq. 1.
     tau1_max, tau2_max
         The delay window.
     spectrum

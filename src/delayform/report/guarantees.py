@@ -220,7 +220,7 @@ def summary_of(guarantees: tuple[Guarantee, ...]) -> list[dict[str, Any]]:
 def with_actuation_delay(guarantees: tuple[Guarantee, ...], actuation_delay: float) -> tuple[Guarantee, ...]:
     """The certificates for robots that apply their commands ``actuation_delay`` s late: none covers the runs.
 
-    Every certificate here is for eq. protocol without actuation delay; with one the
+    Every certificate here is for the paper's eq. 1 without actuation delay; with one the
     characteristic function changes, so neither stability nor instability carries over.
 
     Parameters

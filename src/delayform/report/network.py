@@ -294,7 +294,7 @@ def promises_section(
 ) -> Section:
     """What the analysis still promises: the constant-delay prediction against Monte Carlo with jitter and loss.
 
-    At each point the dominant root (eq. factorized) says stable or not and
+    At each point the dominant root (paper, eq. 3) says stable or not and
     predicts the settling ``ln(50)/|Re s|``; Monte Carlo runs then grow the
     jitter bound (a fraction of each delay, symmetric, so the mean delay stays
     the analysed one) and, separately, the loss probability.

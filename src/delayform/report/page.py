@@ -39,7 +39,7 @@ def report_scenario(scenario: Scenario) -> Scenario:
     """The scenario as :func:`scenario_sections` answers it: one delay pair on every link.
 
     Its chart, roots, map and schedule are of one delay pair on every link
-    (eq. factorized): per-link ``[network]`` delays equal on every link are that
+    (paper, eq. 3): per-link ``[network]`` delays equal on every link are that
     pair; delays that differ between links (or are drawn per run) are refused
     (:meth:`~delayform.scenario.Scenario.at_one_delay_pair`). The simulation
     and the Monte Carlo run over the rest of the ``[network]``.

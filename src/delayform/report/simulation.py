@@ -59,7 +59,7 @@ def simulation_section(
     tau1, tau2
         Delays to simulate at; the scenario's operating delays by default.
     traces
-        Also draw the paths figure (paper Fig. traces), ``<stem>_xy``.
+        Also draw the paths figure (paper, Fig. 6), ``<stem>_xy``.
     gif
         Also write an animated GIF (slower).
     csv
@@ -240,7 +240,7 @@ def simulation_section(
     robots = "double-integrator agents"
     if sim.model == "unicycle":
         robots = ("differential-drive robots with actuator limits (saturated unicycle)" if limits is not None
-                  else "ideal differential-drive robots (unicycle, feedback linearization eq. transform2)")  # fmt: skip
+                  else "ideal differential-drive robots (unicycle, feedback linearization (paper, eq. 19))")  # fmt: skip
     elif sim.model == "physics":
         robots = ("differential-drive robots with mass, wheel servos and contacts in a physics engine "
                   f"(controller ticks every {robot.chassis.control_period:g} s)")  # fmt: skip

@@ -43,7 +43,7 @@ table and key; anything else is an error)::
 
     [initial]                           # optional; random positions and headings from seed
     seed = 0
-    speed = 1e-3                        # the paper's small initial speed (eq. transform2)
+    speed = 1e-3                        # the paper's small initial speed (paper, eq. 19)
     # positions = [[x, y], ...]         # explicit initial positions, one per agent
     # headings = [...]                  # explicit initial headings (radians), one per agent
 

@@ -351,7 +351,7 @@ def parse_scenario(data: Mapping[str, Any], *, source: str = "<scenario>", defau
     reader.keys(gains, "gains", ("P", "D"))
     for key in ("P", "D"):
         if key not in gains:
-            raise ScenarioError(f"{source}: gains.{key}: missing (a positive gain of eq. protocol)")
+            raise ScenarioError(f"{source}: gains.{key}: missing (a positive gain of the paper's eq. 1)")
     P, D = reader.gain("gains.P", gains["P"]), reader.gain("gains.D", gains["D"])
 
     delays = reader.table(data, "delays", required=True)

@@ -3,9 +3,9 @@
 Method (Wang, Ames & Egerstedt, "Safety barrier certificates for collisions-free
 multirobot systems", IEEE T-RO 33(3), 2017; as Robotarium filters commands)
 --------------------------------------------------------------------------
-The formation controller (eq. protocol) asks robot i for the Cartesian
-acceleration ``u_hat_i``; for ideal robots the feedback linearization eq.
-transform2 makes ``x_i'' = u_i`` exactly, so the filter works on ``u``. For a
+The formation controller (paper, eq. 1) asks robot i for the Cartesian
+acceleration ``u_hat_i``; for ideal robots the feedback linearization (paper,
+eq. 19) makes ``x_i'' = u_i`` exactly, so the filter works on ``u``. For a
 pair at distance ``d = |dp|``, ``dp = x_i - x_j``, ``n = dp / d``,
 ``dv = x_i' - x_j'`` and safe distance ``Ds`` (the sum of the radii plus
 :attr:`BarrierFilter.margin`), the barrier ``h = d - Ds`` has relative degree

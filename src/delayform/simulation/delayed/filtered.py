@@ -115,11 +115,11 @@ def integrate_filtered(
     x0, v0
         ``(n, 2)`` initial positions and velocities (the constant history).
     C
-        ``(n, n)`` dense weight matrix (eq. protocol).
+        ``(n, n)`` dense weight matrix (paper, eq. 1).
     F
-        ``(n, 2)`` forcing of eq. formation.
+        ``(n, 2)`` forcing of the paper's eq. 13.
     P, D
-        Gains of eq. protocol.
+        Gains of the paper's eq. 1.
     tau1, tau2
         Effective delays (s) on positions and velocities.
     dt

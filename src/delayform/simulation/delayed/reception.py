@@ -5,7 +5,7 @@ the send time of every value each agent hears at every RK4 stage time
 (the conventions are those of :mod:`delayform.model.network`: continuous
 streams read ``t - d(t)``, packet streams hold the newest packet received,
 the initial state before the first one). :func:`integrate_network` runs
-eq. protocol plus the forcing of eq. formation on those values for any
+the paper's eq. 1 plus the forcing of the paper's eq. 13 on those values for any
 agent model (double integrators, or robots with actuator limits), with the
 step of :mod:`delayform.simulation.delayed.integrator` (classical RK4, cubic Hermite
 reads of the computed solution), so that with every link at (tau1, tau2) it
@@ -59,7 +59,7 @@ class Reception:
     receivers, informers
         ``(E,)`` agent indices of each link (i hears k).
     weights
-        ``(E,)`` entries ``C_ik`` of eq. protocol.
+        ``(E,)`` entries ``C_ik`` of the paper's eq. 1.
     dt
         The integration step.
     send
@@ -402,7 +402,7 @@ def integrate_network(
     progress: Progress | None = None,
     actuation_delay: float = 0.0,
 ) -> Samples:
-    """RK4 of eq. protocol + forcing for ``agent`` with what each agent hears over ``network`` (module doc).
+    """RK4 of the paper's eq. 1 + forcing for ``agent`` with what each agent hears over ``network`` (module doc).
 
     The step is that of :func:`delayform.simulation.delayed.integrator.integrate`
     (classical RK4 on the agent's state, cubic Hermite reads of the computed
@@ -421,9 +421,9 @@ def integrate_network(
     topology
         Who hears whom.
     F
-        ``(n, 2)`` forcing of eq. formation.
+        ``(n, 2)`` forcing of the paper's eq. 13.
     P, D
-        Gains of eq. protocol.
+        Gains of the paper's eq. 1.
     tau1, tau2
         Nominal delays (s).
     network
@@ -495,7 +495,7 @@ def integrate_network(
             cxd = cxd + now[0] @ x
         if now_on[1]:
             cvd = cvd + now[1] @ v
-        u = P * (cxd - x) + D * (cvd - v) + F  # eq. protocol + forcing of eq. formation
+        u = P * (cxd - x) + D * (cvd - v) + F  # the paper's eq. 1 + forcing of the paper's eq. 13
         if late is None:
             return agent.rhs(st, u)
         if c == 0.0:  # the command made at the grid point t_k, executed actuation_delay later

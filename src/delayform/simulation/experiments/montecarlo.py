@@ -129,7 +129,7 @@ class Setup:
     Attributes
     ----------
     topology, P, D, tau1, tau2
-        Team, gains and nominal delays of eq. protocol.
+        Team, gains and nominal delays of the paper's eq. 1.
     formation
         ``(n, 2)`` desired positions.
     model
@@ -539,7 +539,7 @@ def make_setup(
     Parameters
     ----------
     topology, P, D, tau1, tau2, formation
-        Team, gains of eq. protocol, nominal delays, desired shape (array or name).
+        Team, gains of the paper's eq. 1, nominal delays, desired shape (array or name).
     model
         ``"double_integrator"`` or ``"unicycle"``.
     network
@@ -650,7 +650,7 @@ def monte_carlo(
     runs: int,
     options: RunOptions | None = None,
 ) -> MonteCarloResult:
-    """N seeded runs of eq. formation over ``network``: distributions of settling, error and commands.
+    """N seeded runs of the paper's eq. 13 over ``network``: distributions of settling, error and commands.
 
     Parameters
     ----------

@@ -645,7 +645,7 @@ def gain_sweep(
     setup: Setup, P_values: Sequence[float], D_values: Sequence[float], *, runs: int, seed: int = 0,
     workers: int | None = None, scheduler: str | None = None, progress: bool | Progress = False,
 ) -> SweepResult:  # fmt: skip
-    """Monte Carlo on the grid ``P_values x D_values`` of gains (eq. protocol).
+    """Monte Carlo on the grid ``P_values x D_values`` of gains (paper, eq. 1).
 
     Parameters
     ----------

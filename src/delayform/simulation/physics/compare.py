@@ -138,7 +138,7 @@ def compare_with_kinematic(
     Parameters
     ----------
     team, delays, formation
-        As for :func:`~delayform.simulation.simulate` (eq. protocol and eq. formation).
+        As for :func:`~delayform.simulation.simulate` (paper, eqs. 1 and 13).
     robot
         A ``Robot(model="physics", ...)``: limits and chassis; None: the
         Create's. The kinematic run uses the same limits and body radius.
@@ -266,7 +266,7 @@ def actuation_verdict(
     Parameters
     ----------
     topology, P, D
-        Team and gains of eq. protocol.
+        Team and gains of the paper's eq. 1.
     tau1_max, tau2_max
         The chart's window (s), positive.
     actuation_delay

@@ -12,9 +12,9 @@ wheel commands held in between: zero-order hold) robot i
    ticks are interpolated linearly in the recorded ticks; over a
    :class:`~delayform.model.Network` the send times of
    :func:`~delayform.simulation.delayed.reception.reception`);
-3. computes eq. protocol plus the forcing of eq. formation, and turns it
-   into (dv/dt, omega) by the softened feedback linearization of eq.
-   transform2 with the robot's limits: the same functions as the saturated
+3. computes the paper's eq. 1 plus the forcing of the paper's eq. 13, and turns it
+   into (dv/dt, omega) by the softened feedback linearization of the paper's
+   eq. 19 with the robot's limits: the same functions as the saturated
    kinematic unicycle (:meth:`LimitedUnicycle.command` and
    :meth:`LimitedUnicycle.apply`), evaluated on the measured pose and the
    speed set-point;
@@ -192,9 +192,9 @@ def integrate_physics(
     topology
         Who hears whom (C).
     F
-        ``(n, 2)`` forcing of eq. formation.
+        ``(n, 2)`` forcing of the paper's eq. 13.
     P, D, tau1, tau2
-        Gains and delays of eq. protocol.
+        Gains and delays of the paper's eq. 1.
     chassis, limits
         The robots' numbers.
     x0, th0, speed0
@@ -242,9 +242,9 @@ def integrate_physics(
             break
         pos_hist[k], vel_hist[k] = X, V
         cx, cv = hearing.heard(k, pos_hist, vel_hist)
-        u = P * (cx - X) + D * (cv - V) + F  # eq. protocol + forcing of eq. formation
+        u = P * (cx - X) + D * (cv - V) + F  # the paper's eq. 1 + forcing of the paper's eq. 13
         state = np.column_stack([X, theta, v_set])
-        _, cart, extra = uni.apply(state, uni.command(state, u))  # eq. transform2 under the limits
+        _, cart, extra = uni.apply(state, uni.command(state, u))  # the paper's eq. 19 under the limits
         if k % save_every == 0 or k == ticks:
             times[saved] = k * period
             pos[saved], vel[saved], acc[saved] = X, V, cart

@@ -252,7 +252,7 @@ class UnicycleModel:
         limits = robot.limits
         if limits is None and np.any(speed0 == 0.0):
             raise SimulationInputError(
-                "ideal robots cannot start at exactly zero speed (eq. transform2 divides by v); "
+                "ideal robots cannot start at exactly zero speed (paper, eq. 19 divides by v); "
                 "give initial_speed != 0 (the paper uses 1e-3) or limits"
             )
         if limits is not None:

@@ -1,6 +1,6 @@
-"""Simulation of the formation protocol with two constant delays (eq. protocol, eq. formation).
+"""Simulation of the formation protocol with two constant delays (paper, eqs. 1 and 13).
 
-Agent i applies (per coordinate, eq. protocol plus the forcing of eq. formation)::
+Agent i applies (per coordinate, the paper's eq. 1 plus the forcing of the paper's eq. 13)::
 
     u_i(t) = P (sum_k C_ik x_k(t - tau1) - x_i(t)) + D (sum_k C_ik xdot_k(t - tau2) - xdot_i(t)) + F_i
 
@@ -14,7 +14,7 @@ Agent models (:mod:`delayform.simulation.models.robots`)
     The feedback-linearized differential-drive robot of Section "Feedback
     Linearization". Its position follows the double integrator exactly while
     v != 0, so the double integrator is integrated (fast and exactly, no
-    regularisation of eq. transform2) and heading, signed speed, turn rate
+    regularisation of the paper's eq. 19) and heading, signed speed, turn rate
     and wheel speeds are reconstructed from velocity and acceleration
     (:func:`delayform.simulation.models.robots.ideal_commands`).
 ``unicycle`` with ``limits``
@@ -151,7 +151,7 @@ def simulate(
     dt: float,
     options: RunOptions | None = None,
 ) -> Trajectory:
-    """Simulate the team under eq. formation with delays tau1 (positions) and tau2 (velocities).
+    """Simulate the team under the paper's eq. 13 with delays tau1 (positions) and tau2 (velocities).
 
     Parameters
     ----------
@@ -171,7 +171,7 @@ def simulate(
         limits or profile, body radius, safety filter, actuation delay,
         rest speed); its model names the entry of the integrator table
         :data:`~delayform.simulation.runs.integrators.INTEGRATORS`. None: ``Robot()``,
-        ideal differential-drive robots (eq. transform2) whose wheel speeds
+        ideal differential-drive robots (paper, eq. 19) whose wheel speeds
         are reported for the geometry of :data:`~delayform.model.IROBOT_CREATE`.
         ``Robot(model="physics")``: robots with mass, wheel servos and
         contacts in a physics engine (:mod:`delayform.simulation.physics`;
@@ -187,7 +187,7 @@ def simulate(
         Where the robots start (:class:`~delayform.model.Start`: positions,
         headings, speed, the seed of what is drawn). None: ``Start()``,
         random positions and headings from seed 0 at the paper's 1e-3 m/s.
-        Ideal robots cannot start at exactly zero speed (eq. transform2
+        Ideal robots cannot start at exactly zero speed (paper, eq. 19
         divides by v there).
     duration, dt
         Length of the run and the fixed step (s); the run ends at
@@ -395,7 +395,7 @@ def paper_simulations(
     *, seed: int = 0, duration: float = 150.0, dt: float = 0.01, spacing: float = 2.0,
     limits: RobotLimits | None = None,
 ) -> tuple[Trajectory, Trajectory]:  # fmt: skip
-    """The paper's six robots (Fig. topol, P = 1, D = 0.5) into a hexagon at points a and b.
+    """The paper's six robots (paper, Fig. 2, P = 1, D = 0.5) into a hexagon at points a and b.
 
     Unicycle robots from random positions and headings (``seed``) with initial
     speed 1e-3 (Section "Simulation Examples"); point a is

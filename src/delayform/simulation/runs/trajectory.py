@@ -53,8 +53,8 @@ class Trajectory(FigureRepr):
         ``(T, n)`` speeds: the signed v of the robot, ``|xdot|`` for the
         double integrator.
     inputs
-        ``(T, n, 2)``: the executed ``(dv/dt, omega)`` of eq. transform2 for
-        robots, ``u`` of eq. protocol for the double integrator.
+        ``(T, n, 2)``: the executed ``(dv/dt, omega)`` of the paper's eq. 19 for
+        robots, ``u`` of the paper's eq. 1 for the double integrator.
     desired
         ``(n, 2)`` desired formation.
     model, P, D, tau1, tau2, dt
@@ -70,7 +70,7 @@ class Trajectory(FigureRepr):
         :data:`SETTLING_FRACTION` of its initial value; ``inf`` when it never
         does (see :attr:`status` and :attr:`warnings` for why).
     final_centroid
-        Weighted centroid ``w^T x`` (eq. factor1) at the last time.
+        Weighted centroid ``w^T x`` (paper, eq. 4) at the last time.
     min_distance
         Smallest centre-to-centre distance of two robots over the run, exact
         for the interpolated motion between saved samples too
@@ -160,7 +160,7 @@ class Trajectory(FigureRepr):
         return self.positions[-1]
 
     def plot_xy(self, ax: Any = None) -> Any:
-        """x and y of every agent versus time (paper Figs. xy1, xy2); returns the axes (pair).
+        """x and y of every agent versus time (paper, Figs. 5 and 7); returns the axes (pair).
 
         Parameters
         ----------
@@ -172,7 +172,7 @@ class Trajectory(FigureRepr):
         return plot_trajectory_xy(self, ax=ax)
 
     def plot_traces(self, ax: Any = None, *, snapshots: int = 6) -> Any:
-        """Paths in the plane with heading marks at snapshots (paper Fig. traces).
+        """Paths in the plane with heading marks at snapshots (paper, Fig. 6).
 
         Parameters
         ----------
