@@ -36,7 +36,7 @@ import numpy as np
 from delayform.analysis.ctcr.stability_map import stability_map
 from delayform.analysis.roots.dominant import dominant_root, dominant_root_map
 from delayform.simulation import simulate
-from delayform.simulation.robots import Robot
+from delayform.simulation.models.robots import Robot
 from delayform.topology import paper_six
 
 

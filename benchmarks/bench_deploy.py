@@ -34,7 +34,7 @@ import numpy as np
 from delayform.deploy import FormationController, NeighbourMessage, robot_profile
 from delayform.deploy.recording import MCAP_TOPICS, write_mcap
 from delayform.simulation import simulate
-from delayform.simulation.robots import LimitedUnicycle
+from delayform.simulation.models.robots import LimitedUnicycle
 from delayform.topology import complete
 
 

@@ -31,7 +31,7 @@ import numpy as np
 from delayform.analysis.network import bursty_mean_square_stability, jitter_margin, jitter_margin_map, mean_square_stability
 from delayform.formation import named_formation
 from delayform.simulation import simulate
-from delayform.simulation.network import GilbertElliott, Network, Sampling
+from delayform.model.network import GilbertElliott, Network, Sampling
 from delayform.topology import paper_six, ring, star
 
 

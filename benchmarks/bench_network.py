@@ -27,9 +27,9 @@ import numpy as np
 
 from delayform.formation import formation_forcing, named_formation
 from delayform.simulation import simulate
-from delayform.simulation.montecarlo import monte_carlo
-from delayform.simulation.network import BernoulliLoss, Jitter, LinkDelays, Network
-from delayform.sweeps import executor_for
+from delayform.simulation.experiments.montecarlo import monte_carlo
+from delayform.model.network import BernoulliLoss, Jitter, LinkDelays, Network
+from delayform.simulation.experiments.sweeps import executor_for
 from delayform.topology import paper_six
 
 P, D = 1.0, 0.5

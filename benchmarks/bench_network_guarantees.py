@@ -47,7 +47,7 @@ from delayform.analysis.network.links import link_team
 from delayform.analysis.network.per_link import dominant_of_team
 from delayform.formation import named_formation
 from delayform.simulation import simulate
-from delayform.simulation.network import BernoulliLoss, Jitter, LinkDelays, Network, Sampling, SmoothVariation
+from delayform.model.network import BernoulliLoss, Jitter, LinkDelays, Network, Sampling, SmoothVariation
 from delayform.topology import paper_six, random_digraph
 
 SHAPE = named_formation("hexagon", 6, spacing=2.0)

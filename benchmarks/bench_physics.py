@@ -31,7 +31,7 @@ import numpy as np
 from delayform.deploy.profiles import robot_profile
 from delayform.formation import named_formation
 from delayform.simulation import simulate
-from delayform.simulation.robots import Robot
+from delayform.simulation.models.robots import Robot
 from delayform.topology import paper_six, random_digraph
 
 RING = np.array([[4.0, 0.0], [2.0, 3.464], [-2.0, 3.464], [-4.0, 0.0], [-2.0, -3.464], [2.0, -3.464]])

@@ -104,7 +104,7 @@ def test_bad_actuation_delay_is_a_delay_error(bad: float) -> None:
 # ============================================================ simulation
 from delayform.errors import SimulationInputError  # noqa: E402
 from delayform.simulation import simulate  # noqa: E402
-from delayform.simulation.robots import IROBOT_CREATE, Robot  # noqa: E402
+from delayform.simulation.models.robots import IROBOT_CREATE, Robot  # noqa: E402
 
 
 def _envelope_rate(times: np.ndarray, error: np.ndarray, t0: float, t1: float) -> float:
@@ -131,7 +131,7 @@ def test_double_integrator_decay_rate_is_the_dominant_root(ta: float) -> None:
 def test_command_buffer_converges_at_second_order() -> None:
     # halving dt divides the difference to a fine reference run by about 4 (interpolated commands)
     top = paper_six()
-    # every delay a whole number of steps (module doc of delayform.simulation.actuation)
+    # every delay a whole number of steps (module doc of delayform.simulation.delayed.actuation)
     kw = dict(model="double_integrator", duration=6.0, actuation_delay=0.2)
     ref = simulate(top, 1.0, 0.5, 0.3, 0.2, "hexagon", dt=0.003125, **kw).positions[-1]
     errs = [np.abs(simulate(top, 1.0, 0.5, 0.3, 0.2, "hexagon", dt=dt, **kw).positions[-1] - ref).max()

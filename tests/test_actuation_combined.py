@@ -16,9 +16,9 @@ from scipy.integrate import quad
 from delayform.errors import SimulationInputError
 from delayform.formation import formation_forcing, named_formation
 from delayform.simulation import IROBOT_CREATE, simulate
-from delayform.simulation.actuation import CommandBuffer
-from delayform.simulation.network import LinkDelays, Network
-from delayform.simulation.robots import Robot
+from delayform.simulation.delayed.actuation import CommandBuffer
+from delayform.model.network import LinkDelays, Network
+from delayform.simulation.models.robots import Robot
 from delayform.topology import paper_six
 
 
@@ -163,7 +163,7 @@ def test_uniform_links_are_the_ordinary_integrator_with_an_actuation_delay() -> 
 
 
 def test_lossy_network_with_an_actuation_delay_runs_and_differs() -> None:
-    from delayform.simulation.network import BernoulliLoss
+    from delayform.model.network import BernoulliLoss
 
     kw = dict(model="double_integrator", duration=20.0, dt=0.01)
     net = Network(loss=BernoulliLoss(0.2), seed=2)
@@ -175,8 +175,8 @@ def test_lossy_network_with_an_actuation_delay_runs_and_differs() -> None:
 
 
 def test_monte_carlo_runs_carry_the_actuation_delay() -> None:
-    from delayform.simulation.montecarlo import monte_carlo, run_seeds
-    from delayform.simulation.network import BernoulliLoss
+    from delayform.simulation.experiments.montecarlo import monte_carlo, run_seeds
+    from delayform.model.network import BernoulliLoss
 
     net = Network(loss=BernoulliLoss(0.2))
     mc = monte_carlo(paper_six(), 1.0, 0.5, 0.3, 0.2, "hexagon", network=net, runs=2, seed=3, duration=8.0, dt=0.02,

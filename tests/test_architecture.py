@@ -20,7 +20,7 @@ import delayform
 PACKAGE = Path(delayform.__file__).parent
 
 #: stage of each module or subpackage (first match of the dotted prefix, longest first)
-STAGES: dict[str, int] = {
+STAGES: dict[str, float] = {
     "errors": 0,
     "_extras": 0,  # a leaf: the check that names the extra to install, imports only errors
     "_validation": 0,
@@ -48,10 +48,23 @@ STAGES: dict[str, int] = {
     "analysis.plane": 6,  # the eigenvalue plane: a CTCR map for each eigenvalue
     "analysis": 7,  # the package's __init__: lends neutral's and network's solvers to roots (roots.delegated)
     "design": 8,
-    "simulation": 9,
+    # simulation: each subpackage is a stage of its own
+    "simulation.models": 8.1,  # agent models and the commands robots execute: on the nouns only
+    "simulation.delayed": 8.2,  # RK4 on a bounded history, the actuation buffer, reception over a network
+    # the safety filter's step for small teams (delayed.filtered) steps the filter's active set, so
+    # bodies sits below delayed's top; bodies needs neither models nor delayed
+    "simulation.bodies": 8.15,
+    # the MuJoCo engine steps the agent models and hears over the network (above models, delayed) and is
+    # an entry of the integrator table (below runs); the comparison with a kinematic run calls simulate
+    "simulation.physics.mjcf": 8.3,
+    "simulation.physics.engine": 8.3,
+    "simulation.physics.identify": 8.3,
+    "simulation.physics": 8.5,  # the comparison with a kinematic run and the package's __init__
+    "simulation.runs": 8.4,  # one run: simulate, the integrator table, options, loose calls, Trajectory
+    "simulation.experiments": 8.6,  # many runs: Monte Carlo and the sweeps (on Dask)
+    "simulation": 8.7,  # the package's __init__: re-exports of the subpackages' public names
     "deploy": 9,  # robot profiles, the on-robot controller, MCAP recordings: after simulation, beside it
     "fleet": 10,  # the team as processes over Zenoh: runs the deploy controller, measures against simulation and analysis
-    "sweeps": 10,
     "scenario": 11,
     "report": 12,
     # the explorer is served by a CLI command (cli/explore.py), so it comes before the CLI
@@ -69,7 +82,7 @@ def _module_name(path: Path) -> str:
     return ".".join(parts)
 
 
-def _stage(name: str) -> int:
+def _stage(name: str) -> float:
     for prefix in sorted(STAGES, key=len, reverse=True):
         if name == prefix or name.startswith(prefix + ".") or prefix == "":
             return STAGES[prefix]
@@ -131,10 +144,21 @@ def _graph() -> nx.DiGraph:
     return g
 
 
+#: packages whose subpackages are stages (and units) of their own
+SPLIT = ("analysis", "simulation")
+
+
 def _unit(module: str) -> str:
-    """The package a module belongs to: a subpackage of analysis, else its top-level package or module."""
+    """The package a module belongs to: a subpackage of analysis or simulation, else its top-level package or module.
+
+    Each module of ``simulation.physics`` is a unit of its own: the comparison with a kinematic run
+    calls ``simulate``, which steps the engine through the integrator table, so the physics package
+    stands partly below the runs (the engine) and partly above them (the comparison).
+    """
     parts = module.split(".")
-    return ".".join(parts[:2]) if parts[0] == "analysis" and len(parts) > 1 else parts[0]
+    if module.startswith("simulation.physics."):
+        return module
+    return ".".join(parts[:2]) if parts[0] in SPLIT and len(parts) > 1 else parts[0]
 
 
 def test_no_module_imports_a_later_stage() -> None:
@@ -182,3 +206,20 @@ def test_no_private_name_is_imported_across_packages() -> None:
 @pytest.mark.parametrize("name", sorted(delayform.__all__))
 def test_public_names_import_from_the_package_root(name: str) -> None:
     assert getattr(delayform, name) is not None
+
+
+@pytest.mark.parametrize("package", SPLIT)
+def test_each_subpackage_of_a_split_package_has_its_stage(package: str) -> None:
+    """A new subpackage of analysis/ or simulation/ says where it stands, rather than taking its parent's stage."""
+    subpackages = {p.parent.name for p in (PACKAGE / package).glob("*/__init__.py")}
+    assert subpackages, package
+    missing = sorted(s for s in subpackages if f"{package}.{s}" not in STAGES and not any(
+        key.startswith(f"{package}.{s}.") for key in STAGES))
+    assert not missing, f"subpackages of {package} without a stage: {missing}"
+
+
+def test_experiments_stand_on_runs_and_runs_on_models_delayed_and_bodies() -> None:
+    runs = _stage("simulation.runs.runner")
+    assert _stage("simulation.experiments.montecarlo") > runs
+    for below in ("simulation.models.robots", "simulation.delayed.integrator", "simulation.bodies.safety"):
+        assert _stage(below) < runs, below

@@ -10,7 +10,7 @@ import pytest
 from delayform.errors import ScenarioError, SimulationInputError
 from delayform.formation import centroid_weights, final_centroid, named_formation
 from delayform.simulation import simulate
-from delayform.simulation.assignment import assign_slots, assignment_cost
+from delayform.simulation.bodies.assignment import assign_slots, assignment_cost
 from delayform.topology import paper_six, ring
 
 PERMS = np.array(list(itertools.permutations(range(6))))

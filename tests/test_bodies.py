@@ -9,10 +9,10 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-import delayform.simulation.bodies as bodies
+import delayform.simulation.bodies.approach as bodies
 from delayform.errors import SimulationInputError
 from delayform.simulation import IROBOT_CREATE, Robot, closest_approach, paper_simulations, simulate
-from delayform.simulation.bodies import sample_min_distance
+from delayform.simulation.bodies.approach import sample_min_distance
 from delayform.topology import paper_six, ring
 
 
@@ -237,3 +237,18 @@ def test_cli_says_plainly_that_robots_collided_and_refuses_overlapping_bodies(tm
     assert not (tmp_path / "b").exists()
     proc = run("simulate", "--radius", "-1", "--duration", "1", "--out", str(tmp_path / "c"), cwd=tmp_path)
     assert proc.returncode == 2 and "radius" in proc.stderr and not (tmp_path / "c").exists()
+
+
+def test_refused_runs_leave_no_folder_at_any_depth(tmp_path) -> None:
+    """simulate and report make --out (and its parents) only once the computation's own checks pass."""
+    from test_cli import assert_one_line_error, run
+
+    nested = tmp_path / "a" / "b"
+    proc = run("simulate", "--radius", "5", "--duration", "1", "--out", str(nested), cwd=tmp_path)
+    assert_one_line_error(proc, "slots", "radii")  # refused by simulate itself, not by the command line
+    proc = run("report", "--actuation-delay", "0.1", "--out", str(nested), cwd=tmp_path)
+    assert_one_line_error(proc, "actuation delay")
+    assert not (tmp_path / "a").exists()
+    proc = run("simulate", "--duration", "0.5", "--no-csv", "--out", str(nested), cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr  # a run that passes makes the folder with its first write
+    assert (nested / "sim_operating.npz").is_file()

@@ -127,7 +127,7 @@ def test_malformed_network_tables_name_the_key(table: str, needle: str) -> None:
 
 def test_the_shipped_lossy_example_loads() -> None:
     from delayform.scenario import load_scenario
-    from delayform.simulation.network import GilbertElliott
+    from delayform.model.network import GilbertElliott
 
     sc = load_scenario(Path(__file__).resolve().parents[1] / "examples" / "lossy.toml")
     assert isinstance(sc.network.loss, GilbertElliott) and sc.network.sampling.rate == 10.0

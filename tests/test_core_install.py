@@ -96,8 +96,8 @@ def test_the_library_names_the_extra_it_needs(tmp_path: Path) -> None:
     # each call must raise MissingExtraError (an ImportError too) naming its extra, before any work
     code = """
 from delayform.errors import MissingExtraError
-from delayform.simulation.safety import BarrierFilter
-from delayform.sweeps import check_workers, parse_scheduler
+from delayform.simulation.bodies.safety import BarrierFilter
+from delayform.simulation.experiments.sweeps import check_workers, parse_scheduler
 from delayform.deploy.recording import check_mcap_path
 from delayform.loops import delay_margin
 from delayform.app import create_app

@@ -1,7 +1,7 @@
 """The on-robot controller: replaying a simulated run's messages gives that run's commands.
 
 The simulation computes the commands with the vectorized models of
-:mod:`delayform.simulation.robots` on the integrator's history; the
+:mod:`delayform.simulation.models.robots` on the integrator's history; the
 controller recomputes them for one robot at a time from the messages the
 robot received (its neighbours' saved states, stamped with their send
 times). The two are independent codes of the same equations.
@@ -19,7 +19,7 @@ from hypothesis import strategies as st
 from delayform.deploy import FormationController, NeighbourMessage, robot_profile
 from delayform.errors import ControllerInputError, InputError
 from delayform.simulation import IROBOT_CREATE, simulate
-from delayform.simulation.robots import LimitedUnicycle
+from delayform.simulation.models.robots import LimitedUnicycle
 from delayform.topology import paper_six, ring
 
 

@@ -203,7 +203,7 @@ def test_robot_check_numbers_and_plot():
     pos = traj.positions
     brute = min(float(np.hypot(*(pos[:, i] - pos[:, j]).T).min()) for i in range(6) for j in range(i))
     radius = next(v for v in result.verdicts if v.key == "radius")
-    # the run's closest approach is exact between saved steps (simulation.bodies): at most the sampled
+    # the run's closest approach is exact between saved steps (simulation.bodies.approach): at most the sampled
     # minimum, and within what two robots at 0.306 m/s close in one saved step (0.02 s) of it
     approach = radius.numbers["closest_approach"]
     assert approach == traj.min_distance and brute - 2 * 0.306 * 0.02 <= approach <= brute

@@ -21,7 +21,7 @@ import pytest
 
 from delayform.deploy import FormationController, NeighbourMessage, robot_profile
 from delayform.deploy.recording import check_mcap_path, recording_start, write_mcap
-from delayform.simulation.robots import RobotLimits
+from delayform.simulation.models.robots import RobotLimits
 from delayform.errors import RecordingError
 from delayform.simulation import simulate
 from delayform.topology import paper_six

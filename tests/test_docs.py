@@ -99,3 +99,39 @@ def test_no_issue_numbers_in_src_docs_or_readme() -> None:
 def test_no_issue_numbers_in_simulation() -> None:
     found = _issue_references(inside=True)
     assert not found, "issue numbers in user-facing text:\n" + "\n".join(found)
+
+
+# ================================================================ the paper's equations and figures by number
+#: the labels of the paper's LaTeX source: a reader sees "eq. 19" and "Fig. 2" in the paper, never
+#: "eq. transform2" or "Fig. topol" (the numbers are those of the printed paper)
+PAPER_LABELS = (
+    "protocolss", "protocol", "factorized", "factor1", "genfactor", "nltrans", "subsystems", "matrices2",
+    "matrices4", "xiss", "formation", "kinem:uni", "ddz", "syslin", "transform1", "transform2",  # equations
+    "uniciclo", "topol", "stability", "xy1", "traces", "xy2", "dominant", "contour",  # figures
+)
+LABEL_REFERENCE = re.compile(
+    r"\b(?:[Ee]qs?|[Ff]igs?)\.(?:~|\s*(?:#\s*)?)(?:" + "|".join(PAPER_LABELS) + r")(?![\w:])"
+    r"|\b(?:eq|fig|sec|lemma|deff):[a-z]"
+)
+
+
+def test_no_latex_labels_of_the_paper_in_src_docs_readme_or_examples() -> None:
+    files = [ROOT / "README.md"] + [
+        p for top in ("src", "docs", "examples") for p in (ROOT / top).rglob("*")
+        if p.is_file() and p.suffix in {".py", ".md", ".rst", ".js", ".html", ".ipynb", ".toml", ".txt"}
+        and not {"__pycache__", "_build"} & set(p.parts)
+    ]  # fmt: skip
+    found = []
+    for path in sorted(files):
+        text = path.read_text(encoding="utf-8")
+        for match in LABEL_REFERENCE.finditer(text):
+            line = text.count("\n", 0, match.start()) + 1
+            found.append(f"{path.relative_to(ROOT).as_posix()}:{line}: {match[0]!r}")
+    assert not found, "LaTeX labels of the paper in user-facing text:\n" + "\n".join(found)
+
+
+def test_the_label_check_sees_what_it_refuses() -> None:
+    for text in ("(eq. transform2)", "paper's Fig. topol,", "of eq.\n    # protocol", "Figs.~dominant", "eq:xiss"):
+        assert LABEL_REFERENCE.search(text), text
+    for text in ("(paper, eq. 19)", "the paper's Fig. 2", "eq. 13 of the paper", "fig.savefig", "Fig. 3 and eq. 12"):
+        assert not LABEL_REFERENCE.search(text), text

@@ -32,7 +32,7 @@ from delayform.cli import main
 from delayform.errors import InputError
 from delayform.scenario import load_scenario, paper_scenario, parse_scenario
 from delayform.simulation import IROBOT_CREATE, simulate
-from delayform.simulation.network import BernoulliLoss, Network
+from delayform.model.network import BernoulliLoss, Network
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 

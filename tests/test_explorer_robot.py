@@ -24,7 +24,7 @@ from delayform.analysis.roots.dominant import dominant_root
 from delayform.app import Explorer, start
 from delayform.scenario import paper_scenario, parse_scenario
 from delayform.simulation import IROBOT_CREATE, simulate
-from delayform.simulation.robots import Robot
+from delayform.simulation.models.robots import Robot
 from delayform.topology import paper_six
 
 

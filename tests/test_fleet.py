@@ -30,8 +30,8 @@ from delayform.fleet.world import WORLDS, KinematicWorld
 from delayform.formation import named_formation
 from delayform.model import Delays, Start, Team
 from delayform.simulation import simulate
-from delayform.simulation.network import BernoulliLoss, Jitter, MeasurementNoise, Network, Sampling
-from delayform.simulation.reception import packet_draws, reception
+from delayform.model.network import BernoulliLoss, Jitter, MeasurementNoise, Network, Sampling
+from delayform.simulation.delayed.reception import packet_draws, reception
 from delayform.topology import complete, paper_six
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -180,7 +180,7 @@ def _run(T: int = 3) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     (lambda t, x, v: (t, x * np.nan, v), "positions must be finite"),
 ])  # fmt: skip
 def test_closest_approach_checks_its_run(change: object, text: str) -> None:
-    from delayform.simulation.bodies import closest_approach
+    from delayform.simulation.bodies.approach import closest_approach
 
     with pytest.raises(SimulationInputError, match=text):
         closest_approach(*change(*_run()))  # type: ignore[operator]
@@ -188,7 +188,7 @@ def test_closest_approach_checks_its_run(change: object, text: str) -> None:
 
 
 def test_assign_slots_checks_shapes() -> None:
-    from delayform.simulation.assignment import assign_slots
+    from delayform.simulation.bodies.assignment import assign_slots
 
     z = np.array([[0.0, 0.0], [4.0, 0.0]])
     with pytest.raises(SimulationInputError, match=r"x0 must have shape \(2, 2\), got \(1, 2\)"):
@@ -199,7 +199,7 @@ def test_assign_slots_checks_shapes() -> None:
 
 # ------------------------------------------------ messages
 def test_overlapping_slots_named_distinct() -> None:
-    from delayform.simulation.robots import Robot
+    from delayform.simulation.models.robots import Robot
 
     z = np.array([[0.0, 0.0], [5.0, 0.0], [0.0, 0.0], [9.0, 9.0]])
     for k in range(4):  # wherever the twins sit, the two named are the twins
@@ -239,7 +239,7 @@ def test_montecarlo_title_names_per_link_delays(tmp_path: Path) -> None:
 
     from delayform.report.network import _delays_phrase
     from delayform.scenario import paper_scenario
-    from delayform.simulation.network import LinkDelays, Network
+    from delayform.model.network import LinkDelays, Network
 
     sc = paper_scenario()
     t1 = np.where(paper_six().adjacency != 0, 0.25, 9.0)  # 9 s off the links: ignored
@@ -253,7 +253,7 @@ def test_montecarlo_title_names_per_link_delays(tmp_path: Path) -> None:
 # ------------------------------------------------ a safety filter that cannot be satisfied
 def test_safety_margin_the_formation_cannot_satisfy() -> None:
     from delayform import simulate
-    from delayform.simulation.safety import BarrierFilter
+    from delayform.simulation.bodies.safety import BarrierFilter
 
     with pytest.raises(SimulationInputError, match="safety margin"):
         simulate(paper_six(), 1.0, 0.5, 0.3, 0.2, "hexagon", safety=BarrierFilter(margin=100.0), duration=1.0, dt=0.01)

@@ -58,7 +58,7 @@ def test_refused_with_an_actuation_delay(tmp_path):
 def test_the_report_draws_it_when_the_network_jitters():
     from delayform.report.jitter_overlay import DEFAULT_GRID, auto_grid
     from delayform.scenario import paper_scenario
-    from delayform.simulation.network import BernoulliLoss, Jitter, Network
+    from delayform.model.network import BernoulliLoss, Jitter, Network
 
     sc = paper_scenario()
     assert auto_grid(sc) == 0
@@ -74,7 +74,7 @@ def test_the_report_does_not_draw_a_costly_overlay_unasked():
 
     from delayform.report.jitter_overlay import auto_grid
     from delayform.scenario import parse_scenario
-    from delayform.simulation.network import Jitter, Network
+    from delayform.model.network import Jitter, Network
 
     big = parse_scenario({"topology": {"name": "complete", "n": 12}, "gains": {"P": 1, "D": 0.5},
                           "delays": {"tau1": 0.1, "tau2": 0.1}, "formation": {"shape": "polygon"}})  # fmt: skip

@@ -15,7 +15,7 @@ from scipy.linalg import expm
 from delayform.errors import NetworkError
 from delayform.formation import formation_forcing, named_formation
 from delayform.simulation import simulate
-from delayform.simulation.network import (
+from delayform.model.network import (
     BernoulliLoss,
     GilbertElliott,
     Jitter,
@@ -25,7 +25,7 @@ from delayform.simulation.network import (
     Sampling,
     SmoothVariation,
 )
-from delayform.simulation.reception import _loss_mask, reception
+from delayform.simulation.delayed.reception import _loss_mask, reception
 from delayform.topology import paper_six, ring
 
 TOPO = paper_six()
@@ -178,7 +178,7 @@ def test_loss_on_every_link_of_an_agent_freezes_what_it_hears() -> None:
 
 
 def test_loss_03_at_point_a_monte_carlo_reports_the_spread() -> None:
-    from delayform.simulation.montecarlo import monte_carlo
+    from delayform.simulation.experiments.montecarlo import monte_carlo
 
     mc = monte_carlo(TOPO, 1.0, 0.5, 0.3, 0.2, SHAPE, network=Network(loss=BernoulliLoss(0.3)), runs=20, seed=7,
                      duration=40.0, dt=0.05, initial_positions=X0)  # fmt: skip

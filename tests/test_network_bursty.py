@@ -16,7 +16,7 @@ from delayform.analysis.network import bursty_mean_square_stability, mean_square
 from delayform.errors import InputError, ResourceLimitError
 from delayform.formation import named_formation
 from delayform.simulation import simulate
-from delayform.simulation.network import GilbertElliott, Network, Sampling
+from delayform.model.network import GilbertElliott, Network, Sampling
 from delayform.topology import paper_six, ring
 
 TEAM = (ring(3), 1.0, 1.0, 0.2, 0.1)

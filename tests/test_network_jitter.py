@@ -18,7 +18,7 @@ from delayform.analysis.network.links import link_team
 from delayform.errors import DelayError
 from delayform.formation import named_formation
 from delayform.simulation import simulate
-from delayform.simulation.network import Jitter, Network, SmoothVariation
+from delayform.model.network import Jitter, Network, SmoothVariation
 from delayform.topology import paper_six
 
 

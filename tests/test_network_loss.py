@@ -15,7 +15,7 @@ from delayform.analysis.network import mean_square_stability
 from delayform.errors import DelayError, InputError
 from delayform.formation import named_formation
 from delayform.simulation import simulate
-from delayform.simulation.network import BernoulliLoss, Network, Sampling
+from delayform.model.network import BernoulliLoss, Network, Sampling
 from delayform.topology import paper_six
 
 SHAPE = named_formation("hexagon", 6, spacing=2.0)

@@ -37,8 +37,8 @@ from delayform.model import (
     robot_profile,
 )
 from delayform.simulation import RunOptions, monte_carlo, simulate
-from delayform.simulation.compat import MONTE_CARLO_KEYWORDS, SIMULATE_KEYWORDS
-from delayform.simulation.models import INTEGRATORS, DoubleIntegratorModel
+from delayform.simulation.runs.compat import MONTE_CARLO_KEYWORDS, SIMULATE_KEYWORDS
+from delayform.simulation.runs.integrators import INTEGRATORS, DoubleIntegratorModel
 
 ROOT = Path(__file__).resolve().parents[1]
 ENTRY_POINTS = ("simulate", "monte_carlo", "dominant_root")
@@ -166,7 +166,7 @@ def test_the_integrator_table_has_one_entry_per_agent_model() -> None:
 def test_a_new_agent_model_is_one_entry_in_the_table(monkeypatch: pytest.MonkeyPatch) -> None:
     """A model added by name to MODELS and to the table is run by simulate with nothing else changed."""
     import delayform.model.robot as robot_module
-    import delayform.simulation.runner as runner
+    import delayform.simulation.runs.runner as runner
 
     class Toy(DoubleIntegratorModel):
         name = "toy"
@@ -283,9 +283,9 @@ def test_per_link_delays_in_simulate_point_to_the_network() -> None:
 def test_old_import_paths_give_the_same_objects() -> None:
     import delayform.deploy.profiles as profiles
     import delayform.model as model
-    import delayform.simulation.network as network
-    import delayform.simulation.robots as robots
-    import delayform.simulation.safety as safety
+    import delayform.model.network as network
+    import delayform.simulation.models.robots as robots
+    import delayform.simulation.bodies.safety as safety
 
     assert network.Network is model.Network and network.GilbertElliott is model.GilbertElliott
     assert robots.Robot is model.Robot and robots.RobotLimits is model.RobotLimits

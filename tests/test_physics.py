@@ -33,8 +33,8 @@ from delayform.model import (  # noqa: E402
     robot_profile,
 )
 from delayform.simulation import monte_carlo, simulate  # noqa: E402
-from delayform.simulation.compat import MONTE_CARLO_KEYWORDS  # noqa: E402
-from delayform.simulation.models import INTEGRATORS, PhysicsModel  # noqa: E402
+from delayform.simulation.runs.compat import MONTE_CARLO_KEYWORDS  # noqa: E402
+from delayform.simulation.runs.integrators import INTEGRATORS, PhysicsModel  # noqa: E402
 from delayform.simulation.physics.engine import PhysicsTeam, integrate_physics, tick_grid  # noqa: E402
 from delayform.simulation.physics.mjcf import team_mjcf  # noqa: E402
 from delayform.topology import complete, paper_six  # noqa: E402

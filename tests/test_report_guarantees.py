@@ -11,8 +11,8 @@ import numpy as np
 
 from delayform.formation import named_formation
 from delayform.report.guarantees import Guarantee, contradictions, network_guarantees
-from delayform.simulation.montecarlo import monte_carlo
-from delayform.simulation.network import BernoulliLoss, Jitter, Network, Sampling
+from delayform.simulation.experiments.montecarlo import monte_carlo
+from delayform.model.network import BernoulliLoss, Jitter, Network, Sampling
 from delayform.topology import paper_six
 
 SHAPE = named_formation("hexagon", 6, spacing=2.0)

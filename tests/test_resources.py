@@ -134,8 +134,8 @@ def _simulation_of_1e5() -> object:
 
 
 def _sweep_grid_of_1e10() -> object:
-    from delayform.simulation.montecarlo import make_setup
-    from delayform.sweeps import delay_sweep
+    from delayform.simulation.experiments.montecarlo import make_setup
+    from delayform.simulation.experiments.sweeps import delay_sweep
     from delayform.topology import ring
 
     setup = make_setup(ring(3), 1.0, 0.5, 0.3, 0.2, "polygon", duration=2.0, dt=0.05)

@@ -255,7 +255,7 @@ def test_unstable_run_stops_cleanly_and_says_so():
 
 # ------------------------------------------- robots with limits over a network
 def test_limited_robots_over_the_ideal_or_a_uniform_per_link_network_are_todays_limited_run():
-    from delayform.simulation.network import LinkDelays, Network
+    from delayform.model.network import LinkDelays, Network
 
     topo = paper_six()
     desired = named_formation("hexagon", 6, spacing=2.0)
@@ -275,7 +275,7 @@ def test_limited_robots_over_the_ideal_or_a_uniform_per_link_network_are_todays_
 
 def test_limited_robots_with_per_link_delays_match_solve_ivp_at_the_stated_order():
     """Per-link constant delays, limits active: against solve_ivp by the method of steps (per-link reads)."""
-    from delayform.simulation.network import LinkDelays, Network
+    from delayform.model.network import LinkDelays, Network
 
     topo = paper_six()
     desired = named_formation("hexagon", 6, spacing=2.0)
@@ -304,7 +304,7 @@ def test_limited_robots_with_per_link_delays_match_solve_ivp_at_the_stated_order
 
 
 def test_no_executed_command_beyond_a_limit_under_30_percent_loss():
-    from delayform.simulation.network import BernoulliLoss, Jitter, Network
+    from delayform.model.network import BernoulliLoss, Jitter, Network
 
     topo = paper_six()
     desired = named_formation("hexagon", 6, spacing=2.0)
@@ -320,7 +320,7 @@ def test_no_executed_command_beyond_a_limit_under_30_percent_loss():
 
 def test_monte_carlo_with_limits_and_loss_is_reproducible_from_the_seed():
     from delayform.simulation import monte_carlo
-    from delayform.simulation.network import BernoulliLoss, Network
+    from delayform.model.network import BernoulliLoss, Network
 
     topo = paper_six()
     desired = named_formation("hexagon", 6, spacing=2.0)

@@ -24,7 +24,7 @@ import pytest
 import delayform
 from delayform._files import PARTIAL_MARK, atomic_path, staged_folder, write_text
 from delayform.errors import ClusterError
-from delayform.sweeps import check_scheduler, check_workers, executor_for, parse_scheduler, usable_cores
+from delayform.simulation.experiments.sweeps import check_scheduler, check_workers, executor_for, parse_scheduler, usable_cores
 
 SRC = Path(delayform.__file__).resolve().parents[1]
 
@@ -299,6 +299,20 @@ def test_staged_folder_replaces_the_previous_report_whole_and_keeps_foreign_file
         write_text(build / "summary.json", json.dumps({"files": ["index.html", "a.png", "summary.json"]}))
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.png", "index.html", "notes.txt", "summary.json"]
     assert (tmp_path / "index.html").read_text() == "run 3" and (tmp_path / "notes.txt").read_text() == "mine"
+
+
+def test_staged_folder_it_made_is_gone_when_the_build_fails(tmp_path: Path) -> None:
+    """A refused build leaves no folder it created (nested ones included), and never removes one it found."""
+    with pytest.raises(ValueError):
+        with staged_folder(tmp_path / "a" / "b") as build:
+            (build / "index.html").write_text("half")
+            raise ValueError("refused by the build")
+    assert list(tmp_path.iterdir()) == []
+    (tmp_path / "kept").mkdir()
+    with pytest.raises(ValueError):
+        with staged_folder(tmp_path / "kept" / "new") as build:
+            raise ValueError("refused by the build")
+    assert [p.name for p in tmp_path.iterdir()] == ["kept"] and list((tmp_path / "kept").iterdir()) == []
 
 
 def test_report_interrupted_leaves_the_older_report_intact_and_a_new_one_replaces_it_whole(

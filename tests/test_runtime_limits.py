@@ -23,9 +23,9 @@ from delayform.characteristic import factors
 from delayform.errors import InputError, NetworkError, SimulationInputError
 from delayform.scenario import paper_scenario
 from delayform.simulation import simulate
-from delayform.simulation.montecarlo import make_setup, monte_carlo, run_quantile
-from delayform.simulation.network import BernoulliLoss, GilbertElliott, Jitter, Network, SmoothVariation
-from delayform.simulation.reception import _loss_mask
+from delayform.simulation.experiments.montecarlo import make_setup, monte_carlo, run_quantile
+from delayform.model.network import BernoulliLoss, GilbertElliott, Jitter, Network, SmoothVariation
+from delayform.simulation.delayed.reception import _loss_mask
 from delayform.topology import paper_six, ring
 from test_runtime import cli, one_line
 

@@ -9,7 +9,7 @@ import scipy.sparse as sp
 from delayform.errors import SimulationInputError
 from delayform.formation import named_formation
 from delayform.simulation import Robot, simulate
-from delayform.simulation.safety import BarrierFilter, barrier_commands
+from delayform.simulation.bodies.safety import BarrierFilter, barrier_commands
 from delayform.topology import paper_six, random_digraph, ring
 
 R = 0.17  # the Create's body radius
@@ -220,8 +220,8 @@ def test_many_sided_polygons_and_clusters_against_clarabel():
 
 def test_the_neighbour_list_keeps_every_pair_that_can_bind():
     """Above 64 robots the KD-tree's pairs give the all-pairs filter's commands exactly."""
-    from delayform.simulation.robots import DoubleIntegrator
-    from delayform.simulation.safety import FilteredAgent
+    from delayform.simulation.models.robots import DoubleIntegrator
+    from delayform.simulation.bodies.safety import FilteredAgent
 
     rng = np.random.default_rng(5)
     n = 90
@@ -241,9 +241,9 @@ def test_the_neighbour_list_keeps_every_pair_that_can_bind():
 
 @pytest.mark.parametrize("tau", [(0.3, 0.2), (2.0, 1.0)], ids=["point a", "point b"])
 def test_small_teams_linear_path_with_the_filter_is_the_generic_loop(tau, monkeypatch):
-    """The blocked linear path where the filter is idle (simulation.filtered) against the generic
+    """The blocked linear path where the filter is idle (simulation.delayed.filtered) against the generic
     RK4 loop filtering every stage: same motion to rounding, same steps at which the filter acted."""
-    import delayform.simulation.models as models
+    import delayform.simulation.runs.integrators as models
 
     z = named_formation("hexagon", 6, spacing=2.0)
     kw = dict(duration=40.0, dt=0.02, safety="barrier")
@@ -260,7 +260,7 @@ def test_small_teams_linear_path_with_the_filter_is_the_generic_loop(tau, monkey
 def test_the_whole_teams_joint_qp_against_clarabel_over_every_constraint_warm_or_cold():
     """The joint QP (active set, exact polish, warm guess from a nearby state) against Clarabel given
     every pair's full constraint at once (built here from the formula); warm and cold agree to rounding."""
-    from delayform.simulation.safety import _ActiveSet, _cluster_qp, _pair_terms
+    from delayform.simulation.bodies.safety import ActiveSet, _cluster_qp, _pair_terms
 
     rng = np.random.default_rng(12)
     safe, k = 0.36, 2.0
@@ -273,7 +273,7 @@ def test_the_whole_teams_joint_qp_against_clarabel_over_every_constraint_warm_or
         u_hat = rng.normal(scale=4.0, size=(n, 2))
         pairs = np.column_stack(np.triu_indices(n, k=1)).astype(np.intp)
         everyone = np.ones(n, dtype=bool)
-        memory = _ActiveSet()
+        memory = ActiveSet()
         for step in range(3):  # the state moves a little: the memory is the previous step's
             xs, us = x + 0.01 * step * v, u_hat + 0.05 * step
             normal, c, _, _ = _pair_terms(xs, v, us, pairs, safe, k)

@@ -21,8 +21,8 @@ from delayform.report import montecarlo_section
 from delayform.report.page import highlights
 from delayform.scenario import paper_scenario
 from delayform.simulation import IROBOT_CREATE
-from delayform.simulation.montecarlo import monte_carlo
-from delayform.simulation.network import GilbertElliott, Jitter, Network, Sampling
+from delayform.simulation.experiments.montecarlo import monte_carlo
+from delayform.model.network import GilbertElliott, Jitter, Network, Sampling
 from delayform.topology import ring
 
 PLANTED = (G.Guarantee("planted certificate", True, "claims stability at point c"),)
@@ -103,7 +103,7 @@ def _names(gs):
 
 
 def test_per_link_spread_is_covered_by_the_box_certificate_and_its_runs_settle():
-    from delayform.simulation.network import LinkDelays
+    from delayform.model.network import LinkDelays
     from delayform.topology import paper_six
 
     net = Network(delays=LinkDelays(spread=0.2), seed=6)
@@ -118,7 +118,7 @@ def test_per_link_spread_is_covered_by_the_box_certificate_and_its_runs_settle()
 
 def test_the_jitter_margin_is_asked_for_the_whole_deviation():
     from delayform.analysis.network import jitter_margin
-    from delayform.simulation.network import LinkDelays, SmoothVariation
+    from delayform.model.network import LinkDelays, SmoothVariation
     from delayform.topology import paper_six
 
     delta = jitter_margin(paper_six(), 1.0, 0.5, 0.305, 0.205).delta  # about tau + dt / 2
@@ -133,7 +133,7 @@ def test_the_jitter_margin_is_asked_for_the_whole_deviation():
     assert holds(Network(jitter=Jitter(0.5 * inside, 0.5 * inside), delays=LinkDelays(spread=0.1))) is (
         0.5 * inside + 0.1 * 0.3 + 0.005 <= delta)
     # with loss a held value ages without bound: nothing time-varying is covered
-    from delayform.simulation.network import BernoulliLoss
+    from delayform.model.network import BernoulliLoss
 
     assert holds(Network(jitter=Jitter(0.01, 0.01), loss=BernoulliLoss(0.1))) is None
 

@@ -402,8 +402,8 @@ def test_bad_input_raises_named_errors(kwargs, error):
 def test_linear_fast_path_equals_the_generic_rk4_loop(tau1, tau2, dt, save_every, seed):
     """The small-team double-integrator path is the generic RK4 loop, reorganised."""
     from delayform.formation import formation_forcing, hexagon
-    from delayform.simulation import integrator as sim
-    from delayform.simulation.robots import DoubleIntegrator
+    from delayform.simulation.delayed import integrator as sim
+    from delayform.simulation.models.robots import DoubleIntegrator
 
     team = paper_six()
     rng = np.random.default_rng(seed)

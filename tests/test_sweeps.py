@@ -9,14 +9,14 @@ import pytest
 
 from delayform.analysis.roots.dominant import dominant_root
 from delayform.errors import ClusterError, ResourceLimitError, SimulationInputError
-from delayform.simulation.montecarlo import (
+from delayform.simulation.experiments.montecarlo import (
     collect,
     monte_carlo,
     run_seeds,
     simulate_run,
 )
-from delayform.simulation.network import BernoulliLoss, Jitter, Network
-from delayform.sweeps import delay_sweep, executor_for, make_setup, network_sweep, sweep
+from delayform.model.network import BernoulliLoss, Jitter, Network
+from delayform.simulation.experiments.sweeps import delay_sweep, executor_for, make_setup, network_sweep, sweep
 from delayform.topology import paper_six, ring
 
 NET = Network(loss=BernoulliLoss(0.3), jitter=Jitter(0.1, 0.05))
@@ -108,7 +108,7 @@ def test_monte_carlo_result_figures_and_table() -> None:
 
 
 def test_gain_and_topology_sweeps_change_what_they_say() -> None:
-    from delayform.sweeps import gain_sweep, topology_sweep
+    from delayform.simulation.experiments.sweeps import gain_sweep, topology_sweep
 
     setup = make_setup(ring(3), 1.0, 0.5, 0.3, 0.2, "polygon", duration=2.0, dt=0.05)
     gains = gain_sweep(setup, [0.5, 1.0], [0.5], runs=1, seed=1)

@@ -125,7 +125,8 @@ def staged_folder(folder: str | os.PathLike[str], *, manifest: str = "summary.js
     Parameters
     ----------
     folder
-        The output folder (created if missing).
+        The output folder (created if missing, and removed again if the block
+        raises before anything was committed into it).
     manifest
         The file of the output that lists its files (JSON with a ``"files"``
         list): the previous output's files that the new one does not write
@@ -138,6 +139,7 @@ def staged_folder(folder: str | os.PathLike[str], *, manifest: str = "summary.js
         included) it is removed and ``folder`` is left as it was.
     """
     target = Path(folder)
+    made = _missing_folders(target)
     target.mkdir(parents=True, exist_ok=True)
     build = target / f"{PARTIAL_MARK}{secrets.token_hex(4)}"  # hidden: the mark starts with a dot
     build.mkdir()
@@ -155,7 +157,22 @@ def staged_folder(folder: str | os.PathLike[str], *, manifest: str = "summary.js
             build.rmdir()
     except BaseException:
         shutil.rmtree(build, ignore_errors=True)
+        for made_here in made:  # input refused by the build leaves no folder behind, as if never run
+            try:
+                made_here.rmdir()  # only if still empty: nothing else is ever removed
+            except OSError:
+                break
         raise
+
+
+def _missing_folders(folder: Path) -> list[Path]:
+    """The folders ``folder.mkdir(parents=True)`` would create, innermost first."""
+    missing = []
+    for p in (folder, *folder.parents):
+        if p.exists():
+            break
+        missing.append(p)
+    return missing
 
 
 def save_npz(path: str | os.PathLike[str], **arrays: Any) -> Path:

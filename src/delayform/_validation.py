@@ -46,14 +46,14 @@ def check_magnitude(name: str, arr: NDArray[np.float64], error: type[InputError]
 
 
 def check_gain(name: str, value: object) -> float:
-    """Return a control gain (P or D of eq. protocol) as float, or raise GainError.
+    """Return a control gain (P or D of the paper's eq. 1) as float, or raise GainError.
 
     >>> check_gain("P", 1)
     1.0
     """
     out = _real_scalar(name, value, GainError)
     if out <= 0.0:
-        raise GainError(f"{name} must be positive (eq. protocol), got {out}")
+        raise GainError(f"{name} must be positive (paper, eq. 1), got {out}")
     lo, hi = GAIN_RANGE
     if not lo <= out <= hi:
         raise GainError(
@@ -64,7 +64,7 @@ def check_gain(name: str, value: object) -> float:
 
 
 def check_gains(P: object, D: object) -> tuple[float, float]:
-    """Check both gains of eq. protocol."""
+    """Check both gains of the paper's eq. 1."""
     return check_gain("P", P), check_gain("D", D)
 
 

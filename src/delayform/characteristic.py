@@ -1,13 +1,13 @@
 """The factorized characteristic equation of the formation protocol (Lemma 1).
 
-The characteristic function of eq. protocolss,
+The characteristic function of the paper's eq. 2,
 
     Q(s) = det( I_n (x) (sI - A0) - C (x) B(s) ),
     A0 = [[0, 1], [-P, -D]],  B(s) = [[0, 0], [P e^{-tau1 s}, D e^{-tau2 s}]],
 
-splits over the eigenvalues lam of C (eq. factorized) into
+splits over the eigenvalues lam of C (paper, eq. 3) into
 
-* a second-order factor per real lam (eq. factorized, first product)::
+* a second-order factor per real lam (paper, eq. 3, first product)::
 
       s^2 + D s + P - lam (D s e^{-tau2 s} + P e^{-tau1 s})
 
@@ -17,7 +17,7 @@ splits over the eigenvalues lam of C (eq. factorized) into
                         + |lam|^2 (D s e^{-tau2 s} + P e^{-tau1 s})^2
 
 each raised to the algebraic multiplicity of lam. Every factor has the
-general two-delay form of eq. genfactor, represented here by
+general two-delay form of the paper's eq. 5, represented here by
 :class:`TwoDelayQuasiPolynomial`, which the CTCR engine
 (:mod:`delayform.analysis.ctcr.stability_map`) and the root finders (:mod:`delayform.analysis.roots.dominant`)
 take as input.
@@ -49,7 +49,7 @@ __all__ = [
     "format_number",
 ]
 
-#: Delay of each term of eq. genfactor as (multiple of tau1, multiple of tau2):
+#: Delay of each term of the paper's eq. 5 as (multiple of tau1, multiple of tau2):
 #: g1, g2 e^{-tau1 s}, g3 e^{-tau2 s}, g4 e^{-2 tau1 s}, g5 e^{-2 tau2 s},
 #: g6 e^{-(tau1 + tau2) s}.
 DELAY_MULTIPLES: tuple[tuple[int, int], ...] = ((0, 0), (1, 0), (0, 1), (2, 0), (0, 2), (1, 1))
@@ -83,7 +83,7 @@ def _degree(c: NDArray[np.complex128]) -> int:
 @validated(QuasiPolynomialError)
 @dataclass(frozen=True, eq=False)
 class TwoDelayQuasiPolynomial:
-    """A two-delay quasi-polynomial of eq. genfactor.
+    """A two-delay quasi-polynomial of the paper's eq. 5.
 
         q(s) = g1(s) + g2(s) e^{-tau1 s} + g3(s) e^{-tau2 s}
                + g4(s) e^{-2 tau1 s} + g5(s) e^{-2 tau2 s} + g6(s) e^{-(tau1+tau2) s}
@@ -322,7 +322,7 @@ class CharacteristicFactor:
     group
         The eigenvalue (or conjugate pair) of C and its multiplicity.
     P, D
-        The gains of eq. protocol.
+        The gains of the paper's eq. 1.
     """
 
     group: EigenvalueGroup
@@ -346,12 +346,12 @@ class CharacteristicFactor:
 
     @property
     def is_centroid(self) -> bool:
-        """True for lam = 1 (eq. factor1): a root s = 0 at every delay."""
+        """True for lam = 1 (paper, eq. 4): a root s = 0 at every delay."""
         return self.group.is_centroid
 
     @cached_property
     def quasi_polynomial(self) -> TwoDelayQuasiPolynomial:
-        """The factor in the coefficient form of eq. genfactor."""
+        """The factor in the coefficient form of the paper's eq. 5."""
         P, D = self.P, self.D
         base = np.array([P, D, 1.0])  # s^2 + D s + P
         if not self.group.is_complex_pair:
@@ -376,9 +376,9 @@ class CharacteristicFactor:
         return self.quasi_polynomial.derivative(s, tau1, tau2)
 
     def state_matrices(self) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-        """(A, B1, B2) of the decoupled subsystem eq. subsystems.
+        """(A, B1, B2) of the decoupled subsystem (paper, eq. 8).
 
-        eq. matrices2 for a real eigenvalue, eq. matrices4 with J_i for a
+        The paper's eq. 9 for a real eigenvalue, the paper's eq. 10 with J_i for a
         pair: the subsystem dx/dt = A x + B1 x(t - tau1) + B2 x(t - tau2)
         has this factor as its characteristic function.
         """
@@ -407,14 +407,14 @@ class CharacteristicFactor:
 
 @validated(QuasiPolynomialError)
 def factors(topology: Topology, P: float, D: float) -> tuple[CharacteristicFactor, ...]:
-    """The factors of the characteristic equation, one per eigenvalue group (eq. factorized).
+    """The factors of the characteristic equation, one per eigenvalue group (paper, eq. 3).
 
     Parameters
     ----------
     topology
         The communication topology; its C matrix supplies the eigenvalues.
     P, D
-        Positive gains of eq. protocol.
+        Positive gains of the paper's eq. 1.
 
     Raises
     ------
@@ -424,7 +424,7 @@ def factors(topology: Topology, P: float, D: float) -> tuple[CharacteristicFacto
     Returns
     -------
     tuple of CharacteristicFactor
-        Centroid factor first (eq. factor1), then real eigenvalues by
+        Centroid factor first (paper, eq. 4), then real eigenvalues by
         decreasing value, then conjugate pairs. The product of
         ``f.evaluate(s, tau1, tau2) ** f.multiplicity`` over all factors is
         :func:`full_characteristic`.
@@ -445,18 +445,18 @@ def factors(topology: Topology, P: float, D: float) -> tuple[CharacteristicFacto
 def characteristic_matrix(
     topology: Topology, P: float, D: float, s: ArrayLike, tau1: float, tau2: float
 ) -> NDArray[np.complex128]:
-    """The 2n x 2n characteristic matrix of eq. protocolss at each s.
+    """The 2n x 2n characteristic matrix of the paper's eq. 2 at each s.
 
     ``M(s) = I_n (x) (s I - A0) - C (x) B(s)`` with ``A0 = [[0, 1], [-P, -D]]`` and
     ``B(s) = [[0, 0], [P e^{-tau1 s}, D e^{-tau2 s}]]``, state order
-    ``[x1, x1', x2, x2', ...]`` as in eq. protocolss.
+    ``[x1, x1', x2, x2', ...]`` as in the paper's eq. 2.
 
     Parameters
     ----------
     topology
         The communication topology (its dense C is used: meant for checks on small teams).
     P, D
-        Positive gains of eq. protocol.
+        Positive gains of the paper's eq. 1.
     s
         Complex points, any shape.
     tau1, tau2
@@ -486,7 +486,7 @@ def characteristic_matrix(
 def full_characteristic(
     topology: Topology, P: float, D: float, s: ArrayLike, tau1: float, tau2: float
 ) -> NDArray[np.complex128]:
-    """det of the characteristic matrix of eq. protocolss, computed directly.
+    """det of the characteristic matrix of the paper's eq. 2, computed directly.
 
     Independent of the eigenvalues of C: it is the check on :func:`factors`.
 
@@ -495,7 +495,7 @@ def full_characteristic(
     topology
         The communication topology.
     P, D
-        Positive gains of eq. protocol.
+        Positive gains of the paper's eq. 1.
     s
         Complex points, any shape.
     tau1, tau2
@@ -518,7 +518,7 @@ def full_characteristic(
 def product_of_factors(
     fs: Sequence[CharacteristicFactor], s: ArrayLike, tau1: ArrayLike, tau2: ArrayLike
 ) -> NDArray[np.complex128]:
-    """Product of the factors raised to their multiplicities (eq. factorized).
+    """Product of the factors raised to their multiplicities (paper, eq. 3).
 
     Parameters
     ----------

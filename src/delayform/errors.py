@@ -82,7 +82,7 @@ class InputError(DelayformError, ValueError):
 
 
 class TopologyError(InputError):
-    """A communication topology that is malformed for protocol (eq. protocol).
+    """A communication topology that is malformed for protocol (paper, eq. 1).
 
     Raised for a non-square or non-binary adjacency matrix, self-loops, and
     agents without informers (the protocol divides by the in-degree).
@@ -106,7 +106,7 @@ class NoStableDelaysError(DelayError):
 
 
 class QuasiPolynomialError(InputError):
-    """Coefficients of a quasi-polynomial (eq. genfactor) that are malformed."""
+    """Coefficients of a quasi-polynomial (paper, eq. 5) that are malformed."""
 
 
 class NeutralQuasiPolynomialError(QuasiPolynomialError):
@@ -122,7 +122,7 @@ class SimulationInputError(InputError):
 
 
 class NetworkError(InputError):
-    """An imperfect-network model that cannot be simulated (:mod:`delayform.simulation.network`).
+    """An imperfect-network model that cannot be simulated (:mod:`delayform.model.network`).
 
     Raised for a probability outside [0, 1], a delay matrix of the wrong size,
     jitter or variation that would make a delay negative or shorter than the

@@ -1,4 +1,4 @@
-"""Formation design: desired shapes, the forcing term of eq. formation, the final formation.
+"""Formation design: desired shapes, the forcing term of the paper's eq. 13, the final formation.
 
 Conventions (paper, Section "Formation Control"):
 
@@ -6,11 +6,11 @@ Conventions (paper, Section "Formation Control"):
   (the order of :attr:`Topology.labels`), columns x and y.
 * The coordinates are decoupled (Section "Consensus Protocol"), so every
   per-coordinate quantity of the paper is a column here.
-* The forcing of eq. formation enters only the velocity rows of
+* The forcing of the paper's eq. 13 enters only the velocity rows of
   ``z = [x_1, xdot_1, ..., x_n, xdot_n]``; :func:`formation_forcing` returns
   those velocity rows, one column per coordinate: agent i receives the
-  constant acceleration ``F[i]`` on top of protocol eq. protocol.
-* The forcing leaves the centroid factor (eq. factor1, lam = 1) untouched, so
+  constant acceleration ``F[i]`` on top of protocol (paper, eq. 1).
+* The forcing leaves the centroid factor (paper, eq. 4, lam = 1) untouched, so
   the team reaches the desired shape shifted by a common offset that the
   centroid dynamics and the initial history decide; see
   :func:`predicted_final_positions` for the derivation.
@@ -256,13 +256,13 @@ def check_formation(formation: ArrayLike | str, n: int) -> NDArray[np.float64]:
 # ----------------------------------------------------------------- forcing
 @validated(FormationError)
 def formation_forcing(topology: Topology, P: float, desired: ArrayLike | str) -> NDArray[np.float64]:
-    """The forcing term F of eq. formation that holds the team in the desired shape.
+    """The forcing term F of the paper's eq. 13 that holds the team in the desired shape.
 
     At a constant formation, velocities vanish and the delayed positions equal
-    the current ones, so eq. formation reduces to ``0 = P (C - I) z + F`` per
+    the current ones, so the paper's eq. 13 reduces to ``0 = P (C - I) z + F`` per
     coordinate; hence ``F = P (I - C) z_desired``. This holds for any C,
     diagonalizable or not, and equals the paper's construction through the
-    Jordan transform T (eq. subsystems, eq. xiss, ``F = (T (x) I_2) phi``):
+    Jordan transform T (paper, eqs. 8 and 12, ``F = (T (x) I_2) phi``):
     ``T diag(P (I - J_i)) T^-1 = P (I - C)``. Its centroid component is zero
     (``w^T (I - C) = 0`` for the left eigenvector w of lam = 1), as the paper
     requires: the forcing acts only on the disagreement dynamics.
@@ -272,7 +272,7 @@ def formation_forcing(topology: Topology, P: float, desired: ArrayLike | str) ->
     topology
         The communication topology (C = Delta^-1 A).
     P
-        Proportional gain of eq. protocol.
+        Proportional gain of the paper's eq. 1.
     desired
         ``(n, 2)`` desired positions, or a shape name from :data:`SHAPES`.
 
@@ -301,7 +301,7 @@ def centroid_weights(topology: Topology) -> NDArray[np.float64]:
     """The left eigenvector w of C for lam = 1, normalised to ``sum(w) = 1``.
 
     ``w^T x`` is the *weighted centroid* whose dynamics is the centroid factor
-    eq. factor1. With a spanning tree the eigenvalue 1 is simple, so
+    the paper's eq. 4. With a spanning tree the eigenvalue 1 is simple, so
     ``(I - C)^T w = 0`` has a one-dimensional solution space. Since
     ``1^T (I - C)^T = 0``, the matrix ``(I - C)^T + 1 1^T`` is non-singular and
     ``((I - C)^T + 1 1^T) w = 1`` gives exactly that w with ``1^T w = 1``.
@@ -328,7 +328,7 @@ def centroid_weights(topology: Topology) -> NDArray[np.float64]:
 
 
 def weighted_centroid(topology: Topology, positions: ArrayLike) -> NDArray[np.float64]:
-    """``w^T x`` for ``(..., n, 2)`` positions: the weighted centroid of eq. factor1.
+    """``w^T x`` for ``(..., n, 2)`` positions: the weighted centroid of the paper's eq. 4.
 
     Parameters
     ----------
@@ -359,15 +359,15 @@ def final_centroid(
 ) -> NDArray[np.float64]:
     """Where the weighted centroid comes to rest, for a constant initial history.
 
-    Derivation. Multiply eq. formation by ``w^T`` (left eigenvector of C for
+    Derivation. Multiply the paper's eq. 13 by ``w^T`` (left eigenvector of C for
     lam = 1, ``w^T 1 = 1``). Since ``w^T C = w^T`` and ``w^T F = 0``, the
     weighted centroid ``c = w^T x`` (one coordinate) obeys the centroid factor
-    eq. factor1 as a delay equation::
+    the paper's eq. 4 as a delay equation::
 
         c'' + D c' + P c = P c(t - tau1) + D c'(t - tau2),
 
     with the constant history ``c = c0, c' = d0`` for ``t <= 0`` (the state
-    ``z`` of eq. protocolss is constant before 0, velocities included).
+    ``z`` of the paper's eq. 2 is constant before 0, velocities included).
     In the Laplace domain the history enters through
     ``L{c(t - tau)} = e^{-tau s} C(s) + c0 (1 - e^{-tau s}) / s`` and
     ``L{c'(t - tau)} = e^{-tau s} (s C(s) - c0) + d0 (1 - e^{-tau s}) / s``, so::
@@ -375,7 +375,7 @@ def final_centroid(
         q1(s) C(s) = N(s) = (s + D - D e^{-tau2 s}) c0 + d0
                             + P c0 (1 - e^{-tau1 s}) / s + D d0 (1 - e^{-tau2 s}) / s
 
-    with ``q1`` the centroid factor eq. factor1. ``q1`` has the simple root
+    with ``q1`` the centroid factor (paper, eq. 4). ``q1`` has the simple root
     ``s = 0`` (``q1'(0) = P tau1``); when every other root lies in the left
     half plane the final-value theorem gives
     ``c_inf = lim_{s->0} s N(s) / q1(s) = N(0) / q1'(0)`` with
@@ -393,7 +393,7 @@ def final_centroid(
     topology
         The communication topology (C = Delta^-1 A); must have a spanning tree.
     P, D
-        Positive gains of eq. protocol.
+        Positive gains of the paper's eq. 1.
     tau1, tau2
         Non-negative delays (s) on positions and on velocities.
     initial_positions
@@ -425,7 +425,7 @@ def final_centroid(
     if tau1 == 0.0:
         if np.any(d0 != 0.0):
             raise FormationError(
-                "with tau1 = 0 the centroid factor eq. factor1 has a double zero root: "
+                "with tau1 = 0 the centroid factor (paper, eq. 4) has a double zero root: "
                 "the weighted centroid drifts at its initial velocity and never settles"
             )
         return c0
@@ -445,7 +445,7 @@ def predicted_final_positions(
 ) -> NDArray[np.float64]:
     """The final formation: the desired shape plus the common offset the centroid sets.
 
-    At rest, eq. formation gives ``(I - C)(x - z_desired) = 0``, so
+    At rest, the paper's eq. 13 gives ``(I - C)(x - z_desired) = 0``, so
     ``x = z_desired + 1 a`` for a common offset ``a`` (the kernel of ``I - C``
     is spanned by 1 when there is a spanning tree). The weighted centroid
     ``w^T x = w^T z_desired + a`` must equal :func:`final_centroid`, which fixes
@@ -456,7 +456,7 @@ def predicted_final_positions(
     topology
         The communication topology (C = Delta^-1 A); must have a spanning tree.
     P, D
-        Positive gains of eq. protocol.
+        Positive gains of the paper's eq. 1.
     tau1, tau2
         Non-negative delays (s) on positions and on velocities.
     desired

@@ -47,7 +47,7 @@ def stability_chart(
     kernel_color: str = "red",
     offspring_color: str = "blue",
 ) -> Axes:
-    """The CTCR stability chart of a :class:`~delayform.analysis.ctcr.stability_map.StabilityMap` (Fig. stability).
+    """The CTCR stability chart of a :class:`~delayform.analysis.ctcr.stability_map.StabilityMap` (paper, Fig. 3).
 
     Kernel curves red, offspring curves blue (Definitions "Kernel curves" and
     "Offspring curves"), the stable region (NU = 0) shaded, and optional
@@ -179,7 +179,7 @@ def save_figure(
 
 # === section: spectrum, dominant-root maps ===
 def plot_dominant_surface(result: Any, ax: Axes | None = None) -> Axes:
-    """Surface of Re(dominant root) over the delay plane with the plane Re s = 0 (paper Fig. dominant).
+    """Surface of Re(dominant root) over the delay plane with the plane Re s = 0 (paper, Fig. 8).
 
     ``result`` is a :class:`delayform.analysis.roots.dominant.DominantRootMap`; ``ax``, when
     given, must be a 3-D axes. The stability boundary of the CTCR chart is
@@ -199,7 +199,7 @@ def plot_dominant_surface(result: Any, ax: Axes | None = None) -> Axes:
 
 
 def plot_dominant_contour(result: Any, ax: Axes | None = None, *, levels: int = 20) -> Axes:
-    """Contour map of Re(dominant root) over the delay plane (paper Fig. contour).
+    """Contour map of Re(dominant root) over the delay plane (paper, Fig. 9).
 
     The thick black line is Re = 0, the stability boundary; the deepest
     valleys are the fastest-settling delays (delay scheduling).
@@ -242,7 +242,7 @@ def _agent_names(traj: Any) -> list[str]:
 
 
 def plot_trajectory_xy(traj: Any, ax: Any = None) -> Any:
-    """x and y of every agent versus time, two panels (paper Figs. xy1 and xy2).
+    """x and y of every agent versus time, two panels (paper, Figs. 5 and 7).
 
     ``ax`` is a pair of axes (x panel, y panel) or None for a new figure;
     returns the pair. Agents are numbered from 1; with up to 20 agents the
@@ -274,7 +274,7 @@ def _heading_marks(traj: Any, k: int, length: float) -> Any:
 
 
 def plot_trajectory_traces(traj: Any, ax: Axes | None = None, *, snapshots: int = 6) -> Axes:
-    """Paths in the plane with heading marks at ``snapshots`` instants (paper Fig. traces).
+    """Paths in the plane with heading marks at ``snapshots`` instants (paper, Fig. 6).
 
     Grey lines are the paths; black dots the positions at the snapshot
     times, each with a short blue line along the robot's heading; open red
@@ -501,7 +501,7 @@ def plot_gain_plane(
     result: Any, ax: Axes | None = None, points: Mapping[str, tuple[float, float]] | None = None,
     *, levels: int = 20,
 ) -> Axes:
-    """Contour map of the spectral abscissa over the gains (P, D), like Fig. contour for delays.
+    """Contour map of the spectral abscissa over the gains (P, D), like the paper's Fig. 9 for delays.
 
     Filled contours of Re(dominant root) over a
     :class:`~delayform.design.gains.GainPlaneMap`, the stable region's edge

@@ -6,7 +6,7 @@ A quasi-polynomial in m delays is
 
 one polynomial ``p_k`` per tuple ``k = (k1, ..., km)`` of non-negative
 integers; ``k = (0, ..., 0)`` is the *principal* term. The paper's two-delay
-factor (eq. genfactor, :class:`~delayform.characteristic.TwoDelayQuasiPolynomial`)
+factor (paper, eq. 5, :class:`~delayform.characteristic.TwoDelayQuasiPolynomial`)
 is the case m = 2 with the six tuples of
 :data:`~delayform.characteristic.DELAY_MULTIPLES`; commensurate delays (k1 = 3),
 products like z1 z2^2 and three or more delays are written the same way.
@@ -291,7 +291,7 @@ class QuasiPolynomial:
     # ------------------------------------------------------------ conversions
     @classmethod
     def from_two_delay(cls, qp: TwoDelayQuasiPolynomial | CharacteristicFactor) -> QuasiPolynomial:
-        """The paper's two-delay form (eq. genfactor) or a factor of eq. factorized, as a QuasiPolynomial."""
+        """The paper's two-delay form (paper, eq. 5) or a factor of the paper's eq. 3, as a QuasiPolynomial."""
         if isinstance(qp, CharacteristicFactor):
             qp = qp.quasi_polynomial
         if not isinstance(qp, TwoDelayQuasiPolynomial):
@@ -301,11 +301,11 @@ class QuasiPolynomial:
         return cls({(a, b): c for c, a, b in qp.terms()})
 
     def to_two_delay(self) -> TwoDelayQuasiPolynomial:
-        """The same quasi-polynomial as a :class:`TwoDelayQuasiPolynomial`, when its terms fit eq. genfactor."""
+        """The same quasi-polynomial as a :class:`TwoDelayQuasiPolynomial`, when its terms fit the paper's eq. 5."""
         extra = [k for k in self.terms if self.n_delays != 2 or k not in DELAY_MULTIPLES]
         if extra:
             raise QuasiPolynomialError(
-                f"the terms {extra} are not among the six of eq. genfactor {list(DELAY_MULTIPLES)}"
+                f"the terms {extra} are not among the six of the paper's eq. 5 {list(DELAY_MULTIPLES)}"
             )
         g = [self.terms.get(k, np.zeros(0, dtype=np.complex128)) for k in DELAY_MULTIPLES]
         return TwoDelayQuasiPolynomial(*g)

@@ -9,7 +9,7 @@ Conventions (as in the paper, Section "Consensus Protocol"):
 * The in-degree of agent i is the row sum ``delta_i``; the protocol averages
   over informers, so every agent needs at least one.
 * ``C = Delta^-1 A`` is row-stochastic: it always has the eigenvalue 1, the
-  *centroid* (rigid-body) eigenvalue of eq. factor1.
+  *centroid* (rigid-body) eigenvalue of the paper's eq. 4.
 
 Agents are labelled 0..n-1 unless the topology came from a networkx graph or
 a named builder that uses the paper's labels (``paper_six`` uses 1..6);
@@ -66,9 +66,9 @@ class EigenvalueGroup:
         Algebraic multiplicity of ``lam`` (of each member of a pair).
     is_complex_pair
         True when ``lam`` and its conjugate form one fourth-order factor of
-        eq. factorized.
+        the paper's eq. 3.
     is_centroid
-        True for lam = 1, the eigenvalue of the centroid factor (eq. factor1).
+        True for lam = 1, the eigenvalue of the centroid factor (paper, eq. 4).
     """
 
     lam: complex
@@ -78,7 +78,7 @@ class EigenvalueGroup:
 
     @property
     def factor_order(self) -> int:
-        """Order in s of the factor this group makes in eq. factorized (2 or 4)."""
+        """Order in s of the factor this group makes in the paper's eq. 3 (2 or 4)."""
         return 4 if self.is_complex_pair else 2
 
 
@@ -96,7 +96,7 @@ def _as_label_tuple(labels: Sequence[Hashable] | None, n: int) -> tuple[Hashable
 @validated(TopologyError)
 @dataclass(frozen=True, eq=False)
 class Topology:
-    """A directed communication topology of n agents (eq. protocol).
+    """A directed communication topology of n agents (paper, eq. 1).
 
     Build one with :meth:`from_adjacency`, :meth:`from_edges`,
     :meth:`from_networkx` or a named builder (:func:`paper_six`, :func:`ring`,
@@ -165,7 +165,7 @@ class Topology:
         if np.any(indeg == 0):
             agents = [label_tuple[i] for i in np.flatnonzero(indeg == 0)]
             raise TopologyError(
-                f"agents {agents} have no informer; protocol (eq. protocol) averages over informers"
+                f"agents {agents} have no informer; protocol (paper, eq. 1) averages over informers"
             )
         mat.sort_indices()
         return cls(adjacency_sparse=mat, labels=label_tuple, name=name)
@@ -264,7 +264,7 @@ class Topology:
 
     @property
     def C(self) -> NDArray[np.float64] | sp.csr_array:
-        """C = Delta^-1 A (eq. protocolss), dense (read-only) up to :data:`DENSE_LIMIT` agents."""
+        """C = Delta^-1 A (paper, eq. 2), dense (read-only) up to :data:`DENSE_LIMIT` agents."""
         if self.n <= DENSE_LIMIT:
             return self._C_dense
         return self.C_sparse
@@ -343,7 +343,7 @@ class Topology:
 
     @cached_property
     def eigenvalue_groups(self) -> tuple[EigenvalueGroup, ...]:
-        """Eigenvalues of C grouped as eq. factorized groups them.
+        """Eigenvalues of C grouped as the paper's eq. 3 groups them.
 
         Real eigenvalues each give a second-order factor, complex-conjugate
         pairs a fourth-order one; equal eigenvalues are one group with a
@@ -421,7 +421,7 @@ def _group_eigenvalues(vals: NDArray[np.complex128]) -> tuple[EigenvalueGroup, .
 # ---------------------------------------------------------------- builders
 @validated(TopologyError)
 def paper_six() -> Topology:
-    """The six-agent topology of the paper's Fig. topol.
+    """The six-agent topology of the paper's Fig. 2.
 
     Informers: 1:{2,5}, 2:{1,5}, 3:{1,5,6}, 4:{2,6}, 5:{1,4}, 6:{3,4}.
     C has eigenvalues {1, 0.46, -0.5, -0.64, -0.16 +- 0.21j}.

@@ -18,7 +18,7 @@ from delayform.analysis.ctcr.stability_map import StabilityMap
 from delayform.analysis.network import JitterMargin
 from delayform.analysis.roots.dominant import DominantRoot
 from delayform.simulation import Trajectory
-from delayform.simulation.network import Network
+from delayform.model.network import Network
 
 __all__ = ["PointReport", "GuaranteeReport", "RootsReport", "ChartData", "Animation", "GUARANTEE_AGENTS",
            "crossing_frequency_bound"]
@@ -48,7 +48,7 @@ def _complex_pairs(roots: NDArray[np.complex128]) -> list[list[float]]:
 def crossing_frequency_bound(P: float, D: float) -> float:
     """Largest frequency at which a characteristic root can cross the imaginary axis.
 
-    A root ``s = j omega`` of a factor of eq. factorized,
+    A root ``s = j omega`` of a factor of the paper's eq. 3,
     ``s^2 + D s + P = lam (D s e^{-tau2 s} + P e^{-tau1 s})`` with ``|lam| <= 1``
     (C is row-stochastic), needs ``omega^2 - P <= |P - omega^2 + j D omega| <= D omega + P``,
     so ``omega <= (D + sqrt(D^2 + 8 P)) / 2`` whatever the delays. The CTCR
@@ -58,7 +58,7 @@ def crossing_frequency_bound(P: float, D: float) -> float:
     Parameters
     ----------
     P, D
-        Positive gains of eq. protocol.
+        Positive gains of the paper's eq. 1.
 
     Examples
     --------

@@ -7,7 +7,7 @@ functions, so the page and the library can never disagree:
   and its ``unstable_count`` on a grid of cell centres for the shading;
 * a clicked point: the number of unstable roots NU from the same exact map,
   :func:`delayform.analysis.roots.dominant.dominant_root`, and every root of every
-  factor of eq. factorized in a rectangle around the imaginary axis
+  factor of the paper's eq. 3 in a rectangle around the imaginary axis
   (:func:`delayform.analysis.roots.team_roots.factor_roots_in`, all factors at once, each count
   certified by the argument principle);
 * the robots: :func:`delayform.simulation.simulate` with the scenario's model,
@@ -19,7 +19,7 @@ functions, so the page and the library can never disagree:
   written into the explorer's output folder only.
 
 "Stable" means what it means in the library: NU = 0, the centroid factor's
-persistent root s = 0 (eq. factor1, Lemma 2) not counted.
+persistent root s = 0 (paper, eq. 4, Lemma 2) not counted.
 
 Every method takes checked values (see :mod:`delayform.app.params`) and
 refuses work beyond :class:`~delayform.app.params.ExplorerLimits` with an
@@ -59,7 +59,7 @@ from delayform.characteristic import factors
 from delayform.errors import InputError, NotConvergedError
 from delayform.scenario import Scenario
 from delayform.simulation import IROBOT_CREATE, Robot, RobotLimits, Trajectory, simulate
-from delayform.simulation.network import BernoulliLoss, Jitter, Network
+from delayform.model.network import BernoulliLoss, Jitter, Network
 
 # the answers live in delayform.app.answers; importable from here as before
 __all__ = ["Explorer", "PointReport", "GuaranteeReport", "RootsReport", "ChartData", "Animation", "GUARANTEE_AGENTS",
@@ -255,7 +255,7 @@ class Explorer:
         Parameters
         ----------
         P, D
-            Gains of eq. protocol.
+            Gains of the paper's eq. 1.
         tau1_max, tau2_max
             The window.
         """
@@ -280,7 +280,7 @@ class Explorer:
         Parameters
         ----------
         P, D
-            Gains of eq. protocol.
+            Gains of the paper's eq. 1.
         tau1_max, tau2_max
             The window.
         grid
@@ -300,7 +300,7 @@ class Explorer:
         Parameters
         ----------
         P, D
-            Gains of eq. protocol.
+            Gains of the paper's eq. 1.
         tau1, tau2
             The delays.
         """
@@ -315,7 +315,7 @@ class Explorer:
         Parameters
         ----------
         P, D
-            Gains of eq. protocol.
+            Gains of the paper's eq. 1.
         tau1, tau2
             The nominal delays.
         """
@@ -336,7 +336,7 @@ class Explorer:
         Parameters
         ----------
         P, D
-            Gains of eq. protocol.
+            Gains of the paper's eq. 1.
         tau1, tau2
             The delays.
         """
@@ -384,7 +384,7 @@ class Explorer:
         Parameters
         ----------
         P, D
-            Gains of eq. protocol.
+            Gains of the paper's eq. 1.
         tau1, tau2
             The delays (bounded like :meth:`point`: the boundary curve's samples
             grow with delay x crossing frequency).
@@ -405,7 +405,7 @@ class Explorer:
         Parameters
         ----------
         P, D
-            Gains of eq. protocol.
+            Gains of the paper's eq. 1.
         """
         bandwidth = self.limits.max_delay_bandwidth / crossing_frequency_bound(P, D)
         work = min(self.limits.max_delay, bandwidth)
@@ -461,7 +461,7 @@ class Explorer:
         Parameters
         ----------
         P, D
-            Gains of eq. protocol.
+            Gains of the paper's eq. 1.
         tau1, tau2
             The delays.
         duration
@@ -563,7 +563,7 @@ class Explorer:
         Parameters
         ----------
         P, D
-            Gains of eq. protocol.
+            Gains of the paper's eq. 1.
         tau1, tau2
             The operating delays (the clicked point).
         duration
@@ -594,7 +594,7 @@ class Explorer:
         Parameters
         ----------
         P, D
-            Gains of eq. protocol.
+            Gains of the paper's eq. 1.
         tau1, tau2
             The clicked point.
         duration

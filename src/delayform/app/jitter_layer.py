@@ -109,7 +109,7 @@ class JitterLayer:
         Parameters
         ----------
         P, D
-            Gains of eq. protocol.
+            Gains of the paper's eq. 1.
         tau1_max, tau2_max
             The chart window.
         grid

@@ -1,6 +1,6 @@
 """The eigenvalue plane of a clicked point, as the explorer's region panel draws it.
 
-At fixed gains and delays every factor of eq. factorized is
+At fixed gains and delays every factor of the paper's eq. 3 is
 ``q(s, lam) = s^2 + D s + P - lam (D s e^{-tau2 s} + P e^{-tau1 s})`` with an
 eigenvalue lam of C as parameter, and
 :func:`delayform.analysis.plane.region.lambda_region` gives, for every lam, the
@@ -92,14 +92,14 @@ class RegionReport:
 
 
 def region_report(topology: Topology, P: float, D: float, tau1: float, tau2: float) -> RegionReport:
-    """The eigenvalue plane of eq. factorized at one point, for the explorer's panel.
+    """The eigenvalue plane of the paper's eq. 3 at one point, for the explorer's panel.
 
     Parameters
     ----------
     topology
         The team (its eigenvalues of C are marked).
     P, D
-        Gains of eq. protocol.
+        Gains of the paper's eq. 1.
     tau1, tau2
         The delays.
 

@@ -10,10 +10,10 @@ The page sends three more query parameters, checked like every other
     jitter margin and the eigenvalue plane have no actuation delay in their theory: at
     tau_a > 0 they answer 400 with the reason, never a number for another system.
 ``safety``
-    0 / 1: the barrier filter of :mod:`delayform.simulation.safety` on the run (default:
+    0 / 1: the barrier filter of :mod:`delayform.simulation.bodies.safety` on the run (default:
     the scenario's ``[robot] safety``).
 ``assignment``
-    0 / 1: optimal slot assignment (:mod:`delayform.simulation.assignment`) or the
+    0 / 1: optimal slot assignment (:mod:`delayform.simulation.bodies.assignment`) or the
     scenario's given slots (default: the scenario's ``[simulation] assignment``).
 
 Runs, figures and scenario downloads take all three; the analysis endpoints take only

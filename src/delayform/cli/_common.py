@@ -356,16 +356,18 @@ def _safe_name(name: str) -> str:
     return safe[:100] or "scenario"
 
 
-def _out_dir(out: Path | None, scenario: Scenario) -> Path:
-    """The output folder, created and proven writable before anything is computed.
+def _out_dir(out: Path | None, scenario: Scenario, *, create: bool = True) -> Path:
+    """The output folder, proven writable before anything is computed; created now, or by the first write.
 
     Only ``--out`` (or ``out/<scenario name>``) is ever written to; the name
     becomes a single path component, so ``name = "../../evil"`` stays inside.
+    With ``create=False`` the folder is made by the computation when it
+    writes, so input that the computation refuses leaves no folder behind.
     """
     if out is not None and str(out).strip() == "":
         raise click.BadParameter("expected a folder, got an empty path", param_hint="--out")
     path = out if out is not None else Path("out") / _safe_name(scenario.name)
-    return writable_folder(path, "the output folder", "--out")
+    return writable_folder(path, "the output folder", "--out", create=create)
 
 
 def refuse_file_in_the_way(path: Path, what: str, hint: str) -> None:
@@ -378,19 +380,27 @@ def refuse_file_in_the_way(path: Path, what: str, hint: str) -> None:
         raise click.BadParameter(f"cannot write into {what} {path}: {blocker} is a file, not a folder", param_hint=hint)
 
 
-def writable_folder(path: Path, what: str, hint: str) -> Path:
+def writable_folder(path: Path, what: str, hint: str, *, create: bool = True) -> Path:
     """``path`` created with its parents (as every output of the command line is) and proven writable.
 
     One rule for ``--out`` and the folder of ``--mcap``: a missing folder is
     created, a file in its place is named as a file, and an unwritable one is
-    refused, all before anything is computed.
+    refused, all before anything is computed. With ``create=False`` a missing
+    folder is left for its first write to create: the nearest folder that
+    exists must then take a new entry.
     """
     import tempfile
 
     refuse_file_in_the_way(path, what, hint)
     try:
-        path.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryFile(dir=path):
+        if create:
+            path.mkdir(parents=True, exist_ok=True)
+            probe = path
+        else:
+            if "\x00" in str(path):
+                raise ValueError("embedded null byte")
+            probe = next((p for p in (path.absolute(), *path.absolute().parents) if p.is_dir()))
+        with tempfile.TemporaryFile(dir=probe):
             pass
     except (OSError, ValueError) as exc:  # ValueError: a NUL byte in the name
         reason = getattr(exc, "strerror", None) or str(exc) or type(exc).__name__

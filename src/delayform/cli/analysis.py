@@ -75,7 +75,7 @@ def factors_command(scenario: Path | None, as_json: bool, **overrides: Any) -> N
         click.echo(f"C = Delta^-1 A: {topo.n} x {topo.n}, {nnz} non-zero entries, every row sums to 1")
     shown = ", ".join(format_number(v, digits=4) for v in eig[:_LIST_FACTORS])
     click.echo("eigenvalues of C: " + shown + (f" ... ({eig.size} in all)" if eig.size > _LIST_FACTORS else ""))
-    click.echo(f"Factors of the characteristic equation (eq. factorized), P = {P:g}, D = {D:g}:")
+    click.echo(f"Factors of the characteristic equation (paper, eq. 3), P = {P:g}, D = {D:g}:")
     for i, f in enumerate(fs[:_LIST_FACTORS], start=1):
         click.echo(f"  q{i}: {f.describe()}")
         click.echo(f"      {f.quasi_polynomial.describe()} = 0")
@@ -107,7 +107,6 @@ def chart_command(scenario: Path | None, tau1_max: float | None, tau2_max: float
     as jitter_margin_map.npz (refused up front beyond the time budget).
     """
     from delayform.report import chart_section
-    from delayform.report.jitter_overlay import check_overlay
 
     sc = with_actuation(_scenario(scenario, **overrides), actuation_delay)
     sc = sc.at_one_delay_pair("chart (the plane of equal delays on every link, its operating point marked)", PER_LINK)
@@ -131,9 +130,8 @@ def chart_command(scenario: Path | None, tau1_max: float | None, tau2_max: float
             )
     sc = replace(sc, chart=chart)
     grid = jitter_grid if jitter else 0
-    if grid:  # before --out is made: a refused map leaves nothing behind
-        check_overlay(sc, max([chart.tau1_max] + [sc.tau1]), max([chart.tau2_max] + [sc.tau2]), grid)
-    directory = _out_dir(out, sc)
+    # the folder is made by the chart's first write: a map it refuses (beyond the budget) leaves nothing behind
+    directory = _out_dir(out, sc, create=False)
     _emit(chart_section(sc, directory, jitter_grid=grid), directory, as_json=as_json)
 
 

@@ -29,7 +29,7 @@ from delayform.cli._common import (
 def _network(base: Any, *, loss: float | None, burst: tuple[float, float] | None, jitter: tuple[float, float] | None,
              rate: float | None, noise: tuple[float, float] | None, spread: float | None) -> Any:  # fmt: skip
     """The scenario's ``[network]`` with the command-line parts replacing its own."""
-    from delayform.simulation.network import (
+    from delayform.model.network import (
         BernoulliLoss,
         GilbertElliott,
         Jitter,
@@ -103,8 +103,8 @@ def montecarlo_command(scenario: Path | None, runs: int, seed: int | None, worke
     default 0) and a random_digraph topology.
     """
     from delayform.report import montecarlo_section, scenario_setup
-    from delayform.simulation.montecarlo import guard
-    from delayform.sweeps import check_workers, executor_for, parse_scheduler
+    from delayform.simulation.experiments.montecarlo import guard
+    from delayform.simulation.experiments.sweeps import check_workers, executor_for, parse_scheduler
 
     if workers is not None and scheduler is not None:
         raise click.UsageError("give either --workers (a local cluster) or --scheduler (an existing one), not both")

@@ -81,7 +81,7 @@ def simulate_command(scenario: Path | None, model: str | None, duration: float |
         require_extra("ros")  # a core install writes no recordings: say which extra, before any work
         if sim.model == "double_integrator":
             raise click.UsageError("--mcap records robots: use --model unicycle or physics")
-        # its folder is created with --out's, below; what can be refused without creating it is refused now
+        # its folder is made when the recording is written; what can be refused without it is refused now
         refuse_file_in_the_way(mcap.parent, _MCAP_FOLDER, "--mcap")
         if mcap.parent.is_dir():
             check_mcap_path(mcap)
@@ -89,14 +89,11 @@ def simulate_command(scenario: Path | None, model: str | None, duration: float |
                  radius=sc.radius if radius is None else radius,
                  safety=sc.safety if safety is None else (None if safety == "none" else safety),
                  initial=replace(sc.initial, seed=sc.initial.seed if seed is None else seed))  # fmt: skip
-    sc.robot_spec.check_slots(sc.desired_positions())  # bodies that overlap in formation: before writing
-    from delayform.simulation.runner import check_actuation
-
-    check_actuation(sc.robot_spec, sc.network, sim.dt)  # an actuation delay this run cannot model: before writing
-    directory = _out_dir(out, sc)
+    # both folders are made when the run writes: what simulate refuses (bodies that overlap in formation,
+    # an actuation delay it cannot model) leaves no folder behind
+    directory = _out_dir(out, sc, create=False)
     if mcap is not None:
-        writable_folder(mcap.parent, _MCAP_FOLDER, "--mcap")  # created as --out is
-        check_mcap_path(mcap)
+        writable_folder(mcap.parent, _MCAP_FOLDER, "--mcap", create=False)
     with _inner_progress(f"simulate {sim.model}, {sim.duration:g} s (steps)") as callback:
         section = simulation_section(sc, directory, gif=gif, csv=csv, mcap=mcap, mcap_start=start,
                                      progress=callback, network=True)  # fmt: skip

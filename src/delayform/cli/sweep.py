@@ -54,7 +54,7 @@ def sweep_command(scenario: Path | None, tau1_values: tuple[float, ...], tau2_va
     same seeds (common random numbers).
     """
     from delayform.report import scenario_setup, sweep_section
-    from delayform.sweeps import check_sweep
+    from delayform.simulation.experiments.sweeps import check_sweep
 
     if workers is not None and scheduler is not None:
         raise click.UsageError("give either --workers (a local cluster) or --scheduler (an existing one), not both")

@@ -1,18 +1,18 @@
-"""The controller as it runs on one robot: eq. protocol, the formation forcing, eq. transform2 and the limits.
+"""The controller as it runs on one robot: the paper's eq. 1, the formation forcing, the paper's eq. 19 and the limits.
 
 At each control tick robot i knows its own pose and speed and the
 timestamped messages its neighbours sent (position and Cartesian velocity,
-each stamped with the sender's clock). It computes (eq. protocol plus the
-forcing of eq. formation, per coordinate)::
+each stamped with the sender's clock). It computes (paper, eq. 1 plus the
+forcing of the paper's eq. 13, per coordinate)::
 
     u_i(t) = P (sum_k C_ik x_k(t - tau1) - x_i(t)) + D (sum_k C_ik xdot_k(t - tau2) - xdot_i(t)) + F_i
 
-and turns u into the unicycle's inputs by eq. transform2, ``dv/dt = e . u``
+and turns u into the unicycle's inputs by the paper's eq. 19, ``dv/dt = e . u``
 and ``omega = e_perp . u / v`` with ``e = (cos theta, sin theta)``: for a
 robot with limits, softened, clipped and braked exactly as the simulated
-saturated unicycle (:class:`delayform.simulation.robots.LimitedUnicycle`);
+saturated unicycle (:class:`delayform.simulation.models.robots.LimitedUnicycle`);
 for an ideal robot, the plain transform, holding the heading at rest
-(:func:`delayform.simulation.robots.ideal_commands`). Wheel speeds follow
+(:func:`delayform.simulation.models.robots.ideal_commands`). Wheel speeds follow
 from the differential drive's geometry.
 
 Which message is used
@@ -51,7 +51,7 @@ from delayform._validation import check_delay, check_gains, validated
 from delayform.deploy.profiles import RobotProfile
 from delayform.errors import ControllerInputError
 from delayform.formation import check_formation, formation_forcing
-from delayform.simulation.robots import IROBOT_CREATE, REST_SPEED, RobotLimits
+from delayform.simulation.models.robots import IROBOT_CREATE, REST_SPEED, RobotLimits
 from delayform.topology import Topology
 
 __all__ = ["FormationController", "NeighbourMessage", "Command"]
@@ -87,9 +87,9 @@ class Command(NamedTuple):
 
     ``speed`` is the robot's signed speed v the tick was computed at;
     ``turn_rate`` and ``acceleration`` are what the robot executes (after
-    the limits); ``ideal_turn_rate`` and ``ideal_acceleration`` what eq.
-    transform2 asks before them; ``u`` the Cartesian acceleration of eq.
-    protocol; ``lag`` how much older (s) than the design's delays the
+    the limits); ``ideal_turn_rate`` and ``ideal_acceleration`` what the paper's
+    eq. 19 asks before them; ``u`` the Cartesian acceleration of the paper's
+    eq. 1; ``lag`` how much older (s) than the design's delays the
     newest usable message of the slowest neighbour was (0 when they hold).
     """
 
@@ -149,7 +149,7 @@ class FormationController:
     robot
         This robot's number, counted from 1.
     P, D
-        Gains of eq. protocol.
+        Gains of the paper's eq. 1.
     tau1, tau2
         The design's delays (s) on positions and velocities.
     weights
@@ -158,7 +158,7 @@ class FormationController:
         (to 1e-9): other weights are not the designed protocol, and no
         stability certificate covers them, so they are refused, not rescaled.
     forcing
-        ``F_i`` of eq. formation, ``P (z_i - sum_k C_ik z_k)`` (m/s^2).
+        ``F_i`` of the paper's eq. 13, ``P (z_i - sum_k C_ik z_k)`` (m/s^2).
     limits
         Actuator limits (a :class:`RobotLimits` or a profile): the
         saturated model. None: an ideal robot, whose wheel speeds use the
@@ -217,7 +217,7 @@ class FormationController:
         if abs(total - 1.0) > _WEIGHT_SUM_TOL:
             # a row of C = Delta^-1 A sums to 1; other weights are another protocol, which no certificate covers
             raise ControllerInputError(
-                f"the weights of robot {self.robot} must sum to 1 (a row of C = Delta^-1 A, eq. protocol), "
+                f"the weights of robot {self.robot} must sum to 1 (a row of C = Delta^-1 A, the paper's eq. 1), "
                 f"got {total:.6g}; divide each by {total:.6g} for the designed protocol")  # fmt: skip
         self.weights = clean
         F = np.asarray(forcing, dtype=np.float64)
@@ -371,7 +371,7 @@ class FormationController:
                 box.prune(first)
         vx, vy = v * c, v * s
         P, D = self.P, self.D
-        ux = P * (sx - x) + D * (svx - vx) + self.forcing[0]  # eq. protocol + forcing of eq. formation
+        ux = P * (sx - x) + D * (svx - vx) + self.forcing[0]  # the paper's eq. 1 + forcing of the paper's eq. 13
         uy = P * (sy - y) + D * (svy - vy) + self.forcing[1]
         if self.limits is None:
             turn, accel, ideal_turn, ideal_accel = self._ideal(c, s, v, ux, uy)
@@ -392,7 +392,7 @@ class FormationController:
                        ideal_turn, ideal_accel, ux, uy, lag - STAMP_TOLERANCE if lag > 2 * STAMP_TOLERANCE else 0.0)  # fmt: skip
 
     def _ideal(self, c: float, s: float, v: float, ux: float, uy: float) -> tuple[float, float, float, float]:
-        """Eq. transform2 without limits; the heading is held at rest (as ``ideal_commands``)."""
+        """The paper's eq. 19 without limits; the heading is held at rest (as ``ideal_commands``)."""
         along = ux * c + uy * s
         across = c * uy - s * ux
         rest = self.rest_speed
@@ -403,7 +403,7 @@ class FormationController:
         return turn, along, turn, along
 
     def _limited(self, c: float, s: float, v: float, ux: float, uy: float) -> tuple[float, float, float, float]:
-        """Eq. transform2 softened, clipped and braked: ``LimitedUnicycle.rhs`` for one robot."""
+        """The paper's eq. 19 softened, clipped and braked: ``LimitedUnicycle.rhs`` for one robot."""
         lim = self.limits
         assert lim is not None
         along = c * ux + s * uy

@@ -4,8 +4,8 @@ These are the checks a scenario must pass before it is simulated with a
 robot profile (``delayform simulate --robot NAME``): a desired shape whose
 closest two places are nearer than two body radii asks the robots to stand
 inside each other, and a shape wider than the arena (less a body radius on
-each side) cannot be placed in it however the team is translated (eq.
-formation fixes the shape and its orientation, not its position).
+each side) cannot be placed in it however the team is translated (paper,
+eq. 13 fixes the shape and its orientation, not its position).
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from numpy.typing import ArrayLike
 
 from delayform.deploy.profiles import Arena, RobotProfile
 from delayform.errors import RobotProfileError
-from delayform.simulation.robots import RobotLimits
+from delayform.simulation.models.robots import RobotLimits
 
 __all__ = ["FormationFit", "formation_fit", "require_formation_fit"]
 

@@ -25,7 +25,7 @@ given):
     Per saved step ``odom -> robot_<i>/base_link`` for every robot and,
     with the topology, ``odom -> formation``: the origin the slots are
     drawn from, the weighted centroid's offset ``sum_i w_i (x_i - z_i)``
-    (eq. factor1), where the formation settles.
+    (paper, eq. 4), where the formation settles.
 ``/tf_static`` ``tf2_msgs/msg/TFMessage``
     Once: ``map -> odom``, the identity (the simulation has one shared,
     drift-free frame, what a motion-capture system gives a real team).
@@ -80,8 +80,8 @@ from delayform.deploy._cdr import Layout, Slot
 from delayform.deploy.markers import body_markers, link_marker, link_pairs, slot_markers
 from delayform.errors import RecordingError
 from delayform.formation import centroid_weights, formation_forcing
-from delayform.simulation.network import Network
-from delayform.simulation.trajectory import Trajectory
+from delayform.model.network import Network
+from delayform.simulation.runs.trajectory import Trajectory
 from delayform.topology import Topology
 
 __all__ = ["write_mcap", "check_mcap_path", "recording_start", "odometry_layout", "twist_layout",
@@ -469,7 +469,7 @@ def _write_messages(writer: Any, store: Any, traj: Trajectory, topology: Topolog
     per_robot = [x, y, qz, qw]
     if topology is not None:
         transforms.append(_transform(T, ODOM_FRAME, FORMATION_FRAME))
-        # the offset the weighted centroid gives the formation (eq. factor1): where the slots are
+        # the offset the weighted centroid gives the formation (paper, eq. 4): where the slots are
         w = centroid_weights(topology)
         offset = np.einsum("i,tij->tj", w, traj.positions - traj.desired[None])
     tf_slots: list[Slot] = []

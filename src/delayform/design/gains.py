@@ -2,11 +2,11 @@
 
 Delay scheduling (:mod:`delayform.design.scheduling`) can only add delay;
 most users can change the gains instead. This module picks the gains of
-eq. protocol inside bounds that minimise the **spectral abscissa**
+the paper's eq. 1 inside bounds that minimise the **spectral abscissa**
 
-    alpha(P, D) = max { Re s : q_i(s) = 0 for a factor q_i of eq. factorized },
+    alpha(P, D) = max { Re s : q_i(s) = 0 for a factor q_i of the paper's eq. 3 },
 
-the centroid factor's persistent root s = 0 (eq. factor1) excluded, its
+the centroid factor's persistent root s = 0 (paper, eq. 4) excluded, its
 other roots included: exactly the real part of the root
 :func:`~delayform.analysis.roots.dominant.dominant_root` reports. The disagreement
 from the formation decays like e^{alpha t}, so -alpha is the decay rate and
@@ -175,7 +175,7 @@ class GainDesign(FigureRepr):
     root
         That dominant root (certified by the argument principle), Im >= 0.
     factor
-        The factor of eq. factorized it belongs to.
+        The factor of the paper's eq. 3 it belongs to.
     tau1, tau2
         The delays of ``root``: the design delays, or the worst pair found in the box.
     certificate
@@ -482,7 +482,7 @@ def gain_crossing_curves(
     """The curves of the gain plane on which a characteristic root is on the imaginary axis.
 
     The gain-plane analogue of the CTCR kernel and offspring curves
-    (D-decomposition, Neimark): every factor of eq. factorized is linear in
+    (D-decomposition, Neimark): every factor of the paper's eq. 3 is linear in
     the gains, ``q(j w) = -w^2 + P a(w) + D b(w)`` with
     ``a = 1 - lam e^{-j w tau1}`` and ``b = j w (1 - lam e^{-j w tau2})``,
     so ``q(j w) = 0`` has, for each frequency w, the single real solution
@@ -614,7 +614,7 @@ def design_gains(
 
     At one delay pair, minimises the real part of the dominant root
     (:func:`~delayform.analysis.roots.dominant.dominant_root`: every factor of
-    eq. factorized, the centroid's persistent zero of eq. factor1 excluded).
+    the paper's eq. 3, the centroid's persistent zero of the paper's eq. 4 excluded).
     Over a box of delays (``tau1`` and/or ``tau2`` given as an interval),
     minimises its worst case over the box and certifies the result stable on
     the whole box with the exact CTCR map. Method: module docstring and
@@ -675,7 +675,7 @@ def design_gains(
     if robust and box1[0] == 0.0:
         raise DelayError(
             "a delay box reaching tau1 = 0 has no worst-case decay rate to optimise: the centroid factor's "
-            "root -P tau1 / (1 + D tau2) (eq. factor1) tends to 0 as tau1 -> 0 for every gain; start the box "
+            "root -P tau1 / (1 + D tau2) (paper, eq. 4) tends to 0 as tau1 -> 0 for every gain; start the box "
             "at tau1 > 0"
         )
     delays = _box_samples(box1, box2) if robust else np.array([[box1[0], box2[0]]])

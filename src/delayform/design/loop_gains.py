@@ -1,14 +1,14 @@
 """Gain design for a python-control plant under delayed PD feedback.
 
 The plant G = N / D (any SISO loop :func:`delayform.loops.loop_polynomials`
-reads) is driven by the paper's protocol structure (eq. protocol): a
+reads) is driven by the paper's protocol structure (paper, eq. 1): a
 proportional channel that sees the output after tau1 and a derivative
 channel that sees its rate after tau2,
 
     u(t) = -P y(t - tau1) - D y'(t - tau2),
 
 so the closed loop is 1 + P G e^{-tau1 s} + D s G e^{-tau2 s} = 0, the
-quasi-polynomial (eq. genfactor)
+quasi-polynomial (paper, eq. 5)
 
     q(s) = D(s) + P N(s) e^{-tau1 s} + D s N(s) e^{-tau2 s}.
 

@@ -1,6 +1,6 @@
 """Delay scheduling: the larger delays that make the formation converge fastest.
 
-The paper closes (Section "Simulation", Figs. dominant and contour) with
+The paper closes (Section "Simulation", Figs. 8 and 9) with
 *delay scheduling* (Olgac et al.): the hardware fixes the smallest delays,
 but the controller may wait longer before it uses what it hears. Inside the
 stable region of the CTCR chart, pick the delays at least the hardware ones
@@ -32,7 +32,7 @@ __all__ = ["DelaySchedule", "schedule_delays"]
 @validated()
 @dataclass(frozen=True)
 class DelaySchedule:
-    """Delays chosen by delay scheduling (paper Section "Simulation", Fig. contour).
+    """Delays chosen by delay scheduling (paper Section "Simulation", Fig. 9).
 
     Attributes
     ----------

@@ -20,7 +20,7 @@ Per robot
 The team
     The formation error of the true states the world integrated (RMS
     distance from the shape after removing the common offset), its settling
-    time (:data:`~delayform.simulation.trajectory.SETTLING_FRACTION`), the
+    time (:data:`~delayform.simulation.runs.trajectory.SETTLING_FRACTION`), the
     closest approach of two robots, and the measured decay rate: the slope of
     a least-squares line through ``log e(t)`` where the error is between
     :data:`FIT_WINDOW` of its initial value (:func:`decay_rate`). Beside them:
@@ -41,10 +41,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from delayform.model import Team
-from delayform.simulation.bodies import closest_approach
-from delayform.simulation.network import Network
-from delayform.simulation.robots import RobotLimits
-from delayform.simulation.trajectory import Trajectory, formation_error, settling_time
+from delayform.simulation.bodies.approach import closest_approach
+from delayform.model.network import Network
+from delayform.simulation.models.robots import RobotLimits
+from delayform.simulation.runs.trajectory import Trajectory, formation_error, settling_time
 
 __all__ = ["FleetRun", "measure", "decay_rate", "FIT_WINDOW", "LATE_FRACTION"]
 

@@ -14,7 +14,7 @@ The loopback loses nothing and takes a fraction of a millisecond; the
 design's delays are made by each robot's playout buffer. The scenario's
 ``[network]`` acts where a real network would, on the state messages, with
 the draws the simulator makes for the same seed
-(:func:`delayform.simulation.reception.packet_draws`, for the simulator
+(:func:`delayform.simulation.delayed.reception.packet_draws`, for the simulator
 stepping at the control period): with ``rate`` each robot sends its state at
 the first tick at or after every ``m / rate`` (else at every tick: packet m is
 the one sent in period m); on reception, packet m on a link is dropped when the
@@ -52,8 +52,8 @@ from delayform.fleet.wire import DEFAULT_ENDPOINT, check_endpoint, open_session
 from delayform.fleet.world import WORLDS
 from delayform.formation import check_formation, formation_forcing
 from delayform.model import Delays, Start, Team
-from delayform.simulation.network import BernoulliLoss, GilbertElliott, Network
-from delayform.simulation.robots import Robot, RobotLimits
+from delayform.model.network import BernoulliLoss, GilbertElliott, Network
+from delayform.simulation.models.robots import Robot, RobotLimits
 
 __all__ = ["run_fleet", "check_network", "MCAP_NAME", "LEAD"]
 
@@ -270,7 +270,7 @@ def _draws(network: Network | None, team: Team, duration: float, dt: float, peri
     """The simulator's draws for the state messages (module doc), or None for a network that draws nothing."""
     if network is None or not network.packets:
         return None
-    from delayform.simulation.reception import packet_draws
+    from delayform.simulation.delayed.reception import packet_draws
 
     # as reception(): the simulator stepping at dt sends a packet every sampling period (or step)
     every = dt if network.sampling is None else 1.0 / network.sampling.rate

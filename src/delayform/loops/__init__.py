@@ -4,7 +4,7 @@ A loop gain L(s) = N(s) / D(s) closed through a delay tau,
 
     1 + L(s) e^{-tau s} = 0,
 
-has the characteristic quasi-polynomial (eq. genfactor with g1 = D, g2 = N)
+has the characteristic quasi-polynomial (paper, eq. 5 with g1 = D, g2 = N)
 
     q(s) = D(s) + N(s) e^{-tau s}.
 
@@ -48,9 +48,9 @@ quasi-polynomial is det(sI - A + e^{-tau s} BC), that of the delayed
 feedback u(t) = -y(t - tau) itself.
 
 Two loops with their own delays, 1 + L1 e^{-tau1 s} + L2 e^{-tau2 s} (a
-plant with a position channel and a velocity channel, as in eq. protocol),
+plant with a position channel and a velocity channel, as in the paper's eq. 1),
 and a 2 x 2 MIMO state-space loop with one delay, det(I + L(s) e^{-tau s}),
-are quasi-polynomials of eq. genfactor too: :func:`loop_quasi_polynomial`
+are quasi-polynomials of the paper's eq. 5 too: :func:`loop_quasi_polynomial`
 builds them for :func:`~delayform.crossing_map` and
 :func:`~delayform.rightmost_root`. In a SISO loop delays at the plant's
 input and output add up (they commute with L), so one delay tau = tau_in +

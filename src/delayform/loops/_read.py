@@ -209,13 +209,13 @@ def _mimo_characteristic(loop: Any, name: str) -> QuasiPolynomial:
 
 
 def _mimo_terms(loop: Any, name: str, *, max_power: int) -> TwoDelayQuasiPolynomial:
-    """det(sI - A + z BC) = g1 + g2 z + g4 z^2 as eq. genfactor (z = e^{-tau1 s})."""
+    """det(sI - A + z BC) = g1 + g2 z + g4 z^2 as the paper's eq. 5 (z = e^{-tau1 s})."""
     q = _mimo_characteristic(loop, name)
     top = max(k for (k,) in q.terms)
     if top > max_power:
         raise LoopError(
             f"{name}: det(I + L e^{{-tau s}}) has a term e^{{-{top} tau s}} (rank of BC = {top}); "
-            "eq. genfactor and the delay margin here take loops whose BC has rank at most 2 "
+            "the paper's eq. 5 and the delay margin here take loops whose BC has rank at most 2 "
             "(use loop_characteristic for the general quasi-polynomial)"
         )
     empty = np.zeros(0)

@@ -1,4 +1,4 @@
-"""Characteristic quasi-polynomials of loops with one, two or m delays (eq. genfactor)."""
+"""Characteristic quasi-polynomials of loops with one, two or m delays (paper, eq. 5)."""
 
 from __future__ import annotations
 
@@ -23,7 +23,7 @@ from delayform.quasipolynomial import QuasiPolynomial
 def loop_quasi_polynomial(
     loop1: object, loop2: object | None = None, *, name: str = "loop"
 ) -> TwoDelayQuasiPolynomial:
-    """The characteristic quasi-polynomial of a loop with one or two delays (eq. genfactor).
+    """The characteristic quasi-polynomial of a loop with one or two delays (paper, eq. 5).
 
     * ``loop_quasi_polynomial(L)`` for 1 + L(s) e^{-tau1 s}: D + N e^{-tau1 s};
       a 2 x 2 strictly proper ``StateSpace`` gives det(sI - A + e^{-tau1 s} BC)

@@ -61,7 +61,7 @@ class DelayMargin(FigureRepr):
         What was checked, in words.
     quasi_polynomial
         D(s) + N(s) e^{-tau1 s}, or for a 2 x 2 loop
-        g1 + g2 e^{-tau1 s} + g4 e^{-2 tau1 s} (eq. genfactor, tau2 unused),
+        g1 + g2 e^{-tau1 s} + g4 e^{-2 tau1 s} (paper, eq. 5, tau2 unused),
         tau1 the total delay.
     delay
         The dead time already in the loop (s), 0 unless given.

@@ -7,7 +7,7 @@ accelerations in m/s^2. A differential drive with wheel radius ``r`` and
 axle length ``L`` turns ``(v, omega)`` into wheel speeds
 ``left = (v - omega L / 2) / r`` and ``right = (v + omega L / 2) / r``; the
 saturated unicycle that obeys these limits is integrated in
-:mod:`delayform.simulation.robots`.
+:mod:`delayform.simulation.models.robots`.
 """
 
 from __future__ import annotations
@@ -43,7 +43,7 @@ class RobotLimits:
     max_acceleration
         Largest linear acceleration |dv/dt| (m/s^2).
     slow_speed
-        Speed scale (m/s) below which the turn command of eq. transform2 is
+        Speed scale (m/s) below which the turn command of the paper's eq. 19 is
         softened (``e_perp . u (v + s slow_speed) / (v^2 + slow_speed^2)``
         instead of ``e_perp . u / v``; s turns the robot's axis towards the
         line of u at rest): the robot turns on the spot when it must, and the

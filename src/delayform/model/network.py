@@ -2,10 +2,10 @@
 
 The analysis of the paper assumes that every agent hears every informer
 through two constant delays shared by all links: positions ``tau1`` and
-velocities ``tau2`` old (eq. protocol). A :class:`Network` describes how a
+velocities ``tau2`` old (paper, eq. 1). A :class:`Network` describes how a
 real radio network departs from that, and
-:func:`delayform.simulation.reception.integrate_network` runs
-eq. protocol plus the forcing of eq. formation with what each agent actually
+:func:`delayform.simulation.delayed.reception.integrate_network` runs
+the paper's eq. 1 plus the forcing of the paper's eq. 13 with what each agent actually
 HEARS from each informer::
 
     u_i(t) = P (sum_k C_ik xhat_ik(t) - x_i(t)) + D (sum_k C_ik vhat_ik(t) - xdot_i(t)) + F_i
@@ -26,7 +26,7 @@ Links
 Continuous and packet streams
     Without jitter, loss, sampling or noise a stream is continuous: agent i
     hears ``x_k(t - d_ik(t))``, read from the computed solution by the cubic
-    Hermite interpolation of :mod:`delayform.simulation.integrator`, with
+    Hermite interpolation of :mod:`delayform.simulation.delayed.integrator`, with
     ``d_ik(t)`` the link's constant delay plus its smooth variation (the
     delay is that of the value heard at time t). With any of the four, the
     stream is a sequence of packets: agent k samples its state at
@@ -39,15 +39,15 @@ Continuous and packet streams
 Before the first packet
     An agent that has received nothing yet from an informer hears the
     informer's initial state, exactly (no noise): the same convention as the
-    constant history before ``t = 0`` of the ideal simulation (eq.
-    protocolss). A stream whose every packet is lost therefore holds the
+    constant history before ``t = 0`` of the ideal simulation (paper,
+    eq. 2). A stream whose every packet is lost therefore holds the
     informer's initial state for the whole run.
 Noise
     Additive, Gaussian, independent per packet and stream (standard
     deviations :attr:`MeasurementNoise.position` in m and
     :attr:`MeasurementNoise.velocity` in m/s). It models the informer's
     measurement of its own state; the receiving agent's own position and
-    velocity in eq. protocol are exact.
+    velocity in the paper's eq. 1 are exact.
 Step
     Every delay a stream can take (link delay, minus the largest negative
     jitter or variation) must be 0 (only for continuous streams: then the
@@ -62,13 +62,13 @@ Randomness
 Agent models
 ------------
 Double integrators are integrated directly. The unicycle is the ideal robot
-of Section "Feedback Linearization": under eq. transform2 its position obeys
+of Section "Feedback Linearization": under the paper's eq. 19 its position obeys
 ``x'' = u`` exactly, so its motion is that of the double integrator and its
 heading, speed and commands ``(dv/dt, omega)`` are rebuilt from the velocity
-and acceleration (:func:`delayform.simulation.robots.ideal_commands`), as for
+and acceleration (:func:`delayform.simulation.models.robots.ideal_commands`), as for
 ideal robots without a network. Robots with actuator limits integrate the
 true unicycle (x, y, theta, v) with saturated inputs
-(:class:`delayform.simulation.robots.LimitedUnicycle`) computed from what
+(:class:`delayform.simulation.models.robots.LimitedUnicycle`) computed from what
 each robot hears; they send their Cartesian position and velocity
 ``v (cos theta, sin theta)``, and the stated order is 2 as without a network.
 """

@@ -14,7 +14,7 @@ Lengths in m, speeds in m/s, turn rates and wheel speeds in rad/s,
 accelerations in m/s^2. A number the maker does not document is marked
 "assumption" in :attr:`RobotProfile.sources`; a number derived from others
 (e.g. the turn rate of both wheels at full speed in opposite directions,
-``2 v_max / L``) says so. The softening of eq. transform2
+``2 v_max / L``) says so. The softening of the paper's eq. 19
 (``slow_speed``, ``turn_time_constant``) is a property of the controller,
 not of the robot: every profile keeps the library's defaults.
 """

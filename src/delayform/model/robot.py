@@ -3,7 +3,7 @@
 A :class:`Robot` gathers what belongs to the robot in a simulation, as
 :class:`~delayform.model.Network` gathers the network: the agent model
 (:data:`MODELS`; each name is one entry of the integrator table of
-:mod:`delayform.simulation.models`), the actuator limits
+:mod:`delayform.simulation.runs.integrators`), the actuator limits
 (:class:`~delayform.model.RobotLimits`) or the real robot they come from
 (:class:`~delayform.model.RobotProfile`), the body's radius, the safety
 filter (:class:`BarrierFilter`), the actuation delay and, for robots with
@@ -29,7 +29,7 @@ __all__ = ["Robot", "MODELS", "REST_SPEED", "SAFETY_FILTERS", "BarrierFilter", "
 _Array = NDArray[np.float64]
 
 #: agent models a :class:`Robot` names; each is one entry of the integrator table
-#: :data:`delayform.simulation.models.INTEGRATORS` (a test checks that the two agree);
+#: :data:`delayform.simulation.runs.integrators.INTEGRATORS` (a test checks that the two agree);
 #: ``"physics"``: robots with mass in a physics engine (:mod:`delayform.simulation.physics`)
 MODELS = ("double_integrator", "unicycle", "physics")
 
@@ -112,7 +112,7 @@ class Robot:
     Attributes
     ----------
     model
-        ``"unicycle"`` (differential-drive robot, eq. transform2),
+        ``"unicycle"`` (differential-drive robot, the paper's eq. 19),
         ``"double_integrator"`` (point agents, ``x'' = u``) or ``"physics"``
         (differential-drive bodies with mass, wheel servos and contacts in
         a physics engine: :mod:`delayform.simulation.physics`, the
@@ -130,7 +130,7 @@ class Robot:
     actuation_delay
         tau_a >= 0 (s): each robot applies its command tau_a late,
         ``x'' = u(t - tau_a)`` for double integrators; for robots the demands
-        (dv/dt, omega) of eq. transform2, computed on the state when the
+        (dv/dt, omega) of the paper's eq. 19, computed on the state when the
         command is made, are executed tau_a later under the limits of that
         time (docs/theory.md, "Actuation delay"); for ``"physics"`` the wheel
         targets reach the servos tau_a late, on top of the servos' own lag.

@@ -1,7 +1,7 @@
 """Where the robots start: positions, headings and speed, given or drawn from a seed.
 
 The state is constant before ``t = 0`` (the constant history of the paper's
-eq. protocolss): positions ``x0`` and Cartesian velocities
+the paper's eq. 2): positions ``x0`` and Cartesian velocities
 ``v0 = speed (cos theta0, sin theta0)``. What is not given is drawn from
 :attr:`Start.seed`: positions uniform in ``[-L, L]^2`` with
 ``L = 5 max(1, sqrt(n / 6))`` (the density of the paper's six robots in a

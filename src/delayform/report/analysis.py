@@ -66,7 +66,7 @@ def factors_section(scenario: Scenario, out: Path) -> Section:
         text=(
             f"C = Delta^-1 A of the topology {scenario.topology_spec.describe()} has {eig.size} eigenvalues; "
             f"each real one gives a second-order factor and each complex pair a fourth-order factor "
-            f"(eq. factorized). The factor of lam = 1 is the centroid factor with its root s = 0 at "
+            f"(paper, eq. 3). The factor of lam = 1 is the centroid factor with its root s = 0 at "
             f"every delay; the others are the disagreement dynamics. Gains P = {scenario.P:g}, D = {scenario.D:g}."
         ),
         table=tuple(table),
@@ -127,6 +127,7 @@ def chart_section(scenario: Scenario, out: Path, *, jitter_grid: int = 0) -> Sec
     smap.plot(ax=ax, points={label: (a, b) for label, a, b in points})
     jitter_summary, jitter_rows = draw_overlay(jmap, ax) if jmap is not None else (None, [])
     ax.set_title(f"Stability chart: {scenario.name}, P = {scenario.P:g}, D = {scenario.D:g}")
+    out.mkdir(parents=True, exist_ok=True)  # the command line leaves the folder to the first write
     files = list(_save(fig, out, "stability_chart"))
     curve_rows, arrays = _curve_rows(smap)
     files.append(_write_csv(out / "ctcr_curves.csv", ("curve", "source", "kind", "tau1", "tau2", "omega"), curve_rows))
@@ -382,7 +383,7 @@ def safe_delays_section(
     out
         Folder the section writes its files into.
     P, D
-        Gains of eq. protocol.
+        Gains of the paper's eq. 1.
     tau1_max, tau2_max
         The delay window.
     spectrum

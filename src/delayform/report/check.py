@@ -7,8 +7,8 @@ initial state, simulation settings) and a robot profile
 ``limits``
     The scenario simulated with the profile's limits (the saturated
     unicycle) settles, and how fast next to ideal robots; how often and
-    until when a limit was active (the controller's demand of eq.
-    transform2 beyond a limit, or the speed limit holding a robot back).
+    until when a limit was active (the controller's demand of the paper's
+    eq. 19 beyond a limit, or the speed limit holding a robot back).
     Fits when the saturated run settles.
 ``radius``
     The desired places are more than a body diameter apart, and the
@@ -53,7 +53,7 @@ from delayform.deploy.profiles import RobotProfile, robot_profile
 from delayform.errors import RobotProfileError
 from delayform.resources import sized_by
 from delayform.scenario import Scenario
-from delayform.simulation.trajectory import Trajectory  # loaded by the scenario already
+from delayform.simulation.runs.trajectory import Trajectory  # loaded by the scenario already
 
 __all__ = ["Verdict", "RobotCheck", "robot_check"]
 
@@ -227,7 +227,7 @@ def robot_check(scenario: Scenario, robot: str | RobotProfile) -> RobotCheck:
 
 def _limits_verdict(profile: RobotProfile, limited: Any, ideal: Any) -> Verdict:
     cmd = limited.commands
-    # where the controller's demand (eq. transform2 at the saturated robot's state) exceeded a limit
+    # where the controller's demand (paper, eq. 19 at the saturated robot's state) exceeded a limit
     active = np.zeros(cmd.speed.shape, dtype=bool)
     for values, limit, _ in cmd.needed().values():
         active |= values > limit * (1 + 1e-9)

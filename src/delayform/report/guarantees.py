@@ -48,7 +48,7 @@ def _link_delays(net: Any, tau1: float, tau2: float) -> tuple[Any, Any]:
 
 def network_guarantees(topology: Any, P: float, D: float, tau1: float, tau2: float, network: Any,
                        *, dt: float = 0.0) -> tuple[Guarantee, ...]:  # fmt: skip
-    """The certificates that apply to ``network`` (a :class:`~delayform.simulation.network.Network` or None).
+    """The certificates that apply to ``network`` (a :class:`~delayform.model.network.Network` or None).
 
     Parameters
     ----------
@@ -220,7 +220,7 @@ def summary_of(guarantees: tuple[Guarantee, ...]) -> list[dict[str, Any]]:
 def with_actuation_delay(guarantees: tuple[Guarantee, ...], actuation_delay: float) -> tuple[Guarantee, ...]:
     """The certificates for robots that apply their commands ``actuation_delay`` s late: none covers the runs.
 
-    Every certificate here is for eq. protocol without actuation delay; with one the
+    Every certificate here is for the paper's eq. 1 without actuation delay; with one the
     characteristic function changes, so neither stability nor instability carries over.
 
     Parameters

@@ -2,7 +2,7 @@
 
 Split from :mod:`delayform.report` (same stage of the data flow, its
 helpers). :func:`montecarlo_section` runs
-:func:`~delayform.simulation.montecarlo.monte_carlo` on a scenario and its
+:func:`~delayform.simulation.experiments.montecarlo.monte_carlo` on a scenario and its
 ``[network]`` table; :func:`promises_section` sets the constant-delay
 prediction (dominant root, stable or not, predicted settling ``ln(50)/|Re s|``)
 beside Monte Carlo runs with growing jitter and packet loss at labelled delay
@@ -37,7 +37,7 @@ _LN50 = math.log(50.0)
 
 
 def _setup(scenario: Scenario, *, tau1: float, tau2: float, duration: float, dt: float) -> Any:
-    from delayform.simulation.montecarlo import make_setup
+    from delayform.simulation.experiments.montecarlo import make_setup
 
     # double integrators: every level, the ideal one included, then runs the same agent model
     return make_setup(
@@ -98,11 +98,11 @@ def montecarlo_section(
     network
         The network; default the scenario's ``[network]`` table (None: ideal).
     executor
-        Where the runs go (:func:`delayform.sweeps.executor`); default this process.
+        Where the runs go (:func:`delayform.simulation.experiments.sweeps.executor`); default this process.
     progress
         Optional callback ``(runs done, runs)``.
     """
-    from delayform.simulation.montecarlo import monte_carlo
+    from delayform.simulation.experiments.montecarlo import monte_carlo
 
     plt = _pyplot()
     net = scenario.network if network is None else network
@@ -183,14 +183,14 @@ def _beside_guarantees(scenario: Scenario, net: Any, mc: Any) -> tuple[tuple[tup
 
 
 def scenario_setup(scenario: Scenario) -> Any:
-    """What one Monte Carlo run of the scenario simulates (:func:`~delayform.simulation.montecarlo.make_setup`).
+    """What one Monte Carlo run of the scenario simulates (:func:`~delayform.simulation.experiments.montecarlo.make_setup`).
 
     Parameters
     ----------
     scenario
         Team, gains, delays, formation, ``[simulation]``, ``[network]``, ``[robot]`` and initial state.
     """
-    from delayform.simulation.montecarlo import make_setup
+    from delayform.simulation.experiments.montecarlo import make_setup
 
     sim = scenario.simulation
     return make_setup(
@@ -228,14 +228,14 @@ def sweep_section(
     runs
         Runs per grid point.
     seed
-        Seed of every point (common random numbers, :mod:`delayform.sweeps`).
+        Seed of every point (common random numbers, :mod:`delayform.simulation.experiments.sweeps`).
     workers, scheduler
-        Where the runs go (:func:`delayform.sweeps.executor_for`).
+        Where the runs go (:func:`delayform.simulation.experiments.sweeps.executor_for`).
     progress
         Optional callback ``(runs done, runs)``.
     """
     from delayform.plots import plot_metric_grid
-    from delayform.sweeps import delay_sweep
+    from delayform.simulation.experiments.sweeps import delay_sweep
 
     plt = _pyplot()
     sim, net = scenario.simulation, scenario.network
@@ -294,7 +294,7 @@ def promises_section(
 ) -> Section:
     """What the analysis still promises: the constant-delay prediction against Monte Carlo with jitter and loss.
 
-    At each point the dominant root (eq. factorized) says stable or not and
+    At each point the dominant root (paper, eq. 3) says stable or not and
     predicts the settling ``ln(50)/|Re s|``; Monte Carlo runs then grow the
     jitter bound (a fraction of each delay, symmetric, so the mean delay stays
     the analysed one) and, separately, the loss probability.
@@ -323,8 +323,8 @@ def promises_section(
         Optional callback ``(levels done, levels)``.
     """
     from delayform.analysis.roots.dominant import dominant_root
-    from delayform.simulation.network import BernoulliLoss, Jitter, Network
-    from delayform.sweeps import network_sweep
+    from delayform.model.network import BernoulliLoss, Jitter, Network
+    from delayform.simulation.experiments.sweeps import network_sweep
 
     plt = _pyplot()
     if points is None:

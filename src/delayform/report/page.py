@@ -39,7 +39,7 @@ def report_scenario(scenario: Scenario) -> Scenario:
     """The scenario as :func:`scenario_sections` answers it: one delay pair on every link.
 
     Its chart, roots, map and schedule are of one delay pair on every link
-    (eq. factorized): per-link ``[network]`` delays equal on every link are that
+    (paper, eq. 3): per-link ``[network]`` delays equal on every link are that
     pair; delays that differ between links (or are drawn per run) are refused
     (:meth:`~delayform.scenario.Scenario.at_one_delay_pair`). The simulation
     and the Monte Carlo run over the rest of the ``[network]``.
@@ -47,10 +47,20 @@ def report_scenario(scenario: Scenario) -> Scenario:
     Raises
     ------
     ScenarioError
-        Per-link delays that differ between links.
+        Per-link delays that differ between links, or a formation or start
+        that does not fit the team.
+    SimulationInputError
+        An actuation delay the report's simulation cannot model.
     """
-    return scenario.at_one_delay_pair("report (its chart, roots, map and schedule)",
-                                      "links / box for the certificates, simulate / montecarlo for runs over [network]")
+    from delayform.simulation.runs.runner import check_actuation
+
+    one = scenario.at_one_delay_pair("report (its chart, roots, map and schedule)",
+                                     "links / box for the certificates, simulate / montecarlo for runs over [network]")
+    # the simulation's own checks of what only it uses, made before the first section is computed
+    one.desired_positions()
+    one.initial_positions()
+    check_actuation(one.robot_spec, one.network, one.simulation.dt)
+    return one
 
 
 def scenario_sections(

@@ -59,7 +59,7 @@ def simulation_section(
     tau1, tau2
         Delays to simulate at; the scenario's operating delays by default.
     traces
-        Also draw the paths figure (paper Fig. traces), ``<stem>_xy``.
+        Also draw the paths figure (paper, Fig. 6), ``<stem>_xy``.
     gif
         Also write an animated GIF (slower).
     csv
@@ -103,6 +103,7 @@ def simulation_section(
         seed=scenario.initial.seed, duration=sim.duration, dt=sim.dt, progress=progress,
         assignment=sim.assignment, network=scenario.network if network else None,
     )  # fmt: skip
+    out.mkdir(parents=True, exist_ok=True)  # the command line leaves the folder to the first write
     stem = f"sim_{label}"
     files: list[str] = []
     figures = []
@@ -142,6 +143,7 @@ def simulation_section(
     if mcap is not None:
         from delayform.deploy.recording import write_mcap
 
+        mcap.parent.mkdir(parents=True, exist_ok=True)
         net = scenario.network if network and scenario.network is not None and not scenario.network.is_ideal else None
         files.append(str(write_mcap(traj, mcap, topology=scenario.topology, start_time=mcap_start,
                                     metadata=mcap_records(scenario, tau1, tau2), network=net).resolve()))
@@ -238,7 +240,7 @@ def simulation_section(
     robots = "double-integrator agents"
     if sim.model == "unicycle":
         robots = ("differential-drive robots with actuator limits (saturated unicycle)" if limits is not None
-                  else "ideal differential-drive robots (unicycle, feedback linearization eq. transform2)")  # fmt: skip
+                  else "ideal differential-drive robots (unicycle, feedback linearization (paper, eq. 19))")  # fmt: skip
     elif sim.model == "physics":
         robots = ("differential-drive robots with mass, wheel servos and contacts in a physics engine "
                   f"(controller ticks every {robot.chassis.control_period:g} s)")  # fmt: skip

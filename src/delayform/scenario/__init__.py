@@ -43,7 +43,7 @@ table and key; anything else is an error)::
 
     [initial]                           # optional; random positions and headings from seed
     seed = 0
-    speed = 1e-3                        # the paper's small initial speed (eq. transform2)
+    speed = 1e-3                        # the paper's small initial speed (paper, eq. 19)
     # positions = [[x, y], ...]         # explicit initial positions, one per agent
     # headings = [...]                  # explicit initial headings (radians), one per agent
 
@@ -61,7 +61,7 @@ table and key; anything else is an error)::
     tau_min = [0.3, 0.2]                # what the hardware gives (defaults to [delays])
     tau_max = [8.0, 8.0]                # defaults to the chart window
 
-    [network]                           # optional: an imperfect network (delayform.simulation.network)
+    [network]                           # optional: an imperfect network (delayform.model.network)
     seed = 0                            # seed of everything random in the network
     delay_spread = 0.2                  # per-link delays drawn in tau (1 +- 0.2)
     # tau1 = [[...], ...]               # or per-link delay matrices, entry [i][k]: what i hears from k

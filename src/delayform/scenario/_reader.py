@@ -80,7 +80,7 @@ class _Reader:
 
         out = self.number(key, value)
         if out <= 0.0:
-            raise self.error(key, "a positive number (eq. protocol)", value)
+            raise self.error(key, "a positive number (paper, eq. 1)", value)
         if not GAIN_RANGE[0] <= out <= GAIN_RANGE[1]:
             raise self.error(key, f"a gain between {GAIN_RANGE[0]:g} and {GAIN_RANGE[1]:g}", value)
         return out

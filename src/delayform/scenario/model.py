@@ -10,22 +10,22 @@ import numpy as np
 from delayform._validation import validated
 from delayform.errors import ScenarioError
 from delayform.scenario._reader import _check_sizes, _Reader
-from delayform.simulation.network import (
+from delayform.model.network import (
     LinkDelays,
     Network,
 )
-from delayform.simulation.robots import Robot, RobotLimits
+from delayform.simulation.models.robots import Robot, RobotLimits
 from delayform.topology import Topology
 
 TOPOLOGY_NAMES = ("paper_six", "ring", "complete", "star", "random_digraph")
 MODELS = ("unicycle", "double_integrator", "physics")
 
 #: The paper's example (Section "Simulation Examples"): the six robots of
-#: Fig. topol, P = 1, D = 0.5, point a, a hexagon, the chart window [0, 8]^2
+#: the paper's Fig. 2, P = 1, D = 0.5, point a, a hexagon, the chart window [0, 8]^2
 #: with points a..e. ``delayform paper`` and examples/paper.toml use it.
 PAPER_TOML = """\
 name = "paper"
-description = "Cepeda-Gomez and Perico: six robots of Fig. topol, P = 1, D = 0.5, point a, hexagon"
+description = "Cepeda-Gomez and Perico: six robots of the paper's Fig. 2, P = 1, D = 0.5, point a, hexagon"
 
 [topology]
 name = "paper_six"
@@ -115,7 +115,7 @@ class SimulationSpec:
     dt: float = 0.01
     #: whether the file gave the step; a default step follows the delays (:func:`default_step`)
     dt_given: bool = field(default=True, compare=False)
-    #: which robot takes which slot (delayform.simulation.assignment.ASSIGNMENTS)
+    #: which robot takes which slot (delayform.simulation.bodies.assignment.ASSIGNMENTS)
     assignment: str = "given"
 
 
@@ -214,7 +214,7 @@ class Scenario:
     topology
         The built communication topology.
     P, D
-        Gains of eq. protocol.
+        Gains of the paper's eq. 1.
     tau1, tau2
         The operating delays (seconds).
     formation, simulation, initial, chart, map, schedule
@@ -226,15 +226,15 @@ class Scenario:
         :data:`delayform.deploy.PROFILES`), or None.
     radius
         ``[robot] radius`` (m), the bodies' size for contacts, or None for the
-        default of :class:`~delayform.simulation.robots.Robot`.
+        default of :class:`~delayform.simulation.models.robots.Robot`.
     safety
         ``[robot] safety``: the safety filter's name (``"barrier"``), or None.
     actuation_delay
         ``[robot] actuation_delay`` (s, default 0): each robot applies its
-        command that late (:attr:`~delayform.simulation.robots.Robot.actuation_delay`);
+        command that late (:attr:`~delayform.simulation.models.robots.Robot.actuation_delay`);
         the simulation and the dominant roots use it.
     network
-        The ``[network]`` table as a :class:`~delayform.simulation.network.Network`, or None.
+        The ``[network]`` table as a :class:`~delayform.model.network.Network`, or None.
     topology_spec
         How the topology was described in the file.
     source
@@ -319,7 +319,7 @@ class Scenario:
         return ", ".join(parts) if parts else None
 
     def at_one_delay_pair(self, what: str, instead: str, *, spread: bool = True) -> Scenario:
-        """The scenario as one delay pair on every link, for a command whose theory is eq. factorized.
+        """The scenario as one delay pair on every link, for a command whose theory is the paper's eq. 3.
 
         ``[network] tau1 / tau2`` matrices with the same delay on every link of
         the team are that delay: it becomes ``tau1`` / ``tau2`` and the matrix
@@ -422,7 +422,7 @@ class Scenario:
             checked only when the formation is built, see
             :meth:`desired_positions`).
         P, D
-            New gains of eq. protocol.
+            New gains of the paper's eq. 1.
         tau1, tau2
             New operating delays; delay scheduling then starts from them
             (``schedule.tau_min`` becomes the new delays, ``tau_max`` grows to

@@ -28,7 +28,7 @@ from delayform.scenario.model import (
     TopologySpec,
     default_step,
 )
-from delayform.simulation.network import (
+from delayform.model.network import (
     BernoulliLoss,
     GilbertElliott,
     Jitter,
@@ -38,8 +38,8 @@ from delayform.simulation.network import (
     Sampling,
     SmoothVariation,
 )
-from delayform.simulation.assignment import ASSIGNMENTS
-from delayform.simulation.robots import IROBOT_CREATE, RobotLimits
+from delayform.simulation.bodies.assignment import ASSIGNMENTS
+from delayform.simulation.models.robots import IROBOT_CREATE, RobotLimits
 from delayform.topology import Topology, complete, paper_six, random_digraph, ring, star
 
 
@@ -228,10 +228,10 @@ def _actuation_delay(reader: _Reader, data: Mapping[str, Any] | None) -> float:
 
 
 def _safety(reader: _Reader, data: Mapping[str, Any] | None) -> str | None:
-    """``[robot] safety``: a safety filter's name (:data:`~delayform.simulation.safety.SAFETY_FILTERS`) or None."""
+    """``[robot] safety``: a safety filter's name (:data:`~delayform.simulation.bodies.safety.SAFETY_FILTERS`) or None."""
     if data is None or "safety" not in data:
         return None
-    from delayform.simulation.safety import SAFETY_FILTERS
+    from delayform.simulation.bodies.safety import SAFETY_FILTERS
 
     name = reader.string("robot.safety", data["safety"], SAFETY_FILTERS + ("none",))
     return None if name == "none" else name
@@ -351,7 +351,7 @@ def parse_scenario(data: Mapping[str, Any], *, source: str = "<scenario>", defau
     reader.keys(gains, "gains", ("P", "D"))
     for key in ("P", "D"):
         if key not in gains:
-            raise ScenarioError(f"{source}: gains.{key}: missing (a positive gain of eq. protocol)")
+            raise ScenarioError(f"{source}: gains.{key}: missing (a positive gain of the paper's eq. 1)")
     P, D = reader.gain("gains.P", gains["P"]), reader.gain("gains.D", gains["D"])
 
     delays = reader.table(data, "delays", required=True)
@@ -435,7 +435,7 @@ _NETWORK_KEYS = ("seed", "delay_spread", "tau1", "tau2", "jitter", "variation", 
 
 
 def parse_network_table(reader: _Reader, data: Mapping[str, Any] | None, n: int) -> Network | None:
-    """The ``[network]`` table (module doc) as a :class:`~delayform.simulation.network.Network`.
+    """The ``[network]`` table (module doc) as a :class:`~delayform.model.network.Network`.
 
     Parameters
     ----------

@@ -1,23 +1,22 @@
-"""Simulation of the team: agent and robot models, the delayed integrator, runs and commands, networks.
+"""Simulation of the team, by concept: agent models, delayed integrators, bodies, single runs, experiments.
 
-Modules, by concept: :mod:`~delayform.simulation.integrator` (RK4 with a
-bounded Hermite history), :mod:`~delayform.simulation.robots` (agent models,
-robot limits, ideal commands), :mod:`~delayform.simulation.commands` (the
-commands each robot executes), :mod:`~delayform.simulation.trajectory` (the
-result and its metrics), :mod:`~delayform.simulation.models` (the integrator
-table, one entry per agent model), :mod:`~delayform.simulation.options` (how a
-run is carried out), :mod:`~delayform.simulation.runner` (``simulate``;
-:mod:`~delayform.simulation.compat` keeps its loose call form),
-:mod:`~delayform.simulation.network` (imperfect networks),
-:mod:`~delayform.simulation.reception` (what each agent hears, the per-link
-integrator), :mod:`~delayform.simulation.montecarlo` (seeded Monte Carlo runs).
-Their public names are re-exported here.
+Subpackages, from the bottom up: :mod:`~delayform.simulation.models` (agent
+models and the commands robots execute), :mod:`~delayform.simulation.delayed`
+(RK4 with a bounded Hermite history, the actuation buffer, what each agent
+hears over an imperfect network), :mod:`~delayform.simulation.bodies`
+(closest approach, the safety filter, slot assignment),
+:mod:`~delayform.simulation.physics` (robots with mass in MuJoCo),
+:mod:`~delayform.simulation.runs` (``simulate``, the integrator table, run
+options, the loose call forms, ``Trajectory``) and
+:mod:`~delayform.simulation.experiments` (Monte Carlo runs and sweeps). The
+network's description is a noun, :mod:`delayform.model.network`. Their public
+names are re-exported here.
 """
 
-from delayform.simulation.commands import LimitExceedance, RobotCommands
-from delayform.simulation.integrator import stated_order
-from delayform.simulation.montecarlo import MonteCarloResult, monte_carlo
-from delayform.simulation.network import (
+from delayform.simulation.models.commands import LimitExceedance, RobotCommands
+from delayform.simulation.delayed.integrator import stated_order
+from delayform.simulation.experiments.montecarlo import MonteCarloResult, monte_carlo
+from delayform.model.network import (
     BernoulliLoss,
     GilbertElliott,
     Jitter,
@@ -27,12 +26,12 @@ from delayform.simulation.network import (
     Sampling,
     SmoothVariation,
 )
-from delayform.simulation.bodies import Approach, Contact, closest_approach
-from delayform.simulation.robots import IROBOT_CREATE, REST_SPEED, Robot, RobotLimits
-from delayform.simulation.models import INTEGRATORS
-from delayform.simulation.options import RunOptions
-from delayform.simulation.runner import MODELS, paper_simulations, simulate
-from delayform.simulation.trajectory import SETTLING_FRACTION, STATUSES, Trajectory
+from delayform.simulation.bodies.approach import Approach, Contact, closest_approach
+from delayform.simulation.models.robots import IROBOT_CREATE, REST_SPEED, Robot, RobotLimits
+from delayform.simulation.runs.integrators import INTEGRATORS
+from delayform.simulation.runs.options import RunOptions
+from delayform.simulation.runs.runner import MODELS, paper_simulations, simulate
+from delayform.simulation.runs.trajectory import SETTLING_FRACTION, STATUSES, Trajectory
 
 __all__ = [
     "MODELS",

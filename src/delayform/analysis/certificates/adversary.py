@@ -1,6 +1,6 @@
 """The other side of a certificate: a switching adversary that tries to destabilize one mode.
 
-:func:`greedy_switching_grows` simulates one real mode of eq. factorized with the
+:func:`greedy_switching_grows` simulates one real mode of the paper's eq. 3 with the
 delays switching, every step, between tau - delta and tau + delta (the same on
 every link), picking whichever pumps energy into the mode: the delayed value
 that maximizes v * lam (P x(t - h1) + D v(t - h2)) (bang-bang, greedy). Its own

@@ -1,13 +1,13 @@
 """A certified margin for the team's delays varying together: one Lyapunov-Krasovskii certificate per mode.
 
 When every link has the same delays h1(t), h2(t), varying in time, the team
-still factorizes (eq. factorized): with C = U T U^H (Schur, U unitary, T upper
+still factorizes (paper, eq. 3): with C = U T U^H (Schur, U unitary, T upper
 triangular, its diagonal the eigenvalues lam of C) the coordinates y = U^H x
 obey, mode by mode,
 
     y_j'' = -P y_j - D y_j' + lam_j (P y_j(t - h1(t)) + D y_j'(t - h2(t))) + (terms in y_k, k > j),
 
-the eq. subsystems with time-varying delays (a real 4-state system for a
+the paper's eq. 8 with time-varying delays (a real 4-state system for a
 conjugate pair). The last mode is autonomous and each one above it is driven
 by the modes below it, so if every mode's own dynamics is uniformly
 exponentially stable the whole cascade is: the team margin is the smallest
@@ -219,7 +219,7 @@ def team_delay_margin(topology: Topology, P: float, D: float, tau1: float, tau2:
     Parameters
     ----------
     topology, P, D
-        The team and the gains of eq. protocol.
+        The team and the gains of the paper's eq. 1.
     tau1, tau2
         The nominal delays, the same on every link.
     rtol

@@ -1,6 +1,6 @@
 """Exact CTCR stability maps in (tau1, tau2) at a given actuation delay tau_a.
 
-Every factor of eq. factorized with an actuation delay is (docs/theory.md, "Actuation delay")::
+Every factor of the paper's eq. 3 with an actuation delay is (docs/theory.md, "Actuation delay")::
 
     q(s) = s^2 + (D s + P) e^{-tau_a s} - lam (D s e^{-(tau2 + tau_a) s} + P e^{-(tau1 + tau_a) s})
 
@@ -455,7 +455,7 @@ def actuated_stability_map(
     topology
         Communication topology with a spanning tree.
     P, D
-        Positive gains of eq. protocol.
+        Positive gains of the paper's eq. 1.
     tau1_max, tau2_max
         The window; positive.
     actuation_delay

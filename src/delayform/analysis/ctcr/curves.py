@@ -1,4 +1,4 @@
-"""CTCR curves in the delay plane: kernel and offspring images of phase paths (eq. nltrans).
+"""CTCR curves in the delay plane: kernel and offspring images of phase paths (paper, eq. 6).
 
 A traced quasi-polynomial (:class:`_Part`) gives phase paths
 (:mod:`delayform.analysis.ctcr.phase`); every image ``tau = (theta + 2 pi i) / omega``
@@ -103,7 +103,7 @@ def _embed(
     path: _PhasePath, qp: TwoDelayQuasiPolynomial, window: tuple[float, float], weight: int, source: int,
     factor: int,
 ) -> list[CrossingCurve]:
-    """All kernel/offspring images (eq. nltrans) of a phase path that meet the window."""
+    """All kernel/offspring images (paper, eq. 6) of a phase path that meet the window."""
     om, u1, u2 = path.omega, path.theta1, path.theta2
     t1max, t2max = window
     margin1, margin2 = 0.02 * t1max, 0.02 * t2max
@@ -159,7 +159,7 @@ def _split_runs(
         if run.size < 2:
             continue
         kinds = kernel[run]
-        # One piece per shift (i, k) of eq. nltrans; the last vertex is shared with the next piece.
+        # One piece per shift (i, k) of the paper's eq. 6; the last vertex is shared with the next piece.
         cut = np.flatnonzero((i1[run][1:] != i1[run][:-1]) | (i2[run][1:] != i2[run][:-1])) + 1
         bounds = np.concatenate([[0], cut, [run.size]])
         for a, b in zip(bounds[:-1], bounds[1:], strict=True):
@@ -182,7 +182,7 @@ def _split_runs(
 class _Part:
     """One qp traced for omega > 0 with its NU weight per unit RT.
 
-    ``lam`` is set when qp is the three-term factor of eq. factorized of that
+    ``lam`` is set when qp is the three-term factor of the paper's eq. 3 of that
     eigenvalue of C (``s^2 + D s + P - lam (P z1 + D s z2)``): all such parts
     are traced together by :mod:`delayform.analysis.ctcr.family_curves`.
     """
@@ -339,7 +339,7 @@ def _axis_crossings(parts: list[_Part], window: tuple[float, float], *, axis: in
 def _unit_roots(qp: TwoDelayQuasiPolynomial, delay: int) -> tuple[NDArray, NDArray]:
     """(omega, theta) of the single-delay problem in z_delay with the other delay zero.
 
-    Up to z^2 (every eq. genfactor qp) the closed resultant of
+    Up to z^2 (every the paper's eq. 5 qp) the closed resultant of
     :func:`~delayform.analysis.ctcr.phase._single_delay_roots`; higher powers
     (commensurate terms) the frequency-eliminating resultant in z of
     :func:`~delayform.analysis.ctcr.general.unit_roots_single`.

@@ -182,7 +182,7 @@ def local_change(qp: TwoDelayQuasiPolynomial, omega: float, tau1: float, tau2: f
     Parameters
     ----------
     qp
-        The quasi-polynomial (eq. genfactor); retarded or neutral.
+        The quasi-polynomial (paper, eq. 5); retarded or neutral.
     omega
         Crossing frequency: ``q(j omega; tau1, tau2) = 0``.
     tau1, tau2

@@ -1,4 +1,4 @@
-"""CTCR curves of all factors of eq. factorized at once (the lam family), vectorized.
+"""CTCR curves of all factors of the paper's eq. 3 at once (the lam family), vectorized.
 
 Every traced part of :func:`delayform.analysis.ctcr.stability_map.stability_map` is the
 three-term quasi-polynomial ``q_lam(s) = s^2 + D s + P - lam (P z1 + D s z2)``
@@ -512,7 +512,7 @@ def _split_kept(
     for lo, hi in zip(np.concatenate([[0], breaks]), np.concatenate([breaks, [gidx.size]]), strict=True):
         if hi - lo < 2:
             continue
-        # one piece per shift (i, k) of eq. nltrans; the last vertex is shared with the next piece
+        # one piece per shift (i, k) of the paper's eq. 6; the last vertex is shared with the next piece
         cut = np.flatnonzero((i1[lo + 1 : hi] != i1[lo : hi - 1]) | (i2[lo + 1 : hi] != i2[lo : hi - 1])) + 1 + lo
         edges = np.concatenate([[lo], cut, [hi]])
         for a, b in zip(edges[:-1], edges[1:], strict=True):

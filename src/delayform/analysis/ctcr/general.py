@@ -2,7 +2,7 @@
 
 A :class:`~delayform.quasipolynomial.QuasiPolynomial` in two delays is
 ``q(s) = sum_{a,b} p_ab(s) z1^a z2^b`` with ``z_k = e^{-tau_k s}``. When its
-terms are the six of eq. genfactor it is traced exactly as the paper's form;
+terms are the six of the paper's eq. 5 it is traced exactly as the paper's form;
 otherwise the same CTCR construction runs on :class:`TermsQP` with two
 eliminations that hold for any degrees K1 (in z1) and K2 (in z2):
 
@@ -78,7 +78,7 @@ class TermsQP:
 
     @property
     def g1(self) -> NDArray[np.complex128]:
-        """The principal polynomial (named as in eq. genfactor)."""
+        """The principal polynomial (named as in the paper's eq. 5)."""
         return self._terms[0][0]
 
     @property
@@ -178,7 +178,7 @@ def neutral_traced(qp: QuasiPolynomial) -> TermsQP:
 
 
 def as_traced(qp: QuasiPolynomial) -> TwoDelayQuasiPolynomial | TermsQP:
-    """The paper's form when q's terms are among eq. genfactor's six, else :class:`TermsQP`.
+    """The paper's form when q's terms are among the paper's eq. 5's six, else :class:`TermsQP`.
 
     Parameters
     ----------

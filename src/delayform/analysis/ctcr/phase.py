@@ -287,7 +287,7 @@ def _batched_conv(a: NDArray[np.complex128], b: NDArray[np.complex128]) -> NDArr
 def _general_solutions(qp: TwoDelayQuasiPolynomial | TermsQP, omega: NDArray[np.float64]) -> list[NDArray[np.float64]]:
     """All (theta1, theta2) with q(j omega) = 0 at each omega: resultant in z2, unit roots, Newton.
 
-    Terms beyond eq. genfactor's six: :func:`~delayform.analysis.ctcr.general.resultant_solutions`.
+    Terms beyond the paper's eq. 5's six: :func:`~delayform.analysis.ctcr.general.resultant_solutions`.
     """
     if isinstance(qp, TermsQP):
         return resultant_solutions(qp, omega)
@@ -341,7 +341,7 @@ def _general_solutions(qp: TwoDelayQuasiPolynomial | TermsQP, omega: NDArray[np.
 
 
 def _newton_phases(g: list[NDArray], i: int, t1: float, t2: float) -> tuple[float, float] | None:
-    """Polish (theta1, theta2) on sum_k g_k e^{-j(a theta1 + b theta2)} = 0 at one omega (eq. genfactor's terms)."""
+    """Polish (theta1, theta2) on sum_k g_k e^{-j(a theta1 + b theta2)} = 0 at one omega (paper, eq. 5's terms)."""
     return newton_phases(np.array([gk[i] for gk in g]), np.array(DELAY_MULTIPLES, float), t1, t2)
 
 

@@ -2,19 +2,19 @@
 
 Conventions
 -----------
-A quasi-polynomial ``qp`` is the two-delay form of eq. genfactor,
+A quasi-polynomial ``qp`` is the two-delay form of the paper's eq. 5,
 ``q(s) = g1 + g2 z1 + g3 z2 + g4 z1^2 + g5 z2^2 + g6 z1 z2`` with
 ``z1 = e^{-tau1 s}``, ``z2 = e^{-tau2 s}``. On the imaginary axis ``s = j omega``
 we write ``z_k = e^{-j theta_k}`` with the phases ``theta_k = omega tau_k mod 2 pi``.
 NU is the number of characteristic roots with Re s > 0; a root s = 0 that is
-there for every delay (the centroid factor, eq. factor1) is never counted
+there for every delay (the centroid factor, the paper's eq. 4) is never counted
 (Lemma 2: it is the rigid-body mode).
 
 How the crossing curves are found (the paper does not give its half-angle method)
 ----------------------------------------------------------------------------------
 Every point of a kernel or offspring curve is a triple (omega, theta1, theta2)
 with ``q(j omega) = 0``; the plane point is ``tau_k = (theta_k + 2 pi i_k) / omega``
-(eq. nltrans, i_k = 0 for the kernel, Definition "Kernel curves"). Only
+(paper, eq. 6, i_k = 0 for the kernel, Definition "Kernel curves"). Only
 omega > 0 is traced: a real qp has its crossings in conjugate pairs (NU
 changes by 2 RT); a complex qp (allowed in :func:`crossing_map`) is traced
 twice, itself and its conjugate ``conj(q(conj s))``, whose omega > 0 crossings
@@ -29,7 +29,7 @@ are the omega < 0 crossings of q, each changing NU by 1 RT.
   intervals; inside one, the law of cosines gives theta1, theta2 for the two
   mirror triangles (the two branches, which join at the interval ends). This
   is the half-angle / triangle construction of two-delay CTCR written in
-  closed form. A fourth-order factor of eq. factorized is
+  closed form. A fourth-order factor of the paper's eq. 3 is
   ``q_lam(s) q_conj(lam)(s)`` with ``q_lam = s^2 + D s + P - lam (D s z2 + P z1)``
   (complex coefficients), so its curves are those of q_lam and of q_conj(lam).
 * General retarded qps (commensurate ``2 tau`` terms, cross term): for each
@@ -92,8 +92,8 @@ The origin and the axes
 
 References
 ----------
-Cepeda-Gomez and Perico, Section "Stability Analysis Using CTCR": eq. genfactor,
-Definitions "Kernel curves", "Offspring curves" (eq. nltrans), "Root Tendency",
+Cepeda-Gomez and Perico, Section "Stability Analysis Using CTCR": the paper's eq. 5,
+Definitions "Kernel curves", "Offspring curves" (paper, eq. 6), "Root Tendency",
 Proposition "Invariant root tendency"; Lemmas 1-2 for the factors.
 """
 
@@ -158,7 +158,7 @@ __all__ = [
     "PAPER_POINTS",
 ]
 
-#: Points of the paper's Fig. stability (Section "Simulation Examples"): a, b, d, e stable, c not.
+#: Points of the paper's Fig. 3 (Section "Simulation Examples"): a, b, d, e stable, c not.
 PAPER_POINTS: dict[str, tuple[float, float]] = {
     "a": (0.3, 0.2),
     "b": (2.0, 1.0),
@@ -293,7 +293,7 @@ def curve_residual(qp: TwoDelayQuasiPolynomial, curve: CrossingCurve) -> NDArray
     Parameters
     ----------
     qp
-        The quasi-polynomial of eq. genfactor whose imaginary roots make the
+        The quasi-polynomial of the paper's eq. 5 whose imaginary roots make the
         curve, usually ``m.traced[curve.source]`` of a :class:`StabilityMap` m.
     curve
         A :class:`CrossingCurve`; q is evaluated at ``s = j omega`` with the
@@ -389,7 +389,7 @@ def crossing_map(qp: TwoDelayQuasiPolynomial | QuasiPolynomial, tau1_max: float,
     ----------
     qp
         Any retarded :class:`~delayform.characteristic.TwoDelayQuasiPolynomial`
-        (eq. genfactor), or a :class:`~delayform.quasipolynomial.QuasiPolynomial`
+        (paper, eq. 5), or a :class:`~delayform.quasipolynomial.QuasiPolynomial`
         in two delays with any terms (commensurate ``z1^3``, ``z1 z2^2``, ...;
         :mod:`delayform.analysis.ctcr.general`); real or complex coefficients.
     tau1_max, tau2_max
@@ -440,9 +440,9 @@ def crossing_map(qp: TwoDelayQuasiPolynomial | QuasiPolynomial, tau1_max: float,
 def stability_map(
     topology: Topology, P: float, D: float, tau1_max: float, tau2_max: float, *, actuation_delay: float = 0.0
 ) -> StabilityMap | ActuatedStabilityMap:
-    """The exact CTCR stability map of the formation protocol (eq. protocolss).
+    """The exact CTCR stability map of the formation protocol (paper, eq. 2).
 
-    Every factor of eq. factorized is traced: a real eigenvalue lam gives the
+    Every factor of the paper's eq. 3 is traced: a real eigenvalue lam gives the
     real three-term factor ``s^2 + D s + P - lam (D s z2 + P z1)``; a conjugate
     pair gives the fourth-order factor, whose imaginary roots are those of the
     three-term factors of lam and conj(lam). NU sums the factors weighted by
@@ -453,7 +453,7 @@ def stability_map(
     topology
         Communication topology; must have a spanning tree (Lemma 3).
     P, D
-        Positive gains of eq. protocol.
+        Positive gains of the paper's eq. 1.
     tau1_max, tau2_max
         The window [0, tau1_max] x [0, tau2_max].
     actuation_delay

@@ -3,7 +3,7 @@
 Model: the sampled team of :mod:`~delayform.analysis.network.loss` (period h, delays
 whole multiples of h, hold-last-value), but every stream (link and kind: position
 or velocity) loses its packets through its own two-state Markov chain, as the
-simulator's :class:`~delayform.simulation.network.GilbertElliott`: in the good state
+simulator's :class:`~delayform.model.network.GilbertElliott`: in the good state
 a packet is lost with ``loss_good``, in the bad one with ``loss_bad``; after each
 packet the chain moves good -> bad with ``p_good_to_bad`` and bad -> good with
 ``p_bad_to_good``; each chain starts in its stationary distribution, independently

@@ -1,6 +1,6 @@
 """Seeds for the per-link roots: Chebyshev collocation of the 2N-state DDE's generator.
 
-The state of eq. protocol with per-link delays is z = (x, x') in R^{2N} with
+The state of the paper's eq. 1 with per-link delays is z = (x, x') in R^{2N} with
 
     x' = v,   v_i' = -P x_i - D v_i + sum_k C_ik (P x_k(t - tau1_ik) + D v_k(t - tau2_ik)).
 
@@ -75,7 +75,7 @@ def _entries(team: LinkTeam, M: int) -> tuple[NDArray[np.int64], NDArray[np.int6
     c = [(l * m + q).ravel()]
     v = [np.repeat((scale * Dm[1:, :]).ravel(), m)]
     idx = np.arange(n)
-    # row 0: the DDE at theta = 0 (own state undelayed, eq. protocol)
+    # row 0: the DDE at theta = 0 (own state undelayed, the paper's eq. 1)
     r += [idx, n + idx, n + idx]
     c += [n + idx, idx, n + idx]
     v += [np.ones(n), np.full(n, -team.P), np.full(n, -team.D)]

@@ -350,7 +350,7 @@ def margin_of_team(team: LinkTeam, nominal_root: complex | None = None) -> Jitte
         return JitterMargin(0.0, math.inf, float("nan"), False, root, reason="the nominal delays are unstable",
                             per_link_delta=0.0)  # fmt: skip
     if drift:
-        # every position delay the centroid weighs is 0: s = 0 is a double root (the drift of eq. factor1),
+        # every position delay the centroid weighs is 0: s = 0 is a double root (the drift of the paper's eq. 4),
         # the loop's gain is unbounded as w -> 0 and no jitter is certified (rounding would print ~1e-17 s)
         return JitterMargin(0.0, math.inf, 0.0, False, root, reason=(
             "tau1 = 0 on every link the centroid weighs: the centroid's zero is double (the team drifts), "
@@ -402,7 +402,7 @@ def jitter_margin(topology: Topology, P: float, D: float, tau1: ArrayLike, tau2:
     method
         "small-gain" (default): the margin for every link's delays varying on
         their own (module docstring). "per-mode": the Lyapunov-Krasovskii
-        margin per mode of eq. factorized
+        margin per mode of the paper's eq. 3
         (:func:`~delayform.analysis.certificates.team.team_delay_margin`), which
         covers only the same h1(t), h2(t) on every link (scalar nominal delays
         only). "best": both, ``delta`` the larger and ``method`` / ``covers``
@@ -436,7 +436,7 @@ def jitter_margin(topology: Topology, P: float, D: float, tau1: ArrayLike, tau2:
     team = link_team(topology, P, D, tau1, tau2)
     nominal = None
     if scalar and float(tau1) > 0.0:  # type: ignore[arg-type]
-        # one delay pair for every link: the nominal team factorizes (eq. factorized), and its
+        # one delay pair for every link: the nominal team factorizes (paper, eq. 3), and its
         # dominant root comes from the factors at once (long delays and large gains included)
         # instead of the per-link matrix discretization; tau1 = 0 (the drift) stays per link
         from delayform.analysis.roots.dominant import dominant_root  # roots imports network: not at the top

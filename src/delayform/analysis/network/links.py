@@ -2,8 +2,8 @@
 
 With a delay per link, agent i hears informer k's position ``tau1[i, k]`` and
 velocity ``tau2[i, k]`` old (the convention of
-:mod:`delayform.simulation.network`: entry ``[i, k]`` is what i receives from k).
-Eq. protocol then reads
+:mod:`delayform.model.network`: entry ``[i, k]`` is what i receives from k).
+The paper's eq. 1 then reads
 
     x_i'' = -P x_i - D x_i' + sum_k C_ik (P x_k(t - tau1_ik) + D x_k'(t - tau2_ik)),
 
@@ -13,9 +13,9 @@ and the characteristic function is det M(s) with the N x N matrix
     K_ik(s) = C_ik (P e^{-tau1_ik s} + D s e^{-tau2_ik s}).
 
 With equal delays K(s) = C (P e^{-tau1 s} + D s e^{-tau2 s}) and det M(s) is the
-product of eq. factorized; with per-link delays it no longer factorizes. Because
+product of the paper's eq. 3; with per-link delays it no longer factorizes. Because
 the rows of C sum to one, M(0) = P (I - C) is singular for *every* assignment of
-delays: the centroid's persistent root s = 0 of eq. factor1 survives.
+delays: the centroid's persistent root s = 0 of the paper's eq. 4 survives.
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ __all__ = ["LinkTeam", "link_team", "uniform_link_delays"]
 
 @dataclass(frozen=True, eq=False)
 class LinkTeam:
-    """A team with one constant delay per link and stream (the data of eq. protocol per link).
+    """A team with one constant delay per link and stream (the data of the paper's eq. 1 per link).
 
     Attributes
     ----------
@@ -107,7 +107,7 @@ class LinkTeam:
         With right null vector 1 and left null vector w of M(0) = P (I - C),
         d det M / ds (0) is proportional to w^T M'(0) 1 = P sum_i w_i sum_k C_ik tau1_ik:
         the zero is simple unless every position delay into an agent the centroid
-        weighs is zero (the drift of eq. factor1 on tau1 = 0).
+        weighs is zero (the drift of the paper's eq. 4 on tau1 = 0).
         """
         w = self.left_null_vector()
         weighted = float(np.sum(w[self.rows] * self.weights * self.tau1))
@@ -152,7 +152,7 @@ def link_team(topology: Topology, P: float, D: float, tau1: ArrayLike, tau2: Arr
     topology
         Communication topology with a spanning tree.
     P, D
-        Positive gains of eq. protocol.
+        Positive gains of the paper's eq. 1.
     tau1, tau2
         A delay for every link, or N x N arrays (entry ``[i, k]``: what i receives
         from k); entries where there is no link are ignored.

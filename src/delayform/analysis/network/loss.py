@@ -1,12 +1,12 @@
 """Packet loss, exactly in the mean square.
 
-Model (the simulator's, :mod:`delayform.simulation.network`, with ``Sampling`` and
+Model (the simulator's, :mod:`delayform.model.network`, with ``Sampling`` and
 ``BernoulliLoss``): every agent samples its position and velocity every h = 1/rate
 seconds; the packet of stream (i, k) sent at m h arrives m_ik h later (the delays are
 whole multiples of h) unless it is lost, independently with probability p_ik per
 packet and stream; agent i holds the newest value received (hold-last-value, before
 the first packet the informer's initial state). Between arrivals the held values are
-constant and agent i's own state enters eq. protocol exactly, so over one period
+constant and agent i's own state enters the paper's eq. 1 exactly, so over one period
 
     z_i[m+1] = Phi z_i[m] + Gamma (P sum_k C_ik xhat_ik[m] + D sum_k C_ik vhat_ik[m]),
     Phi = e^{A0 h},  Gamma = int_0^h e^{A0 t} dt (0, 1)^T,  A0 = [[0, 1], [-P, -D]],

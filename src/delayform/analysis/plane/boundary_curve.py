@@ -1,6 +1,6 @@
 """The boundary curve of the eigenvalue plane, ``L(j omega) = a(j omega) / b(j omega)``.
 
-Every factor of eq. factorized is ``q(s, lam) = a(s) - lam b(s)`` with
+Every factor of the paper's eq. 3 is ``q(s, lam) = a(s) - lam b(s)`` with
 ``a(s) = s^2 + D s + P`` and ``b(s) = D s e^{-tau2 s} + P e^{-tau1 s}``; q has the
 root ``j omega`` exactly when ``lam = L(j omega)``. Shared by the region
 (:mod:`delayform.analysis.plane.region`), the certificates
@@ -22,7 +22,7 @@ def ab_terms(P: float, D: float, tau1: ArrayLike, tau2: ArrayLike, w: ArrayLike)
     Parameters
     ----------
     P, D
-        Gains of eq. protocol.
+        Gains of the paper's eq. 1.
     tau1, tau2
         Delays (s), scalars or arrays.
     w
@@ -50,7 +50,7 @@ def omega_limit(P: float, D: float, radius: float) -> float:
     Parameters
     ----------
     P, D
-        Gains of eq. protocol.
+        Gains of the paper's eq. 1.
     radius
         The largest |lam| of interest.
     """

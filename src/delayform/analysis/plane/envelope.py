@@ -11,7 +11,7 @@ the family there).
 For fixed (omega, lam) the first equation is the triangle
 ``a(j omega) = lam (P z1 + j D omega z2)`` with sides ``P`` and ``D omega``: the phases
 ``omega tau_k mod 2 pi`` in closed form (two mirror branches), the delays on the
-lattice ``tau_k = (theta_k + 2 pi n_k) / omega`` (eq. nltrans). The second is then a
+lattice ``tau_k = (theta_k + 2 pi n_k) / omega`` (paper, eq. 6). The second is then a
 scalar function of (omega, t): every vertex drawn is its zero on an edge of a
 grid of the (omega, t) plane, found by Brent's method on the closed form; the
 grid only decides which vertices are joined (marching squares), so a piece
@@ -40,7 +40,7 @@ def triangle_phases(P: float, D: float, w: NDArray, x: NDArray, branch: float) -
     Parameters
     ----------
     P, D
-        Gains of eq. protocol.
+        Gains of the paper's eq. 1.
     w
         Frequencies omega > 0.
     x
@@ -77,7 +77,7 @@ def tangency(P: float, D: float, w: NDArray, lam: NDArray, dlam: NDArray, t1: ND
     Parameters
     ----------
     P, D
-        Gains of eq. protocol.
+        Gains of the paper's eq. 1.
     w
         Frequencies omega.
     lam
@@ -108,7 +108,7 @@ def envelope_of_family(
     Parameters
     ----------
     P, D
-        Gains of eq. protocol.
+        Gains of the paper's eq. 1.
     lam_of, dlam_of
         Vectorized ``t -> lam(t)`` and ``t -> d lam / d t`` of the family.
     t_lo, t_hi

@@ -1,6 +1,6 @@
 """The eigenvalue plane: which eigenvalues of C are stable at fixed gains and delays.
 
-Every factor of eq. factorized is the same quasi-polynomial in s with the
+Every factor of the paper's eq. 3 is the same quasi-polynomial in s with the
 eigenvalue lam of C as a parameter (a conjugate pair gives the product of the
 factors of lam and conj(lam), so the complex second-order form is used):
 
@@ -39,7 +39,7 @@ exact except for lam within the curve's sampling deviation of the boundary
 The centroid eigenvalue
 -----------------------
 ``L(0) = 1``: lam = 1 is always on the boundary, with the root s = 0 of
-eq. factor1. As elsewhere in the package that root is not counted: NU(1) is
+the paper's eq. 4. As elsewhere in the package that root is not counted: NU(1) is
 the count of the other roots, which equals ``NU(1 - eps)`` (for tau1 > 0 the
 small root is ``s ~ (lam - 1) / tau1``). Eigenvalues within
 :data:`CENTROID_TOL` of 1 are taken as the centroid eigenvalue. For real
@@ -48,7 +48,7 @@ omega = 0 adds 1.
 
 References
 ----------
-Cepeda-Gomez and Perico, Lemma 1 (eq. factorized), eq. factor1, Lemma 2.
+Cepeda-Gomez and Perico, Lemma 1 (paper, eq. 3), the paper's eq. 4, Lemma 2.
 """
 
 from __future__ import annotations
@@ -74,7 +74,7 @@ __all__ = [
     "lambda_region",
 ]
 
-#: Eigenvalues closer than this to 1 are the centroid eigenvalue (eq. factor1).
+#: Eigenvalues closer than this to 1 are the centroid eigenvalue (paper, eq. 4).
 CENTROID_TOL = 1e-9
 #: Largest |lam| accepted (eigenvalues of C lie in the unit disc; the curve's samples grow like |lam| tau).
 MAX_MODULUS = 1e4
@@ -233,14 +233,14 @@ class LambdaRegion(FigureRepr):
 
     An eigenvalue lam of C is stable when every root of
     ``q(s, lam) = s^2 + D s + P - lam (D s e^{-tau2 s} + P e^{-tau1 s})``
-    (eq. factorized) has Re s < 0; a team is stable at these delays exactly
+    (paper, eq. 3) has Re s < 0; a team is stable at these delays exactly
     when every eigenvalue of its C lies in the region, the centroid's root
     s = 0 aside (Lemma 2). See the module docstring for the method.
 
     Attributes
     ----------
     P, D
-        Gains of eq. protocol.
+        Gains of the paper's eq. 1.
     tau1, tau2
         Delays (s) on positions and on velocities.
     """
@@ -386,12 +386,12 @@ class LambdaRegion(FigureRepr):
 
 @validated()
 def lambda_region(P: float, D: float, tau1: float, tau2: float) -> LambdaRegion:
-    """The stable region of the eigenvalue plane of eq. factorized at fixed gains and delays.
+    """The stable region of the eigenvalue plane of the paper's eq. 3 at fixed gains and delays.
 
     Parameters
     ----------
     P, D
-        Positive gains of eq. protocol.
+        Positive gains of the paper's eq. 1.
     tau1, tau2
         Non-negative delays (s) on positions and on velocities.
 
@@ -404,7 +404,7 @@ def lambda_region(P: float, D: float, tau1: float, tau2: float) -> LambdaRegion:
     Examples
     --------
     >>> from delayform.topology import paper_six
-    >>> region = lambda_region(1.0, 0.5, 1.0, 2.0)  # point c of Fig. stability
+    >>> region = lambda_region(1.0, 0.5, 1.0, 2.0)  # point c of the paper's Fig. 3
     >>> region.team_is_stable(paper_six())
     False
     >>> bool(region.is_stable(0.0)), int(region.unstable_count(1.5))

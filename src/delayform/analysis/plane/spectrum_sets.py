@@ -53,7 +53,7 @@ undecided points are reported as not safe, so "safe" is always certified;
 
 References
 ----------
-Cepeda-Gomez and Perico, Lemma 1 (eq. factorized), eq. factor1, Lemma 2;
+Cepeda-Gomez and Perico, Lemma 1 (paper, eq. 3), the paper's eq. 4, Lemma 2;
 Section "Stability Analysis Using CTCR".
 """
 
@@ -398,7 +398,7 @@ class SafeDelayMap(FigureRepr):
     Attributes
     ----------
     P, D
-        Gains of eq. protocol.
+        Gains of the paper's eq. 1.
     tau1_max, tau2_max
         The window [0, tau1_max] x [0, tau2_max].
     spectrum
@@ -579,7 +579,7 @@ def safe_delays(
     Parameters
     ----------
     P, D
-        Positive gains of eq. protocol.
+        Positive gains of the paper's eq. 1.
     tau1_max, tau2_max
         The window [0, tau1_max] x [0, tau2_max].
     spectrum

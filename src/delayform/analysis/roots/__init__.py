@@ -5,7 +5,7 @@
 ``argument_principle``  certified counts right of a line or inside a rectangle
 ``rightmost``           the certified rightmost root of one problem
 ``single``              public roots of one quasi-polynomial: ``roots_in``, ``rightmost_root``, ...
-``family/``             every factor of eq. factorized at many delay pairs at once, vectorized
+``family/``             every factor of the paper's eq. 3 at many delay pairs at once, vectorized
 ``dominant``            the formation's dominant root, dominant-root maps
 ``team_roots``          every root of every factor in a rectangle, for a whole team
 ``warm``                uncertified, warm-started rightmost real parts that steer local searches

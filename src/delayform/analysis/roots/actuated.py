@@ -1,8 +1,8 @@
-"""Characteristic roots with an actuation delay: the factors of eq. factorized in three delays.
+"""Characteristic roots with an actuation delay: the factors of the paper's eq. 3 in three delays.
 
 A robot that applies its command ``tau_a`` late, ``x_i'' = u_i(t - tau_a)``
-with u of eq. protocol, reads its *own* state late too. Every factor of
-eq. factorized becomes (docs/theory.md, "Actuation delay")::
+with u of the paper's eq. 1, reads its *own* state late too. Every factor of
+the paper's eq. 3 becomes (docs/theory.md, "Actuation delay")::
 
     q(s) = s^2 + (D s + P) e^{-tau_a s} - lam (D s e^{-(tau2 + tau_a) s} + P e^{-(tau1 + tau_a) s})
 
@@ -12,7 +12,7 @@ and certified by the general machinery of
 Newton on q itself, argument-principle certificate). A conjugate pair of
 eigenvalues is solved through lam alone: the roots of the conj(lam) factor
 are the conjugates. The centroid factor (lam = 1) keeps its persistent root
-s = 0 (q(0) = P - P = 0 for every delay), deflated as in eq. factor1; on
+s = 0 (q(0) = P - P = 0 for every delay), deflated as in the paper's eq. 4; on
 tau1 = 0 it is ``s (s + D e^{-tau_a s} (1 - e^{-tau2 s}))``, the drift's
 double zero, as without the actuation delay.
 """
@@ -36,14 +36,14 @@ __all__ = ["actuated_factor"]
 
 @validated()
 def actuated_factor(P: float, D: float, lam: complex) -> QuasiPolynomial:
-    """The factor of eq. factorized for eigenvalue lam with an actuation delay, in delays (tau1, tau2, tau_a).
+    """The factor of the paper's eq. 3 for eigenvalue lam with an actuation delay, in delays (tau1, tau2, tau_a).
 
     Parameters
     ----------
     P, D
-        Gains of eq. protocol.
+        Gains of the paper's eq. 1.
     lam
-        An eigenvalue of C (eq. factorized); complex for a conjugate pair.
+        An eigenvalue of C (paper, eq. 3); complex for a conjugate pair.
 
     Returns
     -------

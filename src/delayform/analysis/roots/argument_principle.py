@@ -372,8 +372,8 @@ def _choose_line(reals: Sequence[float], top: float, offset: float = _LINE_OFFSE
     side, so the line is never closer than 5e-4 to a known root; it is at
     most :data:`_LINE_OFFSET` left of them, because e^{-h c} grows quickly as
     c moves left and with it the Cauchy radius and the Lipschitz bounds. ``top`` is
-    the real part of the rightmost root wanted (the deflated zero of eq.
-    factor1 may lie right of it and is then simply counted). Plain Python: it
+    the real part of the rightmost root wanted (the deflated zero of the paper's
+    eq. 4 may lie right of it and is then simply counted). Plain Python: it
     runs on a handful of numbers per factor, where NumPy's per-call cost dominates.
     ``offset`` replaces :data:`_LINE_OFFSET` (the robust path's long delays:
     e^{-h c} must stay moderate, so the line keeps within about 1/h of the roots).
@@ -405,7 +405,7 @@ def _batch_lines(
     """Vectorized :func:`_choose_line`: the line c, the expected count and the rightmost real part.
 
     ``deflate_zero`` (one flag, one per row, or a problem whose flag is read)
-    adds the persistent root 0 of eq. factor1 to the known roots of a row.
+    adds the persistent root 0 of the paper's eq. 4 to the known roots of a row.
     """
     if isinstance(deflate_zero, _Problem):
         deflate_zero = deflate_zero.deflate_zero

@@ -1,11 +1,11 @@
 """Characteristic roots, dominant roots, dominant-root maps and delay scheduling.
 
-The paper closes (Section "Simulation", Figs. dominant and contour) with
+The paper closes (Section "Simulation", Figs. 8 and 9) with
 *delay scheduling*: inside the stable region of the CTCR chart, pick the
 delays whose dominant (rightmost) characteristic root lies furthest left,
 because that root sets how fast the team settles into formation. This module
-computes those roots for any retarded quasi-polynomial of eq. genfactor and
-for the factors of eq. factorized.
+computes those roots for any retarded quasi-polynomial of the paper's eq. 5 and
+for the factors of the paper's eq. 3.
 
 Method
 ------
@@ -21,8 +21,8 @@ certified number of roots of every factor right of a line placed left of them
 equals the number of polished roots found there: no root to their right is missed.
 
 Conventions: coefficients in increasing powers of s; delays in seconds,
-``tau1`` on positions and ``tau2`` on velocities (eq. protocol); the
-centroid factor's persistent root s = 0 (eq. factor1) is deflated with
+``tau1`` on positions and ``tau2`` on velocities (paper, eq. 1); the
+centroid factor's persistent root s = 0 (paper, eq. 4) is deflated with
 Maehly's correction and excluded from dominant roots (its other roots count).
 """
 
@@ -98,9 +98,9 @@ class DominantRoot:
     """The dominant (rightmost) characteristic root of the formation at one delay pair.
 
     One meaning of *stable* throughout delayform (docs/theory.md): the team
-    is stable when every root of every factor of eq. factorized has
+    is stable when every root of every factor of the paper's eq. 3 has
     Re s < 0, except the centroid factor's roots at s = 0. The persistent
-    root 0 of eq. factor1 is the team's freedom to sit anywhere and is never
+    root 0 of the paper's eq. 4 is the team's freedom to sit anywhere and is never
     reported; on the line tau1 = 0 the centroid factor has a second root at
     0, a centroid that drifts at constant speed. That root *is* reported
     (it is the limit of the centroid's slow root -P tau1 / (1 + D tau2) as
@@ -212,7 +212,7 @@ def _decay_time(root: complex) -> float:
 
 
 def checked_factors(topology: Topology, P: float, D: float) -> tuple[CharacteristicFactor, ...]:
-    """The factors of eq. factorized of a team, its topology and gains checked first.
+    """The factors of the paper's eq. 3 of a team, its topology and gains checked first.
 
     The same tuple for repeated calls on one (frozen) topology and gains.
 
@@ -245,7 +245,7 @@ def dominant_root(team: Team, delays: Delays) -> DominantRoot | delegated.PerLin
     """The dominant root of the formation and its time constant.
 
     Which computation answers is said by :attr:`Delays.kind`: uniform delays
-    go through the factors of eq. factorized; per-link delays
+    go through the factors of the paper's eq. 3; per-link delays
     (``tau1[i, k]``: what agent i hears from k) give the certified dominant
     root of det of the N x N matrix quasi-polynomial, a
     :class:`~delayform.analysis.network.LinkDominantRoot`
@@ -254,7 +254,7 @@ def dominant_root(team: Team, delays: Delays) -> DominantRoot | delegated.PerLin
     Parameters
     ----------
     team
-        Topology (with a spanning tree, Lemma 3) and the positive gains of eq. protocol.
+        Topology (with a spanning tree, Lemma 3) and the positive gains of the paper's eq. 1.
     delays
         tau1, tau2 on positions and velocities, uniform or per link (entries
         without a link ignored), and the actuation delay tau_a >= 0 (s): each
@@ -268,8 +268,8 @@ def dominant_root(team: Team, delays: Delays) -> DominantRoot | delegated.PerLin
     Returns
     -------
     DominantRoot or LinkDominantRoot
-        The rightmost root over the factors of eq. factorized, excluding the
-        persistent root 0 of eq. factor1 (its other roots count).
+        The rightmost root over the factors of the paper's eq. 3, excluding the
+        persistent root 0 of the paper's eq. 4 (its other roots count).
 
     Notes
     -----
@@ -280,7 +280,7 @@ def dominant_root(team: Team, delays: Delays) -> DominantRoot | delegated.PerLin
     --------
     >>> from delayform.model import Delays, Team
     >>> from delayform.topology import paper_six
-    >>> r = dominant_root(Team(paper_six(), 1.0, 0.5), Delays(1.0, 2.0))  # point c of Fig. stability
+    >>> r = dominant_root(Team(paper_six(), 1.0, 0.5), Delays(1.0, 2.0))  # point c of the paper's Fig. 3
     >>> r.is_stable, round(r.root.real, 4)
     (False, 0.0836)
     """
@@ -332,7 +332,7 @@ def _actuated_dominant(fs: tuple[CharacteristicFactor, ...], t1: float, t2: floa
 @validated()
 @dataclass(frozen=True, eq=False)
 class DominantRootMap:
-    """Dominant roots over a grid of delays (paper Figs. dominant and contour).
+    """Dominant roots over a grid of delays (paper, Figs. 8 and 9).
 
     Attributes
     ----------
@@ -343,7 +343,7 @@ class DominantRootMap:
     factor_index
         Index into ``factors`` of the factor the dominant root belongs to.
     factors
-        The factors of eq. factorized.
+        The factors of the paper's eq. 3.
     formation_real
         Re of the rightmost root of the disagreement factors (the shape), or
         None; decides stability where the dominant root is the centroid's drift.
@@ -361,7 +361,7 @@ class DominantRootMap:
 
     @property
     def real(self) -> NDArray[np.float64]:
-        """Re(dominant root) at each grid point, the surface of Fig. dominant."""
+        """Re(dominant root) at each grid point, the surface of the paper's Fig. 8."""
         return self.roots.real
 
     @property
@@ -390,13 +390,13 @@ class DominantRootMap:
         return float(self.tau1_values[i]), float(self.tau2_values[j]), complex(self.roots[i, j])
 
     def plot_surface(self, ax: Axes | None = None) -> Axes:
-        """Surface of Re(dominant root) with the plane Re s = 0 (paper Fig. dominant)."""
+        """Surface of Re(dominant root) with the plane Re s = 0 (paper, Fig. 8)."""
         from delayform.plots import plot_dominant_surface
 
         return plot_dominant_surface(self, ax=ax)
 
     def plot_contour(self, ax: Axes | None = None) -> Axes:
-        """Contour map of Re(dominant root) (paper Fig. contour)."""
+        """Contour map of Re(dominant root) (paper, Fig. 9)."""
         from delayform.plots import plot_dominant_contour
 
         return plot_dominant_contour(self, ax=ax)
@@ -425,7 +425,7 @@ def dominant_root_map(
     progress: bool | Callable[[int, int], None] = False,
     actuation_delay: float = 0.0,
 ) -> DominantRootMap:
-    """Dominant root at every point of a delay grid (paper Figs. dominant and contour).
+    """Dominant root at every point of a delay grid (paper, Figs. 8 and 9).
 
     Fast by design: all factors (a conjugate pair through its second-order
     factor of lam) and all grid points are one vectorized family

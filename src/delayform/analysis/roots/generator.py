@@ -2,7 +2,7 @@
 
 Breda, Maset and Vermiglio (SIAM J. Sci. Comput. 27, 2005): the eigenvalues
 of the discretized generator of ``dx/dt = A x + sum_k B_k x(t - h_k)``
-approximate the characteristic roots (eq. genfactor); stacked over delay
+approximate the characteristic roots (paper, eq. 5); stacked over delay
 pairs of equal degree, one np.linalg.eigvals call per bucket.
 """
 
@@ -254,7 +254,7 @@ def _igd_seeds(
 
     One stacked np.linalg.eigvals call per bucket of equal degree; pairs
     with no delay get the eigenvalues of A + sum B_k. The persistent zero of
-    eq. factor1, which the discretization keeps exactly, is dropped.
+    the paper's eq. 4, which the discretization keeps exactly, is dropped.
     """
     out = np.full((t1.size, k), np.nan + 0j, dtype=np.complex128)
     hmax = np.maximum.reduce([a * t1 + b * t2 for _, a, b in prob.delayed] + [np.zeros(t1.size)])

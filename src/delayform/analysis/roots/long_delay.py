@@ -12,7 +12,7 @@ directly on their chains.
 Method
 ------
 With the terms grouped by delay, ``q(s) = sum_j p_j(s) e^{-h_j s}`` with
-``h_0 = 0`` (the principal term; eq. genfactor at fixed delays, or a
+``h_0 = 0`` (the principal term; the paper's eq. 5 at fixed delays, or a
 :class:`~delayform.quasipolynomial.QuasiPolynomial`). Where two terms
 i < j dominate, the roots satisfy ``e^{-(h_j - h_i) s} = -p_i(s) / p_j(s)``
 (the classical root chains, Bellman and Cooke, *Differential-Difference
@@ -73,7 +73,7 @@ Groups = tuple[tuple[float, NDArray[np.complex128]], ...]
 def delay_groups(prob: _Problem, t1: float, t2: float) -> Groups:
     """The terms of q at (t1, t2) summed per delay: ``((h_0 = 0, p_0), (h_1, p_1), ...)``, h ascending.
 
-    Terms with equal delays (tau1 = tau2 in eq. genfactor, commensurate
+    Terms with equal delays (tau1 = tau2 in the paper's eq. 5, commensurate
     delays) are one group, as they are one term of q at these delays.
     """
     merged: dict[float, NDArray[np.complex128]] = {}
@@ -192,7 +192,7 @@ def long_delay_roots(
     """The roots right of a certified line Re s = c by the chain seeds (module docstring), or None.
 
     Returns ``(roots, mult, c)``: every root of q (no mirror images; the
-    persistent zero of eq. factor1 deflated) right of c, with
+    persistent zero of the paper's eq. 4 deflated) right of c, with
     multiplicities. None when the count does not confirm them, or when the
     chains would need more than :data:`_MAX_SEEDS` seeds; the caller then
     falls back on the discretization (with its own budget).
@@ -237,7 +237,7 @@ def _certified(
     """``roots`` right of a line in the window, with multiplicities, when the count there confirms them."""
     near = roots[roots.real >= top - 2.0 * window]
     mult = _multiplicity(prob, near, t1, t2)
-    reals, m = _known_reals(prob, near, mult)  # with the persistent zero of eq. factor1 when deflated
+    reals, m = _known_reals(prob, near, mult)  # with the persistent zero of the paper's eq. 4 when deflated
     c = certifying_line(reals, top, window)
     expected = int(m[reals > c].sum())
     if _count_right_single(prob, t1, t2, c) != expected:

@@ -1,9 +1,9 @@
 """The problem solved for roots: a quasi-polynomial, its DDE realization, evaluation and Newton polishing.
 
 The root finders' own (method in the module docstring of
-:mod:`delayform.analysis.roots.dominant`): eq. genfactor terms, q and dq/ds
+:mod:`delayform.analysis.roots.dominant`): the paper's eq. 5 terms, q and dq/ds
 evaluated with broadcasting, Newton's method on q itself (Maehly's deflation
-of the persistent root 0 of eq. factor1) and the multiplicity of polished
+of the persistent root 0 of the paper's eq. 4) and the multiplicity of polished
 roots. :data:`Terms`, :data:`Region` and :func:`evaluate` are public: the
 neutral solver and the CTCR count at degenerate crossings evaluate
 quasi-polynomials with them.
@@ -50,12 +50,12 @@ Terms = tuple[tuple[NDArray[np.complex128], int, int], ...]
 class _Problem:
     """What the solvers work on.
 
-    ``terms`` is the quasi-polynomial polished and counted (eq. genfactor
+    ``terms`` is the quasi-polynomial polished and counted (paper, eq. 5
     terms as (coefficients, multiple of tau1, multiple of tau2)); ``A`` and
     ``delayed`` a DDE realization whose characteristic function is q up to a
     constant; ``mirror`` adds complex conjugates of the roots (a conjugate
     pair factor solved through its complex second-order factor of lam);
-    ``deflate_zero`` removes the persistent root s = 0 of eq. factor1.
+    ``deflate_zero`` removes the persistent root s = 0 of the paper's eq. 4.
     """
 
     terms: Terms
@@ -81,7 +81,7 @@ class _Problem:
 
 
 def _problem_of_qp(qp: TwoDelayQuasiPolynomial) -> _Problem:
-    """Companion-form DDE of a retarded quasi-polynomial (eq. genfactor), balanced (:func:`_companion`)."""
+    """Companion-form DDE of a retarded quasi-polynomial (paper, eq. 5), balanced (:func:`_companion`)."""
     qp.require_retarded()
     terms = qp.terms()
     A, delayed = _companion(terms)
@@ -173,7 +173,7 @@ def _companion(terms: Terms) -> tuple[NDArray[np.complex128], tuple[tuple[NDArra
 
 
 def _problem_of_factor(factor: CharacteristicFactor) -> _Problem:
-    """Subsystem of a factor (eq. subsystems); a pair is solved via lam alone.
+    """Subsystem of a factor (paper, eq. 8); a pair is solved via lam alone.
 
     The fourth-order factor of (lam, conj lam) is q_lam(s) q_conj(lam)(s) with
     q_lam = s^2 + D s + P - lam (D s e^{-tau2 s} + P e^{-tau1 s}), and the roots
@@ -321,15 +321,15 @@ def _polish(
 def _deflated_zero(
     prob: _Problem, s: NDArray[np.complex128], t1: NDArray[np.float64], t2: NDArray[np.float64]
 ) -> tuple[NDArray[np.complex128], NDArray[np.bool_]]:
-    """Settle seeds that reached s ~ 0 after deflating the persistent root of eq. factor1.
+    """Settle seeds that reached s ~ 0 after deflating the persistent root of the paper's eq. 4.
 
     Near 0, Newton on q(s)/s cannot resolve a root better than about
     sqrt(eps) (q's terms cancel), so a seed that ended there is replaced by
     the root of the Taylor model of q(s)/s at 0,
     ``d1 + d2 s / 2 + d3 s^2 / 6`` (dk the k-th derivative of q at 0):
     exactly 0 when 0 is a double root (d1 = 0, e.g. tau1 = 0 for
-    eq. factor1), and otherwise the small genuine root a tiny delay puts next
-    to 0 (about -P tau1 / (1 + D tau2) for eq. factor1), accurate to O(s^3).
+    the paper's eq. 4), and otherwise the small genuine root a tiny delay puts next
+    to 0 (about -P tau1 / (1 + D tau2) for the paper's eq. 4), accurate to O(s^3).
     A seed near 0 when that root is not (a spurious seed) is rejected.
     """
     near = np.abs(s) < 1e-6

@@ -46,7 +46,7 @@ class _SolveResult:
     """Roots right of the certified line Re s = ``line`` at discretization ``degree``.
 
     ``roots`` are roots of the solved q (no mirror images; the persistent zero
-    of eq. factor1 deflated), ``mult`` their multiplicities; ``degree`` is 0
+    of the paper's eq. 4 deflated), ``mult`` their multiplicities; ``degree`` is 0
     when the roots come from the long-delay chains
     (:mod:`~delayform.analysis.roots.long_delay`).
     """

@@ -1,7 +1,7 @@
 """Characteristic roots of one quasi-polynomial or factor: in a rectangle, right of a line, the rightmost.
 
-These are the roots for any retarded quasi-polynomial of eq. genfactor and for
-the factors of eq. factorized; :mod:`delayform.analysis.roots.dominant` builds the
+These are the roots for any retarded quasi-polynomial of the paper's eq. 5 and for
+the factors of the paper's eq. 3; :mod:`delayform.analysis.roots.dominant` builds the
 formation's dominant root and the dominant-root maps on them.
 
 Method
@@ -11,12 +11,12 @@ Method
    collocation on ``[-h_max, 0]`` (Breda, Maset and Vermiglio, "Pseudospectral
    differencing methods for characteristic roots of delay differential
    equations", SIAM J. Sci. Comput. 27, 2005). Its eigenvalues approximate
-   the characteristic roots. A factor of eq. factorized is realized by its own
-   subsystem eq. subsystems (eq. matrices2; a conjugate pair, eq. matrices4,
+   the characteristic roots. A factor of the paper's eq. 3 is realized by its own
+   subsystem (paper, eq. 8) (paper, eq. 9; a conjugate pair, the paper's eq. 10,
    splits into the complex second-order factor of ``lam`` and its mirror image,
    which halves the work); a general retarded quasi-polynomial of degree N is
    realized in companion form with the delays tau1, tau2, 2 tau1, 2 tau2 and
-   tau1 + tau2 of eq. genfactor.
+   tau1 + tau2 of the paper's eq. 5.
 2. **Newton polishing** on the quasi-polynomial itself. A root is accepted
    when its *relative residual*
    ``|q(s)| / sum_k sum_i |g_k,i| |s|^i |e^{-h_k s}|`` (the modulus of q over
@@ -48,8 +48,8 @@ the number of polished roots found there, for a line ``c`` placed in a gap
 left of the returned root: no root to its right is missed.
 
 Conventions: coefficients in increasing powers of s; delays in seconds,
-``tau1`` on positions and ``tau2`` on velocities (eq. protocol); the
-centroid factor's persistent root s = 0 (eq. factor1) is deflated with
+``tau1`` on positions and ``tau2`` on velocities (paper, eq. 1); the
+centroid factor's persistent root s = 0 (paper, eq. 4) is deflated with
 Maehly's correction and excluded from dominant roots (its other roots count).
 """
 
@@ -115,13 +115,13 @@ def relative_residual(
     ----------
     qp
         A :class:`~delayform.quasipolynomial.QuasiPolynomial` or a
-        quasi-polynomial of eq. genfactor.
+        quasi-polynomial of the paper's eq. 5.
     s
         Complex point(s) at which q is evaluated.
     *delays
         The delays ``tau1, ..., taum`` (``tau1, tau2`` on positions and on
-        velocities for eq. genfactor); broadcast with ``s``. Not validated
-        for eq. genfactor.
+        velocities for the paper's eq. 5); broadcast with ``s``. Not validated
+        for the paper's eq. 5.
 
     Returns
     -------
@@ -174,7 +174,7 @@ def require_reach(factor: CharacteristicFactor, tau1: float, tau2: float) -> Non
     Parameters
     ----------
     factor
-        A factor of eq. factorized at its gains.
+        A factor of the paper's eq. 3 at its gains.
     tau1, tau2
         The largest delays the computation will meet.
 
@@ -259,7 +259,7 @@ def delay_reach(fs: tuple[CharacteristicFactor, ...]) -> float:
     Parameters
     ----------
     fs
-        The factors of eq. factorized of a team at its gains.
+        The factors of the paper's eq. 3 of a team at its gains.
 
     Raises
     ------
@@ -311,8 +311,8 @@ def roots_in(
     ----------
     qp
         A :class:`~delayform.quasipolynomial.QuasiPolynomial`, a
-        quasi-polynomial of eq. genfactor, or a factor of eq. factorized
-        (for the centroid factor eq. factor1 the persistent root 0 is
+        quasi-polynomial of the paper's eq. 5, or a factor of the paper's eq. 3
+        (for the centroid factor (paper, eq. 4) the persistent root 0 is
         *included*: this is the plain root set of q). A neutral one is
         solved by :func:`delayform.analysis.neutral.neutral_roots_in`.
     *delays_and_region
@@ -409,7 +409,7 @@ def roots_in(
 def _roots_beside_zero(
     prob: _Problem, base: _Problem, eig: NDArray[np.complex128], t1: float, t2: float
 ) -> tuple[NDArray[np.complex128], NDArray[np.int64]]:
-    """Roots and multiplicities of the centroid factor (eq. factor1), its root 0 included.
+    """Roots and multiplicities of the centroid factor (paper, eq. 4), its root 0 included.
 
     Polished with the persistent zero deflated, so a tiny delay's genuine
     root next to 0 (about -P tau1 / (1 + D tau2)) is resolved
@@ -448,9 +448,9 @@ def count_roots_right_of(
     ----------
     qp
         A retarded :class:`~delayform.quasipolynomial.QuasiPolynomial`, a
-        quasi-polynomial of eq. genfactor or a factor of eq. factorized (a
+        quasi-polynomial of the paper's eq. 5 or a factor of the paper's eq. 3 (a
         conjugate-pair factor counts the roots of lam and of conj(lam)). The
-        centroid factor's persistent root s = 0 (eq. factor1) is not
+        centroid factor's persistent root s = 0 (paper, eq. 4) is not
         deflated here: it counts when ``c < 0``.
     *delays_and_c
         The delays ``tau1, ..., taum`` (two, on positions and on velocities,
@@ -493,8 +493,8 @@ def rightmost_root(qp: QuasiPolynomial | TwoDelayQuasiPolynomial | Characteristi
     ----------
     qp
         A retarded :class:`~delayform.quasipolynomial.QuasiPolynomial`, a
-        quasi-polynomial of eq. genfactor or a factor of eq. factorized. For
-        the centroid factor (eq. factor1) the persistent root s = 0 is
+        quasi-polynomial of the paper's eq. 5 or a factor of the paper's eq. 3. For
+        the centroid factor (paper, eq. 4) the persistent root s = 0 is
         deflated; its other roots count (a second root at 0, as at
         tau1 = 0, is returned).
     *delays

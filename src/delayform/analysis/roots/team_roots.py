@@ -1,10 +1,10 @@
 """Every characteristic root of every factor in a rectangle, for a whole team at once.
 
 :func:`delayform.analysis.roots.dominant.roots_in` lists the roots of one factor of
-eq. factorized; a team of thousands of agents has thousands of factors, and a
+the paper's eq. 3; a team of thousands of agents has thousands of factors, and a
 loop over them pays a full-size discretization, a Python round trip per
 Newton step and a rectangle-wide clustering for each. Here the factors of
-eq. factorized are solved as one family (the structure of
+the paper's eq. 3 are solved as one family (the structure of
 :mod:`delayform.analysis.roots.family.solve`: every factor is
 ``s^2 + D s + P - lam (P e^{-tau1 s} + D s e^{-tau2 s})`` with its own lam):
 
@@ -16,7 +16,7 @@ eq. factorized are solved as one family (the structure of
 3. per factor, the roots found in the rectangle are checked against the
    count certified by the argument principle on its boundary, exactly as in
    :func:`roots_in`. A factor whose count is not met (or cannot be certified
-   at once, a root on the boundary), the centroid factor (eq. factor1, its
+   at once, a root on the boundary), the centroid factor (paper, eq. 4, its
    persistent zero) and factors without delay go through :func:`roots_in`
    itself, so the result is never less certain than the per-factor loop.
 
@@ -70,7 +70,7 @@ def factor_roots_in(
     topology
         Communication topology (C = Delta^-1 A); it must have a spanning tree.
     P, D
-        Positive gains of eq. protocol.
+        Positive gains of the paper's eq. 1.
     tau1, tau2
         Non-negative delays (s) on positions and on velocities.
     region

@@ -30,7 +30,7 @@ class WarmRightmost:
     Parameters
     ----------
     factors
-        The factors of eq. factorized (e.g. from
+        The factors of the paper's eq. 3 (e.g. from
         :func:`~delayform.analysis.roots.dominant.checked_factors`).
 
     Examples

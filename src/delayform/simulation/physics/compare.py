@@ -23,8 +23,8 @@ from numpy.typing import ArrayLike, NDArray
 from delayform._validation import check_delay, check_gains, validated
 from delayform.errors import SimulationInputError
 from delayform.model import Delays, Network, Robot, Start, Team
-from delayform.simulation.compat import SIMULATE_KEYWORDS, accepts_loose_calls
-from delayform.simulation.trajectory import Trajectory
+from delayform.simulation.runs.compat import SIMULATE_KEYWORDS, accepts_loose_calls
+from delayform.simulation.runs.trajectory import Trajectory
 from delayform.topology import Topology
 
 __all__ = ["KinematicComparison", "compare_with_kinematic", "kinematic_twin", "ActuationVerdict", "actuation_verdict"]
@@ -138,7 +138,7 @@ def compare_with_kinematic(
     Parameters
     ----------
     team, delays, formation
-        As for :func:`~delayform.simulation.simulate` (eq. protocol and eq. formation).
+        As for :func:`~delayform.simulation.simulate` (paper, eqs. 1 and 13).
     robot
         A ``Robot(model="physics", ...)``: limits and chassis; None: the
         Create's. The kinematic run uses the same limits and body radius.
@@ -165,7 +165,7 @@ def compare_with_kinematic(
     formation, robot=..., initial_positions=..., seed=..., duration=...,
     dt=...)`` is taken as :func:`~delayform.simulation.simulate` takes it.
     """
-    from delayform.simulation.runner import simulate
+    from delayform.simulation.runs.runner import simulate
 
     robot = Robot(model="physics") if robot is None else robot
     if not isinstance(robot, Robot) or robot.model != "physics":
@@ -266,7 +266,7 @@ def actuation_verdict(
     Parameters
     ----------
     topology, P, D
-        Team and gains of eq. protocol.
+        Team and gains of the paper's eq. 1.
     tau1_max, tau2_max
         The chart's window (s), positive.
     actuation_delay

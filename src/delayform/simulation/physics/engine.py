@@ -11,16 +11,16 @@ wheel commands held in between: zero-order hold) robot i
    sent ``tau2`` earlier, exactly as the kinematic models do (values between
    ticks are interpolated linearly in the recorded ticks; over a
    :class:`~delayform.model.Network` the send times of
-   :func:`~delayform.simulation.reception.reception`);
-3. computes eq. protocol plus the forcing of eq. formation, and turns it
-   into (dv/dt, omega) by the softened feedback linearization of eq.
-   transform2 with the robot's limits: the same functions as the saturated
+   :func:`~delayform.simulation.delayed.reception.reception`);
+3. computes the paper's eq. 1 plus the forcing of the paper's eq. 13, and turns it
+   into (dv/dt, omega) by the softened feedback linearization of the paper's
+   eq. 19 with the robot's limits: the same functions as the saturated
    kinematic unicycle (:meth:`LimitedUnicycle.command` and
    :meth:`LimitedUnicycle.apply`), evaluated on the measured pose and the
    speed set-point;
 4. integrates dv/dt over the period into its speed set-point (within the
    speed cap) and sends the wheel speeds of (set-point, omega)
-   (:func:`~delayform.simulation.robots.wheel_speeds`, clipped to
+   (:func:`~delayform.simulation.models.robots.wheel_speeds`, clipped to
    ``max_wheel_speed``) to the two wheel servos.
 
 The engine then steps the bodies (steps of at most :data:`~delayform.model.chassis.TIMESTEP`
@@ -30,7 +30,7 @@ when the friction cone is left, bodies that push each other.
 
 With a safety filter (``Robot(safety="barrier")``) step 3 first passes the
 Cartesian command through the control barrier functions of
-:mod:`delayform.simulation.safety`, evaluated on the measured positions and
+:mod:`delayform.simulation.bodies.safety`, evaluated on the measured positions and
 velocities (on-board sensing, no delay), as the kinematic models do. The
 filter's guarantee is for ``x'' = u``; the servos execute the command about
 ``tau_s`` (the identified lag, :mod:`~delayform.simulation.physics.identify`)
@@ -58,12 +58,12 @@ import scipy.sparse as sp
 from numpy.typing import NDArray
 
 from delayform._extras import require_extra
-from delayform.simulation.integrator import Progress, Samples
+from delayform.simulation.delayed.integrator import Progress, Samples
 from delayform.model import BarrierFilter, Network, RobotLimits
 from delayform.model.chassis import Chassis
 from delayform.simulation.physics.mjcf import QPOS_PER_ROBOT, QVEL_PER_ROBOT, team_mjcf
-from delayform.simulation.robots import LimitedUnicycle, wheel_speeds
-from delayform.simulation.safety import FilteredAgent
+from delayform.simulation.models.robots import LimitedUnicycle, wheel_speeds
+from delayform.simulation.bodies.safety import FilteredAgent
 from delayform.topology import Topology
 
 __all__ = ["integrate_physics", "tick_grid", "PhysicsTeam", "CommandQueue"]
@@ -212,7 +212,7 @@ class _Hearing:
 
     def __init__(self, topology: Topology, tau1: float, tau2: float, period: float, ticks: int,
                  network: Network | None) -> None:  # fmt: skip
-        from delayform.simulation.reception import reception
+        from delayform.simulation.delayed.reception import reception
 
         self.period = period
         C = topology.C_sparse.tocoo()
@@ -268,9 +268,9 @@ def integrate_physics(
     topology
         Who hears whom (C).
     F
-        ``(n, 2)`` forcing of eq. formation.
+        ``(n, 2)`` forcing of the paper's eq. 13.
     P, D, tau1, tau2
-        Gains and delays of eq. protocol.
+        Gains and delays of the paper's eq. 1.
     chassis, limits
         The robots' numbers.
     x0, th0, speed0
@@ -328,13 +328,13 @@ def integrate_physics(
             break
         pos_hist[k], vel_hist[k] = X, V
         cx, cv = hearing.heard(k, pos_hist, vel_hist)
-        u = P * (cx - X) + D * (cv - V) + F  # eq. protocol + forcing of eq. formation
+        u = P * (cx - X) + D * (cv - V) + F  # the paper's eq. 1 + forcing of the paper's eq. 13
         state = np.column_stack([X, theta, v_set])
         flags: tuple[_Array, ...] = ()
         if guard is not None:  # on the measured state, now (module doc)
             u, active, infeasible = guard.filter(X, V, u)
             flags = (active.astype(float), infeasible.astype(float))
-        _, cart, extra = uni.apply(state, uni.command(state, u))  # eq. transform2 under the limits
+        _, cart, extra = uni.apply(state, uni.command(state, u))  # the paper's eq. 19 under the limits
         extra = tuple(extra) + flags
         if k % save_every == 0 or k == ticks:
             times[saved] = k * period

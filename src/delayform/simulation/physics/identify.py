@@ -12,7 +12,7 @@ bandwidth is 1/T rad/s, the -3 dB frequency of the lag), dead time L.
 
 The bridge to the analysis
 --------------------------
-The analysis models a late actuator as ``x'' = u(t - tau_a)`` (eq. protocol
+The analysis models a late actuator as ``x'' = u(t - tau_a)`` (paper, eq. 1
 with an actuation delay, :func:`~delayform.analysis.roots.dominant.dominant_root`).
 The robot's speed follows its set-point through the dead time and the lag,
 ``e^{-s L} / (1 + s T)``, to first order in s ``e^{-s (L + T)}``, so the

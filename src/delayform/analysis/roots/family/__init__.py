@@ -1,4 +1,4 @@
-"""The factor family: certified rightmost roots of every factor of eq. factorized at many delay pairs.
+"""The factor family: certified rightmost roots of every factor of the paper's eq. 3 at many delay pairs.
 
 ``rows``    a factor at a delay pair as flat arrays
 ``seeds``   discretized-generator seeds in stacked eigenvalue calls

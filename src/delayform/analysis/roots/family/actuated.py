@@ -1,6 +1,6 @@
 """The factor family with an actuation delay: q, polishing, seeds and the certificate, vectorized over rows.
 
-A robot that applies its command tau_a late turns every factor of eq. factorized into
+A robot that applies its command tau_a late turns every factor of the paper's eq. 3 into
 (docs/theory.md, "Actuation delay")
 
     q(s) = s^2 + e^{-tau_a s} r(s),   r(s) = D s + P - lam (P e^{-tau1 s} + D s e^{-tau2 s}),
@@ -12,7 +12,7 @@ with ``ta > 0``); the drivers of :mod:`delayform.analysis.roots.family.solve`
 call the four pieces here instead of the tau_a = 0 ones:
 
 * :func:`actuated_polish` -- Newton on q itself (Maehly's deflation q / s in the
-  centroid rows, eq. factor1), a root accepted when its relative residual is at most
+  centroid rows, the paper's eq. 4), a root accepted when its relative residual is at most
   RESIDUAL_TOL, evaluated at the root (no Taylor shortcut);
 * :func:`actuated_seeds` -- the Chebyshev discretization of the generator of the
   row's DDE, x'' = -P x(t - ta) - D x'(t - ta) + lam (P x(t - t1 - ta) + D x'(t - t2 - ta)),

@@ -4,7 +4,7 @@
 quasi-polynomial, many delay pairs). Gain design (:mod:`delayform.design.gains`)
 needs the other direction:
 many gains (and, for the robust design, many delays) per factor. Every factor
-of eq. factorized is, through its eigenvalue lam of C (a conjugate pair
+of the paper's eq. 3 is, through its eigenvalue lam of C (a conjugate pair
 through lam alone, as in :mod:`delayform.analysis.roots.dominant`),
 
     q(s) = s^2 + D s + P - lam (D s e^{-tau2 s} + P e^{-tau1 s}),
@@ -13,7 +13,7 @@ so each *line* of a batch is one (P, D, tau1, tau2): a row of the factor family
 (:mod:`delayform.analysis.roots.family.rows`) with its own gains, and the family's steps run on
 all lines together -- seeds from the stacked discretized generator
 (:mod:`delayform.analysis.roots.family.seeds`), Halley polishing on q (:mod:`delayform.analysis.roots.family.polish`,
-Maehly's deflation of the persistent zero of eq. factor1), the line choice and the
+Maehly's deflation of the persistent zero of the paper's eq. 4), the line choice and the
 argument-principle walk (:mod:`delayform.analysis.roots.family.walk`); the count right of the line
 must equal the number of polished roots there.
 

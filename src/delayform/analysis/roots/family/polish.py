@@ -2,7 +2,7 @@
 
 Seeds (continuation predictions or eigenvalues of a discretization) are polished
 on q (:mod:`delayform.analysis.roots.family.rows`); Maehly's deflation q / s in the centroid
-rows (eq. factor1) keeps the persistent zero away. A converged root is accepted by a
+rows (paper, eq. 4) keeps the persistent zero away. A converged root is accepted by a
 Taylor bound of its residual, without evaluating q once more.
 """
 

@@ -1,6 +1,6 @@
-"""Rows of the factor family: a factor of eq. factorized at a delay pair, as flat arrays.
+"""Rows of the factor family: a factor of the paper's eq. 3 at a delay pair, as flat arrays.
 
-Every factor of eq. factorized is (for a conjugate pair, through its complex
+Every factor of the paper's eq. 3 is (for a conjugate pair, through its complex
 second-order factor of lam) the same quasi-polynomial
 
     q(s) = s^2 + D s + P - lam (P e^{-tau1 s} + D s e^{-tau2 s})

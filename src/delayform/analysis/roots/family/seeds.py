@@ -32,7 +32,7 @@ except ImportError:  # pragma: no cover - NumPy moved its private kernel
 def _generator_blocks(N: int, t1: float, t2: float, P: float, D: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """(K0, K1) of size N + 2 whose K0 + lam K1 has the eigenvalues of the discretized generator.
 
-    The degree-N Chebyshev discretization of eq. subsystems of the second-order factor
+    The degree-N Chebyshev discretization of the paper's eq. 8 of the second-order factor
     (A = [[0, 1], [-P, -D]], B1 = lam [[0, 0], [P, 0]], B2 = lam [[0, 0], [0, D]]) has size
     2 (N + 1): position y and velocity z at the N + 1 nodes of [-h_max, 0]. Its rows 1..N
     (u' = du/dtheta) act alike on y and z, so an eigenvector with y != 0 has z = mu y; N of

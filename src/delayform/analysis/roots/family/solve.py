@@ -1,6 +1,6 @@
-"""Certified rightmost roots of all factors of eq. factorized at many delay pairs at once.
+"""Certified rightmost roots of all factors of the paper's eq. 3 at many delay pairs at once.
 
-Every factor of eq. factorized is (for a conjugate pair, through its complex
+Every factor of the paper's eq. 3 is (for a conjugate pair, through its complex
 second-order factor of lam) the same quasi-polynomial
 
     q(s) = s^2 + D s + P - lam (P e^{-tau1 s} + D s e^{-tau2 s})
@@ -267,7 +267,7 @@ def _real_imag(z: complex) -> tuple[float, float]:
 
 
 def _without_persistent_zero(seeds: NDArray[np.complex128], deflate: NDArray[np.bool_]) -> NDArray[np.complex128]:
-    """Seeds (R, K) with the centroid rows' discretized persistent zero (eq. factor1) dropped."""
+    """Seeds (R, K) with the centroid rows' discretized persistent zero (paper, eq. 4) dropped."""
     return np.where(deflate[:, None] & (np.abs(seeds) < 1e-9), np.nan, seeds)
 
 

@@ -3,17 +3,17 @@
 Method
 ------
 Where no constraint binds the safety filter returns ``u_hat`` exactly
-(:mod:`delayform.simulation.safety`), so the filtered run is the unfiltered
+(:mod:`delayform.simulation.bodies.safety`), so the filtered run is the unfiltered
 one, which for double integrators in small teams the blocked linear path
-computes fast (:func:`delayform.simulation.integrator.integrate_linear`).
+computes fast (:func:`delayform.simulation.delayed.integrator.integrate_linear`).
 This loop keeps the same records ``r_i = (a_{i-1}, x_i, xdot_i)`` and
 advances by either of two steps:
 
 * a **linear block** of up to ``m`` steps, then checked: every RK4 stage's
   state and command of those steps is itself a linear map of the records
-  (:func:`~delayform.simulation.integrator._linear_step_map` gives them),
+  (:func:`~delayform.simulation.delayed.integrator._linear_step_map` gives them),
   so all ``4 m`` of them are formed at once and the filter's own test
-  (:func:`~delayform.simulation.safety.binds`) is applied to each. Steps
+  (:func:`~delayform.simulation.bodies.safety.binds`) is applied to each. Steps
   before the first stage at which the filter would act are kept;
 * a **filtered step** at that step: the RK4 of the generic loop, its
   delayed values read from the records by the same Hermite interpolation,
@@ -21,7 +21,7 @@ advances by either of two steps:
 
 After a filtered step at which the filter did not act in any stage the
 linear blocks resume, growing from one step. The result equals the generic
-loop with the filter (:func:`delayform.simulation.integrator.integrate`) to
+loop with the filter (:func:`delayform.simulation.delayed.integrator.integrate`) to
 rounding; the tests compare the two.
 """
 
@@ -33,7 +33,7 @@ import numpy as np
 from numpy.lib.stride_tricks import as_strided
 from numpy.typing import NDArray
 
-from delayform.simulation.integrator import (
+from delayform.simulation.delayed.integrator import (
     Progress,
     Samples,
     _blowup_scale,
@@ -44,7 +44,7 @@ from delayform.simulation.integrator import (
     _records,
     _window_kernel,
 )
-from delayform.simulation.safety import _ActiveSet, barrier_commands, binds
+from delayform.simulation.bodies.safety import ActiveSet, barrier_commands, binds
 
 __all__ = ["integrate_filtered"]
 
@@ -115,11 +115,11 @@ def integrate_filtered(
     x0, v0
         ``(n, 2)`` initial positions and velocities (the constant history).
     C
-        ``(n, n)`` dense weight matrix (eq. protocol).
+        ``(n, n)`` dense weight matrix (paper, eq. 1).
     F
-        ``(n, 2)`` forcing of eq. formation.
+        ``(n, 2)`` forcing of the paper's eq. 13.
     P, D
-        Gains of eq. protocol.
+        Gains of the paper's eq. 1.
     tau1, tau2
         Effective delays (s) on positions and velocities.
     dt
@@ -130,7 +130,7 @@ def integrate_filtered(
         Save every this many steps (and the last).
     safe, rate
         The filter's distance Ds (m) and its k (1/s)
-        (:class:`~delayform.simulation.safety.BarrierFilter`).
+        (:class:`~delayform.simulation.bodies.safety.BarrierFilter`).
     progress
         Called with (steps done, steps in all) every 1000 steps when given.
 
@@ -152,7 +152,7 @@ def integrate_filtered(
     H, flat = _records(x0, v0, pad, rows)
     limit = _blowup_scale(x0, v0)
     pairs = np.column_stack(np.triu_indices(n, k=1)).astype(np.intp)
-    memory = _ActiveSet()  # the joint QP's warm start from stage to stage
+    memory = ActiveSet()  # the joint QP's warm start from stage to stage
     active = np.zeros((steps + 1, n), dtype=bool)
     squeezed = np.zeros((steps + 1, n), dtype=bool)
 

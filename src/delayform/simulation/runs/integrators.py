@@ -11,17 +11,17 @@ Entries
 -------
 ``double_integrator``
     ``x'' = u`` (paper, Section "Consensus Protocol"): the blocked linear path
-    where it fits (:func:`~delayform.simulation.integrator.integrate_linear`),
+    where it fits (:func:`~delayform.simulation.delayed.integrator.integrate_linear`),
     the filtered linear path for small ideal teams with a safety filter
-    (:func:`~delayform.simulation.filtered.integrate_filtered`), else the
+    (:func:`~delayform.simulation.delayed.filtered.integrate_filtered`), else the
     generic RK4 loop, over the network when there is one.
 ``unicycle``
     Without limits the ideal robot of Section "Feedback Linearization": its
     position is the double integrator's, integrated as above, and its
     heading, speed and commands are rebuilt
-    (:func:`~delayform.simulation.robots.ideal_commands`). With limits the
+    (:func:`~delayform.simulation.models.robots.ideal_commands`). With limits the
     true unicycle ``(x, y, theta, v)`` with saturated inputs
-    (:class:`~delayform.simulation.robots.LimitedUnicycle`); stated order 2.
+    (:class:`~delayform.simulation.models.robots.LimitedUnicycle`); stated order 2.
 ``physics``
     Differential-drive bodies with mass, wheel servos, tyres and contacts
     stepped by MuJoCo (:func:`~delayform.simulation.physics.engine.integrate_physics`,
@@ -49,13 +49,13 @@ from numpy.typing import NDArray
 from delayform.errors import SimulationInputError
 from delayform.model import IROBOT_CREATE, Network, Robot, RobotLimits
 from delayform.resources import require
-from delayform.simulation.bodies import approach_cost
-from delayform.simulation.commands import RobotCommands
-from delayform.simulation.filtered import integrate_filtered
-from delayform.simulation.integrator import Progress, Samples, integrate, integrate_linear, stated_order
-from delayform.simulation.reception import integrate_network
-from delayform.simulation.robots import DoubleIntegrator, LimitedUnicycle, ideal_commands
-from delayform.simulation.safety import FilteredAgent
+from delayform.simulation.bodies.approach import approach_cost
+from delayform.simulation.models.commands import RobotCommands
+from delayform.simulation.delayed.filtered import integrate_filtered
+from delayform.simulation.delayed.integrator import Progress, Samples, integrate, integrate_linear, stated_order
+from delayform.simulation.delayed.reception import integrate_network
+from delayform.simulation.models.robots import DoubleIntegrator, LimitedUnicycle, ideal_commands
+from delayform.simulation.bodies.safety import FilteredAgent
 from delayform.topology import Topology
 
 __all__ = ["RunPlan", "Motion", "AgentIntegrator", "DoubleIntegratorModel", "UnicycleModel", "PhysicsModel",
@@ -219,7 +219,7 @@ class DoubleIntegratorModel:
         """Filtered linear path, generic loop (filter or network), or the blocked linear path."""
         robot = plan.robot
         if plan.hybrid and plan.linear:
-            # small ideal teams: the blocked linear path wherever the filter is idle (simulation.filtered)
+            # small ideal teams: the blocked linear path wherever the filter is idle (simulation.delayed.filtered)
             run = integrate_filtered(plan.x0, plan.v0, plan.C, plan.F, plan.P, plan.D, plan.eff1, plan.eff2,
                                      plan.dt, plan.steps, plan.save_every,
                                      2.0 * robot.body_radius + robot.safety.margin, robot.safety.rate,
@@ -252,7 +252,7 @@ class UnicycleModel:
         limits = robot.limits
         if limits is None and np.any(speed0 == 0.0):
             raise SimulationInputError(
-                "ideal robots cannot start at exactly zero speed (eq. transform2 divides by v); "
+                "ideal robots cannot start at exactly zero speed (paper, eq. 19 divides by v); "
                 "give initial_speed != 0 (the paper uses 1e-3) or limits"
             )
         if limits is not None:

@@ -3,9 +3,9 @@
 Method (Wang, Ames & Egerstedt, "Safety barrier certificates for collisions-free
 multirobot systems", IEEE T-RO 33(3), 2017; as Robotarium filters commands)
 --------------------------------------------------------------------------
-The formation controller (eq. protocol) asks robot i for the Cartesian
-acceleration ``u_hat_i``; for ideal robots the feedback linearization eq.
-transform2 makes ``x_i'' = u_i`` exactly, so the filter works on ``u``. For a
+The formation controller (paper, eq. 1) asks robot i for the Cartesian
+acceleration ``u_hat_i``; for ideal robots the feedback linearization (paper,
+eq. 19) makes ``x_i'' = u_i`` exactly, so the filter works on ``u``. For a
 pair at distance ``d = |dp|``, ``dp = x_i - x_j``, ``n = dp / d``,
 ``dv = x_i' - x_j'`` and safe distance ``Ds`` (the sum of the radii plus
 :attr:`BarrierFilter.margin`), the barrier ``h = d - Ds`` has relative degree
@@ -80,7 +80,7 @@ Actuation delay
 ---------------
 A command made at t is executed at t + tau_a, so the filter is applied at the
 state predicted for then from the commands in flight
-(:meth:`~delayform.simulation.actuation.CommandBuffer.predict`, exact for
+(:meth:`~delayform.simulation.delayed.actuation.CommandBuffer.predict`, exact for
 double integrators but on the last grid interval, where the previous command is
 held). The guarantee above then holds from t = tau_a on (before it nothing the
 filter decides is executed). The filter is assumed to know every robot's
@@ -102,9 +102,11 @@ from numpy.typing import NDArray
 from delayform._validation import validated
 from delayform.errors import SimulationInputError
 from delayform.model.robot import SAFETY_FILTERS, BarrierFilter, check_safety
-from delayform.simulation.bodies import _complex
+from delayform.simulation.bodies.approach import _complex
 
-__all__ = ["SAFETY_FILTERS", "BarrierFilter", "FilteredAgent", "SafetyReport", "barrier_commands", "check_safety"]
+__all__ = [
+    "SAFETY_FILTERS", "ActiveSet", "BarrierFilter", "FilteredAgent", "SafetyReport", "barrier_commands", "check_safety",
+]
 
 _Array = NDArray[np.float64]
 
@@ -212,7 +214,7 @@ def binds(x: _Array, v: _Array, u_hat: _Array, safe: float, rate: float, pairs: 
 
 def barrier_commands(
     x: _Array, v: _Array, u_hat: _Array, safe: float, rate: float, pairs: NDArray[np.intp] | None = None,
-    memory: _ActiveSet | None = None,
+    memory: ActiveSet | None = None,
 ) -> tuple[_Array, NDArray[np.bool_], NDArray[np.bool_]]:
     """The filtered commands: each robot's closest point to ``u_hat`` in its polygon (module doc).
 
@@ -227,7 +229,7 @@ def barrier_commands(
     pairs
         ``(p, 2)`` pairs that sense each other; default all pairs.
     memory
-        The joint QP's binding constraints at the previous call (:class:`_ActiveSet`),
+        The joint QP's binding constraints at the previous call (:class:`ActiveSet`),
         updated here; a warm start only, the answer does not depend on it.
 
     Returns
@@ -257,7 +259,7 @@ def barrier_commands(
 
 def _joint_qp(
     pairs: NDArray[np.intp], normal: _Array, c: _Array, u_hat: _Array, squeezed: NDArray[np.bool_],
-    in_play: NDArray[np.bool_], memory: _ActiveSet | None = None,
+    in_play: NDArray[np.bool_], memory: ActiveSet | None = None,
 ) -> tuple[_Array, NDArray[np.bool_]]:
     """The squeezed robots' clusters solve their pairs' full constraints jointly (module doc).
 
@@ -289,7 +291,7 @@ def _joint_qp(
     return u_hat, cluster  # cannot happen for x'' = u (see above); the run's contacts would show it
 
 
-class _ActiveSet:
+class ActiveSet:
     """The pairs whose constraint bound the joint QP's last answer: where the next active set starts.
 
     Consecutive calls (the RK4 stages of a step, the next step) see nearly the
@@ -306,7 +308,7 @@ class _ActiveSet:
 
 def _cluster_qp(
     pairs: NDArray[np.intp], normal: _Array, c: _Array, u_hat: _Array, members: NDArray[np.bool_],
-    memory: _ActiveSet | None = None,
+    memory: ActiveSet | None = None,
 ) -> _Array | None:
     """``min sum_members |u_i - u_hat_i|^2`` (:func:`_joint_qp`) by Clarabel, over an active set of constraints.
 
@@ -314,7 +316,7 @@ def _cluster_qp(
     answer meets every other one it is the answer of the whole problem
     (the smaller problem's optimum is a lower bound), else the violated ones
     join. Clarabel's answer is then polished exactly (:func:`_polish`).
-    With ``memory`` (:class:`_ActiveSet`) the rows that bound the previous
+    With ``memory`` (:class:`ActiveSet`) the rows that bound the previous
     answer are polished first, with those the polish breaks joining for
     :data:`_GUESS_ROUNDS` rounds; an answer that passes the KKT check (every
     constraint met, multipliers non-negative) is the minimiser and Clarabel
@@ -585,7 +587,7 @@ def _closest_in_polygons(
 class FilteredAgent:
     """An agent model whose commands pass through the :class:`BarrierFilter` first.
 
-    Wraps any agent of :mod:`delayform.simulation.robots` (the integrators
+    Wraps any agent of :mod:`delayform.simulation.models.robots` (the integrators
     only call ``state0``, ``extras``, ``velocity`` and ``rhs``). Extras
     ``safety_active`` and ``safety_infeasible`` (1.0 where the filter changed
     the robot's command, where its polygon was empty) are saved with the run.
@@ -597,7 +599,7 @@ class FilteredAgent:
         self.safe = 2.0 * radius + safety.margin
         self.state0 = agent.state0
         self.neighbours = _Neighbours(agent.state0.shape[0], self.safe, safety.rate)
-        self.memory = _ActiveSet()  # the joint QP's warm start from stage to stage
+        self.memory = ActiveSet()  # the joint QP's warm start from stage to stage
         self.extras = tuple(agent.extras) + ("safety_active", "safety_infeasible")
         self.name = agent.name
 
@@ -630,9 +632,9 @@ class FilteredAgent:
     def predict_with(self, buffer: Any) -> None:
         """Filter at the state tau_a ahead, predicted from the commands in flight (module doc, "Actuation delay").
 
-        ``buffer`` is the run's :class:`~delayform.simulation.actuation.CommandBuffer`;
+        ``buffer`` is the run's :class:`~delayform.simulation.delayed.actuation.CommandBuffer`;
         only double integrators (x'' = the late command) are predicted exactly, so
-        :func:`~delayform.simulation.runner.check_actuation` refuses the filter for
+        :func:`~delayform.simulation.runs.runner.check_actuation` refuses the filter for
         robots with limits under an actuation delay.
         """
         self._buffer = buffer

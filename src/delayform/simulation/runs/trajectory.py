@@ -14,10 +14,10 @@ from delayform._files import atomic_path, save_npz
 from delayform._display import FigureRepr  # Jupyter shows the figure
 from delayform._validation import validated
 from delayform.errors import SimulationInputError
-from delayform.simulation.bodies import Contact
-from delayform.simulation.commands import RobotCommands
-from delayform.simulation.robots import RobotLimits
-from delayform.simulation.safety import SafetyReport
+from delayform.simulation.bodies.approach import Contact
+from delayform.simulation.models.commands import RobotCommands
+from delayform.simulation.models.robots import RobotLimits
+from delayform.simulation.bodies.safety import SafetyReport
 
 __all__ = ["Trajectory", "SETTLING_FRACTION", "STATUSES"]
 
@@ -53,8 +53,8 @@ class Trajectory(FigureRepr):
         ``(T, n)`` speeds: the signed v of the robot, ``|xdot|`` for the
         double integrator.
     inputs
-        ``(T, n, 2)``: the executed ``(dv/dt, omega)`` of eq. transform2 for
-        robots, ``u`` of eq. protocol for the double integrator.
+        ``(T, n, 2)``: the executed ``(dv/dt, omega)`` of the paper's eq. 19 for
+        robots, ``u`` of the paper's eq. 1 for the double integrator.
     desired
         ``(n, 2)`` desired formation.
     model, P, D, tau1, tau2, dt
@@ -70,24 +70,24 @@ class Trajectory(FigureRepr):
         :data:`SETTLING_FRACTION` of its initial value; ``inf`` when it never
         does (see :attr:`status` and :attr:`warnings` for why).
     final_centroid
-        Weighted centroid ``w^T x`` (eq. factor1) at the last time.
+        Weighted centroid ``w^T x`` (paper, eq. 4) at the last time.
     min_distance
         Smallest centre-to-centre distance of two robots over the run, exact
         for the interpolated motion between saved samples too
-        (:func:`~delayform.simulation.bodies.closest_approach`).
+        (:func:`~delayform.simulation.bodies.approach.closest_approach`).
     closest_at
         When it happened (s).
     radius
         The robots' body radius (m) used for contacts; 0 for point agents.
     contacts
-        Each time two bodies overlapped (:class:`~delayform.simulation.bodies.Contact`:
+        Each time two bodies overlapped (:class:`~delayform.simulation.bodies.approach.Contact`:
         which pair, when, how long, how close); a run with contacts says so
         in :attr:`warnings`.
     slots
         ``(n,)``: the slot of ``formation`` robot i took (``simulate(...,
         assignment=...)``); ``desired`` is already in this order.
     safety
-        When the safety filter acted (:class:`~delayform.simulation.safety.SafetyReport`),
+        When the safety filter acted (:class:`~delayform.simulation.bodies.safety.SafetyReport`),
         or None for a run without it.
     commands
         The robots' commands (:class:`RobotCommands`); None for double integrators.
@@ -141,7 +141,7 @@ class Trajectory(FigureRepr):
     warnings: tuple[str, ...] = ()
     labels: tuple[Any, ...] = field(default=())
     stopped_at: float | None = None
-    #: tau_a (s), the actuation delay of the run (:attr:`~delayform.simulation.robots.Robot.actuation_delay`)
+    #: tau_a (s), the actuation delay of the run (:attr:`~delayform.simulation.models.robots.Robot.actuation_delay`)
     actuation_delay: float = 0.0
 
     @property
@@ -160,7 +160,7 @@ class Trajectory(FigureRepr):
         return self.positions[-1]
 
     def plot_xy(self, ax: Any = None) -> Any:
-        """x and y of every agent versus time (paper Figs. xy1, xy2); returns the axes (pair).
+        """x and y of every agent versus time (paper, Figs. 5 and 7); returns the axes (pair).
 
         Parameters
         ----------
@@ -172,7 +172,7 @@ class Trajectory(FigureRepr):
         return plot_trajectory_xy(self, ax=ax)
 
     def plot_traces(self, ax: Any = None, *, snapshots: int = 6) -> Any:
-        """Paths in the plane with heading marks at snapshots (paper Fig. traces).
+        """Paths in the plane with heading marks at snapshots (paper, Fig. 6).
 
         Parameters
         ----------

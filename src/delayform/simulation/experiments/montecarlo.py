@@ -11,14 +11,14 @@ Reproducibility
 Run r's seeds are child r of ``numpy.random.SeedSequence(seed).spawn(runs)``:
 each run is a pure function of (setup, run index, seed), so the numbers do
 not depend on the order in which runs finish, nor on where they run (this
-process, a local Dask cluster, a remote one: :mod:`delayform.sweeps`).
+process, a local Dask cluster, a remote one: :mod:`delayform.simulation.experiments.sweeps`).
 
 Executors
 ---------
-The runs are handed to an *executor* (:class:`~delayform.simulation.options.Executor`:
+The runs are handed to an *executor* (:class:`~delayform.simulation.runs.options.Executor`:
 ``map(fn, tasks, progress=None) -> list`` returning the results in the order
-of ``tasks``; :class:`SerialExecutor` here, Dask ones in :mod:`delayform.sweeps`),
-given in :class:`~delayform.simulation.options.RunOptions`.
+of ``tasks``; :class:`SerialExecutor` here, Dask ones in :mod:`delayform.simulation.experiments.sweeps`),
+given in :class:`~delayform.simulation.runs.options.RunOptions`.
 """
 
 from __future__ import annotations
@@ -38,10 +38,10 @@ from delayform.resources import require
 from delayform.formation import check_formation
 from delayform.model import MODELS, REST_SPEED, Delays, Network, Robot, Team
 from delayform.model.start import Start
-from delayform.simulation.compat import MONTE_CARLO_KEYWORDS, accepts_loose_calls
-from delayform.simulation.options import Executor, Progress, RunOptions, SerialExecutor
-from delayform.simulation.reception import network_memory
-from delayform.simulation.runner import simulate
+from delayform.simulation.runs.compat import MONTE_CARLO_KEYWORDS, accepts_loose_calls
+from delayform.simulation.runs.options import Executor, Progress, RunOptions, SerialExecutor
+from delayform.simulation.delayed.reception import network_memory
+from delayform.simulation.runs.runner import simulate
 from delayform.topology import Topology
 
 __all__ = [
@@ -129,7 +129,7 @@ class Setup:
     Attributes
     ----------
     topology, P, D, tau1, tau2
-        Team, gains and nominal delays of eq. protocol.
+        Team, gains and nominal delays of the paper's eq. 1.
     formation
         ``(n, 2)`` desired positions.
     model
@@ -143,11 +143,11 @@ class Setup:
     initial_speed
         Initial speed of every agent (the paper's 1e-3).
     limits
-        Actuator limits of the robots (:class:`~delayform.simulation.robots.RobotLimits`),
+        Actuator limits of the robots (:class:`~delayform.simulation.models.robots.RobotLimits`),
         or None for ideal ones: the saturated unicycle driven by what each robot hears.
     radius
         Body radius (m) for contacts; None: the default of
-        :class:`~delayform.simulation.robots.Robot` (0 for double integrators).
+        :class:`~delayform.simulation.models.robots.Robot` (0 for double integrators).
     assignment
         Which robot takes which slot, per run (``simulate(..., assignment=...)``).
     safety
@@ -320,7 +320,7 @@ class MonteCarloResult(FigureRepr):
         settled, not settled, diverging, stopped).
     min_distances
         ``(runs,)`` closest approach of two robots in each run (m, exact
-        between saved steps: :func:`~delayform.simulation.bodies.closest_approach`).
+        between saved steps: :func:`~delayform.simulation.bodies.approach.closest_approach`).
     contact_counts
         ``(runs,)`` number of contacts (bodies closer than two radii) in each run.
     """
@@ -539,7 +539,7 @@ def make_setup(
     Parameters
     ----------
     topology, P, D, tau1, tau2, formation
-        Team, gains of eq. protocol, nominal delays, desired shape (array or name).
+        Team, gains of the paper's eq. 1, nominal delays, desired shape (array or name).
     model
         ``"double_integrator"`` or ``"unicycle"``.
     network
@@ -553,7 +553,7 @@ def make_setup(
     limits
         Actuator limits of the robots, or None for ideal ones.
     radius
-        Body radius (m) for contacts; None: the :class:`~delayform.simulation.robots.Robot` default.
+        Body radius (m) for contacts; None: the :class:`~delayform.simulation.models.robots.Robot` default.
     assignment
         ``"given"`` or ``"optimal"`` slots (``simulate(..., assignment=...)``).
     safety
@@ -650,7 +650,7 @@ def monte_carlo(
     runs: int,
     options: RunOptions | None = None,
 ) -> MonteCarloResult:
-    """N seeded runs of eq. formation over ``network``: distributions of settling, error and commands.
+    """N seeded runs of the paper's eq. 13 over ``network``: distributions of settling, error and commands.
 
     Parameters
     ----------
@@ -658,7 +658,7 @@ def monte_carlo(
         As for :func:`~delayform.simulation.simulate`, with the same
         defaults; the network's seed is replaced per run, and
         ``options.executor`` says where the runs go (:class:`SerialExecutor`
-        by default; :func:`delayform.sweeps.executor` for Dask; its
+        by default; :func:`delayform.simulation.experiments.sweeps.executor` for Dask; its
         ``workers`` attribute, if any, enters the memory and time guard),
         ``options.progress`` is called with ``(runs done, runs)``.
     start
@@ -683,7 +683,7 @@ def monte_carlo(
     -----
     The loose form of earlier versions, ``monte_carlo(topology, P, D, tau1,
     tau2, formation, model=..., runs=..., seed=..., executor=..., ...)``, is
-    still taken (:data:`~delayform.simulation.compat.MONTE_CARLO_KEYWORDS`);
+    still taken (:data:`~delayform.simulation.runs.compat.MONTE_CARLO_KEYWORDS`);
     its agent model was ``"double_integrator"`` unless named, and stays so.
 
     Examples

@@ -2,7 +2,7 @@
 
 Conventions
 -----------
-A robot is a unicycle (eq. kinem:uni) with the dynamic extension of Section
+A robot is a unicycle (paper, eq. 14) with the dynamic extension of Section
 "Feedback Linearization": state ``(x, y, theta, v)``, ``x' = v cos(theta)``,
 ``y' = v sin(theta)``, inputs ``dv/dt`` and ``omega``. ``v`` is signed: a
 robot may drive backwards. A differential drive with wheel radius ``r`` and
@@ -11,7 +11,7 @@ axle length ``L`` turns ``(v, omega)`` into wheel speeds (rad/s)
 
 Ideal robots (no limits)
 ------------------------
-Eq. transform2 (``dv/dt = e . u``, ``omega = e_perp . u / v`` with
+the paper's eq. 19 (``dv/dt = e . u``, ``omega = e_perp . u / v`` with
 ``e = (cos theta, sin theta)``) makes the position obey ``x'' = u`` exactly
 while ``v != 0``. So an ideal robot's position *is* the double integrator's,
 and its commands follow from the Cartesian velocity ``V`` and acceleration
@@ -28,7 +28,7 @@ Robots with limits
 :class:`RobotLimits` describes a differential-drive robot; with limits the
 true unicycle state is integrated with saturated inputs
 (:class:`LimitedUnicycle`), and the ideal commands that exceeded a limit are
-reported by :class:`delayform.simulation.commands.RobotCommands`.
+reported by :class:`delayform.simulation.models.commands.RobotCommands`.
 """
 
 from __future__ import annotations
@@ -68,7 +68,7 @@ def ideal_commands(
     """Heading, signed speed, turn rate and acceleration of ideal robots from their motion.
 
     The ideal robot's position is the double integrator's (module doc); this
-    recovers the commands of eq. transform2 that realise it.
+    recovers the commands of the paper's eq. 19 that realise it.
 
     Parameters
     ----------
@@ -138,9 +138,9 @@ class DoubleIntegrator:
 
 
 class LimitedUnicycle:
-    """State rows (x, y, theta, v): eq. transform2 with saturated inputs.
+    """State rows (x, y, theta, v): the paper's eq. 19 with saturated inputs.
 
-    The wanted turn rate is the softened eq. transform2
+    The wanted turn rate is the softened eq. 19 of the paper
     (:attr:`RobotLimits.slow_speed`, :attr:`RobotLimits.turn_time_constant`)
     clipped to ``max_turn_rate``. The
     commanded acceleration is ``clip(e . u, +-max_acceleration)``, faded to
@@ -173,13 +173,13 @@ class LimitedUnicycle:
         """(state derivative, Cartesian acceleration, extras).
 
         Extras: executed dv/dt and omega; the controller's demands before the
-        limits (``e . u`` and the softened eq. transform2 turn rate); 1.0
+        limits (``e . u`` and the softened eq. 19 of the paper turn rate); 1.0
         where the speed limit cut the demanded acceleration by more than 1 %.
         """
         return self.apply(state, self.command(state, u))
 
     def command(self, state: _Array, u: _Array) -> _Array:
-        """The demands (dv/dt, omega) of eq. transform2 (softened) on this state, columns of an (n, 2) array.
+        """The demands (dv/dt, omega) of the paper's eq. 19 (softened) on this state, columns of an (n, 2) array.
 
         With an actuation delay these are what is sent late; the limits act
         when they are executed (:meth:`apply`), on the state then.
@@ -188,13 +188,13 @@ class LimitedUnicycle:
         th, v = state[:, 2], state[:, 3]
         c, s = np.cos(th), np.sin(th)
         ux, uy = u[:, 0], u[:, 1]
-        along = c * ux + s * uy  # eq. transform2, first row
+        along = c * ux + s * uy  # the paper's eq. 19, first row
         across = c * uy - s * ux
         size2 = ux * ux + uy * uy
         vs = np.sqrt(lim.slow_speed**2 + lim.turn_time_constant**2 * size2)
         # towards the line of u at rest: +1 when u is ahead, -1 when behind (then reverse)
         toward = along / np.sqrt(size2 + 1e-24)
-        demand = across * (v + toward * vs) / (v * v + vs * vs)  # eq. transform2, second row, softened
+        demand = across * (v + toward * vs) / (v * v + vs * vs)  # the paper's eq. 19, second row, softened
         return np.column_stack([along, demand])
 
     def apply(self, state: _Array, command: _Array) -> tuple[_Array, _Array, tuple[_Array, ...]]:

@@ -1,6 +1,6 @@
 """Monte Carlo runs and parameter sweeps: in this process, on a local Dask cluster, or on a remote one.
 
-A sweep runs :func:`~delayform.simulation.montecarlo.monte_carlo` at every
+A sweep runs :func:`~delayform.simulation.experiments.montecarlo.monte_carlo` at every
 point of a grid (delays, gains, topologies, networks). Where the runs go is
 chosen by :func:`executor_for`:
 
@@ -10,7 +10,7 @@ chosen by :func:`executor_for`:
 * ``scheduler="tcp://host:8786"``: an existing Dask cluster.
 
 Every (point, run) pair is one task whose seeds are fixed up front
-(:func:`~delayform.simulation.montecarlo.run_seeds`), so the three give the
+(:func:`~delayform.simulation.experiments.montecarlo.run_seeds`), so the three give the
 same numbers, whatever the order in which tasks finish. Every point of a
 sweep uses the same seed, hence the same initial states and the same network
 draws (common random numbers): differences between points come from the
@@ -19,7 +19,7 @@ with ``progress=True``.
 
 Examples
 --------
->>> from delayform.simulation.network import Jitter, Network
+>>> from delayform.model.network import Jitter, Network
 >>> from delayform.topology import ring
 >>> setup = make_setup(ring(3), 1.0, 0.5, 0.3, 0.2, "polygon", duration=4.0, dt=0.05)
 >>> nets = [Network(jitter=Jitter(b, b)) for b in (0.0, 0.1)]
@@ -46,8 +46,8 @@ from delayform._validation import validated
 from delayform.errors import ClusterError, SimulationInputError
 from delayform.formation import named_formation
 from delayform.resources import require
-from delayform.simulation import montecarlo as mc
-from delayform.simulation.montecarlo import (
+from delayform.simulation.experiments import montecarlo as mc
+from delayform.simulation.experiments.montecarlo import (
     Executor,
     MonteCarloResult,
     Progress,
@@ -59,7 +59,7 @@ from delayform.simulation.montecarlo import (
     run_seeds,
     simulate_run,
 )
-from delayform.simulation.network import Network
+from delayform.model.network import Network
 from delayform.topology import Topology
 
 __all__ = [
@@ -316,7 +316,7 @@ def executor_for(*, workers: int | None = None, scheduler: str | None = None,
     Yields
     ------
     Executor
-        :class:`~delayform.simulation.montecarlo.SerialExecutor` or :class:`DaskExecutor`.
+        :class:`~delayform.simulation.experiments.montecarlo.SerialExecutor` or :class:`DaskExecutor`.
 
     Raises
     ------
@@ -433,7 +433,7 @@ class SweepResult:
     values
         The swept value(s) of each point, e.g. ``(tau1, tau2)``.
     results
-        One :class:`~delayform.simulation.montecarlo.MonteCarloResult` per point.
+        One :class:`~delayform.simulation.experiments.montecarlo.MonteCarloResult` per point.
     """
 
     parameter: str
@@ -450,7 +450,7 @@ class SweepResult:
             ``settling_time``, ``final_error``, ``peak_command_1``, ``peak_command_2`` or
             ``min_distance`` (closest approach of two robots).
         q
-            Probability of the quantile (:func:`~delayform.simulation.montecarlo.quantile`:
+            Probability of the quantile (:func:`~delayform.simulation.experiments.montecarlo.quantile`:
             the ordinary median at 0.5; runs that did not settle count as infinite).
         """
         return np.array([float(mc.run_quantile(r.metric(metric), q)) for r in self.results])
@@ -645,7 +645,7 @@ def gain_sweep(
     setup: Setup, P_values: Sequence[float], D_values: Sequence[float], *, runs: int, seed: int = 0,
     workers: int | None = None, scheduler: str | None = None, progress: bool | Progress = False,
 ) -> SweepResult:  # fmt: skip
-    """Monte Carlo on the grid ``P_values x D_values`` of gains (eq. protocol).
+    """Monte Carlo on the grid ``P_values x D_values`` of gains (paper, eq. 1).
 
     Parameters
     ----------

@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 from delayform._files import atomic_path, save_npz
 from delayform._validation import validated
 from delayform.errors import SimulationInputError
-from delayform.simulation.robots import RobotLimits, wheel_speeds
+from delayform.simulation.models.robots import RobotLimits, wheel_speeds
 
 __all__ = ["RobotCommands", "LimitExceedance"]
 
@@ -49,7 +49,7 @@ class LimitExceedance:
     time
         When the worst excess happened (s).
     needed
-        What the ideal command (eq. transform2) asked for there, in ``unit``.
+        What the ideal command (paper, eq. 19) asked for there, in ``unit``.
     limit
         The limit, in ``unit``.
     unit
@@ -91,7 +91,7 @@ class LimitExceedance:
 @validated(SimulationInputError)
 @dataclass(frozen=True, eq=False)
 class RobotCommands:
-    """Per-robot time series of the commands of eq. transform2, actual and ideal.
+    """Per-robot time series of the commands of the paper's eq. 19, actual and ideal.
 
     Attributes
     ----------
@@ -107,7 +107,7 @@ class RobotCommands:
         ``(T, n)`` wheel speeds (rad/s) for ``robot``'s geometry.
     ideal_turn_rate, ideal_acceleration
         ``(T, n)`` what the controller asks for at the robot's state before
-        any limit: eq. transform2 (softened below ``robot.slow_speed`` for
+        any limit: the paper's eq. 19 (softened below ``robot.slow_speed`` for
         robots with limits); equal to the executed commands for ideal robots.
     robot
         Geometry (and limits) the wheel speeds and checks use.
@@ -153,7 +153,7 @@ class RobotCommands:
         robot
             Geometry and limits.
         ideal_turn_rate, ideal_acceleration
-            What eq. transform2 asked for; default: the executed values.
+            What the paper's eq. 19 asked for; default: the executed values.
         limited
             Whether the run was saturated.
         speed_held

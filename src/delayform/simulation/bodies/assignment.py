@@ -2,10 +2,10 @@
 
 Problem
 -------
-Robot i given slot ``sigma(i)`` comes to rest at ``z_sigma(i) + a`` (eq.
-formation at rest, :func:`delayform.formation.predicted_final_positions`),
+Robot i given slot ``sigma(i)`` comes to rest at ``z_sigma(i) + a`` (paper,
+eq. 13 at rest, :func:`delayform.formation.predicted_final_positions`),
 the common offset ``a`` fixed by the weighted centroid: ``w^T x`` obeys the
-centroid factor eq. factor1 whatever the slots (``w^T F = 0``), so it comes
+centroid factor (paper, eq. 4) whatever the slots (``w^T F = 0``), so it comes
 to rest at ``m`` (:func:`delayform.formation.final_centroid`) and
 ``a = m - u(sigma)`` with ``u(sigma) = sum_i w_i z_sigma(i)``. The optimal
 assignment minimises the total squared distance each robot travels to its
@@ -120,7 +120,7 @@ def assign_slots(
         The team (its centroid weights w decide the final offset).
     P, D, tau1, tau2
         Gains and delays: where the weighted centroid comes to rest
-        (eq. factor1; without a position delay the centroid drifts with
+        (paper, eq. 4; without a position delay the centroid drifts with
         the initial velocities, and its start ``w^T x0`` is used).
     desired
         ``(n, 2)`` formation slots.

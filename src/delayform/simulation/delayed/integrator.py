@@ -3,7 +3,7 @@
 Method
 ------
 Classical fixed-step Runge-Kutta (RK4) for the current state; the delayed
-terms ``C x(t - tau1)`` and ``C xdot(t - tau2)`` of eq. protocol are read
+terms ``C x(t - tau1)`` and ``C xdot(t - tau2)`` of the paper's eq. 1 are read
 from the computed solution by cubic Hermite interpolation between grid
 points, using the derivatives the solution carries (``(C x)' = C xdot``,
 ``(C xdot)' = C a`` with ``a`` the agents' Cartesian acceleration). Both are
@@ -46,7 +46,7 @@ import numpy as np
 from numpy.lib.stride_tricks import as_strided
 from numpy.typing import NDArray
 
-from delayform.simulation.actuation import CommandBuffer
+from delayform.simulation.delayed.actuation import CommandBuffer
 
 __all__ = ["stated_order", "effective_delay", "BLOWUP"]
 
@@ -201,7 +201,7 @@ class _History:
 
 # ------------------------------------------------------------ generic loop
 class Agent(Protocol):
-    """What the generic loop needs of an agent model (see :mod:`delayform.simulation.robots`)."""
+    """What the generic loop needs of an agent model (see :mod:`delayform.simulation.models.robots`)."""
 
     state0: _Array
     extras: tuple[str, ...]
@@ -251,7 +251,7 @@ def integrate(
 
     ``progress(done, steps)`` is called every 1000 steps when given. With
     ``actuation_delay`` > 0 (at least dt) each stage executes the command of
-    ``actuation_delay`` earlier (:mod:`delayform.simulation.actuation`); the
+    ``actuation_delay`` earlier (:mod:`delayform.simulation.delayed.actuation`); the
     agent then needs ``command`` and ``apply``.
     """
     n = F.shape[0]
@@ -290,7 +290,7 @@ def integrate(
         X, V = st[:, :2], agent.velocity(st)
         cxd = C @ X if look1[j].current else delayed(k, j, look1[j], True)
         cvd = C @ V if look2[j].current else delayed(k, j, look2[j], False)
-        u = P * (cxd - X) + D * (cvd - V) + F  # eq. protocol + forcing of eq. formation
+        u = P * (cxd - X) + D * (cvd - V) + F  # the paper's eq. 1 + forcing of the paper's eq. 13
         if late is None:
             return agent.rhs(st, u)
         if j == 0:  # the command made at the grid point, executed actuation_delay later
@@ -401,7 +401,7 @@ def _linear_step_map(
     def stage(j: int, X: Lin, V: Lin) -> Lin:
         cxd = apply_c(X) if look1[j].current else read(look1[j], True, constant[j])
         cvd = apply_c(V) if look2[j].current else read(look2[j], False, constant[4 + j])
-        # eq. protocol + forcing of eq. formation
+        # the paper's eq. 1 + forcing of the paper's eq. 13
         return add((P, cxd), (-P, X), (D, cvd), (-D, V), (1.0, F))
 
     h = 0.5 * dt

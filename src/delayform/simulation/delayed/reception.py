@@ -1,13 +1,13 @@
 """What each agent hears over an imperfect network, and the integrator that uses it.
 
-:func:`reception` turns a :class:`~delayform.simulation.network.Network` into
+:func:`reception` turns a :class:`~delayform.model.network.Network` into
 the send time of every value each agent hears at every RK4 stage time
-(the conventions are those of :mod:`delayform.simulation.network`: continuous
+(the conventions are those of :mod:`delayform.model.network`: continuous
 streams read ``t - d(t)``, packet streams hold the newest packet received,
 the initial state before the first one). :func:`integrate_network` runs
-eq. protocol plus the forcing of eq. formation on those values for any
+the paper's eq. 1 plus the forcing of the paper's eq. 13 on those values for any
 agent model (double integrators, or robots with actuator limits), with the
-step of :mod:`delayform.simulation.integrator` (classical RK4, cubic Hermite
+step of :mod:`delayform.simulation.delayed.integrator` (classical RK4, cubic Hermite
 reads of the computed solution), so that with every link at (tau1, tau2) it
 is the ordinary integrator up to rounding.
 """
@@ -23,9 +23,9 @@ from numpy.typing import NDArray
 
 from delayform.errors import NetworkError
 from delayform.resources import require
-from delayform.simulation.actuation import CommandBuffer
-from delayform.simulation.integrator import Agent, Progress, Samples
-from delayform.simulation.network import BernoulliLoss, GilbertElliott, Network, check_link_matrix
+from delayform.simulation.delayed.actuation import CommandBuffer
+from delayform.simulation.delayed.integrator import Agent, Progress, Samples
+from delayform.model.network import BernoulliLoss, GilbertElliott, Network, check_link_matrix
 from delayform.topology import Topology
 
 __all__ = ["Reception", "reception", "integrate_network", "network_memory", "packet_draws", "PacketDraws"]
@@ -59,7 +59,7 @@ class Reception:
     receivers, informers
         ``(E,)`` agent indices of each link (i hears k).
     weights
-        ``(E,)`` entries ``C_ik`` of eq. protocol.
+        ``(E,)`` entries ``C_ik`` of the paper's eq. 1.
     dt
         The integration step.
     send
@@ -402,9 +402,9 @@ def integrate_network(
     progress: Progress | None = None,
     actuation_delay: float = 0.0,
 ) -> Samples:
-    """RK4 of eq. protocol + forcing for ``agent`` with what each agent hears over ``network`` (module doc).
+    """RK4 of the paper's eq. 1 + forcing for ``agent`` with what each agent hears over ``network`` (module doc).
 
-    The step is that of :func:`delayform.simulation.integrator.integrate`
+    The step is that of :func:`delayform.simulation.delayed.integrator.integrate`
     (classical RK4 on the agent's state, cubic Hermite reads of the computed
     Cartesian solution), with the delayed terms read per link at the send
     times of :func:`reception` and summed with the weights ``C_ik``: with
@@ -415,15 +415,15 @@ def integrate_network(
     ----------
     agent
         The agent model and its initial state (``DoubleIntegrator`` or
-        ``LimitedUnicycle`` of :mod:`delayform.simulation.robots`); its
+        ``LimitedUnicycle`` of :mod:`delayform.simulation.models.robots`); its
         Cartesian position, velocity and acceleration are what it sends
         (constant before t = 0, zero acceleration).
     topology
         Who hears whom.
     F
-        ``(n, 2)`` forcing of eq. formation.
+        ``(n, 2)`` forcing of the paper's eq. 13.
     P, D
-        Gains of eq. protocol.
+        Gains of the paper's eq. 1.
     tau1, tau2
         Nominal delays (s).
     network
@@ -436,7 +436,7 @@ def integrate_network(
         Optional callback ``progress(steps_done, steps)``, every 1000 steps.
     actuation_delay
         tau_a (s, 0 or at least dt): each agent executes its command that late, through the
-        command buffer of :mod:`delayform.simulation.actuation` as in the ordinary integrator
+        command buffer of :mod:`delayform.simulation.delayed.actuation` as in the ordinary integrator
         (what it sends is what it does: its actual state and acceleration).
 
     Returns
@@ -495,7 +495,7 @@ def integrate_network(
             cxd = cxd + now[0] @ x
         if now_on[1]:
             cvd = cvd + now[1] @ v
-        u = P * (cxd - x) + D * (cvd - v) + F  # eq. protocol + forcing of eq. formation
+        u = P * (cxd - x) + D * (cvd - v) + F  # the paper's eq. 1 + forcing of the paper's eq. 13
         if late is None:
             return agent.rhs(st, u)
         if c == 0.0:  # the command made at the grid point t_k, executed actuation_delay later

@@ -1,8 +1,8 @@
 """Actuation delay in the integrators: a buffer of the commands each robot applies late.
 
 A robot with actuation delay tau_a executes at time t the command it made
-at t - tau_a (:attr:`~delayform.simulation.robots.Robot.actuation_delay`).
-The generic RK4 loop (:func:`delayform.simulation.integrator.integrate`)
+at t - tau_a (:attr:`~delayform.simulation.models.robots.Robot.actuation_delay`).
+The generic RK4 loop (:func:`delayform.simulation.delayed.integrator.integrate`)
 stores the command made at every grid point t_k (from the state at t_k and
 its delayed reads) and each stage at ``t_k + c dt`` reads the command of
 ``t_k + c dt - tau_a`` by **linear interpolation** between the two grid

@@ -1,12 +1,12 @@
-"""Simulation of the formation protocol with two constant delays (eq. protocol, eq. formation).
+"""Simulation of the formation protocol with two constant delays (paper, eqs. 1 and 13).
 
-Agent i applies (per coordinate, eq. protocol plus the forcing of eq. formation)::
+Agent i applies (per coordinate, the paper's eq. 1 plus the forcing of the paper's eq. 13)::
 
     u_i(t) = P (sum_k C_ik x_k(t - tau1) - x_i(t)) + D (sum_k C_ik xdot_k(t - tau2) - xdot_i(t)) + F_i
 
 with ``F = P (I - C) z_desired`` (:func:`delayform.formation.formation_forcing`).
 
-Agent models (:mod:`delayform.simulation.robots`)
+Agent models (:mod:`delayform.simulation.models.robots`)
 -------------------------------------------------
 ``double_integrator``
     ``x'' = u`` (Section "Consensus Protocol").
@@ -14,12 +14,12 @@ Agent models (:mod:`delayform.simulation.robots`)
     The feedback-linearized differential-drive robot of Section "Feedback
     Linearization". Its position follows the double integrator exactly while
     v != 0, so the double integrator is integrated (fast and exactly, no
-    regularisation of eq. transform2) and heading, signed speed, turn rate
+    regularisation of the paper's eq. 19) and heading, signed speed, turn rate
     and wheel speeds are reconstructed from velocity and acceleration
-    (:func:`delayform.simulation.robots.ideal_commands`).
+    (:func:`delayform.simulation.models.robots.ideal_commands`).
 ``unicycle`` with ``limits``
     The true unicycle state (x, y, theta, v) with saturated inputs
-    (:class:`delayform.simulation.robots.LimitedUnicycle`), using the
+    (:class:`delayform.simulation.models.robots.LimitedUnicycle`), using the
     neighbours' delayed states from the history. The saturations are
     continuous but not smooth: **stated order 2**.
 ``physics``
@@ -30,11 +30,11 @@ Agent models (:mod:`delayform.simulation.robots`)
 Over an imperfect ``network``
     The same agent models (the double integrator, from which ideal robots
     are rebuilt, the saturated unicycle, or the robots with mass) driven by what each agent hears
-    (:func:`delayform.simulation.reception.integrate_network`).
+    (:func:`delayform.simulation.delayed.reception.integrate_network`).
 
 Each agent model is one entry of the integrator table
-:data:`delayform.simulation.models.INTEGRATORS`, named by ``Robot.model``.
-History and integrator: :mod:`delayform.simulation.integrator` (RK4 with
+:data:`delayform.simulation.runs.integrators.INTEGRATORS`, named by ``Robot.model``.
+History and integrator: :mod:`delayform.simulation.delayed.integrator` (RK4 with
 Hermite look-ups, stated order 4 for on-grid delays).
 The state is constant before ``t = 0``: positions ``x0`` and Cartesian
 velocities ``v0 = initial_speed (cos theta0, sin theta0)``. Agents send
@@ -67,14 +67,14 @@ from delayform.formation import (
 from delayform.resources import require
 from delayform.model import MODELS, Delays, Network, Robot, RobotLimits, Team
 from delayform.model.start import Start
-from delayform.simulation.assignment import assign_slots
-from delayform.simulation.bodies import approach_cost, closest_approach
-from delayform.simulation.compat import SIMULATE_KEYWORDS, accepts_loose_calls
-from delayform.simulation.integrator import Samples, history_steps, effective_delay
-from delayform.simulation.models import INTEGRATORS, Motion, RunPlan
-from delayform.simulation.options import RunOptions
-from delayform.simulation.safety import SafetyReport
-from delayform.simulation.trajectory import (
+from delayform.simulation.bodies.assignment import assign_slots
+from delayform.simulation.bodies.approach import approach_cost, closest_approach
+from delayform.simulation.runs.compat import SIMULATE_KEYWORDS, accepts_loose_calls
+from delayform.simulation.delayed.integrator import Samples, history_steps, effective_delay
+from delayform.simulation.runs.integrators import INTEGRATORS, Motion, RunPlan
+from delayform.simulation.runs.options import RunOptions
+from delayform.simulation.bodies.safety import SafetyReport
+from delayform.simulation.runs.trajectory import (
     Trajectory,
     contact_warning,
     formation_error,
@@ -110,7 +110,7 @@ def estimate_resources(
     n, steps, save_every
         Agents, steps and saving stride.
     tau1, tau2, dt
-        Effective delays (:func:`~delayform.simulation.integrator.effective_delay`) and step.
+        Effective delays (:func:`~delayform.simulation.delayed.integrator.effective_delay`) and step.
     limited
         Whether robots with limits are integrated (the generic loop).
     nnz
@@ -151,7 +151,7 @@ def simulate(
     dt: float,
     options: RunOptions | None = None,
 ) -> Trajectory:
-    """Simulate the team under eq. formation with delays tau1 (positions) and tau2 (velocities).
+    """Simulate the team under the paper's eq. 13 with delays tau1 (positions) and tau2 (velocities).
 
     Parameters
     ----------
@@ -170,8 +170,8 @@ def simulate(
         What belongs to the robot (:class:`~delayform.model.Robot`: model,
         limits or profile, body radius, safety filter, actuation delay,
         rest speed); its model names the entry of the integrator table
-        :data:`~delayform.simulation.models.INTEGRATORS`. None: ``Robot()``,
-        ideal differential-drive robots (eq. transform2) whose wheel speeds
+        :data:`~delayform.simulation.runs.integrators.INTEGRATORS`. None: ``Robot()``,
+        ideal differential-drive robots (paper, eq. 19) whose wheel speeds
         are reported for the geometry of :data:`~delayform.model.IROBOT_CREATE`.
         ``Robot(model="physics")``: robots with mass, wheel servos and
         contacts in a physics engine (:mod:`delayform.simulation.physics`;
@@ -181,13 +181,13 @@ def simulate(
     network
         An imperfect network (:class:`~delayform.model.Network`: per-link and
         varying delays, jitter, loss, sampling, noise), integrated by
-        :func:`~delayform.simulation.reception.integrate_network`. None or the
+        :func:`~delayform.simulation.delayed.reception.integrate_network`. None or the
         ideal network: the paper's, exactly the ordinary integrators.
     start
         Where the robots start (:class:`~delayform.model.Start`: positions,
         headings, speed, the seed of what is drawn). None: ``Start()``,
         random positions and headings from seed 0 at the paper's 1e-3 m/s.
-        Ideal robots cannot start at exactly zero speed (eq. transform2
+        Ideal robots cannot start at exactly zero speed (paper, eq. 19
         divides by v there).
     duration, dt
         Length of the run and the fixed step (s); the run ends at
@@ -195,14 +195,14 @@ def simulate(
         control ticks, sampled every ``round(dt / period)`` ticks).
     options
         Saving stride, slot assignment and a progress callback
-        (:class:`~delayform.simulation.options.RunOptions`); None: the defaults.
+        (:class:`~delayform.simulation.runs.options.RunOptions`); None: the defaults.
 
     Returns
     -------
     Trajectory
         With ``status`` and ``warnings`` saying whether the run settled and
         whether bodies touched (``min_distance``, ``contacts``:
-        :func:`~delayform.simulation.bodies.closest_approach`), and the
+        :func:`~delayform.simulation.bodies.approach.closest_approach`), and the
         robots' ``commands``.
 
     Raises
@@ -218,7 +218,7 @@ def simulate(
     The loose form of earlier versions, ``simulate(topology, P, D, tau1, tau2,
     formation, model=..., limits=..., initial_positions=..., seed=...,
     save_every=..., ...)``, is still taken: each keyword goes to its noun
-    (:data:`~delayform.simulation.compat.SIMULATE_KEYWORDS`).
+    (:data:`~delayform.simulation.runs.compat.SIMULATE_KEYWORDS`).
 
     Examples
     --------
@@ -266,7 +266,7 @@ def simulate(
     eff1, eff2 = effective_delay(tau1, dt, steps), effective_delay(tau2, dt, steps)
     filtered = robot.safety is not None
     generic = integrator.generic(robot)
-    # small ideal filtered teams keep the linear path's records (simulation.filtered)
+    # small ideal filtered teams keep the linear path's records (simulation.delayed.filtered)
     hybrid = filtered and network is None and not generic and ta == 0.0 and n <= _DENSE_AGENTS
     nbytes, seconds, linear = estimate_resources(
         n, steps, save_every, eff1, eff2, dt, limited=generic or (filtered and not hybrid),
@@ -395,7 +395,7 @@ def paper_simulations(
     *, seed: int = 0, duration: float = 150.0, dt: float = 0.01, spacing: float = 2.0,
     limits: RobotLimits | None = None,
 ) -> tuple[Trajectory, Trajectory]:  # fmt: skip
-    """The paper's six robots (Fig. topol, P = 1, D = 0.5) into a hexagon at points a and b.
+    """The paper's six robots (paper, Fig. 2, P = 1, D = 0.5) into a hexagon at points a and b.
 
     Unicycle robots from random positions and headings (``seed``) with initial
     speed 1e-3 (Section "Simulation Examples"); point a is

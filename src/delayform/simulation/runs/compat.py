@@ -29,7 +29,7 @@ from delayform.errors import SimulationInputError
 from delayform.model import Robot, Team
 from delayform.model.loose import LOOSE_TEAM, is_loose, team_and_delays
 from delayform.model.start import Start
-from delayform.simulation.options import RunOptions
+from delayform.simulation.runs.options import RunOptions
 
 __all__ = ["SIMULATE_KEYWORDS", "MONTE_CARLO_KEYWORDS", "LOOSE_POSITIONAL", "accepts_loose_calls", "nouns_of"]
 

@@ -5,7 +5,7 @@ Method
 Between two saved samples ``t_k`` and ``t_{k+1} = t_k + h`` the motion of a
 robot is the cubic Hermite interpolant of its saved positions and
 velocities (the same interpolant the integrator uses for its delayed
-look-ups, :mod:`delayform.simulation.integrator`, so with every step saved it
+look-ups, :mod:`delayform.simulation.delayed.integrator`, so with every step saved it
 is the integrator's own fourth-order continuous extension). The separation
 ``d(s) = x_i - x_j`` of a pair is then a planar cubic in ``s in [0, 1]``,
 ``d = a0 + a1 s + a2 s^2 + a3 s^3``, its squared length ``|d|^2`` a

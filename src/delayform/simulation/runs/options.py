@@ -9,7 +9,7 @@ Executors
 ---------
 The runs of a Monte Carlo are handed to an *executor*: any object with
 ``map(fn, tasks, progress=None) -> list`` returning the results in the order
-of ``tasks`` (:class:`SerialExecutor` here; Dask ones in :mod:`delayform.sweeps`).
+of ``tasks`` (:class:`SerialExecutor` here; Dask ones in :mod:`delayform.simulation.experiments.sweeps`).
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from typing import Any, Protocol, runtime_checkable
 
 from delayform._validation import validated
 from delayform.errors import SimulationInputError
-from delayform.simulation.assignment import check_assignment
+from delayform.simulation.bodies.assignment import check_assignment
 
 __all__ = ["RunOptions", "Executor", "SerialExecutor", "Progress"]
 
@@ -75,11 +75,11 @@ class RunOptions:
         ``"given"`` (default): robot i takes slot i of the formation.
         ``"optimal"``: the slots that minimise the total squared distance from
         each robot's start to its predicted final position
-        (:func:`~delayform.simulation.assignment.assign_slots`). It relabels
+        (:func:`~delayform.simulation.bodies.assignment.assign_slots`). It relabels
         the slots only: the stability analysis is unchanged (docs/theory.md).
     executor
         Where the runs of a Monte Carlo go (:class:`SerialExecutor` by
-        default; :func:`delayform.sweeps.executor` for Dask); a single
+        default; :func:`delayform.simulation.experiments.sweeps.executor` for Dask); a single
         simulation refuses one. Its ``workers`` attribute, if any, enters the
         Monte Carlo's memory and time guard.
     progress
