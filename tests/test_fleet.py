@@ -30,7 +30,7 @@ from delayform.fleet.world import WORLDS, KinematicWorld
 from delayform.formation import named_formation
 from delayform.model import Delays, Start, Team
 from delayform.simulation import simulate
-from delayform.simulation.network import BernoulliLoss, Jitter, MeasurementNoise, Network, Sampling
+from delayform.simulation.network import BernoulliLoss, Jitter, MeasurementNoise, Network, Sampling, SmoothVariation
 from delayform.simulation.reception import packet_draws, reception
 from delayform.topology import complete, paper_six
 
@@ -120,8 +120,9 @@ def test_network_parts_not_applied_are_refused() -> None:
     assert check_network(Network()) is None
     assert check_network(Network(loss=BernoulliLoss(0.1))) is not None
     assert check_network(Network(sampling=Sampling(20.0), noise=MeasurementNoise(0.01, 0.01))) is not None
-    with pytest.raises(FleetError, match="jitter"):
-        check_network(Network(jitter=Jitter(0.01, 0.01)))
+    assert check_network(Network(jitter=Jitter(0.01, 0.01))) is not None  # applied per message (test_fleet_links)
+    with pytest.raises(FleetError, match="variation"):
+        check_network(Network(variation=SmoothVariation(0.05, 0.05, 5.0)))
 
 
 def test_packet_draws_are_the_simulator_s() -> None:
@@ -276,8 +277,9 @@ def test_the_command_writes_its_page_and_prints_json(tmp_path: Path) -> None:
 
 
 def test_a_bad_scenario_exits_2_with_one_line_before_any_process(tmp_path: Path) -> None:
-    bad = tmp_path / "jitter.toml"
-    bad.write_text((ROOT / "examples" / "paper.toml").read_text() + "\n[network]\njitter = [0.01, 0.01]\n")
+    bad = tmp_path / "variation.toml"
+    bad.write_text((ROOT / "examples" / "paper.toml").read_text()
+                   + "\n[network]\nvariation = { amplitude = [0.05, 0.05], period = 5.0 }\n")
     for args in ([str(bad)], ["--endpoint", "tcp/10.1.2.3:7447"], ["--tau1", "-1"]):
         proc = _cli(*args, "--duration", "5", "--out", str(tmp_path / "out"))
         stdout, stderr = proc.communicate(timeout=120)

@@ -49,8 +49,8 @@ def fleet_command(scenario: Path | None, seed: int | None, use_limits: bool | No
     ideal robots) and publishes their odometry. Messages are CDR-encoded
     nav_msgs/Odometry (robot_<i>/odom, robot_<i>/state) and geometry_msgs/Twist
     (robot_<i>/cmd_vel) on Zenoh key expressions named as ROS 2 topics; the
-    scenario's [network] loss, sampling and noise act on the state messages
-    with the simulator's draws. Writes fleet.mcap (every message), summary.json,
+    scenario's [network] (per-link delays, jitter, loss, sampling, noise) acts
+    on the state messages at the receiving side with the simulator's draws. Writes fleet.mcap (every message), summary.json,
     summary.txt and fleet_error.png/.svg: per link the delays applied, ticks
     missed or late, messages lost, and beside them the chart's verdict, the
     dominant root's decay against the measured one, and the simulator's
@@ -68,7 +68,7 @@ def fleet_command(scenario: Path | None, seed: int | None, use_limits: bool | No
     if sc.actuation_delay:
         raise click.UsageError("the scenario has an actuation delay: a fleet run's robots act when their command "
                                "arrives; set [robot] actuation_delay = 0")  # fmt: skip
-    sc = sc.at_one_delay_pair("fleet (the on-robot controller holds one delay pair)", "simulate", spread=True)
+    sc = sc.with_uniform_links_folded()  # per-link delays stay in the network: the playout buffers hold them
     if use_limits is None and sc.robot is None and not given:  # the paper's robot, as the fleet's default
         sc = replace(sc, robot=IROBOT_CREATE)
     sc = _with_robot(sc, use_limits, given, "unicycle")

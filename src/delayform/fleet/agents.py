@@ -15,8 +15,9 @@ it only publishes its state: the neighbours' playout buffers then hold the
 initial state, the constant history of the simulation. A tick that wakes
 more than a period late skips the deadlines it missed (counted).
 The scenario's network acts where a real one would, on reception
-(:mod:`delayform.fleet.plan`): a state message the network loses never
-reaches the controller.
+(:mod:`delayform.fleet.plan`): each link's delays are the controller's
+playout delays, a packet's jitter delays that message's position and
+velocity, and a stream the network loses is never used.
 
 Every process takes its messages from Zenoh channels in its own thread, looking
 every millisecond while it waits for its next deadline (:func:`_wait_until`):
@@ -157,26 +158,28 @@ def robot_main(spec: dict[str, Any]) -> None:
 
     me, n, h = int(spec["robot"]), int(spec["n"]), float(spec["period"])
     limits = None if spec["limits"] is None else RobotLimits(**spec["limits"])
+    links = {int(k): (float(d[0]), float(d[1])) for k, d in spec["link_delays"].items()}
     ctrl = FormationController(robot=me, P=spec["P"], D=spec["D"], tau1=spec["tau1"], tau2=spec["tau2"],
                                weights={int(k): w for k, w in spec["weights"].items()},
-                               forcing=spec["forcing"], limits=limits)  # fmt: skip
-    # the network's draws for the links this robot receives on: packet m of informer k (run.py, module doc)
-    lost: dict[int, Any] = {}
-    noise: dict[int, Any] = {}
+                               forcing=spec["forcing"], limits=limits, link_delays=links)  # fmt: skip
+    # the network's draws for the links this robot receives on: packet m of informer k (plan.py)
+    lost: dict[int, Any] = {}  # k -> (packets, 2) per stream
+    noise: dict[int, Any] = {}  # k -> (packets, 4): dx dy dvx dvy
+    jitter: dict[int, Any] = {}  # k -> (packets, 2) seconds per stream
     if spec.get("draws"):
         with np.load(spec["draws"]) as d:
             for e, k in enumerate(d["informers"]):
-                if "lost" in d:
-                    lost[int(k)] = d["lost"][:, e]
-                if "noise" in d:
-                    noise[int(k)] = d["noise"][:, e]
+                for name, box in (("lost", lost), ("noise", noise), ("jitter", jitter)):
+                    if name in d:
+                        box[int(k)] = d[name][:, e]
     rate = spec.get("rate")
-    packet = h if rate is None else 1.0 / float(rate)
+    packet = float(spec["packet_period"])
     codec = Codec(n)
     session = open_session(listen=["tcp/127.0.0.1:0"], connect=[spec["endpoint"]])
     odom: list[Odometry | None] = [None]
     t0_box = [math.inf]
-    received: list[tuple[int, float, float, bool]] = []  # sender, stamp, receipt (run clock), lost by the network
+    # sender, stamp, receipt (run clock), lost by the network (position stream), the message's delays (inf: lost)
+    received: list[tuple[int, float, float, bool, float, float]] = []
 
     def on_state(sample: Any) -> None:
         now = time.time()
@@ -184,19 +187,23 @@ def robot_main(spec: dict[str, Any]) -> None:
         o = codec.read_odometry(sender, bytes(sample.payload.to_bytes()))
         t0 = t0_box[0]
         stamp = o.stamp - t0
-        dropped = False
         c, s = math.cos(o.theta), math.sin(o.theta)
         x, y, vx, vy = o.x, o.y, o.v * c, o.v * s
+        d1, d2 = links[sender]
         if stamp >= 0.0:  # packet m: sent in the m-th packet period since t = 0 (before it, the exact history)
             m = math.floor(stamp / packet + 1e-9)
+            jit = jitter.get(sender)
+            if jit is not None and m < jit.shape[0]:
+                d1, d2 = d1 + jit[m, 0], d2 + jit[m, 1]
             mask = lost.get(sender)
-            dropped = bool(mask is not None and m < mask.size and mask[m])
+            if mask is not None and m < mask.shape[0]:
+                d1, d2 = (math.inf if mask[m, 0] else d1), (math.inf if mask[m, 1] else d2)
             extra = noise.get(sender)
             if extra is not None and m < extra.shape[0]:
                 x, y, vx, vy = x + extra[m, 0], y + extra[m, 1], vx + extra[m, 2], vy + extra[m, 3]
-        received.append((sender, stamp, now - t0, dropped))
-        if not dropped:
-            ctrl.receive(NeighbourMessage(sender, stamp, x, y, vx, vy))
+        received.append((sender, stamp, now - t0, d1 == math.inf, d1, d2))
+        if d1 < math.inf or d2 < math.inf:  # a message with neither part is lost whole
+            ctrl.receive(NeighbourMessage(sender, stamp, x, y, vx, vy), (d1, d2))
 
     def on_odom(sample: Any) -> None:
         odom[0] = codec.read_odometry(me, bytes(sample.payload.to_bytes()))
@@ -257,7 +264,7 @@ def robot_main(spec: dict[str, Any]) -> None:
             pub_cmd.put(codec.twist(speed, cmd.turn_rate))
             ticks.append((k * h, late, cmd.lag, time.time() - woke, speed))
         k += 1
-    rec = np.array(received, dtype=np.float64).reshape(-1, 4)
+    rec = np.array(received, dtype=np.float64).reshape(-1, 6)
     tk = np.array(ticks, dtype=np.float64).reshape(-1, 5)
     from delayform._files import atomic_path
 

@@ -3,15 +3,18 @@
 From the processes' logs (:mod:`delayform.fleet.agents`):
 
 Per link (receiver i, informer k)
-    The network latency of each state message (receipt, when the receiving
+    The link's design delays (``tau1_ik``, ``tau2_ik``: the scenario's
+    per-link delays, else (tau1, tau2)) beside the measured ones (the median
+    applied delay), the network latency of each state message (receipt, when the receiving
     process took it from its channel, within a millisecond of its
     arrival, minus the sender's stamp), the delay the controller actually applied at each tick (the tick's
-    time minus the stamp of the newest message it had received that was sent
-    at or before ``t - tau``: what the playout buffer hands the controller),
+    time minus the stamp of the newest message it had received that was due,
+    ``stamp + d <= t`` with d the link's delay plus the packet's jitter:
+    what the playout buffer hands the controller), the receiving robot's ticks missed and late,
     how long that message waited in the buffer (playout), and the messages
     sent, received, lost on the way and dropped by the scenario's network.
-    With a playout buffer the applied delay lies in ``[tau, tau + h)`` (h the
-    control period) when the network is faster than the design.
+    With a playout buffer the applied delay lies in ``[tau_ik, tau_ik + h)`` (h the
+    control period) when the network is faster than the design and there is no jitter.
 Per robot
     Ticks run, missed (a deadline that passed while the process waited for
     the CPU) and late (woken more than :data:`LATE_FRACTION` of a period after
@@ -27,19 +30,22 @@ The team
     the exact CTCR chart's verdict at (tau1, tau2), the dominant root's decay
     rate ``-Re s`` of the formation modes (:func:`delayform.dominant_root`),
     and the simulator's settling time, closest approach and its own error's
-    decay fitted the same way.
+    decay fitted the same way. With per-link delays the chart and the
+    dominant root are those of the nominal pair (they do not cover other
+    delays; ``per_link_delays`` says so): the simulator, run over the same
+    network, is then the promise.
 """
 
 from __future__ import annotations
 
 import math
-from bisect import bisect_right, insort
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from delayform.fleet.plan import LinkPlan
 from delayform.model import Team
 from delayform.simulation.bodies import closest_approach
 from delayform.simulation.network import Network
@@ -106,27 +112,45 @@ def _stats(values: _Array) -> dict[str, float]:
     return {"median": float(np.median(values)), "p99": float(np.quantile(values, 0.99)), "max": float(values.max())}
 
 
-def _applied(ticks_t: _Array, stamps: _Array, receipts: _Array, tau: float) -> tuple[_Array, _Array]:
-    """Per tick: the delay applied (t minus the stamp used) and how long that message waited (t minus its receipt)."""
-    order = np.argsort(receipts, kind="stable")
-    stamps, receipts = stamps[order], receipts[order]
-    held: list[float] = []  # stamps received so far, sorted
-    when: dict[float, float] = {}
+def _applied(ticks_t: _Array, stamps: _Array, receipts: _Array, delays: _Array) -> tuple[_Array, _Array]:
+    """Per tick: the delay applied (t minus the stamp used) and how long that message waited (t minus its receipt).
+
+    The message used at t is the controller's: the newest one received and
+    due (``stamp + d <= t``, ``d`` the message's own delay, infinite for a
+    stream the network lost); before the first, the oldest received.
+    """
     delay = np.full(ticks_t.size, math.nan)
     wait = np.full(ticks_t.size, math.nan)
-    j = 0
-    for r, t in enumerate(ticks_t):
-        while j < receipts.size and receipts[j] <= t:
-            insort(held, stamps[j])
-            when.setdefault(stamps[j], receipts[j])
-            j += 1
-        if not held:
-            continue
-        pos = bisect_right(held, t - tau + 1e-9) - 1
-        used = held[max(pos, 0)]
-        delay[r] = t - used
-        wait[r] = t - when[used]
+    if stamps.size == 0:
+        return delay, wait
+    usable = np.maximum(receipts, stamps + delays)
+    by_use = np.argsort(usable, kind="stable")
+    newest = np.maximum.accumulate(stamps[by_use])
+    newest_receipt = receipts[by_use][_running_argmax(stamps[by_use])]
+    by_receipt = np.argsort(receipts, kind="stable")
+    oldest = np.minimum.accumulate(stamps[by_receipt])
+    oldest_receipt = receipts[by_receipt][_running_argmin(stamps[by_receipt])]
+    pos = np.searchsorted(usable[by_use], ticks_t + 1e-9, side="right") - 1
+    got = np.searchsorted(receipts[by_receipt], ticks_t, side="right") - 1
+    due = pos >= 0
+    early = ~due & (got >= 0)
+    delay[due] = ticks_t[due] - newest[pos[due]]
+    wait[due] = ticks_t[due] - newest_receipt[pos[due]]
+    delay[early] = ticks_t[early] - oldest[got[early]]
+    wait[early] = ticks_t[early] - oldest_receipt[got[early]]
     return delay, wait
+
+
+def _running_argmax(values: _Array) -> NDArray[np.intp]:
+    """Index of the largest value so far, at each position (the first of equal ones)."""
+    best = np.maximum.accumulate(values)
+    idx = np.where(values == best, np.arange(values.size), 0)
+    return np.maximum.accumulate(idx) if values.size else idx
+
+
+def _running_argmin(values: _Array) -> NDArray[np.intp]:
+    """Index of the smallest value so far, at each position."""
+    return _running_argmax(-values)
 
 
 @dataclass(frozen=True, eq=False)
@@ -170,7 +194,7 @@ class FleetRun:
         return ax
 
 
-def measure(*, team: Team, tau1: float, tau2: float, desired: _Array, limits: RobotLimits | None, period: float,
+def measure(*, team: Team, tau1: float, tau2: float, plan: LinkPlan, desired: _Array, limits: RobotLimits | None, period: float,
             duration: float, network: Network | None, simulation: Trajectory, logs: dict[str, dict[str, Any]],
             recording: dict[str, int], pids: dict[str, int], mcap: Any, world: str, endpoint: str) -> FleetRun:  # fmt: skip
     """Measure a run from its logs (module doc); the comparison with the analysis included.
@@ -179,6 +203,8 @@ def measure(*, team: Team, tau1: float, tau2: float, desired: _Array, limits: Ro
     ----------
     team, tau1, tau2, desired, limits, period, duration, network
         What was run.
+    plan
+        The network's draws: each link's design delays.
     simulation
         The simulator's run of the same team at the same delays, from the same initial state.
     logs
@@ -218,27 +244,36 @@ def measure(*, team: Team, tau1: float, tau2: float, desired: _Array, limits: Ro
 
     # --- links
     links = []
+    design = {(int(i) + 1, int(k) + 1): (float(a), float(b))
+              for i, k, a, b in zip(plan.receivers, plan.informers, plan.tau1, plan.tau2)}  # fmt: skip
     C = topology.C_sparse.tocsr()
     loss_rate = 0.0 if network is None or network.loss is None else float(
         network.loss.link_loss_rate(topology.adjacency) if hasattr(network.loss, "link_loss_rate") else network.loss.loss_rate)  # fmt: skip
     cutoff = duration - _SETTLE  # a message sent in the run's last instant may meet a receiver that has stopped
     for i in range(1, n + 1):
-        rec = np.asarray(logs[f"robot_{i}"]["received"]).reshape(-1, 4)
+        rec = np.asarray(logs[f"robot_{i}"]["received"]).reshape(-1, 6)
         for j in C.indices[C.indptr[i - 1]:C.indptr[i]]:
             k = int(j) + 1
             if k == i:
                 continue
             mine = rec[(rec[:, 0] == k) & (rec[:, 1] >= 0.0) & (rec[:, 1] <= cutoff)]
             delivered = mine[mine[:, 3] == 0.0]
-            every = rec[(rec[:, 0] == k) & (rec[:, 3] == 0.0)]  # the ones before t = 0 too: the initial history
-            d1, wait1 = _applied(tick_times[i], every[:, 1], every[:, 2], tau1)
-            d2, _ = _applied(tick_times[i], every[:, 1], every[:, 2], tau2)
+            every = rec[rec[:, 0] == k]  # the ones before t = 0 too: the initial history
+            d1, wait1 = _applied(tick_times[i], every[:, 1], every[:, 2], every[:, 4])
+            d2, _ = _applied(tick_times[i], every[:, 1], every[:, 2], every[:, 5])
             sent = int(np.sum(np.asarray(logs[f"robot_{k}"]["sent"]) <= cutoff))
+            want1, want2 = design[(i, k)]
+            applied1, applied2 = _stats(d1[np.isfinite(d1)]), _stats(d2[np.isfinite(d2)])
             links.append({
-                "receiver": i, "informer": k, "sent": sent, "received": int(mine.shape[0]),
+                "receiver": i, "informer": k, "design_tau1_s": want1, "design_tau2_s": want2,
+                "measured_tau1_s": applied1["median"], "measured_tau2_s": applied2["median"],
+                "within_one_period": bool(abs(applied1["median"] - want1) <= h and abs(applied2["median"] - want2) <= h),
+                "receiver_ticks_missed": robots[i - 1]["ticks_missed"], "receiver_ticks_late": robots[i - 1]["ticks_late"],
+                "sent": sent, "received": int(mine.shape[0]),
                 "lost_in_transport": max(sent - int(mine.shape[0]), 0), "dropped_by_network": int(np.sum(mine[:, 3] != 0.0)),
                 "latency_s": _stats(mine[:, 2] - mine[:, 1]),
-                "applied_tau1_s": _stats(d1[np.isfinite(d1)]), "applied_tau2_s": _stats(d2[np.isfinite(d2)]),
+                "applied_tau1_s": applied1, "applied_tau2_s": applied2,
+                "dropped_velocities_by_network": int(np.sum(np.isinf(mine[:, 5]))),
                 "playout_s": _stats(wait1[np.isfinite(wait1)]),
                 "delivered": int(delivered.shape[0]),
             })  # fmt: skip
@@ -254,7 +289,10 @@ def measure(*, team: Team, tau1: float, tau2: float, desired: _Array, limits: Ro
     fleet_settling = settling_time(times, error, scale) if times.size else math.inf
     sent = sum(link["sent"] for link in links)
     dropped = sum(link["dropped_by_network"] for link in links)
+    per_link = bool(network is not None and network.delays is not None and not network.delays.is_uniform)
     team_summary = {
+        "per_link_delays": per_link,
+        "simulator_decay_ratio": measured / sim_rate if math.isfinite(measured) and sim_rate > 0 else math.nan,
         "chart_verdict": "stable" if chart_stable else "unstable",
         "dominant_root": [float(np.real(root)), float(np.imag(root))],
         "dominant_decay_rate": float(-np.real(root)),

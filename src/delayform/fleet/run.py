@@ -13,19 +13,18 @@ The network
 The loopback loses nothing and takes a fraction of a millisecond; the
 design's delays are made by each robot's playout buffer. The scenario's
 ``[network]`` acts where a real network would, on the state messages, with
-the draws the simulator makes for the same seed
-(:func:`delayform.simulation.reception.packet_draws`, for the simulator
-stepping at the control period): with ``rate`` each robot sends its state at
-the first tick at or after every ``m / rate`` (else at every tick: packet m is
-the one sent in period m); on reception, packet m on a link is dropped when the
-simulator's position stream loses packet m of that link (loss, Bernoulli or
-bursty), and carries the noise the simulator adds to it, stream by stream
-(positions, velocities). A state message carries both streams, as one packet
-does on a real robot, so the velocity stream's separate loss draws are not
-used. Delays that differ per link or in time (per-link matrices, spread,
-variation, jitter) decide when each stream arrives, and one message cannot
-arrive twice: a network with them is refused
-(:class:`~delayform.errors.FleetError`) rather than run without them.
+the draws the simulator makes for the same seed (:mod:`delayform.fleet.plan`,
+for the simulator stepping at the control period when the delays allow it):
+with ``rate`` each robot sends its state at the first tick at or after every
+``m / rate`` (else at every tick). On reception, packet m on link
+``i <- k`` is held by robot i's playout buffer for that link's delays
+(per-link matrices, or drawn with the spread), plus the jitter the simulator
+draws for packet m of each stream; a stream the simulator loses is never
+used (loss, Bernoulli or bursty), and each stream carries the noise the
+simulator adds to it. A state message carries both streams, as one packet
+does on a real robot; each becomes usable at its own time. Delays that vary
+smoothly in time are refused (:class:`~delayform.errors.FleetError`) rather
+than run without them.
 """
 
 from __future__ import annotations
@@ -52,7 +51,8 @@ from delayform.fleet.wire import DEFAULT_ENDPOINT, check_endpoint, open_session
 from delayform.fleet.world import WORLDS
 from delayform.formation import check_formation, formation_forcing
 from delayform.model import Delays, Start, Team
-from delayform.simulation.network import BernoulliLoss, GilbertElliott, Network
+from delayform.fleet.plan import LinkPlan, link_plan
+from delayform.simulation.network import Network
 from delayform.simulation.robots import Robot, RobotLimits
 
 __all__ = ["run_fleet", "check_network", "MCAP_NAME", "LEAD"]
@@ -71,7 +71,7 @@ _READY_TIMEOUT, _DONE_TIMEOUT = 60.0, 30.0
 
 
 def check_network(network: Network | None) -> Network | None:
-    """The network a fleet run applies: loss, sampling and noise; None when it is ideal (module doc, The network).
+    """The network a fleet run applies; None when it is ideal (module doc, The network).
 
     Parameters
     ----------
@@ -81,20 +81,14 @@ def check_network(network: Network | None) -> Network | None:
     Raises
     ------
     FleetError
-        For a network with parts not applied to real messages (per-link or
-        varying delays, jitter).
+        For delays that vary smoothly in time (the one part not applied to real messages).
     """
     if network is None or network.is_ideal:
         return None
-    parts = [name for name, on in (
-        ("per-link delays", network.delays is not None and not network.delays.is_uniform),
-        ("delay variation", network.variation is not None and not network.variation.is_off),
-        ("jitter", network.jitter is not None and not network.jitter.is_off),
-    ) if on]  # fmt: skip
-    if parts:
-        raise FleetError(f"the scenario's [network] has {', '.join(parts)}: a fleet run applies loss, sampling and "
-                         f"noise to real messages, not delays that differ per link or in time; remove them, or run "
-                         f"simulate for the whole network")  # fmt: skip
+    if network.variation is not None and not network.variation.is_off:
+        raise FleetError("the scenario's [network] has delay variation: a fleet run applies per-link delays, jitter, "
+                         "loss, sampling and noise to real messages, not delays that vary in time; remove it, or run "
+                         "simulate for the whole network")  # fmt: skip
     return network
 
 
@@ -139,7 +133,8 @@ def run_fleet(
     team
         Topology and gains (paper, eq. 1).
     delays
-        The design's delays: one pair on every link (the playout buffers hold them).
+        The design's nominal delays (one pair; per-link delays come with the
+        network, as for :func:`delayform.simulate`: ``Network(delays=LinkDelays(...))``).
     formation
         ``(n, 2)`` desired positions or a shape name.
     out
@@ -155,7 +150,8 @@ def run_fleet(
         The initial state (:class:`~delayform.model.Start`), as :func:`delayform.simulate`
         takes it; None: ``Start()``, drawn from seed 0.
     network
-        The scenario's network: its loss, sampling and noise act on the state messages (module doc).
+        The scenario's network: its per-link delays, jitter, loss, sampling and
+        noise act on the state messages (module doc).
     endpoint
         The Zenoh endpoint on the loopback the parent listens on.
     world
@@ -170,8 +166,8 @@ def run_fleet(
     Raises
     ------
     FleetError
-        Before any process starts: per-link delays, an actuation delay, a
-        network part not applied, an endpoint off the loopback or a port in use,
+        Before any process starts: delay matrices in ``delays`` (they go in
+        the network), an actuation delay, delays varying in time, an endpoint off the loopback or a port in use,
         a period or duration that is not positive, an unknown world.
     FleetRunError
         A child process that failed or never became ready.
@@ -180,7 +176,8 @@ def run_fleet(
     if not isinstance(team, Team) or not isinstance(delays, Delays):
         raise FleetError("run_fleet takes a Team and a Delays (delayform.model)")
     if delays.kind != "uniform":
-        raise FleetError("the on-robot controller holds one delay pair on every link; these delays differ per link")
+        raise FleetError("per-link delays go in the network, as for simulate: network=Network(delays=LinkDelays(tau1, "
+                         "tau2)) with the nominal pair in Delays")  # fmt: skip
     if delays.actuation:
         raise FleetError("an actuation delay is what the robots do, not what the fleet adds: give Delays without it")
     tau1, tau2 = delays.pair
@@ -206,12 +203,14 @@ def run_fleet(
     # the promise: the same team simulated at the same delays (and the initial states both start from)
     from delayform.simulation import simulate
 
-    steps_dt = min([period] + [t for t in (tau1, tau2) if t > 0])
+    plan = link_plan(network or Network(), topology, tau1, tau2, dt=period, duration=duration)
+    steps_dt = _step(plan, network, period)
+    if steps_dt != period:
+        plan = link_plan(network or Network(), topology, tau1, tau2, dt=steps_dt, duration=duration)
     say("simulating the same team")
     sim = simulate(team, delays, desired, robot=Robot(model="unicycle", limits=limits), network=network,
                    start=start, duration=duration, dt=steps_dt)  # fmt: skip
     state0 = np.column_stack([sim.positions[0], sim.headings[0], sim.speeds[0]])
-    draws = _draws(network, team, duration, steps_dt, period)
     rate = None if network is None or network.sampling is None else network.sampling.rate
     F = formation_forcing(topology, team.P, desired)
     C = topology.C_sparse.tocsr()
@@ -233,10 +232,13 @@ def run_fleet(
                 for i in range(n):
                     lo, hi = C.indptr[i], C.indptr[i + 1]
                     weights = {str(int(j) + 1): float(w) for j, w in zip(C.indices[lo:hi], C.data[lo:hi]) if j != i and w}
+                    mine = plan.of_receiver(i + 1)
                     children.start(f"robot_{i + 1}", {
                         **common, "role": "robot", "robot": i + 1, "P": team.P, "D": team.D, "tau1": tau1,
-                        "tau2": tau2, "weights": weights, "forcing": F[i].tolist(),
-                        "draws": _save_draws(draws, i + 1, folder), "log": str(folder / f"robot_{i + 1}.npz")})  # fmt: skip
+                        "tau2": tau2, "weights": weights, "forcing": F[i].tolist(), "packet_period": plan.period,
+                        "link_delays": {str(int(plan.informers[e]) + 1): [float(plan.tau1[e]), float(plan.tau2[e])]
+                                        for e in mine},
+                        "draws": _save_draws(plan, mine, i + 1, folder), "log": str(folder / f"robot_{i + 1}.npz")})  # fmt: skip
                 pids = children.pids
                 children.expect("ready", _READY_TIMEOUT)
                 t0 = time.time() + LEAD
@@ -261,34 +263,39 @@ def run_fleet(
         finally:
             session.close()
     say("measuring")
-    return measure(team=team, tau1=tau1, tau2=tau2, desired=desired, limits=limits, period=period,
+    return measure(team=team, tau1=tau1, tau2=tau2, plan=plan, desired=desired, limits=limits, period=period,
                    duration=duration, network=network, simulation=sim, logs=logs, recording=recorder.counts(),
                    pids=pids, mcap=mcap, world=world, endpoint=endpoint)  # fmt: skip
 
 
-def _draws(network: Network | None, team: Team, duration: float, dt: float, period: float) -> Any:
-    """The simulator's draws for the state messages (module doc), or None for a network that draws nothing."""
-    if network is None or not network.packets:
+def _step(plan: LinkPlan, network: Network | None, period: float) -> float:
+    """The simulator's step: the control period, or the largest period / k under every delay less its jitter.
+
+    A packet stream is heard at the earliest one step after it is sent (the
+    simulator's rule): a link delay shorter than the period needs a finer step.
+    """
+    bounds = (0.0, 0.0)
+    if network is not None and network.jitter is not None:
+        bounds = (network.jitter.bound1, network.jitter.bound2)
+    packets = network is not None and network.packets
+    shortest = [float(d.min()) - b for d, b in ((plan.tau1, bounds[0]), (plan.tau2, bounds[1]))]
+    floor = min([d for d in shortest if d > 0.0 or packets], default=period)
+    if floor <= 0.0:
+        raise FleetError(f"a delay less its jitter reaches {floor:g} s: every packet must take some time to arrive")
+    return period / max(1, math.ceil(period / floor - 1e-9))
+
+
+def _save_draws(plan: LinkPlan, mine: np.ndarray, robot: int, folder: Path) -> str | None:
+    """Robot ``robot``'s share of the draws (the links ``mine`` it receives on) as an NPZ; its path, or None."""
+    if plan.lost is None and plan.noise is None and plan.jitter is None:
         return None
-    from delayform.simulation.reception import packet_draws
-
-    # as reception(): the simulator stepping at dt sends a packet every sampling period (or step)
-    every = dt if network.sampling is None else 1.0 / network.sampling.rate
-    steps = round(duration / dt)
-    packets = math.floor((steps + 1) * dt / every + 1e-9) + 1
-    return packet_draws(network, team.topology, packets=packets)
-
-
-def _save_draws(draws: Any, robot: int, folder: Path) -> str | None:
-    """Robot ``robot``'s share of the draws (the links it receives on) as an NPZ; its path, or None."""
-    if draws is None:
-        return None
-    mine = np.flatnonzero((draws.receivers == robot - 1) & (draws.informers != robot - 1))
-    arrays: dict[str, np.ndarray] = {"informers": draws.informers[mine] + 1}
-    if draws.lost is not None:
-        arrays["lost"] = draws.lost[0][:, mine]  # the position stream's: one message carries both
-    if draws.noise is not None:
-        arrays["noise"] = np.concatenate([draws.noise[0][:, mine], draws.noise[1][:, mine]], axis=-1)  # dx dy dvx dvy
+    arrays: dict[str, np.ndarray] = {"informers": plan.informers[mine] + 1}
+    if plan.lost is not None:
+        arrays["lost"] = np.moveaxis(plan.lost[:, :, mine], 0, -1)  # (packets, links, stream)
+    if plan.jitter is not None:
+        arrays["jitter"] = np.moveaxis(plan.jitter[:, :, mine], 0, -1)
+    if plan.noise is not None:
+        arrays["noise"] = np.concatenate([plan.noise[0][:, mine], plan.noise[1][:, mine]], axis=-1)  # dx dy dvx dvy
     path = folder / f"draws_{robot}.npz"
     with atomic_path(path) as tmp:
         np.savez(tmp, **arrays)
