@@ -19,7 +19,7 @@ import pytest
 from delayform.deploy import FormationController, NeighbourMessage
 from delayform.errors import ControllerInputError
 from delayform.fleet.plan import link_plan, packet_count
-from delayform.simulation.network import BernoulliLoss, Jitter, LinkDelays, Network, Sampling
+from delayform.simulation.network import BernoulliLoss, Jitter, LinkDelays, MeasurementNoise, Network, Sampling
 from delayform.simulation.reception import reception
 from delayform.topology import complete, paper_six
 
@@ -104,16 +104,24 @@ def test_the_plan_s_link_delays_are_the_simulator_s() -> None:
 
 
 @pytest.mark.parametrize("sampling", [None, Sampling(40.0)], ids=["every-step", "sampled"])
-def test_the_controller_hears_the_packet_the_simulator_hears(sampling: Sampling | None) -> None:
-    """Per-link delays, jitter and loss: at every stage time of the simulator, on every link, the same packet."""
+def test_the_controller_hears_the_packet_the_simulator_hears(sampling: Sampling | None, tmp_path: Path) -> None:
+    """Per-link delays, jitter and loss: at every stage time of the simulator, on every link, the same packet.
+
+    The fleet's own path: the plan, the draws file each robot reads, its receiving side, its controller.
+    """
+    from delayform.fleet.agents import ReceivingSide
+    from delayform.fleet.run import _save_draws
+
     topo = complete(3)
     net = Network(delays=LinkDelays(TAU1, TAU2), jitter=Jitter(0.06, 0.04), loss=BernoulliLoss(0.25),
-                  sampling=sampling, seed=9)  # fmt: skip
+                  sampling=sampling, noise=MeasurementNoise(0.01, 0.02), seed=9)  # fmt: skip
     dt, duration = 0.02, 3.0
     steps = round(duration / dt)
     rec = reception(net, topo, 0.3, 0.2, dt=dt, steps=steps)
     plan = link_plan(net, topo, 0.3, 0.2, dt=dt, duration=duration)
-    assert plan.jitter is not None and plan.lost is not None
+    assert plan.jitter is not None and plan.lost is not None and plan.noise is not None
+    for s in range(2):
+        assert rec.noise[s] is not None and np.array_equal(plan.noise[s], rec.noise[s])
     packets = packet_count(duration, dt, plan.period)
     assert plan.jitter.shape == (2, packets, plan.receivers.size)
     tau1, tau2 = plan.delay_matrices(3)
@@ -122,12 +130,15 @@ def test_the_controller_hears_the_packet_the_simulator_hears(sampling: Sampling 
     for i in range(3):
         ctrl = FormationController.from_design(topo, 1.0, 1.5, tau1, tau2, "polygon", robot=i + 1)
         mine = plan.of_receiver(i + 1)
-        for e in mine:  # what the fleet's robot does on taking packet m of informer k (agents.robot_main)
+        side = ReceivingSide(ctrl.link_delays, plan.period, _save_draws(plan, mine, i + 1, tmp_path))
+        for e in mine:  # packet m of informer k, at rest at the origin: what arrives is the network's noise
             k = int(plan.informers[e]) + 1
             for m in range(packets):
-                d = [plan.tau1[e] + plan.jitter[0, m, e], plan.tau2[e] + plan.jitter[1, m, e]]
-                d = [math.inf if plan.lost[s, m, e] else d[s] for s in range(2)]
-                ctrl.receive(NeighbourMessage(k, m * plan.period, 0.0, 0.0, 0.0, 0.0), (d[0], d[1]))
+                message, delays = side.apply(NeighbourMessage(k, m * plan.period, 0.0, 0.0, 0.0, 0.0))
+                assert delays[0] == (math.inf if plan.lost[0, m, e] else plan.tau1[e] + plan.jitter[0, m, e])
+                assert (message.x, message.vy) == (plan.noise[0, m, e, 0], plan.noise[1, m, e, 1])
+                if delays[0] < math.inf or delays[1] < math.inf:
+                    ctrl.receive(message, delays)
         for kk in range(steps + 1):
             for j in range(3):
                 heard = ctrl.heard(float(queries[kk, j]))

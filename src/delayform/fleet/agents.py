@@ -48,7 +48,7 @@ from typing import Any
 
 # only the standard library at the top: a child ties its life to its parent's before the slow imports
 
-__all__ = ["tie_to_parent", "robot_main", "world_main", "main"]
+__all__ = ["tie_to_parent", "ReceivingSide", "robot_main", "world_main", "main"]
 
 _PR_SET_PDEATHSIG = 1
 
@@ -141,6 +141,54 @@ def _wait_until(epoch: float, subs: list[tuple[Any, Any]]) -> None:
 
 
 # ------------------------------------------------------------------ robot
+class ReceivingSide:
+    """What the scenario's network does to the state messages one robot receives (:mod:`delayform.fleet.plan`).
+
+    Parameters
+    ----------
+    links
+        Informer (from 1) -> the link's delays ``(tau1_ik, tau2_ik)``.
+    period
+        The packet period (s): a message stamped t (run clock) is packet ``floor(t / period)``.
+    draws
+        The NPZ of this robot's draws (:func:`delayform.fleet.run.run_fleet` writes it), or None:
+        ``informers``, and per link ``lost`` (packets, 2), ``jitter`` (packets, 2), ``noise`` (packets, 4).
+    """
+
+    def __init__(self, links: dict[int, tuple[float, float]], period: float, draws: str | None) -> None:
+        import numpy as np
+
+        self.links, self.period = links, period
+        self.lost: dict[int, Any] = {}
+        self.noise: dict[int, Any] = {}
+        self.jitter: dict[int, Any] = {}
+        if draws:
+            with np.load(draws) as d:
+                for e, k in enumerate(d["informers"]):
+                    for name, box in (("lost", self.lost), ("noise", self.noise), ("jitter", self.jitter)):
+                        if name in d:
+                            box[int(k)] = d[name][:, e].tolist()  # plain floats: looked up at every message
+
+    def apply(self, message: Any) -> tuple[Any, tuple[float, float]]:
+        """The message as the network delivers it (noise added) and its delays (infinite: that stream is lost)."""
+        k, stamp = message.sender, message.stamp
+        d1, d2 = self.links[k]
+        if stamp < 0.0:  # before t = 0: the exact initial history, as the simulator's
+            return message, (d1, d2)
+        m = math.floor(stamp / self.period + 1e-9)
+        jit = self.jitter.get(k)
+        if jit is not None and m < len(jit):
+            d1, d2 = d1 + jit[m][0], d2 + jit[m][1]
+        lost = self.lost.get(k)
+        if lost is not None and m < len(lost):
+            d1, d2 = (math.inf if lost[m][0] else d1), (math.inf if lost[m][1] else d2)
+        extra = self.noise.get(k)
+        if extra is not None and m < len(extra):
+            dx, dy, dvx, dvy = extra[m]
+            message = message._replace(x=message.x + dx, y=message.y + dy, vx=message.vx + dvx, vy=message.vy + dvy)
+        return message, (d1, d2)
+
+
 def robot_main(spec: dict[str, Any]) -> None:
     """One robot: odometry and neighbours' states in, state and velocity commands out (module doc).
 
@@ -162,18 +210,9 @@ def robot_main(spec: dict[str, Any]) -> None:
     ctrl = FormationController(robot=me, P=spec["P"], D=spec["D"], tau1=spec["tau1"], tau2=spec["tau2"],
                                weights={int(k): w for k, w in spec["weights"].items()},
                                forcing=spec["forcing"], limits=limits, link_delays=links)  # fmt: skip
-    # the network's draws for the links this robot receives on: packet m of informer k (plan.py)
-    lost: dict[int, Any] = {}  # k -> (packets, 2) per stream
-    noise: dict[int, Any] = {}  # k -> (packets, 4): dx dy dvx dvy
-    jitter: dict[int, Any] = {}  # k -> (packets, 2) seconds per stream
-    if spec.get("draws"):
-        with np.load(spec["draws"]) as d:
-            for e, k in enumerate(d["informers"]):
-                for name, box in (("lost", lost), ("noise", noise), ("jitter", jitter)):
-                    if name in d:
-                        box[int(k)] = d[name][:, e]
+    network = ReceivingSide(links, float(spec["packet_period"]), spec.get("draws"))
     rate = spec.get("rate")
-    packet = float(spec["packet_period"])
+    packet = network.period
     codec = Codec(n)
     session = open_session(listen=["tcp/127.0.0.1:0"], connect=[spec["endpoint"]])
     odom: list[Odometry | None] = [None]
@@ -188,22 +227,10 @@ def robot_main(spec: dict[str, Any]) -> None:
         t0 = t0_box[0]
         stamp = o.stamp - t0
         c, s = math.cos(o.theta), math.sin(o.theta)
-        x, y, vx, vy = o.x, o.y, o.v * c, o.v * s
-        d1, d2 = links[sender]
-        if stamp >= 0.0:  # packet m: sent in the m-th packet period since t = 0 (before it, the exact history)
-            m = math.floor(stamp / packet + 1e-9)
-            jit = jitter.get(sender)
-            if jit is not None and m < jit.shape[0]:
-                d1, d2 = d1 + jit[m, 0], d2 + jit[m, 1]
-            mask = lost.get(sender)
-            if mask is not None and m < mask.shape[0]:
-                d1, d2 = (math.inf if mask[m, 0] else d1), (math.inf if mask[m, 1] else d2)
-            extra = noise.get(sender)
-            if extra is not None and m < extra.shape[0]:
-                x, y, vx, vy = x + extra[m, 0], y + extra[m, 1], vx + extra[m, 2], vy + extra[m, 3]
-        received.append((sender, stamp, now - t0, d1 == math.inf, d1, d2))
-        if d1 < math.inf or d2 < math.inf:  # a message with neither part is lost whole
-            ctrl.receive(NeighbourMessage(sender, stamp, x, y, vx, vy), (d1, d2))
+        message, delays = network.apply(NeighbourMessage(sender, stamp, o.x, o.y, o.v * c, o.v * s))
+        received.append((sender, stamp, now - t0, delays[0] == math.inf, delays[0], delays[1]))
+        if delays[0] < math.inf or delays[1] < math.inf:  # a message with neither part is lost whole
+            ctrl.receive(message, delays)
 
     def on_odom(sample: Any) -> None:
         odom[0] = codec.read_odometry(me, bytes(sample.payload.to_bytes()))
