@@ -234,6 +234,27 @@ def _no_process_survives(run: Any, out: Path) -> None:
 
 
 @pytest.mark.slow
+def test_the_paper_s_unstable_point_c_does_not_converge(tmp_path: Path) -> None:
+    """D = 0.5, delays (1, 2): the chart says unstable, and from the start where D = 1.5 converges 10x, the fleet does not.
+
+    The fleet's error follows the simulator's (which the chart's verdict is checked against elsewhere):
+    its largest swing over the second half of the run within 50 % of the simulator's.
+    """
+    root = dominant_root(paper_six(), 1.0, 0.5, 1.0, 2.0).formation_root
+    assert root.real > 0.0
+    duration = 10.0
+    run = run_fleet(Team(paper_six(), 1.0, 0.5), Delays(1.0, 2.0), named_formation("hexagon", 6, spacing=2.0),
+                    out=tmp_path, duration=duration, period=0.02, robot=robot_profile("create3"),
+                    start=Start(_near_hexagon(), np.zeros(6), speed=0.0), endpoint=f"tcp/127.0.0.1:{_free_port()}")  # fmt: skip
+    team = run.summary["team"]
+    assert team["chart_verdict"] == "unstable"
+    assert team["error_reduction"] < 10.0
+    assert team["final_error_m"] > 0.3 * team["initial_error_m"]
+    late, sim_late = run.times >= duration / 2, run.sim_times >= duration / 2
+    assert run.error[late].max() == pytest.approx(run.sim_error[sim_late].max(), rel=0.5)
+
+
+@pytest.mark.slow
 def test_network_loss_drops_messages_at_its_rate(tmp_path: Path) -> None:
     """Bernoulli loss 0.2 and sampling at 50 Hz: 50 states a second per link, 20 % dropped (4-sigma binomial bound)."""
     p, rate, duration = 0.2, 50.0, 6.0
