@@ -36,7 +36,8 @@ def fleet_text(run: FleetRun, name: str) -> str:
              f"control period {h:g} s, {r['duration']:g} s of wall clock; network: {r['network']}; "
              f"robots: {r['limits'] or 'ideal'}.", "",
              "Promised (exact analysis at the same delays) beside measured", ""]  # fmt: skip
-    rows = [("chart's verdict at (tau1, tau2)", t["chart_verdict"], ""),
+    nominal = " (nominal pair; the links have their own delays)" if t.get("per_link_delays") else ""
+    rows = [("chart's verdict at (tau1, tau2)", t["chart_verdict"] + nominal, ""),
             ("decay rate of the formation error (1/s)", _fmt(t["dominant_decay_rate"]) + " (dominant root)",
              _fmt(t["measured_decay_rate"]) + f" (fleet); simulator {_fmt(t['simulator_decay_rate'])}"),
             ("formation error (m)", f"from {_fmt(t['initial_error_m'])}", f"to {_fmt(t['final_error_m'])}"),
@@ -53,7 +54,8 @@ def fleet_text(run: FleetRun, name: str) -> str:
               "Per link (receiver <- informer): network latency, delays applied by the playout buffer "
               "(median / max), messages sent, received, dropped", ""]  # fmt: skip
     for link in s["links"]:
-        lines.append(f"  {link['receiver']} <- {link['informer']}: latency {_ms(link['latency_s']['median'])} "
+        lines.append(f"  {link['receiver']} <- {link['informer']}: design ({_ms(link['design_tau1_s'])}, "
+                     f"{_ms(link['design_tau2_s'])}); latency {_ms(link['latency_s']['median'])} "
                      f"(p99 {_ms(link['latency_s']['p99'])}); tau1 {_ms(link['applied_tau1_s']['median'])} / "
                      f"{_ms(link['applied_tau1_s']['max'])}, tau2 {_ms(link['applied_tau2_s']['median'])} / "
                      f"{_ms(link['applied_tau2_s']['max'])}; {link['sent']} sent, {link['received']} received, "
