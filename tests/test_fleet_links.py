@@ -193,3 +193,30 @@ def test_three_robots_hold_their_links_delays(tmp_path: Path) -> None:
     assert team["per_link_delays"] is True
     assert team["error_reduction"] > 10.0
     assert team["measured_decay_rate"] == pytest.approx(team["simulator_decay_rate"], rel=0.3)
+
+
+def test_the_summary_s_applied_delay_is_the_message_the_controller_used() -> None:
+    """The measurement from the logs (stamps, receipts, delays) against the controller fed the same messages live."""
+    from delayform.fleet.outcome import _applied
+
+    rng = np.random.default_rng(5)
+    h, tau1, tau2 = 0.02, 0.3, 0.2
+    m = np.arange(-50, 400)
+    stamps = m * h + rng.uniform(0.0, 0.002, m.size)  # sent at the tick, a little late
+    receipts = stamps + rng.uniform(0.0005, 0.004, m.size)
+    d1 = np.where(m >= 0, tau1 + rng.uniform(-0.05, 0.05, m.size), tau1)  # jitter from t = 0 on
+    d2 = np.where(m >= 0, tau2 + rng.uniform(-0.03, 0.03, m.size), tau2)
+    d1[(m >= 0) & (rng.random(m.size) < 0.2)] = math.inf  # the network loses a fifth of the positions
+    ticks = np.arange(0, 380) * h + rng.uniform(0.0, 0.003, 380)
+    ctrl = FormationController(robot=1, P=1.0, D=1.0, tau1=tau1, tau2=tau2, weights={2: 1.0})
+    used = []
+    j = 0
+    for t in ticks:  # live: the messages received by the tick, then the tick
+        while j < m.size and receipts[j] <= t:
+            ctrl.receive(NeighbourMessage(2, float(stamps[j]), 0.0, 0.0, 0.0, 0.0), (float(d1[j]), float(d2[j])))
+            j += 1
+        used.append(ctrl.heard(float(t))[2])
+    applied1, _ = _applied(ticks, stamps, receipts, d1)
+    applied2, _ = _applied(ticks, stamps, receipts, d2)
+    assert np.allclose(ticks - applied1, [u[0] for u in used], atol=1e-12)
+    assert np.allclose(ticks - applied2, [u[1] for u in used], atol=1e-12)
