@@ -5,7 +5,8 @@
 at the control period on the wall clock, a world process that moves the
 robots (:mod:`~delayform.fleet.world`), CDR-encoded ROS 2 messages on
 ROS 2 key expressions (:mod:`~delayform.fleet.wire`), the scenario's network
-loss on reception, and measures what happened against the analysis
+(per-link delays, jitter, loss, sampling, noise) on reception with the
+simulator's draws (:mod:`~delayform.fleet.plan`), and measures what happened against the analysis
 (:mod:`~delayform.fleet.outcome`). Needs the ``fleet`` extra.
 
 The names are imported on first use: the robot and world processes start

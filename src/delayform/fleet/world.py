@@ -4,7 +4,7 @@ A world model holds every robot's true state and has two methods
 (:class:`WorldModel`): :meth:`~WorldModel.command` takes a robot's latest
 velocity command at the time it arrives, :meth:`~WorldModel.advance`
 integrates all robots to a later time at the model's fine step. The world
-process (:mod:`delayform.fleet.processes`) calls them in real time and
+process (:mod:`delayform.fleet.agents`) calls them in real time and
 publishes each robot's odometry; which model it runs is named by
 ``--world`` (:data:`WORLDS`), so a physics model is one more entry.
 
