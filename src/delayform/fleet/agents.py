@@ -19,6 +19,14 @@ The scenario's network acts where a real one would, on reception
 playout delays, a packet's jitter delays that message's position and
 velocity, and a stream the network loses is never used.
 
+A robot also appends its log to a journal every :data:`JOURNAL_EVERY` s
+(:func:`read_journal`): a robot killed by a fault (:mod:`delayform.fleet.faults`)
+writes no log at its end, and its journal is what the run knows of it. A
+robot started again mid-run (``rejoin`` in its spec) joins at its next
+deadline, takes its own state from the world's odometry, and ticks once it
+has heard from every neighbour (its playout buffers start with their next
+messages).
+
 Every process takes its messages from Zenoh channels in its own thread, looking
 every millisecond while it waits for its next deadline (:func:`_wait_until`):
 no Python code runs on Zenoh's threads, and a message's receipt time is when the
@@ -27,7 +35,9 @@ process took it. A child that fails prints its traceback and ends at once.
 The world (:func:`world_main`) holds the robots still before t = 0, then
 applies each command when it arrives and integrates its model
 (:mod:`delayform.fleet.world`) in real time, publishing every robot's
-odometry every period.
+odometry every period. A robot whose commands stop for
+:data:`~delayform.fleet.world.COMMAND_TIMEOUT` is stopped (set-point zero),
+as a velocity-controlled base does when its commands time out.
 """
 
 from __future__ import annotations
@@ -48,7 +58,7 @@ from typing import Any
 
 # only the standard library at the top: a child ties its life to its parent's before the slow imports
 
-__all__ = ["tie_to_parent", "ReceivingSide", "robot_main", "world_main", "main"]
+__all__ = ["tie_to_parent", "ReceivingSide", "robot_main", "world_main", "main", "read_journal", "JOURNAL_EVERY"]
 
 _PR_SET_PDEATHSIG = 1
 
@@ -189,6 +199,44 @@ class ReceivingSide:
         return message, (d1, d2)
 
 
+#: seconds between two appends of a robot's journal (what survives a SIGKILL: all but the last this many seconds)
+JOURNAL_EVERY = 0.1
+
+#: the journal's files (suffix of the log's path) and the width of their float64 rows
+JOURNAL = {"received": 6, "ticks": 5, "sent": 1}
+
+
+class _Journal:
+    """A robot's log appended to raw float64 files as the run goes: a process killed by a fault leaves it behind."""
+
+    def __init__(self, log: str) -> None:
+        self._fds = {name: os.open(f"{log}.{name}", os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o644) for name in JOURNAL}
+        self._done = dict.fromkeys(JOURNAL, 0)
+
+    def append(self, rows: dict[str, list[Any]]) -> None:
+        """Write the rows added since the last call (one write per file: a kill never splits a row)."""
+        import numpy as np
+
+        for name, fd in self._fds.items():
+            new = rows[name][self._done[name]:]
+            if new:
+                os.write(fd, np.asarray(new, dtype=np.float64).tobytes())
+                self._done[name] += len(new)
+
+
+def read_journal(log: str) -> dict[str, Any]:
+    """The rows a robot's journal holds (:data:`JOURNAL`), as arrays; a row cut by a kill is left out."""
+    import numpy as np
+
+    out: dict[str, Any] = {}
+    for name, width in JOURNAL.items():
+        path = Path(f"{log}.{name}")
+        data = np.fromfile(path, dtype=np.float64) if path.exists() else np.zeros(0)
+        out[name] = data[: data.size - data.size % width].reshape(-1, width)
+    out["sent"] = out["sent"].reshape(-1)
+    return out
+
+
 def robot_main(spec: dict[str, Any]) -> None:
     """One robot: odometry and neighbours' states in, state and velocity commands out (module doc).
 
@@ -220,9 +268,12 @@ def robot_main(spec: dict[str, Any]) -> None:
     # sender, stamp, receipt (run clock), lost by the network (position stream), the message's delays (inf: lost)
     received: list[tuple[int, float, float, bool, float, float]] = []
 
+    heard: set[int] = set()
+
     def on_state(sample: Any) -> None:
         now = time.time()
         sender = int(str(sample.key_expr).split("/")[0].removeprefix("robot_"))
+        heard.add(sender)
         o = codec.read_odometry(sender, bytes(sample.payload.to_bytes()))
         t0 = t0_box[0]
         stamp = o.stamp - t0
@@ -244,8 +295,13 @@ def robot_main(spec: dict[str, Any]) -> None:
     t0_box[0] = t0
     end = t0 + float(spec["duration"])
     lead = float(spec["lead"])
-    k = math.ceil((time.time() - t0 - lead) / h)
+    # a robot started again mid-run (a fault's restart) joins at its next deadline and ticks once it has heard
+    # from every neighbour; until then it only publishes its state (from the world's odometry)
+    rejoin = bool(spec.get("rejoin"))
+    k = math.ceil((time.time() - t0 - (0.0 if rejoin else lead)) / h)
     ticks: list[tuple[float, float, float, float, float]] = []  # deadline, lateness, lag, compute time, speed sent
+    journal = _Journal(spec["log"])
+    flush_at = 0.0
     missed = 0
     accel = 0.0  # the acceleration of the last command (m/s^2)
     sent = 0  # with a sampling rate: the next packet period to send in
@@ -280,6 +336,14 @@ def robot_main(spec: dict[str, Any]) -> None:
             if k >= 0:
                 sent = math.floor(t / packet + 1e-9) + 1
                 stamps.append(t)
+        if woke >= flush_at:
+            journal.append({"received": received, "ticks": ticks, "sent": stamps})
+            flush_at = woke + JOURNAL_EVERY
+        if rejoin:
+            if len(heard) < len(ctrl.neighbours):
+                k += 1
+                continue
+            rejoin = False
         if k >= 0:
             try:
                 cmd = ctrl.tick(t, x, y, th, v)
@@ -313,7 +377,7 @@ def world_main(spec: dict[str, Any]) -> None:
     import numpy as np
 
     from delayform.fleet.wire import Codec, Odometry, key, open_session
-    from delayform.fleet.world import world_model
+    from delayform.fleet.world import COMMAND_TIMEOUT, world_model
     from delayform.simulation.robots import RobotLimits
 
     n, h = int(spec["n"]), float(spec["period"])
@@ -323,6 +387,8 @@ def world_main(spec: dict[str, Any]) -> None:
     session = open_session(listen=["tcp/127.0.0.1:0"], connect=[spec["endpoint"]])
     applied = 0
     t0_box = [math.inf]
+    last_cmd = [0.0] * n  # run clock of each robot's last command (t = 0 before the first)
+    stopped: list[tuple[int, float]] = []  # (robot from 1, when) the command timeout stopped a robot
 
     def on_cmd(sample: Any) -> None:  # applied when it arrives (within the polling interval)
         nonlocal applied
@@ -331,8 +397,18 @@ def world_main(spec: dict[str, Any]) -> None:
         at = time.time() - t0_box[0]
         if at >= 0.0:
             world.advance(at)
+            last_cmd[robot - 1] = at
         world.command(robot - 1, speed, turn)
         applied += 1
+
+    def time_out(t: float) -> None:  # a robot without commands for COMMAND_TIMEOUT stops, from then on
+        for i in range(n):
+            due = last_cmd[i] + COMMAND_TIMEOUT
+            if due <= t:
+                world.advance(max(due, world.time))
+                world.command(i, 0.0, 0.0)
+                stopped.append((i + 1, due))
+                last_cmd[i] = math.inf  # until its next command
 
     subs = [(_subscribe(session, key(i, "cmd_vel")), on_cmd) for i in range(1, n + 1)]
     pubs = [session.declare_publisher(key(i, "odom")) for i in range(1, n + 1)]
@@ -354,6 +430,7 @@ def world_main(spec: dict[str, Any]) -> None:
             deadline = t0 + k * h
         t = max(now - t0, 0.0)
         if t > 0.0:
+            time_out(t)
             world.advance(t)
         s = world.state
         stamp = t0 + world.time if now >= t0 else now  # before t = 0 the robots stand still at their start
@@ -369,7 +446,8 @@ def world_main(spec: dict[str, Any]) -> None:
 
     with atomic_path(spec["log"]) as tmp:  # the parent reads the log whole or not at all
         np.savez(tmp, times=np.array(times), states=np.array(states).reshape(-1, n, 4),
-                 omega=np.array(omegas).reshape(-1, n), lateness=np.array(lateness), applied=applied)  # fmt: skip
+                 omega=np.array(omegas).reshape(-1, n), lateness=np.array(lateness), applied=applied,
+                 stopped=np.array(stopped, dtype=np.float64).reshape(-1, 2))  # fmt: skip
     _say("done")
     _close(session)
 

@@ -16,7 +16,9 @@ Per link (receiver i, informer k)
     With a playout buffer the applied delay lies in ``[tau_ik, tau_ik + h)`` (h the
     control period) when the network is faster than the design and there is no jitter.
 Per robot
-    Ticks run, missed (a deadline that passed while the process waited for
+    Its processes (more than one after a fault's restart) and when each
+    replacement first ticked, the intervals in which a fault left it silent
+    (:func:`silent_intervals`), ticks run, missed (a deadline that passed while the process waited for
     the CPU) and late (woken more than :data:`LATE_FRACTION` of a period after
     its deadline), the lateness's median, 99th percentile and largest value,
     and the controller's :attr:`~delayform.deploy.controller.Command.lag`.
@@ -52,7 +54,7 @@ from delayform.simulation.network import Network
 from delayform.simulation.robots import RobotLimits
 from delayform.simulation.trajectory import Trajectory, formation_error, settling_time
 
-__all__ = ["FleetRun", "measure", "decay_rate", "FIT_WINDOW", "LATE_FRACTION"]
+__all__ = ["FleetRun", "measure", "decay_rate", "silent_intervals", "FIT_WINDOW", "LATE_FRACTION"]
 
 _Array = NDArray[np.float64]
 
@@ -153,6 +155,45 @@ def _running_argmin(values: _Array) -> NDArray[np.intp]:
     return _running_argmax(-values)
 
 
+def silent_intervals(robot: int, faults: list[dict[str, Any]], heard: _Array, duration: float) -> list[dict[str, Any]]:
+    """When robot ``robot`` was silent because a fault killed it, measured on the messages its neighbours could hear.
+
+    For each kill: from the last state message of the killed process (taken
+    by the recording before the restart, or before the end) to the first
+    message of the process that replaced it (None: silent to the end).
+
+    Parameters
+    ----------
+    robot
+        The robot (from 1).
+    faults
+        The faults carried out (``robot``, ``action``, ``at_s``), in time order.
+    heard
+        When its state messages were taken (s, run clock).
+    duration
+        The run's length (s).
+
+    Returns
+    -------
+    list of dict
+        ``killed_at_s``, ``restarted_at_s`` (None), ``last_heard_s``, ``heard_again_s`` (None), ``silent_s``.
+    """
+    mine = [f for f in faults if f["robot"] == robot]
+    heard = np.sort(np.asarray(heard, dtype=np.float64))
+    out = []
+    for n_, f in enumerate(mine):
+        if f["action"] != "kill":
+            continue
+        restart = next((g["at_s"] for g in mine[n_ + 1:] if g["action"] == "restart"), None)
+        before = heard[heard < (restart if restart is not None else math.inf)]
+        last = float(before.max()) if before.size else math.nan
+        after = heard[heard >= restart] if restart is not None else np.zeros(0)
+        again = float(after.min()) if after.size else None
+        out.append({"killed_at_s": float(f["at_s"]), "restarted_at_s": restart, "last_heard_s": last,
+                    "heard_again_s": again, "silent_s": (again if again is not None else duration) - last})  # fmt: skip
+    return out
+
+
 @dataclass(frozen=True, eq=False)
 class FleetRun:
     """A fleet run measured: the summary (module doc) and the formation error over time, fleet and simulator.
@@ -196,7 +237,8 @@ class FleetRun:
 
 def measure(*, team: Team, tau1: float, tau2: float, plan: LinkPlan, desired: _Array, limits: RobotLimits | None, period: float,
             duration: float, network: Network | None, simulation: Trajectory, logs: dict[str, dict[str, Any]],
-            recording: dict[str, int], pids: dict[str, int], mcap: Any, world: str, endpoint: str) -> FleetRun:  # fmt: skip
+            recording: dict[str, int], pids: dict[str, int], mcap: Any, world: str, endpoint: str,
+            faults: list[dict[str, Any]] | None = None, heard: dict[int, _Array] | None = None) -> FleetRun:  # fmt: skip
     """Measure a run from its logs (module doc); the comparison with the analysis included.
 
     Parameters
@@ -211,6 +253,11 @@ def measure(*, team: Team, tau1: float, tau2: float, plan: LinkPlan, desired: _A
         ``"world"`` and ``"robot_<i>"`` -> the arrays each process saved.
     recording, pids, mcap, world, endpoint
         For the summary: messages recorded per key, the processes' PIDs, the MCAP path, the world model, the endpoint.
+    faults
+        The kills and restarts carried out: robot, action, planned and actual time (s).
+    heard
+        Robot (from 1) -> when its state messages were taken by the recording
+        process (s): the silent intervals are measured on them (:func:`silent_intervals`).
     """
     from delayform.analysis.ctcr import stability_map
     from delayform.analysis.roots.dominant import dominant_root
@@ -235,8 +282,13 @@ def measure(*, team: Team, tau1: float, tau2: float, plan: LinkPlan, desired: _A
         late = ticks[:, 1]
         tick_times[i] = ticks[:, 0] + late
         expected = math.ceil(duration / h - 1e-9)
+        starts = np.asarray(log.get("starts", np.zeros(1)))
         robots.append({
             "robot": i, "ticks_expected": expected, "ticks_run": int(ticks.shape[0]),
+            "last_tick_s": float(ticks[-1, 0]) if ticks.size else math.nan,
+            "processes": int(starts.size),
+            "rejoined_s": [float(v) for v in starts[1:]],
+            "silent": silent_intervals(i, faults or [], (heard or {}).get(i, np.zeros(0)), duration),
             "ticks_missed": int(log["missed"]), "ticks_late": int(np.sum(late > LATE_FRACTION * h)),
             "lateness_s": _stats(late), "compute_s": _stats(ticks[:, 3]), "lag_s": _stats(ticks[:, 2]),
             "error": str(log["error"]) or None,
@@ -315,6 +367,8 @@ def measure(*, team: Team, tau1: float, tau2: float, plan: LinkPlan, desired: _A
         "network_loss_rate": loss_rate,
         "messages_lost_in_transport": sum(link["lost_in_transport"] for link in links),
         "state_messages_sent": sent,
+        "silent_robots": [r["robot"] for r in robots if r["silent"]],
+        "stopped_by_command_timeout": [[int(a), float(b)] for a, b in np.asarray(w.get("stopped", np.zeros((0, 2)))).reshape(-1, 2)],
     }  # fmt: skip
     run = {
         "robots": n, "P": team.P, "D": team.D, "tau1": tau1, "tau2": tau2, "period": h, "duration": duration,
@@ -323,6 +377,7 @@ def measure(*, team: Team, tau1: float, tau2: float, plan: LinkPlan, desired: _A
         "limits": None if limits is None else limits.describe(), "pids": pids, "recording": str(mcap),
         "messages_recorded": recording,
         "world_lateness_s": _stats(np.asarray(w["lateness"])), "commands_applied": int(w["applied"]),
+        "faults": list(faults or []),
     }  # fmt: skip
     summary = {"run": run, "team": team_summary, "robots": robots, "links": links}
     return FleetRun(summary=summary, times=times, error=error, sim_times=simulation.times, sim_error=sim_error)

@@ -30,10 +30,9 @@ than run without them.
 from __future__ import annotations
 
 import math
-import socket
 import tempfile
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
@@ -47,7 +46,9 @@ from delayform.deploy.profiles import RobotProfile
 from delayform.errors import FleetError, FleetRunError
 from delayform.fleet.lifecycle import Children, terminate_as_exit
 from delayform.fleet.outcome import FleetRun, measure
-from delayform.fleet.wire import DEFAULT_ENDPOINT, check_endpoint, open_session
+from delayform.fleet.faults import Fault, check_faults
+from delayform.fleet.live import LIVE_EVERY, LiveView, check_live_port
+from delayform.fleet.wire import DEFAULT_ENDPOINT, Codec, Odometry, check_endpoint, key, open_session, port_free
 from delayform.fleet.world import WORLDS
 from delayform.formation import check_formation, formation_forcing
 from delayform.model import Delays, Start, Team
@@ -92,18 +93,6 @@ def check_network(network: Network | None) -> Network | None:
     return network
 
 
-def _port_free(host: str, port: int) -> bool:
-    family = socket.AF_INET6 if host.startswith("[") else socket.AF_INET
-    with socket.socket(family, socket.SOCK_STREAM) as s:
-        # as a listener binds: connections of an earlier run waiting out TIME_WAIT do not hold the port
-        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        try:
-            s.bind((host.strip("[]"), port))
-        except OSError:
-            return False
-    return True
-
-
 def _limits_dict(limits: RobotLimits | None) -> dict[str, float] | None:
     import dataclasses
 
@@ -124,6 +113,8 @@ def run_fleet(
     network: Network | None = None,
     endpoint: str = DEFAULT_ENDPOINT,
     world: str = "kinematic",
+    faults: Iterable[Fault] = (),
+    foxglove: int | None = None,
     progress: Callable[[str], None] | None = None,
 ) -> FleetRun:
     """Run the team as processes on this machine and measure it against the analysis (module doc).
@@ -156,6 +147,12 @@ def run_fleet(
         The Zenoh endpoint on the loopback the parent listens on.
     world
         The world model (:data:`delayform.fleet.world.WORLDS`).
+    faults
+        Robots' processes killed by SIGKILL and started again, at times of
+        the run (:mod:`delayform.fleet.faults`); the summary names each silent robot and for how long.
+    foxglove
+        A port on 127.0.0.1 where the running team is served to Foxglove
+        (:mod:`delayform.fleet.live`), or None.
     progress
         Optional callback with a few words at each stage.
 
@@ -168,7 +165,10 @@ def run_fleet(
     FleetError
         Before any process starts: delay matrices in ``delays`` (they go in
         the network), an actuation delay, delays varying in time, an endpoint off the loopback or a port in use,
-        a period or duration that is not positive, an unknown world.
+        a period or duration that is not positive, an unknown world, faults
+        that do not fit the team or the run, a Foxglove port that is invalid or taken.
+    MissingExtraError
+        For ``foxglove`` without the Foxglove SDK.
     FleetRunError
         A child process that failed or never became ready.
     """
@@ -190,8 +190,11 @@ def run_fleet(
         raise FleetError(f"unknown world model {world!r}; known: {', '.join(WORLDS)}")
     network = check_network(network)
     host, port = check_endpoint(endpoint)
-    if not _port_free(host, port):
+    if not port_free(host, port):
         raise FleetError(f"the endpoint {endpoint} cannot be used: port {port} is already taken on {host}")
+    faults = check_faults(faults, team.n, duration)
+    if foxglove is not None:
+        check_live_port(foxglove, taken=port)
     out = Path(out)
     if not out.is_dir():
         raise FleetError(f"the output folder {out} does not exist")
@@ -225,47 +228,155 @@ def run_fleet(
             recorder = _Recorder(session, n)
             common = {"n": n, "endpoint": endpoint, "period": period, "duration": duration, "lead": LEAD,
                       "limits": _limits_dict(limits), "rate": rate}  # fmt: skip
+            specs = {}
+            for i in range(n):
+                lo, hi = C.indptr[i], C.indptr[i + 1]
+                weights = {str(int(j) + 1): float(w) for j, w in zip(C.indices[lo:hi], C.data[lo:hi]) if j != i and w}
+                mine = plan.of_receiver(i + 1)
+                specs[i + 1] = {
+                    **common, "role": "robot", "robot": i + 1, "P": team.P, "D": team.D, "tau1": tau1,
+                    "tau2": tau2, "weights": weights, "forcing": F[i].tolist(), "packet_period": plan.period,
+                    "link_delays": {str(int(plan.informers[e]) + 1): [float(plan.tau1[e]), float(plan.tau2[e])]
+                                    for e in mine},
+                    "draws": _save_draws(plan, mine, i + 1, folder)}  # fmt: skip
+            live = None
+            if foxglove is not None:
+                live = LiveView(foxglove, desired=desired, radius=0.0 if limits is None else limits.radius,
+                                edges=topology.adjacency)  # fmt: skip
             with Children(folder) as children:
                 say("starting the processes")
                 children.start("world", {**common, "role": "world", "world": world, "state0": state0.tolist(),
                                          "log": str(folder / "world.npz")})  # fmt: skip
-                for i in range(n):
-                    lo, hi = C.indptr[i], C.indptr[i + 1]
-                    weights = {str(int(j) + 1): float(w) for j, w in zip(C.indices[lo:hi], C.data[lo:hi]) if j != i and w}
-                    mine = plan.of_receiver(i + 1)
-                    children.start(f"robot_{i + 1}", {
-                        **common, "role": "robot", "robot": i + 1, "P": team.P, "D": team.D, "tau1": tau1,
-                        "tau2": tau2, "weights": weights, "forcing": F[i].tolist(), "packet_period": plan.period,
-                        "link_delays": {str(int(plan.informers[e]) + 1): [float(plan.tau1[e]), float(plan.tau2[e])]
-                                        for e in mine},
-                        "draws": _save_draws(plan, mine, i + 1, folder), "log": str(folder / f"robot_{i + 1}.npz")})  # fmt: skip
-                pids = children.pids
+                for i, spec in specs.items():
+                    children.start(f"robot_{i}", {**spec, "log": str(folder / f"robot_{i}.npz")})
                 children.expect("ready", _READY_TIMEOUT)
                 t0 = time.time() + LEAD
                 recorder.t0 = t0
                 children.send(repr(t0))
-                say(f"running {duration:g} s")
-                while time.time() < t0 + duration:
+                say(f"running {duration:g} s" + (f"; Foxglove on ws://127.0.0.1:{foxglove}" if live else ""))
+                faulting = _Faults(faults, children, specs, folder, t0)
+                shown = 0.0
+                while (now := time.time()) < t0 + duration:
+                    faulting.step(now)
                     failure = children.failed()
                     if failure:
                         raise FleetRunError(failure)
                     recorder.drain()
+                    if live is not None and now >= shown:
+                        live.show(recorder.latest_odometry(), faulting.running, now)
+                        shown = now + LIVE_EVERY
                     time.sleep(_RECORDER_POLL)
+                faulting.finish()
                 children.expect("done", _DONE_TIMEOUT)
                 children.wait(_DONE_TIMEOUT)
                 failure = children.failed()
                 if failure:
                     raise FleetRunError(failure)
+                pids = children.pids
+            if live is not None:
+                live.stop()
             recorder.stop()
             say("writing the recording")
             mcap = recorder.write(out / MCAP_NAME, team, tau1, tau2, t0)
-            logs = {name: dict(np.load(folder / f"{name}.npz")) for name in ["world"] + [f"robot_{i}" for i in range(1, n + 1)]}
+            logs = {"world": dict(np.load(folder / "world.npz"))}
+            for i in range(1, n + 1):
+                logs[f"robot_{i}"] = _robot_log(faulting.logs(i), period)
         finally:
             session.close()
     say("measuring")
+    heard = {i: recorder.times(key(i, "state"), t0) for i in range(1, n + 1)}
     return measure(team=team, tau1=tau1, tau2=tau2, plan=plan, desired=desired, limits=limits, period=period,
                    duration=duration, network=network, simulation=sim, logs=logs, recording=recorder.counts(),
-                   pids=pids, mcap=mcap, world=world, endpoint=endpoint)  # fmt: skip
+                   pids=pids, mcap=mcap, world=world, endpoint=endpoint, faults=faulting.done,
+                   heard=heard)  # fmt: skip
+
+
+class _Faults:
+    """The faults of a run carried out on the wall clock: kills by SIGKILL, restarts as new processes.
+
+    Parameters
+    ----------
+    faults
+        Checked, in time order (:func:`~delayform.fleet.faults.check_faults`).
+    children
+        The run's processes.
+    specs
+        Robot (from 1) -> its spec without the log's path.
+    folder
+        Where the logs go.
+    t0
+        The run's t = 0 (s since 1970).
+    """
+
+    def __init__(self, faults: tuple[Fault, ...], children: Children, specs: dict[int, dict[str, Any]],
+                 folder: Path, t0: float) -> None:  # fmt: skip
+        self._pending = list(faults)
+        self._children, self._specs, self._folder, self._t0 = children, specs, folder, t0
+        self._names = {i: f"robot_{i}" for i in specs}
+        self._logs = {i: [folder / f"robot_{i}.npz"] for i in specs}
+        self._starting: dict[str, int] = {}
+        self.running = dict.fromkeys(specs, True)
+        #: what was done: robot, action, planned and actual time (run clock)
+        self.done: list[dict[str, Any]] = []
+
+    def step(self, now: float) -> None:
+        """Carry out the faults that are due; hand t0 to restarted robots that are ready."""
+        while self._pending and now >= self._t0 + self._pending[0].at:
+            f = self._pending.pop(0)
+            name = self._names[f.robot]
+            if f.action == "kill":
+                self._children.kill(name)
+                self._starting.pop(name, None)
+                self.running[f.robot] = False
+            else:
+                name = f"robot_{f.robot}.{len(self._logs[f.robot])}"
+                log = self._folder / f"{name}.npz"
+                self._children.start(name, {**self._specs[f.robot], "log": str(log), "rejoin": True})
+                self._names[f.robot] = name
+                self._logs[f.robot].append(log)
+                self._starting[name] = f.robot
+            self.done.append({"robot": f.robot, "action": f.action, "planned_s": f.at, "at_s": time.time() - self._t0})
+        for name in [nm for nm in self._starting if self._children.said(nm, "ready")]:
+            self._children.tell(name, repr(self._t0))
+            self.running[self._starting.pop(name)] = True
+
+    def finish(self) -> None:
+        """A restarted robot not ready by the end of the run is ended (it never rejoined: its journal is empty)."""
+        for name in list(self._starting):
+            self._children.kill(name)
+        self._starting.clear()
+
+    def logs(self, robot: int) -> list[Path]:
+        """The log paths of each of the robot's processes, in order."""
+        return self._logs[robot]
+
+
+def _robot_log(paths: list[Path], period: float) -> dict[str, Any]:
+    """A robot's log over all its processes: the NPZ of one that ended, the journal of one that was killed.
+
+    A killed process's missed ticks are the deadlines missing between the
+    ones it ran (its counter died with it).
+    """
+    from delayform.fleet.agents import read_journal
+
+    parts = []
+    for path in paths:
+        if path.exists():
+            parts.append(dict(np.load(path)))
+            continue
+        j = read_journal(str(path))
+        deadlines = j["ticks"][:, 0]
+        gaps = np.round(np.diff(deadlines) / period) - 1 if deadlines.size > 1 else np.zeros(0)
+        parts.append({**j, "missed": int(np.sum(np.maximum(gaps, 0))), "error": ""})
+    return {
+        "received": np.concatenate([np.asarray(p["received"]).reshape(-1, 6) for p in parts]),
+        "ticks": np.concatenate([np.asarray(p["ticks"]).reshape(-1, 5) for p in parts]),
+        "sent": np.concatenate([np.asarray(p["sent"]).reshape(-1) for p in parts]),
+        "missed": sum(int(p["missed"]) for p in parts),
+        "error": "; ".join(str(p["error"]) for p in parts if str(p["error"])),
+        "starts": np.array([np.asarray(p["ticks"]).reshape(-1, 5)[0, 0] if np.size(p["ticks"]) else math.nan
+                            for p in parts]),  # fmt: skip
+    }
 
 
 def _step(plan: LinkPlan, network: Network | None, period: float) -> float:
@@ -311,13 +422,28 @@ class _Recorder:
         self.n = n
         self.t0 = math.inf
         self._messages: list[tuple[str, int, bytes]] = []
+        self._odom: dict[str, bytes] = {}
+        self._codec = Codec(n)
         # taken by drain() in the parent's own loop: no Python callback on Zenoh's threads (agents._subscribe)
         self._sub = session.declare_subscriber("**", zenoh.handlers.FifoChannel(_RECORDER_CAPACITY))
 
     def drain(self) -> None:
         """Take every message waiting (log time: when taken, within the parent's polling interval)."""
         while (sample := self._sub.try_recv()) is not None:
-            self._messages.append((str(sample.key_expr), time.time_ns(), bytes(sample.payload.to_bytes())))
+            k = str(sample.key_expr)
+            data = bytes(sample.payload.to_bytes())
+            self._messages.append((k, time.time_ns(), data))
+            if k.endswith("/odom"):
+                self._odom[k] = data
+
+    def latest_odometry(self) -> dict[int, Odometry]:
+        """Robot (from 1) -> the newest odometry the world published of it."""
+        return {i: self._codec.read_odometry(i, self._odom[key(i, "odom")])
+                for i in range(1, self.n + 1) if key(i, "odom") in self._odom}  # fmt: skip
+
+    def times(self, topic: str, t0: float) -> np.ndarray:
+        """When the messages on ``topic`` were taken (s on the run's clock)."""
+        return np.array([now * 1e-9 - t0 for k, now, _ in self._messages if k == topic])
 
     def stop(self) -> None:
         self.drain()

@@ -36,7 +36,7 @@ from numpy.typing import NDArray
 from delayform.errors import FleetError
 from delayform.simulation.robots import RobotLimits
 
-__all__ = ["WorldModel", "KinematicWorld", "WORLDS", "world_model", "WORLD_STEP"]
+__all__ = ["WorldModel", "KinematicWorld", "WORLDS", "world_model", "WORLD_STEP", "COMMAND_TIMEOUT"]
 
 _Array = NDArray[np.float64]
 
@@ -115,6 +115,10 @@ class KinematicWorld:
             s[:, 3] = v1
             self.time += h
 
+
+#: seconds without a command after which the world stops a robot (set-point zero, ramped at its limits): the
+#: default ``cmd_vel_timeout`` of ros2_control's diff_drive_controller; a robot whose process died stops
+COMMAND_TIMEOUT = 0.5
 
 #: the world models ``--world`` names
 WORLDS = ("kinematic",)
