@@ -25,7 +25,8 @@ writes no log at its end, and its journal is what the run knows of it. A
 robot started again mid-run (``rejoin`` in its spec) joins at its next
 deadline, takes its own state from the world's odometry, and ticks once it
 has heard from every neighbour (its playout buffers start with their next
-messages).
+messages): with a neighbour that stays silent (dead too) it never ticks, and
+its log names the neighbours it waited for.
 
 Every process takes its messages from Zenoh channels in its own thread, looking
 every millisecond while it waits for its next deadline (:func:`_wait_until`):
@@ -360,7 +361,8 @@ def robot_main(spec: dict[str, Any]) -> None:
     from delayform._files import atomic_path
 
     with atomic_path(spec["log"]) as tmp:  # the parent reads the log whole or not at all
-        np.savez(tmp, received=rec, ticks=tk, missed=missed, error=error, sent=np.array(stamps))
+        np.savez(tmp, received=rec, ticks=tk, missed=missed, error=error, sent=np.array(stamps),
+                 waiting=np.array(sorted(set(ctrl.neighbours) - heard) if rejoin else [], dtype=np.int64))
     _say("done")
     _close(session)
 

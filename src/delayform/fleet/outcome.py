@@ -288,6 +288,8 @@ def measure(*, team: Team, tau1: float, tau2: float, plan: LinkPlan, desired: _A
             "last_tick_s": float(ticks[-1, 0]) if ticks.size else math.nan,
             "processes": int(starts.size),
             "rejoined_s": [float(v) for v in starts[1:]],
+            # a restarted process that never ticked: the neighbours it never heard from
+            "rejoin_waits_for": [int(k) for k in np.asarray(log.get("waiting", np.zeros(0))).reshape(-1)],
             "silent": silent_intervals(i, faults or [], (heard or {}).get(i, np.zeros(0)), duration),
             "ticks_missed": int(log["missed"]), "ticks_late": int(np.sum(late > LATE_FRACTION * h)),
             "lateness_s": _stats(late), "compute_s": _stats(ticks[:, 3]), "lag_s": _stats(ticks[:, 2]),

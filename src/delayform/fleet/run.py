@@ -373,6 +373,7 @@ def _robot_log(paths: list[Path], period: float) -> dict[str, Any]:
         "ticks": np.concatenate([np.asarray(p["ticks"]).reshape(-1, 5) for p in parts]),
         "sent": np.concatenate([np.asarray(p["sent"]).reshape(-1) for p in parts]),
         "missed": sum(int(p["missed"]) for p in parts),
+        "waiting": np.asarray(parts[-1].get("waiting", np.zeros(0)), dtype=np.int64),
         "error": "; ".join(str(p["error"]) for p in parts if str(p["error"])),
         "starts": np.array([np.asarray(p["ticks"]).reshape(-1, 5)[0, 0] if np.size(p["ticks"]) else math.nan
                             for p in parts]),  # fmt: skip

@@ -88,6 +88,9 @@ def _fault_lines(s: dict[str, Any]) -> list[str]:
                          + f": {_fmt(gap['silent_s'], 4)} s (killed at {_fmt(gap['killed_at_s'], 4)} s"
                          + (f", restarted at {_fmt(gap['restarted_at_s'], 4)} s" if gap["restarted_at_s"] is not None else "")
                          + "); its neighbours held its last message")  # fmt: skip
+        if rb["rejoin_waits_for"]:
+            lines.append(f"  robot {rb['robot']} restarted but never ticked: it never heard from "
+                         + ", ".join(f"robot {k}" for k in rb["rejoin_waits_for"]))  # fmt: skip
     stopped = s["team"].get("stopped_by_command_timeout") or []
     if stopped:
         lines.append("  stopped by the world's command timeout: "
