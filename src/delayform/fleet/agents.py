@@ -226,7 +226,13 @@ class _Journal:
 
 
 def read_journal(log: str) -> dict[str, Any]:
-    """The rows a robot's journal holds (:data:`JOURNAL`), as arrays; a row cut by a kill is left out."""
+    """The rows a robot's journal holds (:data:`JOURNAL`), as arrays; a row cut by a kill is left out.
+
+    Parameters
+    ----------
+    log
+        The path the robot's log would have had (its spec's ``log``); the journal's files end with ``.<name>``.
+    """
     import numpy as np
 
     out: dict[str, Any] = {}
