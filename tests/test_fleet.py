@@ -30,7 +30,7 @@ from delayform.fleet.world import WORLDS, KinematicWorld
 from delayform.formation import named_formation
 from delayform.model import Delays, Start, Team
 from delayform.simulation import simulate
-from delayform.model.network import BernoulliLoss, Jitter, MeasurementNoise, Network, Sampling
+from delayform.model.network import BernoulliLoss, Jitter, MeasurementNoise, Network, Sampling, SmoothVariation
 from delayform.simulation.delayed.reception import packet_draws, reception
 from delayform.topology import complete, paper_six
 
@@ -120,8 +120,9 @@ def test_network_parts_not_applied_are_refused() -> None:
     assert check_network(Network()) is None
     assert check_network(Network(loss=BernoulliLoss(0.1))) is not None
     assert check_network(Network(sampling=Sampling(20.0), noise=MeasurementNoise(0.01, 0.01))) is not None
-    with pytest.raises(FleetError, match="jitter"):
-        check_network(Network(jitter=Jitter(0.01, 0.01)))
+    assert check_network(Network(jitter=Jitter(0.01, 0.01))) is not None  # applied per message (test_fleet_links)
+    with pytest.raises(FleetError, match="variation"):
+        check_network(Network(variation=SmoothVariation(0.05, 0.05, 5.0)))
 
 
 def test_packet_draws_are_the_simulator_s() -> None:
@@ -233,6 +234,27 @@ def _no_process_survives(run: Any, out: Path) -> None:
 
 
 @pytest.mark.slow
+def test_the_paper_s_unstable_point_c_does_not_converge(tmp_path: Path) -> None:
+    """D = 0.5, delays (1, 2): the chart says unstable, and from the start where D = 1.5 converges 10x, the fleet does not.
+
+    The fleet's error follows the simulator's (which the chart's verdict is checked against elsewhere):
+    its largest swing over the second half of the run within 50 % of the simulator's.
+    """
+    root = dominant_root(paper_six(), 1.0, 0.5, 1.0, 2.0).formation_root
+    assert root.real > 0.0
+    duration = 10.0
+    run = run_fleet(Team(paper_six(), 1.0, 0.5), Delays(1.0, 2.0), named_formation("hexagon", 6, spacing=2.0),
+                    out=tmp_path, duration=duration, period=0.02, robot=robot_profile("create3"),
+                    start=Start(_near_hexagon(), np.zeros(6), speed=0.0), endpoint=f"tcp/127.0.0.1:{_free_port()}")  # fmt: skip
+    team = run.summary["team"]
+    assert team["chart_verdict"] == "unstable"
+    assert team["error_reduction"] < 10.0
+    assert team["final_error_m"] > 0.3 * team["initial_error_m"]
+    late, sim_late = run.times >= duration / 2, run.sim_times >= duration / 2
+    assert run.error[late].max() == pytest.approx(run.sim_error[sim_late].max(), rel=0.5)
+
+
+@pytest.mark.slow
 def test_network_loss_drops_messages_at_its_rate(tmp_path: Path) -> None:
     """Bernoulli loss 0.2 and sampling at 50 Hz: 50 states a second per link, 20 % dropped (4-sigma binomial bound)."""
     p, rate, duration = 0.2, 50.0, 6.0
@@ -276,8 +298,9 @@ def test_the_command_writes_its_page_and_prints_json(tmp_path: Path) -> None:
 
 
 def test_a_bad_scenario_exits_2_with_one_line_before_any_process(tmp_path: Path) -> None:
-    bad = tmp_path / "jitter.toml"
-    bad.write_text((ROOT / "examples" / "paper.toml").read_text() + "\n[network]\njitter = [0.01, 0.01]\n")
+    bad = tmp_path / "variation.toml"
+    bad.write_text((ROOT / "examples" / "paper.toml").read_text()
+                   + "\n[network]\nvariation = { amplitude = [0.05, 0.05], period = 5.0 }\n")
     for args in ([str(bad)], ["--endpoint", "tcp/10.1.2.3:7447"], ["--tau1", "-1"]):
         proc = _cli(*args, "--duration", "5", "--out", str(tmp_path / "out"))
         stdout, stderr = proc.communicate(timeout=120)

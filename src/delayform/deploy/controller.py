@@ -31,6 +31,21 @@ period when the delays are not multiples of it).
 This assumes the robots' clocks agree (NTP or PTP on a real team); the
 stamps are the sender's.
 
+Per-link and per-message delays
+-------------------------------
+Each link may have its own pair ``(tau1_ik, tau2_ik)`` (``link_delays``, or
+matrices given to :meth:`FormationController.from_design`, row i being what
+robot i receives): the buffer then holds each neighbour's messages by its
+own link's delays. A message may also carry its own pair (``delays`` of
+:meth:`FormationController.receive`: the link's delay plus the packet's
+jitter, as the simulator's network draws them): it becomes usable at
+``stamp + d`` and the controller uses the newest message usable, the
+simulator's hold-last-value of packet streams
+(:mod:`delayform.simulation.delayed.reception`); an older message that becomes
+usable after a newer one is never used again. With every link at
+(tau1, tau2) and no per-message delay the arithmetic is that of one pair,
+operation for operation.
+
 This is the same arithmetic, operation for operation, as the simulation's
 vectorized models, written for one robot in plain floats so that a tick
 costs microseconds; ``tests/test_deploy_controller.py`` replays simulated
@@ -47,7 +62,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike
 
-from delayform._validation import check_delay, check_gains, validated
+from delayform._validation import check_delay, check_delay_array, check_gains, validated
 from delayform.deploy.profiles import RobotProfile
 from delayform.errors import ControllerInputError
 from delayform.formation import check_formation, formation_forcing
@@ -107,18 +122,29 @@ class Command(NamedTuple):
 
 
 class _Inbox:
-    """One neighbour's messages, sorted by stamp (plain lists: bisect on floats is fast)."""
+    """One neighbour's messages, sorted by stamp (plain lists: bisect on floats is fast).
 
-    __slots__ = ("stamps", "x", "y", "vx", "vy")
+    ``tau1``, ``tau2`` are the link's delays. ``d1``, ``d2`` hold each
+    message's own delays once a message has brought its own (None until
+    then: the link's delays hold for every message, the one-pair path);
+    ``low1``, ``low2`` are the shortest of them, where the search for the
+    newest usable message starts.
+    """
 
-    def __init__(self) -> None:
+    __slots__ = ("stamps", "x", "y", "vx", "vy", "tau1", "tau2", "d1", "d2", "low1", "low2")
+
+    def __init__(self, tau1: float, tau2: float) -> None:
         self.stamps: list[float] = []
         self.x: list[float] = []
         self.y: list[float] = []
         self.vx: list[float] = []
         self.vy: list[float] = []
+        self.tau1, self.tau2 = tau1, tau2
+        self.d1: list[float] | None = None
+        self.d2: list[float] | None = None
+        self.low1, self.low2 = tau1, tau2
 
-    def add(self, m: NeighbourMessage) -> None:
+    def add(self, m: NeighbourMessage, d1: float, d2: float) -> None:
         stamps = self.stamps
         if not stamps or m.stamp > stamps[-1]:
             k = len(stamps)
@@ -126,15 +152,35 @@ class _Inbox:
             k = bisect_right(stamps, m.stamp)
             if k and stamps[k - 1] == m.stamp:  # a repeated stamp replaces the message
                 self.x[k - 1], self.y[k - 1], self.vx[k - 1], self.vy[k - 1] = m.x, m.y, m.vx, m.vy
+                if self.d1 is not None and self.d2 is not None:
+                    self.d1[k - 1], self.d2[k - 1] = d1, d2
+                    self.low1, self.low2 = min(self.low1, d1), min(self.low2, d2)
                 return
+        if self.d1 is None and (d1 != self.tau1 or d2 != self.tau2):  # the first message with its own delays
+            self.d1, self.d2 = [self.tau1] * len(stamps), [self.tau2] * len(stamps)
         stamps.insert(k, m.stamp)
         self.x.insert(k, m.x)
         self.y.insert(k, m.y)
         self.vx.insert(k, m.vx)
         self.vy.insert(k, m.vy)
+        if self.d1 is not None and self.d2 is not None:
+            self.d1.insert(k, d1)
+            self.d2.insert(k, d2)
+            self.low1, self.low2 = min(self.low1, d1), min(self.low2, d2)
+
+    def newest(self, t: float, delays: list[float], low: float) -> int:
+        """Index of the newest message usable at ``t`` (``stamp + d <= t``), or -1 (per-message delays)."""
+        stamps = self.stamps
+        j = bisect_right(stamps, t - low + STAMP_TOLERANCE) - 1  # none later can be usable
+        while j >= 0 and stamps[j] + delays[j] > t + STAMP_TOLERANCE:
+            j -= 1
+        return j
 
     def prune(self, keep_from: int) -> None:
-        for lst in (self.stamps, self.x, self.y, self.vx, self.vy):
+        lists = [self.stamps, self.x, self.y, self.vx, self.vy]
+        if self.d1 is not None and self.d2 is not None:
+            lists += [self.d1, self.d2]
+        for lst in lists:
             del lst[:keep_from]
 
 
@@ -151,7 +197,8 @@ class FormationController:
     P, D
         Gains of the paper's eq. 1.
     tau1, tau2
-        The design's delays (s) on positions and velocities.
+        The design's delays (s) on positions and velocities: every link's,
+        unless ``link_delays`` says otherwise.
     weights
         Neighbour number (from 1) -> ``C_ik``, the row of ``C = Delta^-1 A``
         that robot i receives (non-zero entries only). They must sum to 1
@@ -165,6 +212,10 @@ class FormationController:
         geometry of :data:`IROBOT_CREATE` (as the simulation reports them).
     rest_speed
         Ideal robots whose speed and |u| are both below this hold their heading.
+    link_delays
+        Neighbour number -> ``(tau1_ik, tau2_ik)``, the delays of that link
+        (module doc, Per-link and per-message delays); links not named keep
+        ``(tau1, tau2)``.
 
     Examples
     --------
@@ -189,6 +240,7 @@ class FormationController:
         forcing: ArrayLike = (0.0, 0.0),
         limits: RobotLimits | RobotProfile | None = None,
         rest_speed: float = REST_SPEED,
+        link_delays: Mapping[int, tuple[float, float]] | None = None,
     ) -> None:
         if isinstance(robot, bool) or not isinstance(robot, (int, np.integer)) or robot < 1:
             raise ControllerInputError(f"robot must be a number from 1, got {robot!r}")
@@ -224,7 +276,18 @@ class FormationController:
         if F.shape != (2,) or not np.all(np.isfinite(F)):
             raise ControllerInputError(f"forcing must be two finite numbers, got {forcing!r}")
         self.forcing = (float(F[0]), float(F[1]))
-        self._inbox = {k: _Inbox() for k in clean}
+        pairs = {k: (self.tau1, self.tau2) for k in clean}
+        for k, pair in dict(link_delays or {}).items():
+            if k not in pairs:
+                raise ControllerInputError(f"link_delays names robot {k!r}, which robot {self.robot} does not hear "
+                                           f"(its neighbours: {sorted(clean)})")  # fmt: skip
+            try:
+                d1, d2 = pair
+            except (TypeError, ValueError):
+                raise ControllerInputError(f"the delays of link {self.robot} <- {k} must be a pair (tau1, tau2), got {pair!r}") from None
+            pairs[k] = (check_delay(f"tau1 of link {self.robot} <- {k}", d1), check_delay(f"tau2 of link {self.robot} <- {k}", d2))
+        self.link_delays = pairs
+        self._inbox = {k: _Inbox(*pairs[k]) for k in clean}
         self._order = tuple(clean.items())
 
     @classmethod
@@ -233,8 +296,8 @@ class FormationController:
         topology: Topology,
         P: float,
         D: float,
-        tau1: float,
-        tau2: float,
+        tau1: float | ArrayLike,
+        tau2: float | ArrayLike,
         formation: ArrayLike | str,
         *,
         robot: int,
@@ -247,8 +310,14 @@ class FormationController:
         ----------
         topology
             The communication topology; row ``robot - 1`` of C is what this robot hears.
-        P, D, tau1, tau2
-            The design.
+        P, D
+            The gains.
+        tau1, tau2
+            The design's delays: two numbers (every link), or two ``(n, n)``
+            matrices whose row ``robot - 1`` gives this robot's links (entry
+            ``[i, k]``: what i receives from k, as :class:`delayform.model.Delays`).
+            With matrices, the controller's own ``tau1``, ``tau2`` are the
+            largest of its links' delays.
         formation
             ``(n, 2)`` desired positions or a shape name.
         robot
@@ -267,8 +336,20 @@ class FormationController:
         C = topology.C_sparse.tocsr()
         lo, hi = C.indptr[robot - 1], C.indptr[robot]
         weights = {int(j) + 1: float(w) for j, w in zip(C.indices[lo:hi], C.data[lo:hi]) if w != 0.0 and j != robot - 1}
-        return cls(robot=int(robot), P=P, D=D, tau1=tau1, tau2=tau2, weights=weights, forcing=F,
-                   limits=limits, rest_speed=rest_speed)  # fmt: skip
+        if np.ndim(tau1) == 0 and np.ndim(tau2) == 0:
+            return cls(robot=int(robot), P=P, D=D, tau1=tau1, tau2=tau2, weights=weights,  # type: ignore[arg-type]
+                       forcing=F, limits=limits, rest_speed=rest_speed)  # fmt: skip
+        rows = []
+        for name, value in (("tau1", tau1), ("tau2", tau2)):
+            matrix = check_delay_array(name, value)
+            if matrix.shape != (n, n):
+                raise ControllerInputError(f"{name} must be a number or an {n} x {n} matrix (one entry per link), "
+                                           f"got shape {matrix.shape}")  # fmt: skip
+            rows.append(matrix[robot - 1])
+        pairs = {k: (float(rows[0][k - 1]), float(rows[1][k - 1])) for k in weights}
+        return cls(robot=int(robot), P=P, D=D, tau1=max(p[0] for p in pairs.values()),
+                   tau2=max(p[1] for p in pairs.values()), weights=weights, forcing=F, limits=limits,
+                   rest_speed=rest_speed, link_delays=pairs)  # fmt: skip
 
     @property
     def neighbours(self) -> tuple[int, ...]:
@@ -276,7 +357,7 @@ class FormationController:
         return tuple(self.weights)
 
     # ------------------------------------------------------------ messages
-    def receive(self, message: NeighbourMessage) -> None:
+    def receive(self, message: NeighbourMessage, delays: tuple[float, float] | None = None) -> None:
         """Keep a neighbour's message (any order; a repeated stamp replaces the earlier message).
 
         Parameters
@@ -284,6 +365,11 @@ class FormationController:
         message
             A :class:`NeighbourMessage`; messages of robots this one does
             not hear are ignored (a broadcast reaches everybody).
+        delays
+            This message's own delays ``(d1, d2)`` (s) for its position and
+            its velocity: usable from ``stamp + d`` on (module doc, Per-link
+            and per-message delays); infinity for a part the network lost
+            (never used). None: the link's.
 
         Raises
         ------
@@ -303,7 +389,17 @@ class FormationController:
             raise ControllerInputError(f"message must be a NeighbourMessage of numbers, got {message!r}"[:200]) from exc
         if not finite:
             raise ControllerInputError(f"message of robot {message.sender} has a value that is not finite: {message}")
-        inbox.add(message)
+        if delays is None:
+            inbox.add(message, inbox.tau1, inbox.tau2)
+            return
+        try:
+            d1, d2 = delays
+            ok = bool(d1 >= 0.0 and d2 >= 0.0)  # NaN fails; infinity is a stream the network lost
+        except (TypeError, ValueError):
+            ok = False
+        if not ok:
+            raise ControllerInputError(f"the delays of a message must be two non-negative numbers, got {delays!r}")
+        inbox.add(message, float(d1), float(d2))
 
     def receive_all(self, messages: Iterable[NeighbourMessage]) -> None:
         """:meth:`receive` each message."""
@@ -343,9 +439,7 @@ class FormationController:
         if not finite:
             raise ControllerInputError(f"the state at t = {t!r} must be finite: x={x!r}, y={y!r}, theta={theta!r}, v={v!r}")
         c, s = math.cos(theta), math.sin(theta)
-        # sum_k C_ik x_k(t - tau1) and sum_k C_ik xdot_k(t - tau2), from the playout buffer
-        due1 = t - self.tau1 + STAMP_TOLERANCE
-        due2 = t - self.tau2 + STAMP_TOLERANCE
+        # sum_k C_ik x_k(t - tau1_ik) and sum_k C_ik xdot_k(t - tau2_ik), from the playout buffer
         sx = sy = svx = svy = 0.0
         lag = 0.0
         for k, w in self._order:
@@ -353,12 +447,7 @@ class FormationController:
             stamps = box.stamps
             if not stamps:
                 raise ControllerInputError(f"robot {self.robot} has no message from its neighbour {k} yet")
-            i1 = bisect_right(stamps, due1) - 1
-            i2 = bisect_right(stamps, due2) - 1
-            if i1 < 0:
-                i1 = 0
-            if i2 < 0:
-                i2 = 0
+            due1, due2, i1, i2 = self._pick(box, t)
             sx += w * box.x[i1]
             sy += w * box.y[i1]
             svx += w * box.vx[i2]
@@ -390,6 +479,41 @@ class FormationController:
                    else "the state or the neighbours' messages are too large"))  # fmt: skip
         return Command(t, v, turn, accel, left, right,
                        ideal_turn, ideal_accel, ux, uy, lag - STAMP_TOLERANCE if lag > 2 * STAMP_TOLERANCE else 0.0)  # fmt: skip
+
+    @staticmethod
+    def _pick(box: _Inbox, t: float) -> tuple[float, float, int, int]:
+        """``t - tau_ik`` (plus the tolerance) of both streams and the indices of the messages used at ``t``."""
+        due1 = t - box.tau1 + STAMP_TOLERANCE
+        due2 = t - box.tau2 + STAMP_TOLERANCE
+        if box.d1 is None or box.d2 is None:  # one pair per link: the newest sent at or before t - tau
+            i1 = bisect_right(box.stamps, due1) - 1
+            i2 = bisect_right(box.stamps, due2) - 1
+        else:  # per-message delays: the newest usable (stamp + d <= t)
+            i1 = box.newest(t, box.d1, box.low1)
+            i2 = box.newest(t, box.d2, box.low2)
+        # before the first usable message: the oldest, as the constant history before t = 0
+        return due1, due2, (i1 if i1 > 0 else 0), (i2 if i2 > 0 else 0)
+
+    def heard(self, t: float) -> dict[int, tuple[float, float]]:
+        """Neighbour -> the stamps of the messages a tick at ``t`` uses for its position and its velocity.
+
+        Parameters
+        ----------
+        t
+            The tick's time (s).
+
+        Raises
+        ------
+        ControllerInputError
+            For a neighbour not heard from yet.
+        """
+        out = {}
+        for k, box in self._inbox.items():
+            if not box.stamps:
+                raise ControllerInputError(f"robot {self.robot} has no message from its neighbour {k} yet")
+            _, _, i1, i2 = self._pick(box, float(t))
+            out[k] = (box.stamps[i1], box.stamps[i2])
+        return out
 
     def _ideal(self, c: float, s: float, v: float, ux: float, uy: float) -> tuple[float, float, float, float]:
         """The paper's eq. 19 without limits; the heading is held at rest (as ``ideal_commands``)."""

@@ -5,7 +5,9 @@
 at the control period on the wall clock, a world process that moves the
 robots (:mod:`~delayform.fleet.world`), CDR-encoded ROS 2 messages on
 ROS 2 key expressions (:mod:`~delayform.fleet.wire`), the scenario's network
-loss on reception, and measures what happened against the analysis
+(per-link delays, jitter, loss, sampling, noise) on reception with the
+simulator's draws (:mod:`~delayform.fleet.plan`), robots killed and restarted
+(:mod:`~delayform.fleet.faults`), a live view for Foxglove (:mod:`~delayform.fleet.live`), and measures what happened against the analysis
 (:mod:`~delayform.fleet.outcome`). Needs the ``fleet`` extra.
 
 The names are imported on first use: the robot and world processes start
@@ -17,9 +19,10 @@ from __future__ import annotations
 from importlib import import_module
 from typing import Any
 
-__all__ = ["run_fleet", "FleetRun", "decay_rate"]
+__all__ = ["run_fleet", "FleetRun", "decay_rate", "Fault"]
 
-_WHERE = {"run_fleet": "delayform.fleet.run", "FleetRun": "delayform.fleet.outcome", "decay_rate": "delayform.fleet.outcome"}
+_WHERE = {"run_fleet": "delayform.fleet.run", "FleetRun": "delayform.fleet.outcome", "decay_rate": "delayform.fleet.outcome",
+          "Fault": "delayform.fleet.faults"}
 
 
 def __getattr__(name: str) -> Any:

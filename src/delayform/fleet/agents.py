@@ -15,8 +15,18 @@ it only publishes its state: the neighbours' playout buffers then hold the
 initial state, the constant history of the simulation. A tick that wakes
 more than a period late skips the deadlines it missed (counted).
 The scenario's network acts where a real one would, on reception
-(:mod:`delayform.fleet.plan`): a state message the network loses never
-reaches the controller.
+(:mod:`delayform.fleet.plan`): each link's delays are the controller's
+playout delays, a packet's jitter delays that message's position and
+velocity, and a stream the network loses is never used.
+
+A robot also appends its log to a journal every :data:`JOURNAL_EVERY` s
+(:func:`read_journal`): a robot killed by a fault (:mod:`delayform.fleet.faults`)
+writes no log at its end, and its journal is what the run knows of it. A
+robot started again mid-run (``rejoin`` in its spec) joins at its next
+deadline, takes its own state from the world's odometry, and ticks once it
+has heard from every neighbour (its playout buffers start with their next
+messages): with a neighbour that stays silent (dead too) it never ticks, and
+its log names the neighbours it waited for.
 
 Every process takes its messages from Zenoh channels in its own thread, looking
 every millisecond while it waits for its next deadline (:func:`_wait_until`):
@@ -26,7 +36,9 @@ process took it. A child that fails prints its traceback and ends at once.
 The world (:func:`world_main`) holds the robots still before t = 0, then
 applies each command when it arrives and integrates its model
 (:mod:`delayform.fleet.world`) in real time, publishing every robot's
-odometry every period.
+odometry every period. A robot whose commands stop for
+:data:`~delayform.fleet.world.COMMAND_TIMEOUT` is stopped (set-point zero),
+as a velocity-controlled base does when its commands time out.
 """
 
 from __future__ import annotations
@@ -47,7 +59,7 @@ from typing import Any
 
 # only the standard library at the top: a child ties its life to its parent's before the slow imports
 
-__all__ = ["tie_to_parent", "robot_main", "world_main", "main"]
+__all__ = ["tie_to_parent", "ReceivingSide", "robot_main", "world_main", "main", "read_journal", "JOURNAL_EVERY"]
 
 _PR_SET_PDEATHSIG = 1
 
@@ -140,6 +152,98 @@ def _wait_until(epoch: float, subs: list[tuple[Any, Any]]) -> None:
 
 
 # ------------------------------------------------------------------ robot
+class ReceivingSide:
+    """What the scenario's network does to the state messages one robot receives (:mod:`delayform.fleet.plan`).
+
+    Parameters
+    ----------
+    links
+        Informer (from 1) -> the link's delays ``(tau1_ik, tau2_ik)``.
+    period
+        The packet period (s): a message stamped t (run clock) is packet ``floor(t / period)``.
+    draws
+        The NPZ of this robot's draws (:func:`delayform.fleet.run.run_fleet` writes it), or None:
+        ``informers``, and per link ``lost`` (packets, 2), ``jitter`` (packets, 2), ``noise`` (packets, 4).
+    """
+
+    def __init__(self, links: dict[int, tuple[float, float]], period: float, draws: str | None) -> None:
+        import numpy as np
+
+        self.links, self.period = links, period
+        self.lost: dict[int, Any] = {}
+        self.noise: dict[int, Any] = {}
+        self.jitter: dict[int, Any] = {}
+        if draws:
+            with np.load(draws) as d:
+                for e, k in enumerate(d["informers"]):
+                    for name, box in (("lost", self.lost), ("noise", self.noise), ("jitter", self.jitter)):
+                        if name in d:
+                            box[int(k)] = d[name][:, e].tolist()  # plain floats: looked up at every message
+
+    def apply(self, message: Any) -> tuple[Any, tuple[float, float]]:
+        """The message as the network delivers it (noise added) and its delays (infinite: that stream is lost)."""
+        k, stamp = message.sender, message.stamp
+        d1, d2 = self.links[k]
+        if stamp < 0.0:  # before t = 0: the exact initial history, as the simulator's
+            return message, (d1, d2)
+        m = math.floor(stamp / self.period + 1e-9)
+        jit = self.jitter.get(k)
+        if jit is not None and m < len(jit):
+            d1, d2 = d1 + jit[m][0], d2 + jit[m][1]
+        lost = self.lost.get(k)
+        if lost is not None and m < len(lost):
+            d1, d2 = (math.inf if lost[m][0] else d1), (math.inf if lost[m][1] else d2)
+        extra = self.noise.get(k)
+        if extra is not None and m < len(extra):
+            dx, dy, dvx, dvy = extra[m]
+            message = message._replace(x=message.x + dx, y=message.y + dy, vx=message.vx + dvx, vy=message.vy + dvy)
+        return message, (d1, d2)
+
+
+#: seconds between two appends of a robot's journal (what survives a SIGKILL: all but the last this many seconds)
+JOURNAL_EVERY = 0.1
+
+#: the journal's files (suffix of the log's path) and the width of their float64 rows
+JOURNAL = {"received": 6, "ticks": 5, "sent": 1}
+
+
+class _Journal:
+    """A robot's log appended to raw float64 files as the run goes: a process killed by a fault leaves it behind."""
+
+    def __init__(self, log: str) -> None:
+        self._fds = {name: os.open(f"{log}.{name}", os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o644) for name in JOURNAL}
+        self._done = dict.fromkeys(JOURNAL, 0)
+
+    def append(self, rows: dict[str, list[Any]]) -> None:
+        """Write the rows added since the last call (one write per file: a kill never splits a row)."""
+        import numpy as np
+
+        for name, fd in self._fds.items():
+            new = rows[name][self._done[name]:]
+            if new:
+                os.write(fd, np.asarray(new, dtype=np.float64).tobytes())
+                self._done[name] += len(new)
+
+
+def read_journal(log: str) -> dict[str, Any]:
+    """The rows a robot's journal holds (:data:`JOURNAL`), as arrays; a row cut by a kill is left out.
+
+    Parameters
+    ----------
+    log
+        The path the robot's log would have had (its spec's ``log``); the journal's files end with ``.<name>``.
+    """
+    import numpy as np
+
+    out: dict[str, Any] = {}
+    for name, width in JOURNAL.items():
+        path = Path(f"{log}.{name}")
+        data = np.fromfile(path, dtype=np.float64) if path.exists() else np.zeros(0)
+        out[name] = data[: data.size - data.size % width].reshape(-1, width)
+    out["sent"] = out["sent"].reshape(-1)
+    return out
+
+
 def robot_main(spec: dict[str, Any]) -> None:
     """One robot: odometry and neighbours' states in, state and velocity commands out (module doc).
 
@@ -157,46 +261,34 @@ def robot_main(spec: dict[str, Any]) -> None:
 
     me, n, h = int(spec["robot"]), int(spec["n"]), float(spec["period"])
     limits = None if spec["limits"] is None else RobotLimits(**spec["limits"])
+    links = {int(k): (float(d[0]), float(d[1])) for k, d in spec["link_delays"].items()}
     ctrl = FormationController(robot=me, P=spec["P"], D=spec["D"], tau1=spec["tau1"], tau2=spec["tau2"],
                                weights={int(k): w for k, w in spec["weights"].items()},
-                               forcing=spec["forcing"], limits=limits)  # fmt: skip
-    # the network's draws for the links this robot receives on: packet m of informer k (run.py, module doc)
-    lost: dict[int, Any] = {}
-    noise: dict[int, Any] = {}
-    if spec.get("draws"):
-        with np.load(spec["draws"]) as d:
-            for e, k in enumerate(d["informers"]):
-                if "lost" in d:
-                    lost[int(k)] = d["lost"][:, e]
-                if "noise" in d:
-                    noise[int(k)] = d["noise"][:, e]
+                               forcing=spec["forcing"], limits=limits, link_delays=links)  # fmt: skip
+    network = ReceivingSide(links, float(spec["packet_period"]), spec.get("draws"))
     rate = spec.get("rate")
-    packet = h if rate is None else 1.0 / float(rate)
+    packet = network.period
     codec = Codec(n)
     session = open_session(listen=["tcp/127.0.0.1:0"], connect=[spec["endpoint"]])
     odom: list[Odometry | None] = [None]
     t0_box = [math.inf]
-    received: list[tuple[int, float, float, bool]] = []  # sender, stamp, receipt (run clock), lost by the network
+    # sender, stamp, receipt (run clock), lost by the network (position stream), the message's delays (inf: lost)
+    received: list[tuple[int, float, float, bool, float, float]] = []
+
+    heard: set[int] = set()
 
     def on_state(sample: Any) -> None:
         now = time.time()
         sender = int(str(sample.key_expr).split("/")[0].removeprefix("robot_"))
+        heard.add(sender)
         o = codec.read_odometry(sender, bytes(sample.payload.to_bytes()))
         t0 = t0_box[0]
         stamp = o.stamp - t0
-        dropped = False
         c, s = math.cos(o.theta), math.sin(o.theta)
-        x, y, vx, vy = o.x, o.y, o.v * c, o.v * s
-        if stamp >= 0.0:  # packet m: sent in the m-th packet period since t = 0 (before it, the exact history)
-            m = math.floor(stamp / packet + 1e-9)
-            mask = lost.get(sender)
-            dropped = bool(mask is not None and m < mask.size and mask[m])
-            extra = noise.get(sender)
-            if extra is not None and m < extra.shape[0]:
-                x, y, vx, vy = x + extra[m, 0], y + extra[m, 1], vx + extra[m, 2], vy + extra[m, 3]
-        received.append((sender, stamp, now - t0, dropped))
-        if not dropped:
-            ctrl.receive(NeighbourMessage(sender, stamp, x, y, vx, vy))
+        message, delays = network.apply(NeighbourMessage(sender, stamp, o.x, o.y, o.v * c, o.v * s))
+        received.append((sender, stamp, now - t0, delays[0] == math.inf, delays[0], delays[1]))
+        if delays[0] < math.inf or delays[1] < math.inf:  # a message with neither part is lost whole
+            ctrl.receive(message, delays)
 
     def on_odom(sample: Any) -> None:
         odom[0] = codec.read_odometry(me, bytes(sample.payload.to_bytes()))
@@ -210,8 +302,13 @@ def robot_main(spec: dict[str, Any]) -> None:
     t0_box[0] = t0
     end = t0 + float(spec["duration"])
     lead = float(spec["lead"])
-    k = math.ceil((time.time() - t0 - lead) / h)
+    # a robot started again mid-run (a fault's restart) joins at its next deadline and ticks once it has heard
+    # from every neighbour; until then it only publishes its state (from the world's odometry)
+    rejoin = bool(spec.get("rejoin"))
+    k = math.ceil((time.time() - t0 - (0.0 if rejoin else lead)) / h)
     ticks: list[tuple[float, float, float, float, float]] = []  # deadline, lateness, lag, compute time, speed sent
+    journal = _Journal(spec["log"])
+    flush_at = 0.0
     missed = 0
     accel = 0.0  # the acceleration of the last command (m/s^2)
     sent = 0  # with a sampling rate: the next packet period to send in
@@ -246,6 +343,14 @@ def robot_main(spec: dict[str, Any]) -> None:
             if k >= 0:
                 sent = math.floor(t / packet + 1e-9) + 1
                 stamps.append(t)
+        if woke >= flush_at:
+            journal.append({"received": received, "ticks": ticks, "sent": stamps})
+            flush_at = woke + JOURNAL_EVERY
+        if rejoin:
+            if len(heard) < len(ctrl.neighbours):
+                k += 1
+                continue
+            rejoin = False
         if k >= 0:
             try:
                 cmd = ctrl.tick(t, x, y, th, v)
@@ -257,12 +362,13 @@ def robot_main(spec: dict[str, Any]) -> None:
             pub_cmd.put(codec.twist(speed, cmd.turn_rate))
             ticks.append((k * h, late, cmd.lag, time.time() - woke, speed))
         k += 1
-    rec = np.array(received, dtype=np.float64).reshape(-1, 4)
+    rec = np.array(received, dtype=np.float64).reshape(-1, 6)
     tk = np.array(ticks, dtype=np.float64).reshape(-1, 5)
     from delayform._files import atomic_path
 
     with atomic_path(spec["log"]) as tmp:  # the parent reads the log whole or not at all
-        np.savez(tmp, received=rec, ticks=tk, missed=missed, error=error, sent=np.array(stamps))
+        np.savez(tmp, received=rec, ticks=tk, missed=missed, error=error, sent=np.array(stamps),
+                 waiting=np.array(sorted(set(ctrl.neighbours) - heard) if rejoin else [], dtype=np.int64))
     _say("done")
     _close(session)
 
@@ -279,7 +385,7 @@ def world_main(spec: dict[str, Any]) -> None:
     import numpy as np
 
     from delayform.fleet.wire import Codec, Odometry, key, open_session
-    from delayform.fleet.world import world_model
+    from delayform.fleet.world import COMMAND_TIMEOUT, world_model
     from delayform.simulation.models.robots import RobotLimits
 
     n, h = int(spec["n"]), float(spec["period"])
@@ -289,6 +395,8 @@ def world_main(spec: dict[str, Any]) -> None:
     session = open_session(listen=["tcp/127.0.0.1:0"], connect=[spec["endpoint"]])
     applied = 0
     t0_box = [math.inf]
+    last_cmd = [0.0] * n  # run clock of each robot's last command (t = 0 before the first)
+    stopped: list[tuple[int, float]] = []  # (robot from 1, when) the command timeout stopped a robot
 
     def on_cmd(sample: Any) -> None:  # applied when it arrives (within the polling interval)
         nonlocal applied
@@ -297,8 +405,18 @@ def world_main(spec: dict[str, Any]) -> None:
         at = time.time() - t0_box[0]
         if at >= 0.0:
             world.advance(at)
+            last_cmd[robot - 1] = at
         world.command(robot - 1, speed, turn)
         applied += 1
+
+    def time_out(t: float) -> None:  # a robot without commands for COMMAND_TIMEOUT stops, from then on
+        for i in range(n):
+            due = last_cmd[i] + COMMAND_TIMEOUT
+            if due <= t:
+                world.advance(max(due, world.time))
+                world.command(i, 0.0, 0.0)
+                stopped.append((i + 1, due))
+                last_cmd[i] = math.inf  # until its next command
 
     subs = [(_subscribe(session, key(i, "cmd_vel")), on_cmd) for i in range(1, n + 1)]
     pubs = [session.declare_publisher(key(i, "odom")) for i in range(1, n + 1)]
@@ -320,6 +438,7 @@ def world_main(spec: dict[str, Any]) -> None:
             deadline = t0 + k * h
         t = max(now - t0, 0.0)
         if t > 0.0:
+            time_out(t)
             world.advance(t)
         s = world.state
         stamp = t0 + world.time if now >= t0 else now  # before t = 0 the robots stand still at their start
@@ -335,7 +454,8 @@ def world_main(spec: dict[str, Any]) -> None:
 
     with atomic_path(spec["log"]) as tmp:  # the parent reads the log whole or not at all
         np.savez(tmp, times=np.array(times), states=np.array(states).reshape(-1, n, 4),
-                 omega=np.array(omegas).reshape(-1, n), lateness=np.array(lateness), applied=applied)  # fmt: skip
+                 omega=np.array(omegas).reshape(-1, n), lateness=np.array(lateness), applied=applied,
+                 stopped=np.array(stopped, dtype=np.float64).reshape(-1, 2))  # fmt: skip
     _say("done")
     _close(session)
 

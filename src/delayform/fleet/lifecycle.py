@@ -69,6 +69,7 @@ class Children:
         self.folder = folder
         self.procs: dict[str, subprocess.Popen[bytes]] = {}
         self._errs: dict[str, Path] = {}
+        self._started: dict[str, int] = {}
 
     def __enter__(self) -> Children:
         return self
@@ -78,8 +79,8 @@ class Children:
 
     @property
     def pids(self) -> dict[str, int]:
-        """Name -> PID of every child started."""
-        return {name: p.pid for name, p in self.procs.items()}
+        """Name -> PID of every child started (those killed by a fault too)."""
+        return dict(self._started)
 
     def start(self, name: str, spec: dict[str, Any]) -> None:
         """Start child ``name`` with its spec (``parent`` is added)."""
@@ -93,6 +94,41 @@ class Children:
                 [sys.executable, "-m", "delayform.fleet.agents", str(path)],
                 stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=stderr, close_fds=True,
             )  # fmt: skip
+        self._started[name] = self.procs[name].pid
+
+    def kill(self, name: str) -> None:
+        """SIGKILL child ``name`` now (a fault: it gets no chance to clean up) and forget it; it is reaped at once."""
+        p = self.procs.pop(name)
+        p.kill()
+        p.wait()
+        for stream in (p.stdin, p.stdout):
+            if stream is not None:
+                stream.close()
+
+    def said(self, name: str, word: str) -> bool:
+        """Whether child ``name`` has printed ``word`` (one line) yet, without waiting.
+
+        Raises
+        ------
+        FleetRunError
+            When it ended, or printed something else.
+        """
+        p = self.procs[name]
+        assert p.stdout is not None
+        if not select.select([p.stdout.fileno()], [], [], 0.0)[0]:
+            return False
+        line = p.stdout.readline().decode(errors="replace").strip()
+        if line == word:
+            return True
+        p.wait()
+        raise FleetRunError(f"the {name} process ended before '{word}': {self.why(name)}")
+
+    def tell(self, name: str, text: str) -> None:
+        """Write one line to child ``name``'s stdin."""
+        p = self.procs[name]
+        assert p.stdin is not None
+        p.stdin.write((text + "\n").encode())
+        p.stdin.flush()
 
     def why(self, name: str) -> str:
         """The last line a child wrote on stderr (its error), or its exit status."""
@@ -133,10 +169,8 @@ class Children:
 
     def send(self, text: str) -> None:
         """Write one line to every child's stdin."""
-        for p in self.procs.values():
-            assert p.stdin is not None
-            p.stdin.write((text + "\n").encode())
-            p.stdin.flush()
+        for name in self.procs:
+            self.tell(name, text)
 
     def failed(self) -> str | None:
         """The first child that has ended with a non-zero status, said as a sentence; None while all run or succeeded."""

@@ -3,17 +3,22 @@
 From the processes' logs (:mod:`delayform.fleet.agents`):
 
 Per link (receiver i, informer k)
-    The network latency of each state message (receipt, when the receiving
+    The link's design delays (``tau1_ik``, ``tau2_ik``: the scenario's
+    per-link delays, else (tau1, tau2)) beside the measured ones (the median
+    applied delay), the network latency of each state message (receipt, when the receiving
     process took it from its channel, within a millisecond of its
     arrival, minus the sender's stamp), the delay the controller actually applied at each tick (the tick's
-    time minus the stamp of the newest message it had received that was sent
-    at or before ``t - tau``: what the playout buffer hands the controller),
+    time minus the stamp of the newest message it had received that was due,
+    ``stamp + d <= t`` with d the link's delay plus the packet's jitter:
+    what the playout buffer hands the controller), the receiving robot's ticks missed and late,
     how long that message waited in the buffer (playout), and the messages
     sent, received, lost on the way and dropped by the scenario's network.
-    With a playout buffer the applied delay lies in ``[tau, tau + h)`` (h the
-    control period) when the network is faster than the design.
+    With a playout buffer the applied delay lies in ``[tau_ik, tau_ik + h)`` (h the
+    control period) when the network is faster than the design and there is no jitter.
 Per robot
-    Ticks run, missed (a deadline that passed while the process waited for
+    Its processes (more than one after a fault's restart) and when each
+    replacement first ticked, the intervals in which a fault left it silent
+    (:func:`silent_intervals`), ticks run, missed (a deadline that passed while the process waited for
     the CPU) and late (woken more than :data:`LATE_FRACTION` of a period after
     its deadline), the lateness's median, 99th percentile and largest value,
     and the controller's :attr:`~delayform.deploy.controller.Command.lag`.
@@ -27,26 +32,29 @@ The team
     the exact CTCR chart's verdict at (tau1, tau2), the dominant root's decay
     rate ``-Re s`` of the formation modes (:func:`delayform.dominant_root`),
     and the simulator's settling time, closest approach and its own error's
-    decay fitted the same way.
+    decay fitted the same way. With per-link delays the chart and the
+    dominant root are those of the nominal pair (they do not cover other
+    delays; ``per_link_delays`` says so): the simulator, run over the same
+    network, is then the promise.
 """
 
 from __future__ import annotations
 
 import math
-from bisect import bisect_right, insort
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from delayform.fleet.plan import LinkPlan
 from delayform.model import Team
 from delayform.simulation.bodies.approach import closest_approach
 from delayform.model.network import Network
 from delayform.simulation.models.robots import RobotLimits
 from delayform.simulation.runs.trajectory import Trajectory, formation_error, settling_time
 
-__all__ = ["FleetRun", "measure", "decay_rate", "FIT_WINDOW", "LATE_FRACTION"]
+__all__ = ["FleetRun", "measure", "decay_rate", "silent_intervals", "FIT_WINDOW", "LATE_FRACTION"]
 
 _Array = NDArray[np.float64]
 
@@ -106,27 +114,84 @@ def _stats(values: _Array) -> dict[str, float]:
     return {"median": float(np.median(values)), "p99": float(np.quantile(values, 0.99)), "max": float(values.max())}
 
 
-def _applied(ticks_t: _Array, stamps: _Array, receipts: _Array, tau: float) -> tuple[_Array, _Array]:
-    """Per tick: the delay applied (t minus the stamp used) and how long that message waited (t minus its receipt)."""
-    order = np.argsort(receipts, kind="stable")
-    stamps, receipts = stamps[order], receipts[order]
-    held: list[float] = []  # stamps received so far, sorted
-    when: dict[float, float] = {}
+def _applied(ticks_t: _Array, stamps: _Array, receipts: _Array, delays: _Array) -> tuple[_Array, _Array]:
+    """Per tick: the delay applied (t minus the stamp used) and how long that message waited (t minus its receipt).
+
+    The message used at t is the controller's: the newest one received and
+    due (``stamp + d <= t``, ``d`` the message's own delay, infinite for a
+    stream the network lost); before the first, the oldest received.
+    """
     delay = np.full(ticks_t.size, math.nan)
     wait = np.full(ticks_t.size, math.nan)
-    j = 0
-    for r, t in enumerate(ticks_t):
-        while j < receipts.size and receipts[j] <= t:
-            insort(held, stamps[j])
-            when.setdefault(stamps[j], receipts[j])
-            j += 1
-        if not held:
-            continue
-        pos = bisect_right(held, t - tau + 1e-9) - 1
-        used = held[max(pos, 0)]
-        delay[r] = t - used
-        wait[r] = t - when[used]
+    if stamps.size == 0:
+        return delay, wait
+    usable = np.maximum(receipts, stamps + delays)
+    by_use = np.argsort(usable, kind="stable")
+    newest = np.maximum.accumulate(stamps[by_use])
+    newest_receipt = receipts[by_use][_running_argmax(stamps[by_use])]
+    by_receipt = np.argsort(receipts, kind="stable")
+    oldest = np.minimum.accumulate(stamps[by_receipt])
+    oldest_receipt = receipts[by_receipt][_running_argmin(stamps[by_receipt])]
+    pos = np.searchsorted(usable[by_use], ticks_t + 1e-9, side="right") - 1
+    got = np.searchsorted(receipts[by_receipt], ticks_t, side="right") - 1
+    due = pos >= 0
+    early = ~due & (got >= 0)
+    delay[due] = ticks_t[due] - newest[pos[due]]
+    wait[due] = ticks_t[due] - newest_receipt[pos[due]]
+    delay[early] = ticks_t[early] - oldest[got[early]]
+    wait[early] = ticks_t[early] - oldest_receipt[got[early]]
     return delay, wait
+
+
+def _running_argmax(values: _Array) -> NDArray[np.intp]:
+    """Index of the largest value so far, at each position (the first of equal ones)."""
+    best = np.maximum.accumulate(values)
+    idx = np.where(values == best, np.arange(values.size), 0)
+    return np.maximum.accumulate(idx) if values.size else idx
+
+
+def _running_argmin(values: _Array) -> NDArray[np.intp]:
+    """Index of the smallest value so far, at each position."""
+    return _running_argmax(-values)
+
+
+def silent_intervals(robot: int, faults: list[dict[str, Any]], heard: _Array, duration: float) -> list[dict[str, Any]]:
+    """When robot ``robot`` was silent because a fault killed it, measured on the messages its neighbours could hear.
+
+    For each kill: from the last state message of the killed process (taken
+    by the recording before the restart, or before the end) to the first
+    message of the process that replaced it (None: silent to the end).
+
+    Parameters
+    ----------
+    robot
+        The robot (from 1).
+    faults
+        The faults carried out (``robot``, ``action``, ``at_s``), in time order.
+    heard
+        When its state messages were taken (s, run clock).
+    duration
+        The run's length (s).
+
+    Returns
+    -------
+    list of dict
+        ``killed_at_s``, ``restarted_at_s`` (None), ``last_heard_s``, ``heard_again_s`` (None), ``silent_s``.
+    """
+    mine = [f for f in faults if f["robot"] == robot]
+    heard = np.sort(np.asarray(heard, dtype=np.float64))
+    out = []
+    for n_, f in enumerate(mine):
+        if f["action"] != "kill":
+            continue
+        restart = next((g["at_s"] for g in mine[n_ + 1:] if g["action"] == "restart"), None)
+        before = heard[heard < (restart if restart is not None else math.inf)]
+        last = float(before.max()) if before.size else math.nan
+        after = heard[heard >= restart] if restart is not None else np.zeros(0)
+        again = float(after.min()) if after.size else None
+        out.append({"killed_at_s": float(f["at_s"]), "restarted_at_s": restart, "last_heard_s": last,
+                    "heard_again_s": again, "silent_s": (again if again is not None else duration) - last})  # fmt: skip
+    return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -170,21 +235,29 @@ class FleetRun:
         return ax
 
 
-def measure(*, team: Team, tau1: float, tau2: float, desired: _Array, limits: RobotLimits | None, period: float,
+def measure(*, team: Team, tau1: float, tau2: float, plan: LinkPlan, desired: _Array, limits: RobotLimits | None, period: float,
             duration: float, network: Network | None, simulation: Trajectory, logs: dict[str, dict[str, Any]],
-            recording: dict[str, int], pids: dict[str, int], mcap: Any, world: str, endpoint: str) -> FleetRun:  # fmt: skip
+            recording: dict[str, int], pids: dict[str, int], mcap: Any, world: str, endpoint: str,
+            faults: list[dict[str, Any]] | None = None, heard: dict[int, _Array] | None = None) -> FleetRun:  # fmt: skip
     """Measure a run from its logs (module doc); the comparison with the analysis included.
 
     Parameters
     ----------
     team, tau1, tau2, desired, limits, period, duration, network
         What was run.
+    plan
+        The network's draws: each link's design delays.
     simulation
         The simulator's run of the same team at the same delays, from the same initial state.
     logs
         ``"world"`` and ``"robot_<i>"`` -> the arrays each process saved.
     recording, pids, mcap, world, endpoint
         For the summary: messages recorded per key, the processes' PIDs, the MCAP path, the world model, the endpoint.
+    faults
+        The kills and restarts carried out: robot, action, planned and actual time (s).
+    heard
+        Robot (from 1) -> when its state messages were taken by the recording
+        process (s): the silent intervals are measured on them (:func:`silent_intervals`).
     """
     from delayform.analysis.ctcr import stability_map
     from delayform.analysis.roots.dominant import dominant_root
@@ -209,8 +282,15 @@ def measure(*, team: Team, tau1: float, tau2: float, desired: _Array, limits: Ro
         late = ticks[:, 1]
         tick_times[i] = ticks[:, 0] + late
         expected = math.ceil(duration / h - 1e-9)
+        starts = np.asarray(log.get("starts", np.zeros(1)))
         robots.append({
             "robot": i, "ticks_expected": expected, "ticks_run": int(ticks.shape[0]),
+            "last_tick_s": float(ticks[-1, 0]) if ticks.size else math.nan,
+            "processes": int(starts.size),
+            "rejoined_s": [float(v) for v in starts[1:]],
+            # a restarted process that never ticked: the neighbours it never heard from
+            "rejoin_waits_for": [int(k) for k in np.asarray(log.get("waiting", np.zeros(0))).reshape(-1)],
+            "silent": silent_intervals(i, faults or [], (heard or {}).get(i, np.zeros(0)), duration),
             "ticks_missed": int(log["missed"]), "ticks_late": int(np.sum(late > LATE_FRACTION * h)),
             "lateness_s": _stats(late), "compute_s": _stats(ticks[:, 3]), "lag_s": _stats(ticks[:, 2]),
             "error": str(log["error"]) or None,
@@ -218,27 +298,36 @@ def measure(*, team: Team, tau1: float, tau2: float, desired: _Array, limits: Ro
 
     # --- links
     links = []
+    design = {(int(i) + 1, int(k) + 1): (float(a), float(b))
+              for i, k, a, b in zip(plan.receivers, plan.informers, plan.tau1, plan.tau2)}  # fmt: skip
     C = topology.C_sparse.tocsr()
     loss_rate = 0.0 if network is None or network.loss is None else float(
         network.loss.link_loss_rate(topology.adjacency) if hasattr(network.loss, "link_loss_rate") else network.loss.loss_rate)  # fmt: skip
     cutoff = duration - _SETTLE  # a message sent in the run's last instant may meet a receiver that has stopped
     for i in range(1, n + 1):
-        rec = np.asarray(logs[f"robot_{i}"]["received"]).reshape(-1, 4)
+        rec = np.asarray(logs[f"robot_{i}"]["received"]).reshape(-1, 6)
         for j in C.indices[C.indptr[i - 1]:C.indptr[i]]:
             k = int(j) + 1
             if k == i:
                 continue
             mine = rec[(rec[:, 0] == k) & (rec[:, 1] >= 0.0) & (rec[:, 1] <= cutoff)]
             delivered = mine[mine[:, 3] == 0.0]
-            every = rec[(rec[:, 0] == k) & (rec[:, 3] == 0.0)]  # the ones before t = 0 too: the initial history
-            d1, wait1 = _applied(tick_times[i], every[:, 1], every[:, 2], tau1)
-            d2, _ = _applied(tick_times[i], every[:, 1], every[:, 2], tau2)
+            every = rec[rec[:, 0] == k]  # the ones before t = 0 too: the initial history
+            d1, wait1 = _applied(tick_times[i], every[:, 1], every[:, 2], every[:, 4])
+            d2, _ = _applied(tick_times[i], every[:, 1], every[:, 2], every[:, 5])
             sent = int(np.sum(np.asarray(logs[f"robot_{k}"]["sent"]) <= cutoff))
+            want1, want2 = design[(i, k)]
+            applied1, applied2 = _stats(d1[np.isfinite(d1)]), _stats(d2[np.isfinite(d2)])
             links.append({
-                "receiver": i, "informer": k, "sent": sent, "received": int(mine.shape[0]),
+                "receiver": i, "informer": k, "design_tau1_s": want1, "design_tau2_s": want2,
+                "measured_tau1_s": applied1["median"], "measured_tau2_s": applied2["median"],
+                "within_one_period": bool(abs(applied1["median"] - want1) <= h and abs(applied2["median"] - want2) <= h),
+                "receiver_ticks_missed": robots[i - 1]["ticks_missed"], "receiver_ticks_late": robots[i - 1]["ticks_late"],
+                "sent": sent, "received": int(mine.shape[0]),
                 "lost_in_transport": max(sent - int(mine.shape[0]), 0), "dropped_by_network": int(np.sum(mine[:, 3] != 0.0)),
                 "latency_s": _stats(mine[:, 2] - mine[:, 1]),
-                "applied_tau1_s": _stats(d1[np.isfinite(d1)]), "applied_tau2_s": _stats(d2[np.isfinite(d2)]),
+                "applied_tau1_s": applied1, "applied_tau2_s": applied2,
+                "dropped_velocities_by_network": int(np.sum(np.isinf(mine[:, 5]))),
                 "playout_s": _stats(wait1[np.isfinite(wait1)]),
                 "delivered": int(delivered.shape[0]),
             })  # fmt: skip
@@ -254,7 +343,10 @@ def measure(*, team: Team, tau1: float, tau2: float, desired: _Array, limits: Ro
     fleet_settling = settling_time(times, error, scale) if times.size else math.inf
     sent = sum(link["sent"] for link in links)
     dropped = sum(link["dropped_by_network"] for link in links)
+    per_link = bool(network is not None and network.delays is not None and not network.delays.is_uniform)
     team_summary = {
+        "per_link_delays": per_link,
+        "simulator_decay_ratio": measured / sim_rate if math.isfinite(measured) and sim_rate > 0 else math.nan,
         "chart_verdict": "stable" if chart_stable else "unstable",
         "dominant_root": [float(np.real(root)), float(np.imag(root))],
         "dominant_decay_rate": float(-np.real(root)),
@@ -277,6 +369,8 @@ def measure(*, team: Team, tau1: float, tau2: float, desired: _Array, limits: Ro
         "network_loss_rate": loss_rate,
         "messages_lost_in_transport": sum(link["lost_in_transport"] for link in links),
         "state_messages_sent": sent,
+        "silent_robots": [r["robot"] for r in robots if r["silent"]],
+        "stopped_by_command_timeout": [[int(a), float(b)] for a, b in np.asarray(w.get("stopped", np.zeros((0, 2)))).reshape(-1, 2)],
     }  # fmt: skip
     run = {
         "robots": n, "P": team.P, "D": team.D, "tau1": tau1, "tau2": tau2, "period": h, "duration": duration,
@@ -285,6 +379,7 @@ def measure(*, team: Team, tau1: float, tau2: float, desired: _Array, limits: Ro
         "limits": None if limits is None else limits.describe(), "pids": pids, "recording": str(mcap),
         "messages_recorded": recording,
         "world_lateness_s": _stats(np.asarray(w["lateness"])), "commands_applied": int(w["applied"]),
+        "faults": list(faults or []),
     }  # fmt: skip
     summary = {"run": run, "team": team_summary, "robots": robots, "links": links}
     return FleetRun(summary=summary, times=times, error=error, sim_times=simulation.times, sim_error=sim_error)

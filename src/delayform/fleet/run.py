@@ -13,28 +13,26 @@ The network
 The loopback loses nothing and takes a fraction of a millisecond; the
 design's delays are made by each robot's playout buffer. The scenario's
 ``[network]`` acts where a real network would, on the state messages, with
-the draws the simulator makes for the same seed
-(:func:`delayform.simulation.delayed.reception.packet_draws`, for the simulator
-stepping at the control period): with ``rate`` each robot sends its state at
-the first tick at or after every ``m / rate`` (else at every tick: packet m is
-the one sent in period m); on reception, packet m on a link is dropped when the
-simulator's position stream loses packet m of that link (loss, Bernoulli or
-bursty), and carries the noise the simulator adds to it, stream by stream
-(positions, velocities). A state message carries both streams, as one packet
-does on a real robot, so the velocity stream's separate loss draws are not
-used. Delays that differ per link or in time (per-link matrices, spread,
-variation, jitter) decide when each stream arrives, and one message cannot
-arrive twice: a network with them is refused
-(:class:`~delayform.errors.FleetError`) rather than run without them.
+the draws the simulator makes for the same seed (:mod:`delayform.fleet.plan`,
+for the simulator stepping at the control period when the delays allow it):
+with ``rate`` each robot sends its state at the first tick at or after every
+``m / rate`` (else at every tick). On reception, packet m on link
+``i <- k`` is held by robot i's playout buffer for that link's delays
+(per-link matrices, or drawn with the spread), plus the jitter the simulator
+draws for packet m of each stream; a stream the simulator loses is never
+used (loss, Bernoulli or bursty), and each stream carries the noise the
+simulator adds to it. A state message carries both streams, as one packet
+does on a real robot; each becomes usable at its own time. Delays that vary
+smoothly in time are refused (:class:`~delayform.errors.FleetError`) rather
+than run without them.
 """
 
 from __future__ import annotations
 
 import math
-import socket
 import tempfile
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
@@ -48,11 +46,14 @@ from delayform.deploy.profiles import RobotProfile
 from delayform.errors import FleetError, FleetRunError
 from delayform.fleet.lifecycle import Children, terminate_as_exit
 from delayform.fleet.outcome import FleetRun, measure
-from delayform.fleet.wire import DEFAULT_ENDPOINT, check_endpoint, open_session
+from delayform.fleet.faults import Fault, check_faults
+from delayform.fleet.live import LIVE_EVERY, LiveView, check_live_port
+from delayform.fleet.wire import DEFAULT_ENDPOINT, Codec, Odometry, check_endpoint, key, open_session, port_free
 from delayform.fleet.world import WORLDS
 from delayform.formation import check_formation, formation_forcing
 from delayform.model import Delays, Start, Team
-from delayform.model.network import BernoulliLoss, GilbertElliott, Network
+from delayform.fleet.plan import LinkPlan, link_plan
+from delayform.model.network import Network
 from delayform.simulation.models.robots import Robot, RobotLimits
 
 __all__ = ["run_fleet", "check_network", "MCAP_NAME", "LEAD"]
@@ -71,7 +72,7 @@ _READY_TIMEOUT, _DONE_TIMEOUT = 60.0, 30.0
 
 
 def check_network(network: Network | None) -> Network | None:
-    """The network a fleet run applies: loss, sampling and noise; None when it is ideal (module doc, The network).
+    """The network a fleet run applies; None when it is ideal (module doc, The network).
 
     Parameters
     ----------
@@ -81,33 +82,15 @@ def check_network(network: Network | None) -> Network | None:
     Raises
     ------
     FleetError
-        For a network with parts not applied to real messages (per-link or
-        varying delays, jitter).
+        For delays that vary smoothly in time (the one part not applied to real messages).
     """
     if network is None or network.is_ideal:
         return None
-    parts = [name for name, on in (
-        ("per-link delays", network.delays is not None and not network.delays.is_uniform),
-        ("delay variation", network.variation is not None and not network.variation.is_off),
-        ("jitter", network.jitter is not None and not network.jitter.is_off),
-    ) if on]  # fmt: skip
-    if parts:
-        raise FleetError(f"the scenario's [network] has {', '.join(parts)}: a fleet run applies loss, sampling and "
-                         f"noise to real messages, not delays that differ per link or in time; remove them, or run "
-                         f"simulate for the whole network")  # fmt: skip
+    if network.variation is not None and not network.variation.is_off:
+        raise FleetError("the scenario's [network] has delay variation: a fleet run applies per-link delays, jitter, "
+                         "loss, sampling and noise to real messages, not delays that vary in time; remove it, or run "
+                         "simulate for the whole network")  # fmt: skip
     return network
-
-
-def _port_free(host: str, port: int) -> bool:
-    family = socket.AF_INET6 if host.startswith("[") else socket.AF_INET
-    with socket.socket(family, socket.SOCK_STREAM) as s:
-        # as a listener binds: connections of an earlier run waiting out TIME_WAIT do not hold the port
-        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        try:
-            s.bind((host.strip("[]"), port))
-        except OSError:
-            return False
-    return True
 
 
 def _limits_dict(limits: RobotLimits | None) -> dict[str, float] | None:
@@ -130,6 +113,8 @@ def run_fleet(
     network: Network | None = None,
     endpoint: str = DEFAULT_ENDPOINT,
     world: str = "kinematic",
+    faults: Iterable[Fault] = (),
+    foxglove: int | None = None,
     progress: Callable[[str], None] | None = None,
 ) -> FleetRun:
     """Run the team as processes on this machine and measure it against the analysis (module doc).
@@ -139,7 +124,8 @@ def run_fleet(
     team
         Topology and gains (paper, eq. 1).
     delays
-        The design's delays: one pair on every link (the playout buffers hold them).
+        The design's nominal delays (one pair; per-link delays come with the
+        network, as for :func:`delayform.simulate`: ``Network(delays=LinkDelays(...))``).
     formation
         ``(n, 2)`` desired positions or a shape name.
     out
@@ -155,11 +141,18 @@ def run_fleet(
         The initial state (:class:`~delayform.model.Start`), as :func:`delayform.simulate`
         takes it; None: ``Start()``, drawn from seed 0.
     network
-        The scenario's network: its loss, sampling and noise act on the state messages (module doc).
+        The scenario's network: its per-link delays, jitter, loss, sampling and
+        noise act on the state messages (module doc).
     endpoint
         The Zenoh endpoint on the loopback the parent listens on.
     world
         The world model (:data:`delayform.fleet.world.WORLDS`).
+    faults
+        Robots' processes killed by SIGKILL and started again, at times of
+        the run (:mod:`delayform.fleet.faults`); the summary names each silent robot and for how long.
+    foxglove
+        A port on 127.0.0.1 where the running team is served to Foxglove
+        (:mod:`delayform.fleet.live`), or None.
     progress
         Optional callback with a few words at each stage.
 
@@ -170,9 +163,12 @@ def run_fleet(
     Raises
     ------
     FleetError
-        Before any process starts: per-link delays, an actuation delay, a
-        network part not applied, an endpoint off the loopback or a port in use,
-        a period or duration that is not positive, an unknown world.
+        Before any process starts: delay matrices in ``delays`` (they go in
+        the network), an actuation delay, delays varying in time, an endpoint off the loopback or a port in use,
+        a period or duration that is not positive, an unknown world, faults
+        that do not fit the team or the run, a Foxglove port that is invalid or taken.
+    MissingExtraError
+        For ``foxglove`` without the Foxglove SDK.
     FleetRunError
         A child process that failed or never became ready.
     """
@@ -180,7 +176,8 @@ def run_fleet(
     if not isinstance(team, Team) or not isinstance(delays, Delays):
         raise FleetError("run_fleet takes a Team and a Delays (delayform.model)")
     if delays.kind != "uniform":
-        raise FleetError("the on-robot controller holds one delay pair on every link; these delays differ per link")
+        raise FleetError("per-link delays go in the network, as for simulate: network=Network(delays=LinkDelays(tau1, "
+                         "tau2)) with the nominal pair in Delays")  # fmt: skip
     if delays.actuation:
         raise FleetError("an actuation delay is what the robots do, not what the fleet adds: give Delays without it")
     tau1, tau2 = delays.pair
@@ -193,8 +190,11 @@ def run_fleet(
         raise FleetError(f"unknown world model {world!r}; known: {', '.join(WORLDS)}")
     network = check_network(network)
     host, port = check_endpoint(endpoint)
-    if not _port_free(host, port):
+    if not port_free(host, port):
         raise FleetError(f"the endpoint {endpoint} cannot be used: port {port} is already taken on {host}")
+    faults = check_faults(faults, team.n, duration)
+    if foxglove is not None:
+        check_live_port(foxglove, taken=port)
     out = Path(out)
     if not out.is_dir():
         raise FleetError(f"the output folder {out} does not exist")
@@ -206,12 +206,14 @@ def run_fleet(
     # the promise: the same team simulated at the same delays (and the initial states both start from)
     from delayform.simulation import simulate
 
-    steps_dt = min([period] + [t for t in (tau1, tau2) if t > 0])
+    plan = link_plan(network or Network(), topology, tau1, tau2, dt=period, duration=duration)
+    steps_dt = _step(plan, network, period)
+    if steps_dt != period:
+        plan = link_plan(network or Network(), topology, tau1, tau2, dt=steps_dt, duration=duration)
     say("simulating the same team")
     sim = simulate(team, delays, desired, robot=Robot(model="unicycle", limits=limits), network=network,
                    start=start, duration=duration, dt=steps_dt)  # fmt: skip
     state0 = np.column_stack([sim.positions[0], sim.headings[0], sim.speeds[0]])
-    draws = _draws(network, team, duration, steps_dt, period)
     rate = None if network is None or network.sampling is None else network.sampling.rate
     F = formation_forcing(topology, team.P, desired)
     C = topology.C_sparse.tocsr()
@@ -226,69 +228,186 @@ def run_fleet(
             recorder = _Recorder(session, n)
             common = {"n": n, "endpoint": endpoint, "period": period, "duration": duration, "lead": LEAD,
                       "limits": _limits_dict(limits), "rate": rate}  # fmt: skip
+            specs = {}
+            for i in range(n):
+                lo, hi = C.indptr[i], C.indptr[i + 1]
+                weights = {str(int(j) + 1): float(w) for j, w in zip(C.indices[lo:hi], C.data[lo:hi]) if j != i and w}
+                mine = plan.of_receiver(i + 1)
+                specs[i + 1] = {
+                    **common, "role": "robot", "robot": i + 1, "P": team.P, "D": team.D, "tau1": tau1,
+                    "tau2": tau2, "weights": weights, "forcing": F[i].tolist(), "packet_period": plan.period,
+                    "link_delays": {str(int(plan.informers[e]) + 1): [float(plan.tau1[e]), float(plan.tau2[e])]
+                                    for e in mine},
+                    "draws": _save_draws(plan, mine, i + 1, folder)}  # fmt: skip
+            live = None
+            if foxglove is not None:
+                live = LiveView(foxglove, desired=desired, radius=0.0 if limits is None else limits.radius,
+                                edges=topology.adjacency)  # fmt: skip
             with Children(folder) as children:
                 say("starting the processes")
                 children.start("world", {**common, "role": "world", "world": world, "state0": state0.tolist(),
                                          "log": str(folder / "world.npz")})  # fmt: skip
-                for i in range(n):
-                    lo, hi = C.indptr[i], C.indptr[i + 1]
-                    weights = {str(int(j) + 1): float(w) for j, w in zip(C.indices[lo:hi], C.data[lo:hi]) if j != i and w}
-                    children.start(f"robot_{i + 1}", {
-                        **common, "role": "robot", "robot": i + 1, "P": team.P, "D": team.D, "tau1": tau1,
-                        "tau2": tau2, "weights": weights, "forcing": F[i].tolist(),
-                        "draws": _save_draws(draws, i + 1, folder), "log": str(folder / f"robot_{i + 1}.npz")})  # fmt: skip
-                pids = children.pids
+                for i, spec in specs.items():
+                    children.start(f"robot_{i}", {**spec, "log": str(folder / f"robot_{i}.npz")})
                 children.expect("ready", _READY_TIMEOUT)
                 t0 = time.time() + LEAD
                 recorder.t0 = t0
                 children.send(repr(t0))
-                say(f"running {duration:g} s")
-                while time.time() < t0 + duration:
+                say(f"running {duration:g} s" + (f"; Foxglove on ws://127.0.0.1:{foxglove}" if live else ""))
+                faulting = _Faults(faults, children, specs, folder, t0)
+                shown = 0.0
+                while (now := time.time()) < t0 + duration:
+                    faulting.step(now)
                     failure = children.failed()
                     if failure:
                         raise FleetRunError(failure)
                     recorder.drain()
+                    if live is not None and now >= shown:
+                        live.show(recorder.latest_odometry(), faulting.running, now)
+                        shown = now + LIVE_EVERY
                     time.sleep(_RECORDER_POLL)
+                faulting.finish()
                 children.expect("done", _DONE_TIMEOUT)
                 children.wait(_DONE_TIMEOUT)
                 failure = children.failed()
                 if failure:
                     raise FleetRunError(failure)
+                pids = children.pids
+            if live is not None:
+                live.stop()
             recorder.stop()
             say("writing the recording")
             mcap = recorder.write(out / MCAP_NAME, team, tau1, tau2, t0)
-            logs = {name: dict(np.load(folder / f"{name}.npz")) for name in ["world"] + [f"robot_{i}" for i in range(1, n + 1)]}
+            logs = {"world": dict(np.load(folder / "world.npz"))}
+            for i in range(1, n + 1):
+                logs[f"robot_{i}"] = _robot_log(faulting.logs(i), period)
         finally:
             session.close()
     say("measuring")
-    return measure(team=team, tau1=tau1, tau2=tau2, desired=desired, limits=limits, period=period,
+    heard = {i: recorder.times(key(i, "state"), t0) for i in range(1, n + 1)}
+    return measure(team=team, tau1=tau1, tau2=tau2, plan=plan, desired=desired, limits=limits, period=period,
                    duration=duration, network=network, simulation=sim, logs=logs, recording=recorder.counts(),
-                   pids=pids, mcap=mcap, world=world, endpoint=endpoint)  # fmt: skip
+                   pids=pids, mcap=mcap, world=world, endpoint=endpoint, faults=faulting.done,
+                   heard=heard)  # fmt: skip
 
 
-def _draws(network: Network | None, team: Team, duration: float, dt: float, period: float) -> Any:
-    """The simulator's draws for the state messages (module doc), or None for a network that draws nothing."""
-    if network is None or not network.packets:
+class _Faults:
+    """The faults of a run carried out on the wall clock: kills by SIGKILL, restarts as new processes.
+
+    Parameters
+    ----------
+    faults
+        Checked, in time order (:func:`~delayform.fleet.faults.check_faults`).
+    children
+        The run's processes.
+    specs
+        Robot (from 1) -> its spec without the log's path.
+    folder
+        Where the logs go.
+    t0
+        The run's t = 0 (s since 1970).
+    """
+
+    def __init__(self, faults: tuple[Fault, ...], children: Children, specs: dict[int, dict[str, Any]],
+                 folder: Path, t0: float) -> None:  # fmt: skip
+        self._pending = list(faults)
+        self._children, self._specs, self._folder, self._t0 = children, specs, folder, t0
+        self._names = {i: f"robot_{i}" for i in specs}
+        self._logs = {i: [folder / f"robot_{i}.npz"] for i in specs}
+        self._starting: dict[str, int] = {}
+        self.running = dict.fromkeys(specs, True)
+        #: what was done: robot, action, planned and actual time (run clock)
+        self.done: list[dict[str, Any]] = []
+
+    def step(self, now: float) -> None:
+        """Carry out the faults that are due; hand t0 to restarted robots that are ready."""
+        while self._pending and now >= self._t0 + self._pending[0].at:
+            f = self._pending.pop(0)
+            name = self._names[f.robot]
+            if f.action == "kill":
+                self._children.kill(name)
+                self._starting.pop(name, None)
+                self.running[f.robot] = False
+            else:
+                name = f"robot_{f.robot}.{len(self._logs[f.robot])}"
+                log = self._folder / f"{name}.npz"
+                self._children.start(name, {**self._specs[f.robot], "log": str(log), "rejoin": True})
+                self._names[f.robot] = name
+                self._logs[f.robot].append(log)
+                self._starting[name] = f.robot
+            self.done.append({"robot": f.robot, "action": f.action, "planned_s": f.at, "at_s": time.time() - self._t0})
+        for name in [nm for nm in self._starting if self._children.said(nm, "ready")]:
+            self._children.tell(name, repr(self._t0))
+            self.running[self._starting.pop(name)] = True
+
+    def finish(self) -> None:
+        """A restarted robot not ready by the end of the run is ended (it never rejoined: its journal is empty)."""
+        for name in list(self._starting):
+            self._children.kill(name)
+        self._starting.clear()
+
+    def logs(self, robot: int) -> list[Path]:
+        """The log paths of each of the robot's processes, in order."""
+        return self._logs[robot]
+
+
+def _robot_log(paths: list[Path], period: float) -> dict[str, Any]:
+    """A robot's log over all its processes: the NPZ of one that ended, the journal of one that was killed.
+
+    A killed process's missed ticks are the deadlines missing between the
+    ones it ran (its counter died with it).
+    """
+    from delayform.fleet.agents import read_journal
+
+    parts = []
+    for path in paths:
+        if path.exists():
+            parts.append(dict(np.load(path)))
+            continue
+        j = read_journal(str(path))
+        deadlines = j["ticks"][:, 0]
+        gaps = np.round(np.diff(deadlines) / period) - 1 if deadlines.size > 1 else np.zeros(0)
+        parts.append({**j, "missed": int(np.sum(np.maximum(gaps, 0))), "error": ""})
+    return {
+        "received": np.concatenate([np.asarray(p["received"]).reshape(-1, 6) for p in parts]),
+        "ticks": np.concatenate([np.asarray(p["ticks"]).reshape(-1, 5) for p in parts]),
+        "sent": np.concatenate([np.asarray(p["sent"]).reshape(-1) for p in parts]),
+        "missed": sum(int(p["missed"]) for p in parts),
+        "waiting": np.asarray(parts[-1].get("waiting", np.zeros(0)), dtype=np.int64),
+        "error": "; ".join(str(p["error"]) for p in parts if str(p["error"])),
+        "starts": np.array([np.asarray(p["ticks"]).reshape(-1, 5)[0, 0] if np.size(p["ticks"]) else math.nan
+                            for p in parts]),  # fmt: skip
+    }
+
+
+def _step(plan: LinkPlan, network: Network | None, period: float) -> float:
+    """The simulator's step: the control period, or the largest period / k under every delay less its jitter.
+
+    A packet stream is heard at the earliest one step after it is sent (the
+    simulator's rule): a link delay shorter than the period needs a finer step.
+    """
+    bounds = (0.0, 0.0)
+    if network is not None and network.jitter is not None:
+        bounds = (network.jitter.bound1, network.jitter.bound2)
+    packets = network is not None and network.packets
+    shortest = [float(d.min()) - b for d, b in ((plan.tau1, bounds[0]), (plan.tau2, bounds[1]))]
+    floor = min([d for d in shortest if d > 0.0 or packets], default=period)
+    if floor <= 0.0:
+        raise FleetError(f"a delay less its jitter reaches {floor:g} s: every packet must take some time to arrive")
+    return period / max(1, math.ceil(period / floor - 1e-9))
+
+
+def _save_draws(plan: LinkPlan, mine: np.ndarray, robot: int, folder: Path) -> str | None:
+    """Robot ``robot``'s share of the draws (the links ``mine`` it receives on) as an NPZ; its path, or None."""
+    if plan.lost is None and plan.noise is None and plan.jitter is None:
         return None
-    from delayform.simulation.delayed.reception import packet_draws
-
-    # as reception(): the simulator stepping at dt sends a packet every sampling period (or step)
-    every = dt if network.sampling is None else 1.0 / network.sampling.rate
-    steps = round(duration / dt)
-    packets = math.floor((steps + 1) * dt / every + 1e-9) + 1
-    return packet_draws(network, team.topology, packets=packets)
-
-
-def _save_draws(draws: Any, robot: int, folder: Path) -> str | None:
-    """Robot ``robot``'s share of the draws (the links it receives on) as an NPZ; its path, or None."""
-    if draws is None:
-        return None
-    mine = np.flatnonzero((draws.receivers == robot - 1) & (draws.informers != robot - 1))
-    arrays: dict[str, np.ndarray] = {"informers": draws.informers[mine] + 1}
-    if draws.lost is not None:
-        arrays["lost"] = draws.lost[0][:, mine]  # the position stream's: one message carries both
-    if draws.noise is not None:
-        arrays["noise"] = np.concatenate([draws.noise[0][:, mine], draws.noise[1][:, mine]], axis=-1)  # dx dy dvx dvy
+    arrays: dict[str, np.ndarray] = {"informers": plan.informers[mine] + 1}
+    if plan.lost is not None:
+        arrays["lost"] = np.moveaxis(plan.lost[:, :, mine], 0, -1)  # (packets, links, stream)
+    if plan.jitter is not None:
+        arrays["jitter"] = np.moveaxis(plan.jitter[:, :, mine], 0, -1)
+    if plan.noise is not None:
+        arrays["noise"] = np.concatenate([plan.noise[0][:, mine], plan.noise[1][:, mine]], axis=-1)  # dx dy dvx dvy
     path = folder / f"draws_{robot}.npz"
     with atomic_path(path) as tmp:
         np.savez(tmp, **arrays)
@@ -304,13 +423,28 @@ class _Recorder:
         self.n = n
         self.t0 = math.inf
         self._messages: list[tuple[str, int, bytes]] = []
+        self._odom: dict[str, bytes] = {}
+        self._codec = Codec(n)
         # taken by drain() in the parent's own loop: no Python callback on Zenoh's threads (agents._subscribe)
         self._sub = session.declare_subscriber("**", zenoh.handlers.FifoChannel(_RECORDER_CAPACITY))
 
     def drain(self) -> None:
         """Take every message waiting (log time: when taken, within the parent's polling interval)."""
         while (sample := self._sub.try_recv()) is not None:
-            self._messages.append((str(sample.key_expr), time.time_ns(), bytes(sample.payload.to_bytes())))
+            k = str(sample.key_expr)
+            data = bytes(sample.payload.to_bytes())
+            self._messages.append((k, time.time_ns(), data))
+            if k.endswith("/odom"):
+                self._odom[k] = data
+
+    def latest_odometry(self) -> dict[int, Odometry]:
+        """Robot (from 1) -> the newest odometry the world published of it."""
+        return {i: self._codec.read_odometry(i, self._odom[key(i, "odom")])
+                for i in range(1, self.n + 1) if key(i, "odom") in self._odom}  # fmt: skip
+
+    def times(self, topic: str, t0: float) -> np.ndarray:
+        """When the messages on ``topic`` were taken (s on the run's clock)."""
+        return np.array([now * 1e-9 - t0 for k, now, _ in self._messages if k == topic])
 
     def stop(self) -> None:
         self.drain()

@@ -28,12 +28,13 @@ from __future__ import annotations
 
 import json
 import math
+import socket
 import struct
 from typing import Any, NamedTuple
 
 from delayform.errors import FleetError
 
-__all__ = ["Codec", "Odometry", "key", "open_session", "check_endpoint", "DEFAULT_ENDPOINT"]
+__all__ = ["Codec", "Odometry", "key", "open_session", "check_endpoint", "port_free", "DEFAULT_ENDPOINT"]
 
 #: where the run's processes meet: the parent listens there, every child connects to it
 DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
@@ -147,6 +148,19 @@ def check_endpoint(endpoint: str) -> tuple[str, int]:
     if not 1 <= port <= 65535:
         raise FleetError(f"the endpoint's port must be in 1..65535, got {port}")
     return host, port
+
+
+def port_free(host: str, port: int) -> bool:
+    """Whether a listener could bind ``host:port`` now (``host`` as in an endpoint: ``[::1]`` for IPv6)."""
+    family = socket.AF_INET6 if host.startswith("[") else socket.AF_INET
+    with socket.socket(family, socket.SOCK_STREAM) as s:
+        # as a listener binds: connections of an earlier run waiting out TIME_WAIT do not hold the port
+        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            s.bind((host.strip("[]"), port))
+        except OSError:
+            return False
+    return True
 
 
 def open_session(*, listen: list[str], connect: list[str]) -> Any:

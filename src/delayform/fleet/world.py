@@ -4,7 +4,7 @@ A world model holds every robot's true state and has two methods
 (:class:`WorldModel`): :meth:`~WorldModel.command` takes a robot's latest
 velocity command at the time it arrives, :meth:`~WorldModel.advance`
 integrates all robots to a later time at the model's fine step. The world
-process (:mod:`delayform.fleet.processes`) calls them in real time and
+process (:mod:`delayform.fleet.agents`) calls them in real time and
 publishes each robot's odometry; which model it runs is named by
 ``--world`` (:data:`WORLDS`), so a physics model is one more entry.
 
@@ -36,7 +36,7 @@ from numpy.typing import NDArray
 from delayform.errors import FleetError
 from delayform.simulation.models.robots import RobotLimits
 
-__all__ = ["WorldModel", "KinematicWorld", "WORLDS", "world_model", "WORLD_STEP"]
+__all__ = ["WorldModel", "KinematicWorld", "WORLDS", "world_model", "WORLD_STEP", "COMMAND_TIMEOUT"]
 
 _Array = NDArray[np.float64]
 
@@ -115,6 +115,10 @@ class KinematicWorld:
             s[:, 3] = v1
             self.time += h
 
+
+#: seconds without a command after which the world stops a robot (set-point zero, ramped at its limits): the
+#: default ``cmd_vel_timeout`` of ros2_control's diff_drive_controller; a robot whose process died stops
+COMMAND_TIMEOUT = 0.5
 
 #: the world models ``--world`` names
 WORLDS = ("kinematic",)

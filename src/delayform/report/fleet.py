@@ -36,7 +36,8 @@ def fleet_text(run: FleetRun, name: str) -> str:
              f"control period {h:g} s, {r['duration']:g} s of wall clock; network: {r['network']}; "
              f"robots: {r['limits'] or 'ideal'}.", "",
              "Promised (exact analysis at the same delays) beside measured", ""]  # fmt: skip
-    rows = [("chart's verdict at (tau1, tau2)", t["chart_verdict"], ""),
+    nominal = " (nominal pair; the links have their own delays)" if t.get("per_link_delays") else ""
+    rows = [("chart's verdict at (tau1, tau2)", t["chart_verdict"] + nominal, ""),
             ("decay rate of the formation error (1/s)", _fmt(t["dominant_decay_rate"]) + " (dominant root)",
              _fmt(t["measured_decay_rate"]) + f" (fleet); simulator {_fmt(t['simulator_decay_rate'])}"),
             ("formation error (m)", f"from {_fmt(t['initial_error_m'])}", f"to {_fmt(t['final_error_m'])}"),
@@ -53,7 +54,8 @@ def fleet_text(run: FleetRun, name: str) -> str:
               "Per link (receiver <- informer): network latency, delays applied by the playout buffer "
               "(median / max), messages sent, received, dropped", ""]  # fmt: skip
     for link in s["links"]:
-        lines.append(f"  {link['receiver']} <- {link['informer']}: latency {_ms(link['latency_s']['median'])} "
+        lines.append(f"  {link['receiver']} <- {link['informer']}: design ({_ms(link['design_tau1_s'])}, "
+                     f"{_ms(link['design_tau2_s'])}); latency {_ms(link['latency_s']['median'])} "
                      f"(p99 {_ms(link['latency_s']['p99'])}); tau1 {_ms(link['applied_tau1_s']['median'])} / "
                      f"{_ms(link['applied_tau1_s']['max'])}, tau2 {_ms(link['applied_tau2_s']['median'])} / "
                      f"{_ms(link['applied_tau2_s']['max'])}; {link['sent']} sent, {link['received']} received, "
@@ -64,10 +66,36 @@ def fleet_text(run: FleetRun, name: str) -> str:
                      f"{rb['ticks_late']} late; {_ms(rb['lateness_s']['median'])} / {_ms(rb['lateness_s']['p99'])} / "
                      f"{_ms(rb['lateness_s']['max'])}; {_ms(rb['compute_s']['p99'])}"
                      + (f"; stopped: {rb['error']}" if rb["error"] else ""))  # fmt: skip
+    lines += _fault_lines(s)
     w = r["world_lateness_s"]
     lines += ["", f"World: {r['commands_applied']} commands applied; odometry lateness median {_ms(w['median'])}, "
                   f"p99 {_ms(w['p99'])}, max {_ms(w['max'])}. Recording: {Path(r['recording']).name}."]  # fmt: skip
     return "\n".join(lines) + "\n"
+
+
+def _fault_lines(s: dict[str, Any]) -> list[str]:
+    """The faults of a run and, per robot they silenced, for how long (none: no lines)."""
+    faults = s["run"].get("faults") or []
+    if not faults:
+        return []
+    lines = ["", "Faults (robot processes killed by SIGKILL, started again): "
+             + "; ".join(f"{f['action']} robot {f['robot']} at {_fmt(f['at_s'], 4)} s" for f in faults), ""]  # fmt: skip
+    for rb in s["robots"]:
+        for gap in rb["silent"]:
+            again = gap["heard_again_s"]
+            lines.append(f"  robot {rb['robot']} silent from {_fmt(gap['last_heard_s'], 4)} s to "
+                         + (f"{_fmt(again, 4)} s" if again is not None else "the end")
+                         + f": {_fmt(gap['silent_s'], 4)} s (killed at {_fmt(gap['killed_at_s'], 4)} s"
+                         + (f", restarted at {_fmt(gap['restarted_at_s'], 4)} s" if gap["restarted_at_s"] is not None else "")
+                         + "); its neighbours held its last message")  # fmt: skip
+        if rb["rejoin_waits_for"]:
+            lines.append(f"  robot {rb['robot']} restarted but never ticked: it never heard from "
+                         + ", ".join(f"robot {k}" for k in rb["rejoin_waits_for"]))  # fmt: skip
+    stopped = s["team"].get("stopped_by_command_timeout") or []
+    if stopped:
+        lines.append("  stopped by the world's command timeout: "
+                     + ", ".join(f"robot {int(a)} at {_fmt(b, 4)} s" for a, b in stopped))  # fmt: skip
+    return lines
 
 
 def fleet_section(run: FleetRun, name: str, out: Path) -> Section:
@@ -100,6 +128,10 @@ def fleet_section(run: FleetRun, name: str, out: Path) -> Section:
              ("closest approach: fleet / simulator", f"{_fmt(t['closest_approach_m'])} / {_fmt(t['simulator_closest_approach_m'])} m"),
              ("ticks missed / late", f"{t['ticks_missed']} / {t['ticks_late']}"),
              ("messages dropped by the network / lost in transport", f"{t['messages_dropped_by_network']} / {t['messages_lost_in_transport']}"))  # fmt: skip
+    silent = [f"robot {rb['robot']}: " + ", ".join(f"{_fmt(g['silent_s'], 3)} s" for g in rb["silent"])
+              for rb in run.summary["robots"] if rb["silent"]]  # fmt: skip
+    if silent:
+        table += (("silent robots (faults)", "; ".join(silent)),)
     figure = Figure("fleet_error", "Formation error, fleet and simulator",
                     "The formation error of the robots' true states (world process) and of the simulator at the same "
                     "delays, with the dominant root's decay.")  # fmt: skip
