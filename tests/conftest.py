@@ -48,10 +48,19 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     """The slow tests first, so that across xdist workers none of them starts last and runs alone.
 
     The long tests (the wheel, the documentation site, whole reports) start at once, side by
-    side, and the many short ones fill in around them. The order within each group, and so every
-    module's own order, is unchanged.
+    side, then the modules that share a fixture (under ``make test`` each is one unit of work of
+    up to a minute or two: the team's certified margin at b was handed out near the end, in
+    alphabetical order, and ran alone), and the many short ones fill in around them. The order
+    within each group, and so every module's own order there, is unchanged.
     """
-    items.sort(key=lambda item: item.get_closest_marker("slow") is None)
+
+    def rank(item: pytest.Item) -> int:
+        if item.get_closest_marker("slow") is not None:
+            return 0
+        shared = item.nodeid.split("::", 1)[0] in SHARED_FIXTURE_MODULES or item.nodeid in SHARED_RUN_TESTS
+        return 1 if shared else 2
+
+    items.sort(key=rank)
 
 
 #: the test modules that define a module-scoped fixture (a stability map, a gain design, a running
@@ -62,6 +71,11 @@ SHARED_FIXTURE_MODULES = frozenset(
 )
 
 
+#: tests that read a run another module's tests share (tests/test_cli.py's ``paper_output``), with the
+#: unit of work they join so that the run is made once, on one worker, and nobody waits for it
+SHARED_RUN_TESTS = {"tests/test_cli.py::test_paper_writes_every_file_it_lists": "tests/test_report_browser.py"}
+
+
 @pytest.hookimpl(optionalhook=True)  # a pytest-xdist hook: no error where it is not installed
 def pytest_xdist_make_scheduler(config: pytest.Config, log: object) -> object | None:
     """Under ``--dist loadgroup`` (``make test``): a module with a shared fixture runs on one worker.
@@ -70,8 +84,9 @@ def pytest_xdist_make_scheduler(config: pytest.Config, log: object) -> object | 
     pytest-xdist's per-test scheduling both workers built the slow ones (the team's certified
     margin, three gain designs, a 100 x 100 dominant-root map, three running explorers). Here
     such a module is one unit of work, every other test its own unit, handed out one at a time
-    in collection order (slow tests first; ``--no-loadscope-reorder`` keeps that order), and an
-    explicit ``xdist_group`` mark still groups as pytest-xdist documents it.
+    in collection order (slow tests first; ``--no-loadscope-reorder`` keeps that order), a test of
+    ``SHARED_RUN_TESTS`` joins the unit it names, and an explicit ``xdist_group`` mark still groups
+    as pytest-xdist documents it.
     """
     if config.getvalue("dist") != "loadgroup":
         return None
@@ -81,6 +96,8 @@ def pytest_xdist_make_scheduler(config: pytest.Config, log: object) -> object | 
         def _split_scope(self, nodeid: str) -> str:
             if "@" in nodeid:  # an xdist_group mark
                 return nodeid.rsplit("@", 1)[-1]
+            if nodeid in SHARED_RUN_TESTS:
+                return SHARED_RUN_TESTS[nodeid]
             module = nodeid.split("::", 1)[0]
             return module if module in SHARED_FIXTURE_MODULES else nodeid
 

@@ -328,15 +328,25 @@ PAPER_FILES = (
 def paper_output(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
     """Run ``delayform paper`` once per test session; return its directory and printed JSON.
 
-    The browser test reuses the same output, so the slowest command runs once.
+    The browser test reuses the same output, so the slowest command runs once: in the session's
+    folder, which its pytest-xdist workers share (each has its own folder inside it), under a lock
+    that makes a second worker wait for the run instead of repeating it. ``make test`` schedules
+    both tests on one worker (tests/conftest.py), so that nobody waits.
     """
-    base = tmp_path_factory.getbasetemp() / "paper-run"
+    import fcntl
+    import os
+
+    base = tmp_path_factory.getbasetemp()
+    if "PYTEST_XDIST_WORKER" in os.environ:
+        base = base.parent
+    base = base / "paper-run"
+    base.mkdir(exist_ok=True)
     done = base / "stdout.json"
-    if not done.exists():
-        base.mkdir(exist_ok=True)
-        proc = run_entry_point("paper", "--out", str(base / "paper"), "--json", cwd=base)
-        printed = _json(proc)
-        done.write_text(json.dumps(printed))
+    with (base / "lock").open("w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not done.exists():
+            proc = run_entry_point("paper", "--out", str(base / "paper"), "--json", cwd=base)
+            done.write_text(json.dumps(_json(proc)))
     return base / "paper", json.loads(done.read_text())
 
 

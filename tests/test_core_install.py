@@ -1,15 +1,23 @@
 """``pip install delayform`` without extras: the core works, and what needs an extra says which.
 
-Each check runs in a fresh interpreter whose import system refuses the
+The checks run in one fresh interpreter whose import system refuses the
 optional packages (a meta-path finder that raises ModuleNotFoundError for
 them, as a core install would), so nothing this test process has imported
-can leak in. tests/test_wheel.py installs the wheel without extras into a
-bare virtual environment and checks the same from there.
+can leak in. That interpreter runs every check of this module in turn, each
+in its own empty folder with its own output captured (as
+``tests/cli_runner.py`` runs the command line in this process); the code
+checks come first, so that "no optional package was even tried" covers every
+import they make. One start-up and one import of delayform instead of
+sixteen: an optional package stays refused for the whole run, so no check
+can pass on what an earlier one imported. tests/test_wheel.py installs the
+wheel without extras into a bare virtual environment and checks the same
+from there.
 """
 
 from __future__ import annotations
 
 import importlib.metadata
+import json
 import os
 import re
 import subprocess
@@ -29,9 +37,12 @@ ROOT = Path(__file__).resolve().parents[1]
 #: the top-level modules of every extra: what a core install does not have
 BLOCKED = sorted({m for _, modules in EXTRAS.values() for m in modules} | {"anyio"})
 
-#: a fresh interpreter without the extras; ``code SOURCE`` runs Python, ``cli ARGS...`` the command line
+#: a fresh interpreter without the extras that runs every check (argv: the checks as JSON, the
+#: results file); a check is ``["code", SOURCE]`` (Python) or ``["cli", ARGS...]`` (the command line)
 _RUNNER = f"""
+import json
 import sys
+import traceback
 
 BLOCKED = {set(BLOCKED)!r}
 
@@ -50,22 +61,29 @@ class _Blocker:
 
 assert not [m for m in sys.modules if m.partition(".")[0] in BLOCKED], "imported before the blocker"
 sys.meta_path.insert(0, _Blocker())
-mode, *args = sys.argv[1:]
-if mode == "code":
-    exec(compile(args[0], "<core>", "exec"), {{"REFUSED": REFUSED}})
-else:
-    from delayform.cli import main
+sys.path.insert(0, {str(Path(__file__).parent)!r})
+from cli_runner import _as_a_process, _text, run_in_process
 
-    main(args)
+checks, results = json.loads(sys.argv[1]), {{}}
+for name, (cwd, mode, *args) in checks.items():
+    try:
+        if mode == "code":
+            code = 0
+            with _as_a_process(cwd) as (out, err):
+                try:
+                    exec(compile(args[0], "<core>", "exec"), {{"REFUSED": REFUSED}})
+                except SystemExit as exc:
+                    code = exc.code
+            done = [int(code or 0), _text(out), _text(err)]
+        else:
+            proc = run_in_process(*args, cwd=cwd, timeout=300)
+            done = [proc.returncode, proc.stdout, proc.stderr]
+    except BaseException:  # a fresh interpreter would print the traceback and exit 1
+        done = [1, "", traceback.format_exc()]
+    results[name] = done
+with open(sys.argv[2], "w", encoding="utf-8") as f:
+    json.dump(results, f)
 """
-
-
-def _core(mode: str, *args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
-    """Run the runner in a fresh interpreter that imports this checkout's delayform."""
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(Path(delayform.__file__).parents[1]),
-                                                        os.environ.get("PYTHONPATH", "")]))  # fmt: skip
-    return subprocess.run([sys.executable, "-c", _RUNNER, mode, *args], capture_output=True, text=True,
-                          timeout=300, cwd=cwd, env=env, check=False)  # fmt: skip
 
 
 def _readme_first_python_example() -> str:
@@ -74,27 +92,17 @@ def _readme_first_python_example() -> str:
     return re.search(r"```python\n(.*?)```", section, flags=re.S).group(1)
 
 
-def test_import_and_the_readme_example_need_no_extra(tmp_path: Path) -> None:
-    # not even tried: no core path falls back quietly when an optional package is missing
-    code = "import delayform\n" + _readme_first_python_example() + "\nprint('tried:', REFUSED)"
-    done = _core("code", code, cwd=tmp_path)
-    assert done.returncode == 0, done.stderr[-3000:]
-    assert done.stdout.splitlines()[-1] == "tried: []"
+#: the README's example: not even tried, no core path falls back quietly when an optional package is
+#: missing (REFUSED counts from the interpreter's start: the delay margin below runs second)
+README = "import delayform\n" + _readme_first_python_example() + "\nprint('tried:', REFUSED)"
 
+#: L = 2 / (s + 1): |L(jw)| = 1 at w = sqrt(3), phase margin pi - atan(sqrt 3) = 2 pi / 3, tau = PM / w
+DELAY_MARGIN = ("import math\nfrom delayform import delay_margin\n"
+                "m = delay_margin(([2.0], [1.0, 1.0]))\n"
+                "print(abs(m.tau - (2 * math.pi / 3) / math.sqrt(3)) < 1e-12, REFUSED)")  # fmt: skip
 
-def test_a_delay_margin_of_coefficients_needs_no_extra(tmp_path: Path) -> None:
-    # L = 2 / (s + 1): |L(jw)| = 1 at w = sqrt(3), phase margin pi - atan(sqrt 3) = 2 pi / 3, tau = PM / w
-    code = ("import math\nfrom delayform import delay_margin\n"
-            "m = delay_margin(([2.0], [1.0, 1.0]))\n"
-            "print(abs(m.tau - (2 * math.pi / 3) / math.sqrt(3)) < 1e-12, REFUSED)")  # fmt: skip
-    done = _core("code", code, cwd=tmp_path)
-    assert done.returncode == 0, done.stderr[-3000:]
-    assert done.stdout.splitlines()[-1] == "True []"
-
-
-def test_the_library_names_the_extra_it_needs(tmp_path: Path) -> None:
-    # each call must raise MissingExtraError (an ImportError too) naming its extra, before any work
-    code = """
+#: each call must raise MissingExtraError (an ImportError too) naming its extra, before any work
+LIBRARY_EXTRAS = """
 from delayform.errors import MissingExtraError
 from delayform.simulation.bodies.safety import BarrierFilter
 from delayform.simulation.experiments.sweeps import check_workers, parse_scheduler
@@ -123,15 +131,6 @@ for extra, fns in calls.items():
         else:
             raise AssertionError(f"no error for {extra}")
 """
-    done = _core("code", code, cwd=tmp_path)
-    assert done.returncode == 0, done.stderr[-3000:]
-    lines = done.stdout.splitlines()
-    assert len(lines) == 8
-    extras = ["cluster", "cluster", "ros", "safety", "control", "explore", "certificates", "physics"]
-    for line, extra in zip(lines, extras, strict=True):
-        assert line.endswith(f"pip install 'delayform[{extra}]'"), line
-    assert not list(tmp_path.iterdir()), "a refused call wrote a file"
-
 
 #: core commands, each a real (short) run of the paper's team; montecarlo without workers runs here
 CORE_COMMANDS = {
@@ -140,14 +139,6 @@ CORE_COMMANDS = {
     "simulate": ["simulate", "--out", "out", "--duration", "5", "--dt", "0.05"],
     "montecarlo": ["montecarlo", "--out", "out", "--runs", "2", "--duration", "5"],
 }
-
-
-@pytest.mark.parametrize("command", sorted(CORE_COMMANDS))
-def test_core_commands_run_without_extras(command: str, tmp_path: Path) -> None:
-    done = _core("cli", *CORE_COMMANDS[command], cwd=tmp_path)
-    assert done.returncode == 0, done.stderr[-3000:]
-    assert any((tmp_path / "out").iterdir()), "nothing written"
-
 
 #: commands that need an extra, with the extra they must name
 NEEDS_AN_EXTRA = {
@@ -159,21 +150,77 @@ NEEDS_AN_EXTRA = {
     "simulate --mcap": (["simulate", "--out", "out", "--mcap", "run.mcap"], "ros"),
     "simulate --safety": (["simulate", "--out", "out", "--safety", "barrier"], "safety"),
     "fleet": (["fleet", "--out", "out", "--duration", "2"], "fleet"),
-
     "simulate --model physics": (["simulate", "--out", "out", "--model", "physics"], "physics"),
     "montecarlo --model physics": (["montecarlo", "--out", "out", "--runs", "2", "--model", "physics"], "physics"),
 }
 
 
+@pytest.fixture(scope="module")
+def core(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[subprocess.CompletedProcess[str], Path]]:
+    """Every check of this module run in one fresh interpreter without the extras, in order.
+
+    Returns each check's exit code and output, and the folder it ran in (empty before it ran).
+    """
+    checks: dict[str, list[str]] = {
+        "readme": ["code", README], "delay margin": ["code", DELAY_MARGIN], "library": ["code", LIBRARY_EXTRAS],
+    }  # fmt: skip
+    checks |= {f"core {name}": ["cli", *args] for name, args in CORE_COMMANDS.items()}
+    checks |= {f"extra {name}": ["cli", *args] for name, (args, _) in NEEDS_AN_EXTRA.items()}
+    base = tmp_path_factory.mktemp("core")
+    folders = {name: base / f"check{i}" for i, name in enumerate(checks)}
+    for folder in folders.values():
+        folder.mkdir()
+    results = base / "results.json"
+    # this checkout's delayform, before any other on the path
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(Path(delayform.__file__).parents[1]),
+                                                        os.environ.get("PYTHONPATH", "")]))  # fmt: skip
+    argv = json.dumps({name: [str(folders[name]), *check] for name, check in checks.items()})
+    done = subprocess.run([sys.executable, "-c", _RUNNER, argv, str(results)], capture_output=True, text=True,
+                          timeout=900, cwd=base, env=env, check=False)  # fmt: skip
+    assert done.returncode == 0, done.stderr[-3000:]
+    return {name: (subprocess.CompletedProcess([name], code, out, err), folders[name])
+            for name, (code, out, err) in json.loads(results.read_text(encoding="utf-8")).items()}  # fmt: skip
+
+
+def test_import_and_the_readme_example_need_no_extra(core: dict) -> None:
+    done, _ = core["readme"]
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert done.stdout.splitlines()[-1] == "tried: []"
+
+
+def test_a_delay_margin_of_coefficients_needs_no_extra(core: dict) -> None:
+    done, _ = core["delay margin"]
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert done.stdout.splitlines()[-1] == "True []"
+
+
+def test_the_library_names_the_extra_it_needs(core: dict) -> None:
+    done, folder = core["library"]
+    assert done.returncode == 0, done.stderr[-3000:]
+    lines = done.stdout.splitlines()
+    assert len(lines) == 8
+    extras = ["cluster", "cluster", "ros", "safety", "control", "explore", "certificates", "physics"]
+    for line, extra in zip(lines, extras, strict=True):
+        assert line.endswith(f"pip install 'delayform[{extra}]'"), line
+    assert not list(folder.iterdir()), "a refused call wrote a file"
+
+
+@pytest.mark.parametrize("command", sorted(CORE_COMMANDS))
+def test_core_commands_run_without_extras(command: str, core: dict) -> None:
+    done, folder = core[f"core {command}"]
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert any((folder / "out").iterdir()), "nothing written"
+
+
 @pytest.mark.parametrize("case", sorted(NEEDS_AN_EXTRA))
-def test_a_command_that_needs_an_extra_says_which_in_one_line(case: str, tmp_path: Path) -> None:
-    args, extra = NEEDS_AN_EXTRA[case]
-    done = _core("cli", *args, cwd=tmp_path)
+def test_a_command_that_needs_an_extra_says_which_in_one_line(case: str, core: dict) -> None:
+    done, folder = core[f"extra {case}"]
+    extra = NEEDS_AN_EXTRA[case][1]
     assert done.returncode == 2, done.stderr[-3000:]
     assert done.stdout == ""
     (line,) = done.stderr.splitlines()
     assert line.startswith("delayform: error: ") and line.endswith(f"pip install 'delayform[{extra}]'"), line
-    assert not (tmp_path / "out").exists(), "refused after writing"
+    assert not (folder / "out").exists(), "refused after writing"
 
 
 # -------------------------------------------------------- the table against pyproject.toml

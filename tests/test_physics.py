@@ -267,11 +267,13 @@ def test_stiffer_servos_and_grippier_tyres_converge_to_the_kinematic_model():
         robot = Robot(model="physics", limits=create3.limits, chassis=_stiffer(create3.chassis, factor))
         cmp = compare_with_kinematic(paper_six(), 1.0, 1.5, 0.3, 0.2, "hexagon", robot=robot,
                                      initial_positions=RING / 2, initial_headings=HEADINGS,
-                                     duration=60.0 if factor == 16.0 else 15.0, dt=0.01)  # fmt: skip
+                                     duration=15.0, dt=0.01)  # fmt: skip
         worst.append(cmp.max_deviation)
         assert cmp.physics.status == cmp.kinematic.status == "settled"
     assert worst[0] > worst[1] > worst[2]
-    assert worst[2] < 0.01  # the stiff limit: within 1 cm of the kinematic robots over 60 s
+    # the stiff limit: within 1 cm of the kinematic robots (settled at 5.3 s; the largest deviation is at
+    # 2.6 s, and 60 s of run gave the same 3.3 mm)
+    assert worst[2] < 0.01
 
 
 def test_comparison_reports_positions_and_settling_of_both_runs():

@@ -2,7 +2,9 @@
 
 Slow: it builds the wheel, makes one venv without the project and installs
 the wheel there (dependencies from the configured index or pip's cache), in
-the order a user adds to it. Without extras (``pip install delayform``), the
+the order a user adds to it. This run's pip installs into the venv (``pip
+--python``): the venv's own copy of pip would be installed, and its modules
+compiled on each call, for nothing the checks look at (pip is not counted). Without extras (``pip install delayform``), the
 core stays small, its commands run, and a command that needs an extra says
 which in one line. Then with every extra (``pip install delayform[all]`` in
 the same venv, as the one-line message tells the user), each ``delayform``
@@ -76,8 +78,9 @@ def _invocations(example: str, out: str) -> dict[str, list[str]]:
         "box": [example, "--tau1-box", "0.1,0.2", "--tau2-box", "0.1,0.2"],
         "jitter": [example],
         "check": [example.replace("ring12", "create3_hexagon")],  # a design that fits: exit 0
-        # seven processes from the installed package (python -m delayform.fleet.agents), 2 s of wall clock
-        "fleet": [example.replace("ring12", "create3_hexagon"), "--out", out, "--duration", "2",
+        # four processes from the installed package (python -m delayform.fleet.agents), 2 s of wall clock:
+        # three robots are enough to start every kind of process (tests/test_fleet.py runs the six)
+        "fleet": [example, "--topology", "ring", "--n", "3", "--out", out, "--duration", "2",
                   "--endpoint", f"tcp/127.0.0.1:{_free_port()}"],
         "paper": ["--help"],
     }
@@ -115,10 +118,15 @@ def wheel(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 def _venv(where: Path, requirement: str) -> tuple[Path, Path]:
     """A fresh venv at ``where`` with ``requirement`` installed: its python and its delayform."""
-    _run([sys.executable, "-m", "venv", str(where)])
+    _run([sys.executable, "-m", "venv", "--without-pip", str(where)])
     python, exe = where / "bin" / "python", where / "bin" / "delayform"
-    _run([str(python), "-m", "pip", "install", "--quiet", requirement], timeout=1200)
+    _pip_install(python, requirement)
     return python, exe
+
+
+def _pip_install(python: Path, *args: str) -> None:
+    """``pip install ARGS`` into the venv of ``python`` by this run's pip."""
+    _run([sys.executable, "-m", "pip", "--python", str(python), "install", "--quiet", *args], timeout=1200)
 
 
 #: what `pip install delayform` may bring at most (delayform and its dependencies; pip and
@@ -190,5 +198,5 @@ def test_the_core_install_is_small_then_every_extra_runs_every_command(wheel: Pa
     _check_core(python, exe, tmp_path)
     # --no-compile: the extras' thousands of modules (Plotly's validators) are not byte-compiled ahead;
     # Python compiles what a command imports, and the size measured above is the core's, compiled
-    _run([str(python), "-m", "pip", "install", "--quiet", "--no-compile", f"{wheel}[all]"], timeout=1200)
+    _pip_install(python, "--no-compile", f"{wheel}[all]")
     _check_every_command(python, exe, env, tmp_path)

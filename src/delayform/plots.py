@@ -163,17 +163,24 @@ def save_figure(
     stem = Path(path_stem)
     stem.parent.mkdir(parents=True, exist_ok=True)
     paths = []
+    tight = None  # the padded box of the figure as the first format drew it
     for fmt in formats:
         path = stem.with_name(f"{stem.name}.{fmt}")
         with atomic_path(path) as tmp:
-            # one format is enough to find the missing glyphs: the others would repeat them
-            if fmt == formats[0]:
+            if tight is None:
                 savefig_noting_glyphs(fig, tmp, where=f"{stem.name}.*", format=fmt, dpi=dpi, bbox_inches="tight")
             else:
+                # one format is enough to find the missing glyphs: the others would repeat them
                 with warnings.catch_warnings():
                     warnings.filterwarnings("ignore", message="Glyph .* missing from font")
-                    fig.savefig(tmp, format=fmt, dpi=dpi, bbox_inches="tight")
+                    fig.savefig(tmp, format=fmt, dpi=dpi, bbox_inches=tight)
         paths.append(path)
+        if tight is None and len(formats) > 1:
+            # a "tight" save draws the figure twice (once to lay it out and find its box, once to
+            # render); the other formats take that box, padded as savefig pads it, and draw once
+            with warnings.catch_warnings():
+                warnings.filterwarnings("ignore", message="Glyph .* missing from font")
+                tight = fig.get_tightbbox().padded(plt.rcParams["savefig.pad_inches"])
     return paths
 
 
