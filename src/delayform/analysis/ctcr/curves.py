@@ -22,7 +22,8 @@ from delayform.analysis.ctcr.phase import (
     _PhasePath,
 )
 from delayform.analysis.ctcr.degenerate import crossing_changes, vertex_tendencies
-from delayform.analysis.ctcr.general import TermsQP, collapse, monomial_factor, unit_roots_single
+from delayform.analysis.ctcr.factored import factor_direction
+from delayform.analysis.ctcr.general import TermsQP, collapse, unit_roots_single
 from delayform.characteristic import TwoDelayQuasiPolynomial
 from delayform.errors import QuasiPolynomialError
 
@@ -216,13 +217,15 @@ def _part_curves(part: _Part, window: tuple[float, float], source: int) -> list[
     if _is_three_term(qp):
         paths = _three_term_paths(qp, window)
     else:
-        factor = monomial_factor(qp.terms())
+        # crossing_map splits such factors off first; a qp reaching here with one (built by hand)
+        # would have whole lines of crossings the sweep cannot see: refused, never mapped without them
+        factor = factor_direction({(a, b): c for c, a, b in qp.terms()})
         if factor is not None:
             a, b = factor
             raise QuasiPolynomialError(
                 f"the quasi-polynomial has a factor in z1^{a} z2^{b} alone (a function of {a} tau1 + {b} tau2); "
-                "its crossings are whole lines the two-delay trace cannot follow: map its factors separately "
-                "(NU adds up)"
+                "its crossings are whole lines the two-delay trace cannot follow: split it off first "
+                "(delayform.analysis.ctcr.factored.split_monomial_factors) and map the factors (NU adds up)"
             )
         paths = _general_paths(qp, window)
     out: list[CrossingCurve] = []
