@@ -17,12 +17,13 @@ Run the properties with many more examples locally:
 from __future__ import annotations
 
 import math
+import time
 import os
 
 import numpy as np
 import numpy.polynomial.polynomial as npoly
 import pytest
-from hypothesis import assume, example, given, settings
+from hypothesis import Phase, assume, example, given, settings
 from hypothesis import strategies as st
 
 from delayform import QuasiPolynomial, count_roots_right_of, crossing_map, rightmost_root
@@ -32,6 +33,11 @@ from delayform.errors import NotConvergedError
 
 #: examples per property in the suite (seconds each); raise it by the environment for a long run
 EXAMPLES = int(os.environ.get("DELAYFORM_PROPERTY_EXAMPLES", "30"))
+#: a long run: skip shrinking (a failure is reported as drawn, at once) and append every example
+#: with its time to this file, so a slow or hanging example is named even when the run is killed
+NO_SHRINK = os.environ.get("DELAYFORM_PROPERTY_NO_SHRINK") == "1"
+LOG = os.environ.get("DELAYFORM_PROPERTY_LOG")
+PHASES = tuple(p for p in Phase if not (NO_SHRINK and p in (Phase.shrink, Phase.explain)))
 WINDOW = 1.0
 #: Half-width of the strip about the imaginary axis inside which a point is not judged.
 STRIP = 1e-3
@@ -78,6 +84,30 @@ def monomial_qps(draw: st.DrawFn) -> dict[tuple[int, int], list[float]]:
     return terms
 
 
+@st.composite
+def factored_qps(draw: st.DrawFn) -> dict[tuple[int, int], list[float]]:
+    """F (z1^a z2^b) G expanded: F in one monomial (degree 1-2, powers <= 2), G of two delays (degree 1-2, k <= 2).
+
+    F's crossings are whole lines of the torus at isolated frequencies; the map must split F off.
+    """
+    n_f = draw(st.integers(1, 2))
+    a, b = draw(st.sampled_from([d for d in _DIRECTIONS if max(d) <= 2]))
+    f = {(0, 0): [draw(_coefficient()) for _ in range(n_f)] + [1.0]}
+    for m in draw(st.lists(st.integers(1, 2 // max(a, b)), min_size=1, max_size=2, unique=True)):
+        f[(m * a, m * b)] = [draw(_coefficient()) for _ in range(draw(st.integers(1, n_f)))]
+    n_g = draw(st.integers(1, 2))
+    g = {(0, 0): [draw(_coefficient()) for _ in range(n_g)] + [1.0]}
+    for k in [(draw(st.integers(1, 2)), draw(st.integers(0, 2))), (draw(st.integers(0, 2)), draw(st.integers(1, 2)))]:
+        if k not in g:
+            g[k] = [draw(_coefficient()) for _ in range(draw(st.integers(1, n_g)))]
+    out: dict[tuple[int, int], np.ndarray] = {}
+    for (a1, b1), c1 in f.items():
+        for (a2, b2), c2 in g.items():
+            k = (a1 + a2, b1 + b2)
+            out[k] = npoly.polyadd(out.get(k, np.zeros(1)), npoly.polymul(c1, c2))
+    return {k: list(v) for k, v in out.items() if np.any(v != 0.0)}
+
+
 def _judged_count(qp: QuasiPolynomial, t1: float, t2: float) -> int | None:
     """The certified count right of the axis, or None when a root lies within STRIP of it."""
     try:
@@ -117,10 +147,17 @@ _point = st.tuples(st.floats(0.0, WINDOW), st.one_of(st.just(0.0), st.floats(1e-
          [(0.5, 0.5), (0.9641826686329382, 1.0)])
 # found by the long run on the code before the one-monomial path (terms in z1^2 z2 alone): NU 1 for 3
 @example({(0, 0): [-1.0, -1.0, -1.0, -1.0, 1.0], (2, 1): [-1.0, -1.0, -1.0]}, [(0.7454764257879972, 0.09218597398733899)])
-@settings(max_examples=EXAMPLES)
-@given(st.one_of(retarded_qps(), monomial_qps()), st.lists(_point, min_size=4, max_size=4))
+@settings(max_examples=EXAMPLES, phases=PHASES)
+@given(st.one_of(retarded_qps(), monomial_qps(), factored_qps()), st.lists(_point, min_size=4, max_size=4))
 def test_map_nu_equals_certified_count(terms: dict, points: list) -> None:
+    if LOG:
+        with open(LOG, "a") as f:
+            f.write(f"start {terms!r} {points!r}\n")
+    t0 = time.perf_counter()
     _check_map(terms, points)
+    if LOG:
+        with open(LOG, "a") as f:
+            f.write(f"done {time.perf_counter() - t0:.2f} s\n")
 
 
 def test_map_just_above_the_tau1_axis():
