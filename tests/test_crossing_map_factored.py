@@ -171,6 +171,10 @@ def test_two_factors_in_different_monomials() -> None:
     [{(0, 0): [1.0, 1.0], (1, 1): [2.0]}, {(0, 0): [1.0, 1.0], (1, 1): [2.0]}, OTHER],
     [{(0, 0): [0.0, 1.0, 1.0], (0, 2): [0.0, 3.0]}, {(0, 0): [4.0, 1.0], (1, 0): [1.0], (0, 1): [0.2]}],  # a factor s
     [{(0, 0): [1.0, 1.0], (2, 1): [1.0 + 1j], (4, 2): [0.5]}, {(0, 0): [2.0, 1.0], (1, 1): [1.0], (1, 0): [0.3j]}],
+    # found by the random products below: a squared factor whose repeated part, computed apart and
+    # multiplied back, left 1e-13 noise in a coefficient of G that is exactly zero (refused as inexact)
+    [{(0, 0): [-0.12776411288039935, 8.309748540228195, 1.0], (1, 0): [-0.018695497544156954]}] * 2
+    + [{(0, 0): [2.115039307265861, 1.0], (1, 0): [0.13456623457095335], (1, 1): [3.7936900911090143]}],
 ])
 def test_the_split_reproduces_q(factors: list[Terms]) -> None:
     """The pieces multiply back to q to 1e-12, and only the rest has terms off one monomial's line."""
@@ -195,3 +199,37 @@ def test_no_factor_no_split() -> None:
         assert split.factors == () and split.rest is qp
     with pytest.raises(QuasiPolynomialError):
         split_monomial_factors(QuasiPolynomial({(0,): [1.0, 1.0], (1,): [2.0]}))
+
+
+def test_random_products_split() -> None:
+    """300 seeded products F G (and F^2 G): F in one monomial of 8 directions, coefficients 0.01-10.
+
+    Each is split back into pieces whose product is q, with F found once per copy, unless the
+    product is itself in one monomial (G along F's direction: then it is one line family, no split).
+    """
+    rng = np.random.default_rng(5)
+
+    def coef() -> float:
+        return float(rng.choice([-1.0, 1.0]) * 10.0 ** rng.uniform(-2.0, 1.0))
+
+    directions = [(1, 0), (0, 1), (1, 1), (1, 2), (2, 1), (1, 3), (3, 1), (2, 3)]
+    for _ in range(300):
+        a, b = directions[rng.integers(len(directions))]
+        n_f, n_g = int(rng.integers(1, 3)), int(rng.integers(1, 3))
+        f: Terms = {(0, 0): [coef() for _ in range(n_f)] + [1.0]}
+        for m in range(1, int(rng.integers(2, 4))):
+            f[(m * a, m * b)] = [coef() for _ in range(int(rng.integers(1, n_f + 1)))]
+        g: Terms = {(0, 0): [coef() for _ in range(n_g)] + [1.0]}
+        for _ in range(int(rng.integers(2, 4))):
+            k = (int(rng.integers(0, 3)), int(rng.integers(0, 3)))
+            if k != (0, 0):
+                g[k] = [coef() for _ in range(int(rng.integers(1, n_g + 1)))]
+        copies = 2 if rng.random() < 0.2 else 1
+        terms = product(*[f] * copies, g)
+        split = split_monomial_factors(QuasiPolynomial(terms))
+        one_line = all(k1 * b == k2 * a for k1, k2 in split.rest.terms)
+        assert len(split.factors) >= copies or one_line, (f, g)
+        back = product(*({k: list(v) for k, v in p.terms.items()} for p in split.pieces))
+        for k in set(terms) | set(back):
+            d = npoly.polysub(terms.get(k, [0.0]), back.get(k, [0.0]))
+            assert np.max(np.abs(d)) <= 1e-9 * np.max(np.abs(terms[k] if k in terms else back[k])), k

@@ -30,8 +30,8 @@ at equality: the largest x-degree, then the largest s-degree, with a null
 space gives the gcd's bidegree, its null vector the cofactors, and F follows by
 least squares from ``Q_k = F G_k``. The part of F in s alone (a factor of q
 that no delay moves) is handed back to G, and the split is accepted only when
-``F G`` reproduces every coefficient of q to 1e-10 of the moduli that make it
-(the convolution of ``|F|`` and ``|G|``); a factor seen but not reproduced is
+``F G`` reproduces every coefficient of q to 1e-10 of the moduli that make its
+term (the convolution of ``|F|`` and ``|G|``, largest over the term's powers of s); a factor seen but not reproduced is
 refused, never guessed. A squared factor is found twice (the gcd of a
 ``Q_k`` holding ``F^2`` is split once, then its cofactor again).
 
@@ -55,7 +55,7 @@ __all__ = ["split_monomial_factors", "factor_direction", "MonomialSplit"]
 
 #: smallest over largest singular value below which the cofactor system has a null space
 _NULL_TOL = 1e-9
-#: F G must reproduce each coefficient of q to this fraction of the moduli that make it
+#: F G must reproduce each coefficient of q to this fraction of the moduli that make its term
 _REPRODUCE_TOL = 1e-10
 #: coefficients of a factor below this fraction of its largest are rounding noise (exactly zero)
 _NOISE = 1e-13
@@ -155,10 +155,13 @@ def _split_once(
     scaled, rho, norms = _scaled(groups, terms[(0, 0)])
     keys = sorted(scaled)
     polys = [scaled[k] for k in keys]
-    f, cof = _gcd(polys, in_x=True)  # type: ignore[misc]  # a factor was seen in this direction
-    f, content = _strip_content(f)
-    f, repeated = _radical(f)  # one copy of each factor of F; the others stay in G (split next round)
-    cof = [_conv2(_conv2(content, repeated), g) for g in cof]
+    f, _ = _gcd(polys, in_x=True)  # type: ignore[misc]  # a factor was seen in this direction
+    f, _ = _strip_content(f)
+    f, _ = _radical(f)  # one copy of each factor of F; the others stay in G (split next round)
+    # G_k = Q_k / F by one division each (least squares in the exact box): no product of three
+    # computed factors, whose rounding would leave noise in coefficients that are exactly zero
+    cof = [np.linalg.lstsq(_conv_matrix(f, (p.shape[0] - f.shape[0] + 1, p.shape[1] - f.shape[1] + 1)),
+                           p.ravel(), rcond=None)[0].reshape(p.shape[0] - f.shape[0] + 1, -1) for p in polys]
     # back to s (mu = s / rho) and the groups' scales; F monic in its principal polynomial
     f = f / rho ** np.arange(f.shape[0])[:, None]
     lead = f[-1, 0]  # the principal polynomial has F's full degree in s (that of q's is the sum)
@@ -398,7 +401,7 @@ def _cleaned(terms: Terms, *, real: bool, retarded: bool) -> Terms:
 
 
 def _reproduction_error(q: Terms, f: Terms, g: Terms) -> float:
-    """Largest ``|F G - q|`` over the moduli ``|F| |G|`` that make each coefficient (module docstring)."""
+    """Largest ``|F G - q|`` of a term over the largest modulus ``|F| |G|`` making that term (module docstring)."""
     prod: dict[tuple[int, int], NDArray[np.complex128]] = {}
     mods: dict[tuple[int, int], NDArray[np.float64]] = {}
     n = max(c.size for c in f.values()) + max(c.size for c in g.values()) + max(c.size for c in q.values())
@@ -414,9 +417,8 @@ def _reproduction_error(q: Terms, f: Terms, g: Terms) -> float:
             want[: q[key].size] = q[key]
         got = prod.get(key, np.zeros(n, complex))
         mod = mods.get(key, np.zeros(n))
-        diff = np.abs(got - want)
-        if np.any((diff > 0) & (mod == 0)):
-            return float("inf")  # a coefficient of q that no product makes
-        with np.errstate(divide="ignore", invalid="ignore"):
-            worst = max(worst, float(np.max(np.where(mod > 0, diff / mod, 0.0))))
+        diff = float(np.max(np.abs(got - want)))
+        if diff > 0.0:
+            # the largest modulus of the term: rounding of the factors spreads over its coefficients
+            worst = max(worst, diff / float(np.max(mod))) if np.max(mod) > 0 else float("inf")
     return worst
