@@ -10,8 +10,20 @@ rightmost_root (Chebyshev collocation of the generator, then Newton) is checked
 against Newton's method started from a dense grid over the box where roots
 right of it can lie.
 
-Run the properties with many more examples locally:
-``DELAYFORM_PROPERTY_EXAMPLES=3000 pytest tests/test_crossing_map_powers.py``.
+The map property draws three structures: random terms ``z1^k1 z2^k2``, terms
+that are all powers of one monomial (one family of straight lines), and
+expanded products ``F(s, z1^a z2^b) G`` (a factor in one monomial, split off by
+the map; the old code refused them all).
+
+Run the properties with many more examples locally, in seeded shards that
+cannot hang (no shrinking: a failure is reported as drawn; every example is
+logged with its time, so a slow one is named even if the run is killed)::
+
+    DELAYFORM_HYPOTHESIS_PROFILE=long DELAYFORM_PROPERTY_EXAMPLES=500 \
+    DELAYFORM_PROPERTY_NO_SHRINK=1 DELAYFORM_PROPERTY_LOG=/tmp/log_11 \
+    timeout 1800 pytest tests/test_crossing_map_powers.py -k test_map_nu --hypothesis-seed=11
+
+LONG_RUN_RESULT
 """
 
 from __future__ import annotations

@@ -393,6 +393,10 @@ def crossing_map(qp: TwoDelayQuasiPolynomial | QuasiPolynomial, tau1_max: float,
         (eq. genfactor), or a :class:`~delayform.quasipolynomial.QuasiPolynomial`
         in two delays with any terms (commensurate ``z1^3``, ``z1 z2^2``, ...;
         :mod:`delayform.analysis.ctcr.general`); real or complex coefficients.
+        A factor in one monomial ``z1^a z2^b`` (a product such as
+        ``(s + 1 + 2 z1 z2)(s^2 + s + 1 + 0.5 z2)`` expanded) is split off
+        exactly and drawn as its straight lines ``a tau1 + b tau2 = T``
+        (:mod:`delayform.analysis.ctcr.factored`); ``traced`` then holds the pieces.
     tau1_max, tau2_max
         The window [0, tau1_max] x [0, tau2_max]; positive.
 
