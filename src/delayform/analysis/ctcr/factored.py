@@ -250,7 +250,7 @@ def _scaled(
     for k, g in groups.items():
         g = g * rho ** np.arange(g.shape[0])[:, None]
         norms[k] = float(np.max(np.abs(g)))
-        out[k] = g / norms[k]
+        out[k] = g.real / norms[k] + 1j * (g.imag / norms[k])  # no 1 / norm: it overflows for a subnormal term
     return out, rho, norms
 
 
