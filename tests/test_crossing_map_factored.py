@@ -241,8 +241,9 @@ def test_random_products_split() -> None:
 #: its delay-free polynomial is s^2 - 2.3e-11 s + 0.3575, a pair 1.15e-11 right of the axis and
 #: tangent to it along tau2 (Re ds/dtau2 = 0). The origin count took it as on the axis (within
 #: 1e-9) and the tau1 = 0 axis counted its crossing at tau2 = 5.7e-6 as well: NU was -2 on that
-#: axis and 0 instead of 2 at (0.45, 0.5). Now a tangent root measurably off the axis is counted
-#: by its side, and a departing one's own crossing within the band is not counted twice.
+#: axis and 0 instead of 2 at (0.45, 0.5). Now a root measurably off the axis (1e-13) is counted
+#: by its side, and one on it to rounding by its departure, its own crossing within the band not
+#: counted twice.
 NEAR_DEGENERATE_ORIGIN: Terms = {(0, 0): [0.35752108635782365, 0.9999999999999984, 0.9999999999999987],
                                  (1, 2): [-0.9999999999999994, -1.0000000000230247], (2, 2): [0.9999999999999984]}
 
@@ -257,3 +258,21 @@ def test_a_root_just_right_of_the_axis_at_zero_delay() -> None:
     m_exact = crossing_map(QuasiPolynomial(exact), 1.0, 1.0)
     for t1, t2 in [(0.45, 0.5), (0.45, 0.01), (0.01, 0.5)]:
         assert int(m_exact.unstable_count(t1, t2)) == int(m.unstable_count(t1, t2))
+
+
+#: the same G as the split gives it today (its coefficients differ from the above by 1e-15): the pair
+#: is again 1e-11 right of the axis and tangent, so it is counted at the origin by its side, but the
+#: one-delay elimination on the tau1 = 0 axis does not find its grazing crossing at tau2 ~ 6e-6 (a
+#: near-double root of the eliminant), and NU stays 2 too high above it. The product q of the long
+#: run (seed 14) is mapped 6 where the count says 4 at (0.452, 0.047) for that reason.
+GRAZING_AT_THE_ORIGIN: Terms = {(0, 0): [0.35752108635782587, 1.0000000000000009, 1.0000000000000002],
+                                (1, 2): [-1.0000000000000018, -1.0000000000230262], (2, 2): [1.000000000000002]}
+
+
+@pytest.mark.xfail(strict=True, reason="the grazing crossing of a tangent root 1e-11 off the axis at zero delay "
+                                       "is not found on the tau1 = 0 axis")
+def test_a_root_grazing_the_axis_next_to_the_origin() -> None:
+    qp = QuasiPolynomial(GRAZING_AT_THE_ORIGIN)
+    m = crossing_map(qp, 1.0, 1.0)
+    for t1, t2 in [(0.45, 0.5), (0.45, 0.01), (0.01, 0.5)]:
+        assert int(m.unstable_count(t1, t2)) == _count(qp, t1, t2), (t1, t2)

@@ -359,15 +359,20 @@ def _delay_free_roots(qp: TwoDelayQuasiPolynomial) -> tuple[NDArray[np.complex12
     return (np.roots(rest[::-1]) if rest.size > 1 else np.zeros(0, complex)), m0
 
 
+#: a delay-free root further than this from the axis (relative to max(1, |s|)) is off it: rounding
+#: of the roots of a well-conditioned polynomial is ~1e-16
+_OFF_AXIS = 1e-13
+
+
 def _origin_departures(qp: TwoDelayQuasiPolynomial, delay: int) -> list[tuple[complex, complex, bool]]:
     """(root, ds/dtau, counted) of each delay-free root within :data:`_ORIGIN_TOL` of the axis.
 
-    Such a root is counted off the origin along ``tau_delay`` by where it goes, the sign of
-    ``Re ds/dtau`` (``counted``: True when it goes right). A root that only touches the axis
-    to first order (``Re ds/dtau`` below 1e-9 of ``|ds/dtau|``) and sits measurably off it
-    (``|Re s| > 1e-13 max(1, |s|)``, above rounding) is counted by the side it is on; its
-    crossing further on is then an event of its own (found by the map property: a pair
-    1.15e-11 right of the axis, tangent to it, crossed at tau2 = 5.7e-6).
+    A root on the axis to rounding (:data:`_OFF_AXIS`) is counted off the origin along
+    ``tau_delay`` by where it goes, the sign of ``Re ds/dtau`` (``counted``: True when right).
+    A root measurably off the axis is counted by the side it is on, and its crossing of the
+    axis further on is an event of its own (found by the map property: a pair 1.15e-11 right
+    of the axis, tangent to it, crossed the tau1 = 0 axis at tau2 = 5.7e-6 and was counted
+    both at the origin and there).
     """
     roots, _ = _delay_free_roots(qp)
     near = roots[np.abs(roots.real) <= _ORIGIN_TOL * np.maximum(1.0, np.abs(roots))]
@@ -376,26 +381,26 @@ def _origin_departures(qp: TwoDelayQuasiPolynomial, delay: int) -> list[tuple[co
     ds = -qp.delay_derivative(near, 0.0, 0.0, delay=delay) / qp.derivative(near, 0.0, 0.0)
     out = []
     for r, d in zip(near, ds, strict=True):
-        tangent = abs(d.real) <= 1e-9 * abs(d) and abs(r.real) > 1e-13 * max(1.0, abs(r))
-        out.append((complex(r), complex(d), bool(r.real > 0.0) if tangent else bool(d.real > 0.0)))
+        off = abs(r.real) > _OFF_AXIS * max(1.0, abs(r))
+        out.append((complex(r), complex(d), bool(r.real > 0.0) if off else bool(d.real > 0.0)))
     return out
 
 
 def _origin_axis_roots(qp: TwoDelayQuasiPolynomial, delay: int) -> list[tuple[float, float, float]]:
     """(omega0, reach, width) of the roots ``j omega0`` (omega0 > 0) counted at the origin by their departure.
 
-    :func:`_origin_counts` counts such a root by where it goes as the delay grows, so its own
-    crossing of the axis a little further on is not a second event: ``reach`` is the delay by
-    which, at ``|Re ds/dtau|``, it leaves the band of :data:`_ORIGIN_TOL`, and ``width`` how far
-    its frequency moves meanwhile (a crossing of the axis at tau <= reach within width of omega0
-    is that root's). A root tangent to the axis (no first-order departure) is not listed.
+    :func:`_origin_counts` counts such a root (on the axis to rounding) by where it goes as the
+    delay grows, so its own crossing of the axis a little further on is not a second event:
+    ``reach`` is the delay by which, at ``|Re ds/dtau|``, it leaves the rounding band, and
+    ``width`` how far its frequency moves meanwhile (a crossing of the axis at tau <= reach
+    within width of omega0 is that root's). A root tangent to the axis, or counted by its side,
+    is not listed.
     """
     out = []
     for r, d, _ in _origin_departures(qp, delay):
-        if r.imag <= 0.0 or not abs(d.real) > 1e-9 * abs(d):
-            continue  # tangent to the axis: no first-order departure to attribute a crossing to
-        band = 2.0 * _ORIGIN_TOL * max(1.0, abs(r))
-        reach = band / abs(d.real)
+        if r.imag <= 0.0 or abs(r.real) > _OFF_AXIS * max(1.0, abs(r)) or not abs(d.real) > 1e-9 * abs(d):
+            continue
+        reach = 2.0 * _OFF_AXIS * max(1.0, abs(r)) / abs(d.real)
         out.append((r.imag, reach, 2.0 * abs(d) * reach + 1e-6 * max(1.0, r.imag)))
     return out
 
