@@ -10,29 +10,57 @@ rightmost_root (Chebyshev collocation of the generator, then Newton) is checked
 against Newton's method started from a dense grid over the box where roots
 right of it can lie.
 
-Run the properties with many more examples locally:
-``DELAYFORM_PROPERTY_EXAMPLES=3000 pytest tests/test_crossing_map_powers.py``.
+The map property draws three structures: random terms ``z1^k1 z2^k2``, terms
+that are all powers of one monomial (one family of straight lines), and
+expanded products ``F(s, z1^a z2^b) G`` (a factor in one monomial, split off by
+the map; the old code refused them all).
+
+Run the properties with many more examples locally, in seeded shards that
+cannot hang (no shrinking: a failure is reported as drawn; every example is
+logged with its time, so a slow one is named even if the run is killed)::
+
+    DELAYFORM_HYPOTHESIS_PROFILE=long DELAYFORM_PROPERTY_EXAMPLES=500 \
+    DELAYFORM_PROPERTY_NO_SHRINK=1 DELAYFORM_PROPERTY_LOG=/tmp/log_11 \
+    timeout 1800 pytest tests/test_crossing_map_powers.py -k test_map_nu --hypothesis-seed=11
+
+Long run, 2026-12-06, with the three structures: seeds 11, 12, 13 and 201, 500
+examples each (plus the fixed ones), all passed (13, 8, 14 and 3 minutes at load
+3-13; the slowest example 21 s wall, a map with many offspring; none of the four hung; seed 201,
+whose 1,000-example shard on the old strategies ran an hour without a verdict,
+took 3 minutes). Seed 14 failed at its 256th example, a pre-existing defect of the
+map, not of the split: a root 1e-11 right of the axis and tangent to it at zero delay
+(counted twice: fixed; its grazing crossing not found on the axis: still open, a
+strict expected failure in ``tests/test_crossing_map_factored.py``).
+Seed 15 was stopped at its 468th example after 8 minutes on one map: the rest
+``s - 1.0039 - 0.0272 z1^2 + 5.614 z2^2`` takes the two-delay sweep over a minute
+(on the code before the split too; not fixed). The old code failed the property at
+once (seed 7: a product refused).
 """
 
 from __future__ import annotations
 
 import math
-import re
+import time
 import os
 
 import numpy as np
 import numpy.polynomial.polynomial as npoly
 import pytest
-from hypothesis import assume, example, given, settings
+from hypothesis import Phase, assume, example, given, settings
 from hypothesis import strategies as st
 
 from delayform import QuasiPolynomial, count_roots_right_of, crossing_map, rightmost_root
 from delayform.analysis.ctcr.stability_map import curve_residual
 from delayform.analysis.ctcr.general import unit_roots_single
-from delayform.errors import NotConvergedError, QuasiPolynomialError
+from delayform.errors import NotConvergedError
 
 #: examples per property in the suite (seconds each); raise it by the environment for a long run
 EXAMPLES = int(os.environ.get("DELAYFORM_PROPERTY_EXAMPLES", "30"))
+#: a long run: skip shrinking (a failure is reported as drawn, at once) and append every example
+#: with its time to this file, so a slow or hanging example is named even when the run is killed
+NO_SHRINK = os.environ.get("DELAYFORM_PROPERTY_NO_SHRINK") == "1"
+LOG = os.environ.get("DELAYFORM_PROPERTY_LOG")
+PHASES = tuple(p for p in Phase if not (NO_SHRINK and p in (Phase.shrink, Phase.explain)))
 WINDOW = 1.0
 #: Half-width of the strip about the imaginary axis inside which a point is not judged.
 STRIP = 1e-3
@@ -79,6 +107,30 @@ def monomial_qps(draw: st.DrawFn) -> dict[tuple[int, int], list[float]]:
     return terms
 
 
+@st.composite
+def factored_qps(draw: st.DrawFn) -> dict[tuple[int, int], list[float]]:
+    """F (z1^a z2^b) G expanded: F in one monomial (degree 1-2, powers <= 2), G of two delays (degree 1-2, k <= 2).
+
+    F's crossings are whole lines of the torus at isolated frequencies; the map must split F off.
+    """
+    n_f = draw(st.integers(1, 2))
+    a, b = draw(st.sampled_from([d for d in _DIRECTIONS if max(d) <= 2]))
+    f = {(0, 0): [draw(_coefficient()) for _ in range(n_f)] + [1.0]}
+    for m in draw(st.lists(st.integers(1, 2 // max(a, b)), min_size=1, max_size=2, unique=True)):
+        f[(m * a, m * b)] = [draw(_coefficient()) for _ in range(draw(st.integers(1, n_f)))]
+    n_g = draw(st.integers(1, 2))
+    g = {(0, 0): [draw(_coefficient()) for _ in range(n_g)] + [1.0]}
+    for k in [(draw(st.integers(1, 2)), draw(st.integers(0, 2))), (draw(st.integers(0, 2)), draw(st.integers(1, 2)))]:
+        if k not in g:
+            g[k] = [draw(_coefficient()) for _ in range(draw(st.integers(1, n_g)))]
+    out: dict[tuple[int, int], np.ndarray] = {}
+    for (a1, b1), c1 in f.items():
+        for (a2, b2), c2 in g.items():
+            k = (a1 + a2, b1 + b2)
+            out[k] = npoly.polyadd(out.get(k, np.zeros(1)), npoly.polymul(c1, c2))
+    return {k: list(v) for k, v in out.items() if np.any(v != 0.0)}
+
+
 def _judged_count(qp: QuasiPolynomial, t1: float, t2: float) -> int | None:
     """The certified count right of the axis, or None when a root lies within STRIP of it."""
     try:
@@ -118,10 +170,17 @@ _point = st.tuples(st.floats(0.0, WINDOW), st.one_of(st.just(0.0), st.floats(1e-
          [(0.5, 0.5), (0.9641826686329382, 1.0)])
 # found by the long run on the code before the one-monomial path (terms in z1^2 z2 alone): NU 1 for 3
 @example({(0, 0): [-1.0, -1.0, -1.0, -1.0, 1.0], (2, 1): [-1.0, -1.0, -1.0]}, [(0.7454764257879972, 0.09218597398733899)])
-@settings(max_examples=EXAMPLES)
-@given(st.one_of(retarded_qps(), monomial_qps()), st.lists(_point, min_size=4, max_size=4))
+@settings(max_examples=EXAMPLES, phases=PHASES)
+@given(st.one_of(retarded_qps(), monomial_qps(), factored_qps()), st.lists(_point, min_size=4, max_size=4))
 def test_map_nu_equals_certified_count(terms: dict, points: list) -> None:
+    if LOG:
+        with open(LOG, "a") as f:
+            f.write(f"start {terms!r} {points!r}\n")
+    t0 = time.perf_counter()
     _check_map(terms, points)
+    if LOG:
+        with open(LOG, "a") as f:
+            f.write(f"done {time.perf_counter() - t0:.2f} s\n")
 
 
 def test_map_just_above_the_tau1_axis():
@@ -321,24 +380,3 @@ def test_map_in_one_monomial(terms: dict, points: list) -> None:
     m = crossing_map(QuasiPolynomial(terms), WINDOW, WINDOW)
     assert m.curves  # every case crosses inside the window
     assert _check_map(terms, points) >= len(points) - 1
-
-
-@pytest.mark.parametrize("factor, name", [({(0, 0): [1.0, 1.0], (1, 0): [2.0]}, "z1^1 z2^0"),
-                                          ({(0, 0): [1.0, 1.0], (1, 1): [2.0]}, "z1^1 z2^1"),
-                                          ({(0, 0): [1.0, 1.0], (0, 2): [2.0]}, "z1^0 z2^1")])
-def test_a_factor_in_one_monomial_is_refused(factor: dict, name: str) -> None:
-    """(s + 1 + 2 z1) (s^2 + s + 1 + z1 z2 + 0.5 z2) expanded: the first factor's lines tau1 = 1.2092 were missed.
-
-    The map said NU = 2 at (1.5, 0.3), the argument-principle count 4 (s + 1 + 2 e^{-tau1 s} crosses at
-    omega = sqrt 3, tau1 = 2 pi / (3 sqrt 3), closed form); now the product is refused, naming the monomial.
-    """
-    other = {(0, 0): [1.0, 1.0, 1.0], (1, 1): [1.0], (0, 1): [0.5]}
-    terms: dict[tuple[int, int], np.ndarray] = {}
-    for (a1, b1), c1 in factor.items():
-        for (a2, b2), c2 in other.items():
-            k = (a1 + a2, b1 + b2)
-            terms[k] = npoly.polyadd(terms.get(k, [0.0]), npoly.polymul(c1, c2))
-    with pytest.raises(QuasiPolynomialError, match=re.escape(name)):
-        crossing_map(QuasiPolynomial({k: list(v) for k, v in terms.items()}), 2.0, 2.0)
-    # each factor alone is mapped (the second is not in one monomial, the first is a line)
-    assert crossing_map(QuasiPolynomial(other), 2.0, 2.0).curves

@@ -22,7 +22,8 @@ from delayform.analysis.ctcr.phase import (
     _PhasePath,
 )
 from delayform.analysis.ctcr.degenerate import crossing_changes, vertex_tendencies
-from delayform.analysis.ctcr.general import TermsQP, collapse, monomial_factor, unit_roots_single
+from delayform.analysis.ctcr.factored import factor_direction
+from delayform.analysis.ctcr.general import TermsQP, collapse, unit_roots_single
 from delayform.characteristic import TwoDelayQuasiPolynomial
 from delayform.errors import QuasiPolynomialError
 
@@ -216,13 +217,15 @@ def _part_curves(part: _Part, window: tuple[float, float], source: int) -> list[
     if _is_three_term(qp):
         paths = _three_term_paths(qp, window)
     else:
-        factor = monomial_factor(qp.terms())
+        # crossing_map splits such factors off first; a qp reaching here with one (built by hand)
+        # would have whole lines of crossings the sweep cannot see: refused, never mapped without them
+        factor = factor_direction({(a, b): c for c, a, b in qp.terms()})
         if factor is not None:
             a, b = factor
             raise QuasiPolynomialError(
                 f"the quasi-polynomial has a factor in z1^{a} z2^{b} alone (a function of {a} tau1 + {b} tau2); "
-                "its crossings are whole lines the two-delay trace cannot follow: map its factors separately "
-                "(NU adds up)"
+                "its crossings are whole lines the two-delay trace cannot follow: split it off first "
+                "(delayform.analysis.ctcr.factored.split_monomial_factors) and map the factors (NU adds up)"
             )
         paths = _general_paths(qp, window)
     out: list[CrossingCurve] = []
@@ -323,17 +326,83 @@ def _axis_crossings(parts: list[_Part], window: tuple[float, float], *, axis: in
     for part in parts:
         # tau1 = 0 (axis 2): z1 = 1, a problem in z2 alone; tau2 = 0 (axis 1): in z1 alone
         omegas, thetas = _unit_roots(part.qp, axis)
+        near = _origin_axis_roots(part.qp, axis)
         for om, th in zip(omegas, thetas, strict=True):
             for i in range(int(np.floor(tmax * om / TWO_PI)) + 2):
                 tau = (th + TWO_PI * i) / om
                 if tau <= 1e-12 * tmax or tau > tmax:
                     continue
+                if any(abs(om - w0) <= width and tau <= reach for w0, reach, width in near):
+                    continue  # the origin count already took this root's departure
                 t1, t2 = (np.array([0.0]), np.array([tau])) if axis == 2 else (np.array([tau]), np.array([0.0]))
                 rt = crossing_changes(part.qp, np.array([om]), t1, t2, delay=axis)
                 where.append(tau)
                 delta.append(part.weight * int(rt[0]))
     order = np.argsort(where)
     return np.asarray(where, float)[order], np.asarray(delta, np.int64)[order]
+
+
+#: delay-free roots this close to the axis (relative to max(1, |s|)) count as on it at the origin
+_ORIGIN_TOL = 1e-9
+
+
+def _delay_free_roots(qp: TwoDelayQuasiPolynomial) -> tuple[NDArray[np.complex128], int]:
+    """Roots of the delay-free polynomial other than s = 0, and the multiplicity m0 of s = 0."""
+    p = qp.delay_free()
+    scale = np.max(np.abs(p))
+    m0 = 0
+    while m0 < p.size and abs(p[m0]) <= 1e-12 * scale:
+        m0 += 1
+    rest = p[m0:]
+    nz = np.flatnonzero(np.abs(rest) > 0)
+    rest = rest[: nz[-1] + 1]
+    return (np.roots(rest[::-1]) if rest.size > 1 else np.zeros(0, complex)), m0
+
+
+#: a delay-free root further than this from the axis (relative to max(1, |s|)) is off it: rounding
+#: of the roots of a well-conditioned polynomial is ~1e-16
+_OFF_AXIS = 1e-13
+
+
+def _origin_departures(qp: TwoDelayQuasiPolynomial, delay: int) -> list[tuple[complex, complex, bool]]:
+    """(root, ds/dtau, counted) of each delay-free root within :data:`_ORIGIN_TOL` of the axis.
+
+    A root on the axis to rounding (:data:`_OFF_AXIS`) is counted off the origin along
+    ``tau_delay`` by where it goes, the sign of ``Re ds/dtau`` (``counted``: True when right).
+    A root measurably off the axis is counted by the side it is on, and its crossing of the
+    axis further on is an event of its own (found by the map property: a pair 1.15e-11 right
+    of the axis, tangent to it, crossed the tau1 = 0 axis at tau2 = 5.7e-6 and was counted
+    both at the origin and there).
+    """
+    roots, _ = _delay_free_roots(qp)
+    near = roots[np.abs(roots.real) <= _ORIGIN_TOL * np.maximum(1.0, np.abs(roots))]
+    if near.size == 0:
+        return []
+    ds = -qp.delay_derivative(near, 0.0, 0.0, delay=delay) / qp.derivative(near, 0.0, 0.0)
+    out = []
+    for r, d in zip(near, ds, strict=True):
+        off = abs(r.real) > _OFF_AXIS * max(1.0, abs(r))
+        out.append((complex(r), complex(d), bool(r.real > 0.0) if off else bool(d.real > 0.0)))
+    return out
+
+
+def _origin_axis_roots(qp: TwoDelayQuasiPolynomial, delay: int) -> list[tuple[float, float, float]]:
+    """(omega0, reach, width) of the roots ``j omega0`` (omega0 > 0) counted at the origin by their departure.
+
+    :func:`_origin_counts` counts such a root (on the axis to rounding) by where it goes as the
+    delay grows, so its own crossing of the axis a little further on is not a second event:
+    ``reach`` is the delay by which, at ``|Re ds/dtau|``, it leaves the rounding band, and
+    ``width`` how far its frequency moves meanwhile (a crossing of the axis at tau <= reach
+    within width of omega0 is that root's). A root tangent to the axis, or counted by its side,
+    is not listed.
+    """
+    out = []
+    for r, d, _ in _origin_departures(qp, delay):
+        if r.imag <= 0.0 or abs(r.real) > _OFF_AXIS * max(1.0, abs(r)) or not abs(d.real) > 1e-9 * abs(d):
+            continue
+        reach = 2.0 * _OFF_AXIS * max(1.0, abs(r)) / abs(d.real)
+        out.append((r.imag, reach, 2.0 * abs(d) * reach + 1e-6 * max(1.0, r.imag)))
+    return out
 
 
 def _unit_roots(qp: TwoDelayQuasiPolynomial, delay: int) -> tuple[NDArray, NDArray]:
@@ -357,26 +426,10 @@ def _one_delay_roots(h: list[NDArray[np.complex128]]) -> tuple[NDArray, NDArray]
 
 def _origin_counts(qp: TwoDelayQuasiPolynomial, weight: int) -> tuple[int, int, _ZeroLine | None]:
     """NU just off the origin along tau2 and along tau1, and the zero line if s = 0 is a root."""
-    p = qp.delay_free()
-    scale = np.max(np.abs(p))
-    m0 = 0
-    while m0 < p.size and abs(p[m0]) <= 1e-12 * scale:
-        m0 += 1
-    rest = p[m0:]
-    nz = np.flatnonzero(np.abs(rest) > 0)
-    rest = rest[: nz[-1] + 1]
-    roots = np.roots(rest[::-1]) if rest.size > 1 else np.zeros(0, complex)
-    tol = 1e-9 * np.maximum(1.0, np.abs(roots))
-    base = int(np.sum(roots.real > tol))
-    imag = roots[np.abs(roots.real) <= tol]
-    start2 = start1 = base
-    if imag.size:
-        ds = []
-        for k in (1, 2):
-            num = qp.delay_derivative(imag, 0.0, 0.0, delay=k)
-            ds.append((-num / qp.derivative(imag, 0.0, 0.0)).real)
-        start1 += int(np.sum(ds[0] > 0))
-        start2 += int(np.sum(ds[1] > 0))
+    roots, m0 = _delay_free_roots(qp)
+    base = int(np.sum(roots.real > _ORIGIN_TOL * np.maximum(1.0, np.abs(roots))))
+    start1 = base + sum(counted for _, _, counted in _origin_departures(qp, 1))
+    start2 = base + sum(counted for _, _, counted in _origin_departures(qp, 2))
     line = None
     if m0 >= 1 and qp.is_real:
         c0 = float(sum(c[1].real for c, _, _ in qp.terms() if c.size > 1))

@@ -26,9 +26,9 @@ eliminations that hold for any degrees K1 (in z1) and K2 (in z2):
 * When every delayed term is a power of one monomial ``z1^a z2^b``, q is a
   one-delay qp in ``a tau1 + b tau2`` and its crossings are straight lines
   (:func:`~delayform.analysis.ctcr.curves.line_direction`); a q with a
-  *factor* in one monomial is refused (:func:`monomial_factor`): at that
-  factor's crossing frequencies whole lines of the torus solve q, which the
-  sweep in omega cannot see.
+  *factor* in one monomial has that factor split off first
+  (:mod:`delayform.analysis.ctcr.factored`): at its crossing frequencies whole
+  lines of the torus solve q, which the sweep in omega cannot see.
 
 Both are eliminations, not sign changes on a grid: a frequency or phase is
 found whenever it is a root of the eliminant, however close two of them lie.
@@ -46,8 +46,7 @@ from delayform.characteristic import DELAY_MULTIPLES, TwoDelayQuasiPolynomial
 from delayform.errors import NeutralQuasiPolynomialError, QuasiPolynomialError
 from delayform.quasipolynomial import QuasiPolynomial
 
-__all__ = ["TermsQP", "as_traced", "resultant_solutions", "unit_roots_single", "collapse", "newton_phases", "unit_circle_roots",
-           "monomial_factor"]
+__all__ = ["TermsQP", "as_traced", "resultant_solutions", "unit_roots_single", "collapse", "newton_phases", "unit_circle_roots"]
 
 TWO_PI = 2.0 * np.pi
 
@@ -227,85 +226,6 @@ def omega_bound(qp: TwoDelayQuasiPolynomial | TermsQP) -> float:
     lower[d] = 0.0
     lower = lower / abs(qp.g1[d])
     return float(max(1.0, lower.sum()) * 1.0001)
-
-
-# ===================================================================== a factor in one monomial
-def monomial_factor(terms: tuple[tuple[NDArray[np.complex128], int, int], ...]) -> tuple[int, int] | None:
-    """(a, b) when q has a factor ``F(s, z1^a z2^b)`` with delayed terms off that line, else None.
-
-    Such a factor's imaginary roots form whole lines ``a theta1 + b theta2 = const``
-    of the torus at isolated frequencies, which the two-delay sweep cannot see
-    (its eliminant vanishes identically there and nowhere else). Test: with
-    integers (c, d), ``a d - b c = 1``, the monomial change ``z1 = x^d y^-b``,
-    ``z2 = x^-c y^a`` makes ``z1^a z2^b = x``, and a term ``z1^k1 z2^k2`` becomes
-    ``x^(d k1 - c k2) y^(a k2 - b k1)``. q has a factor in x alone exactly when
-    the coefficients of the powers of y, polynomials in x, share a root
-    ``x != 0``: tested at two random s (a true factor shares one at every s).
-    Directions tried: every difference of two exponent vectors with a, b >= 0
-    (the Newton polygon's edges, which a factor's direction must be, are among
-    them; a direction with a < 0 < b, a factor like ``z1 + c z2``, would leave q
-    without its term (0, 0), which a quasi-polynomial has).
-    """
-    keys = [(a, b) for _, a, b in terms]
-    dirs = set()
-    for i, (a1, b1) in enumerate(keys):
-        for a2, b2 in keys[i + 1 :]:
-            da, db = a2 - a1, b2 - b1
-            g = int(np.gcd(da, db))
-            if g:
-                da, db = da // g, db // g
-                if da * db >= 0:
-                    dirs.add((abs(da), abs(db)))
-    rng = np.random.default_rng(0)
-    s0 = rng.normal(size=2) + 1j * rng.normal(size=2)
-    for a, b in sorted(dirs):
-        c, d = _bezout(a, b)
-        groups: dict[int, list[tuple[int, NDArray[np.complex128]]]] = {}
-        for coef, k1, k2 in terms:
-            groups.setdefault(a * k2 - b * k1, []).append((d * k1 - c * k2, coef))
-        if len(groups) > 1 and all(_share_a_root(list(groups.values()), z) for z in s0):
-            return a, b
-    return None
-
-
-def _bezout(a: int, b: int) -> tuple[int, int]:
-    """(c, d) with ``a d - b c = 1`` for coprime a, b."""
-    old_r, r, old_x, x, old_y, y = a, -b, 1, 0, 0, 1
-    while r:
-        k = old_r // r
-        old_r, r, old_x, x, old_y, y = r, old_r - k * r, x, old_x - k * x, y, old_y - k * y
-    # old_x a + old_y (-b) = old_r = +-1
-    return (old_y * old_r, old_x * old_r)
-
-
-def _share_a_root(groups: list[list[tuple[int, NDArray[np.complex128]]]], s: complex) -> bool:
-    """True when the Laurent polynomials in x (one per group, terms (power, coefficients in s)) share a root != 0 at s."""
-    polys = []
-    for group in groups:
-        lo = min(p for p, _ in group)
-        v = np.zeros(max(p for p, _ in group) - lo + 1, complex)
-        for p, coef in group:
-            v[p - lo] += npoly.polyval(s, coef)
-        nz = np.flatnonzero(np.abs(v) > 1e-14 * np.max(np.abs(v)))
-        if nz.size == 0:
-            continue
-        v = v[nz[0] : nz[-1] + 1]
-        if v.size == 1:
-            return False  # a monomial in x: no root x != 0 to share
-        polys.append(v)
-    if len(polys) < 2:
-        return False
-    base = min(polys, key=len)
-    for x in np.roots(base[::-1]):
-        ok = True
-        for v in polys:
-            mags = np.abs(v) * np.abs(x) ** np.arange(v.size)
-            if abs(npoly.polyval(x, v)) > 1e-8 * mags.sum():
-                ok = False
-                break
-        if ok:
-            return True
-    return False
 
 
 # ===================================================================== two delays (curves)

@@ -139,6 +139,7 @@ from delayform.analysis.ctcr.curves import (  # noqa: F401
     _tendency,
     _ZeroLine,
 )
+from delayform.analysis.ctcr.factored import split_monomial_factors
 from delayform.analysis.ctcr.general import TermsQP, as_traced
 from delayform.characteristic import TwoDelayQuasiPolynomial, factors
 from delayform.quasipolynomial import QuasiPolynomial
@@ -392,6 +393,10 @@ def crossing_map(qp: TwoDelayQuasiPolynomial | QuasiPolynomial, tau1_max: float,
         (paper, eq. 5), or a :class:`~delayform.quasipolynomial.QuasiPolynomial`
         in two delays with any terms (commensurate ``z1^3``, ``z1 z2^2``, ...;
         :mod:`delayform.analysis.ctcr.general`); real or complex coefficients.
+        A factor in one monomial ``z1^a z2^b`` (a product such as
+        ``(s + 1 + 2 z1 z2)(s^2 + s + 1 + 0.5 z2)`` expanded) is split off
+        exactly and drawn as its straight lines ``a tau1 + b tau2 = T``
+        (:mod:`delayform.analysis.ctcr.factored`); ``traced`` then holds the pieces.
     tau1_max, tau2_max
         The window [0, tau1_max] x [0, tau2_max]; positive.
 
@@ -422,18 +427,28 @@ def crossing_map(qp: TwoDelayQuasiPolynomial | QuasiPolynomial, tau1_max: float,
     if isinstance(qp, TwoDelayQuasiPolynomial) and not qp.is_retarded:
         qp = QuasiPolynomial.from_two_delay(qp)  # neutral: the general path with D's frequency bound
     if isinstance(qp, QuasiPolynomial):
-        qp = as_traced(qp)  # type: ignore[assignment]
-    elif not isinstance(qp, TwoDelayQuasiPolynomial):
+        traced = as_traced(qp)  # refuses what no map can answer (one delay, D not strongly stable)
+        general = qp
+    elif isinstance(qp, TwoDelayQuasiPolynomial):
+        traced, general = qp, QuasiPolynomial.from_two_delay(qp)
+    else:
         raise QuasiPolynomialError(
             f"qp must be a QuasiPolynomial in two delays or a TwoDelayQuasiPolynomial, got {type(qp).__name__}"
         )
     t1, t2 = _check_window(tau1_max, tau2_max)
-    if qp.is_real:
-        parts = [_Part(qp, 2, 0)]
-    else:
-        parts = [_Part(qp, 1, 0), _Part(_conjugate(qp), 1, 1)]
-    _guard_window([p.qp for p in parts], t1, t2)
-    return _assemble([(qp, 1, parts)], t1, t2)
+    # a factor in one monomial has whole lines of crossings the two-delay sweep cannot see: split
+    # off exactly, each factor is a one-delay problem (straight lines), and the NU of the pieces add
+    split = split_monomial_factors(general)
+    pieces = [as_traced(p) for p in split.pieces] if split.factors else [traced]
+    sources = []
+    for piece in pieces:
+        if piece.is_real:
+            parts = [_Part(piece, 2, 0)]
+        else:
+            parts = [_Part(piece, 1, 0), _Part(_conjugate(piece), 1, 1)]
+        sources.append((piece, 1, parts))
+    _guard_window([p.qp for _, _, parts in sources for p in parts], t1, t2)
+    return _assemble(sources, t1, t2)
 
 
 @validated()
