@@ -100,10 +100,13 @@ def functional_of(order: object, split: object, outer: object) -> Functional:
     return Functional(_order(order), int(split), outer)
 
 
-def attempt(data: IntervalDelays, fun: Functional, *, exact: bool = True) -> _Attempt:
-    """Solve the functional's LMIs on ``data`` and re-check the answer (exactly unless ``exact`` is False)."""
+def attempt(data: IntervalDelays, fun: Functional, *, exact: bool = True, tolerance: float | None = None) -> _Attempt:
+    """Solve the functional's LMIs on ``data`` and re-check the answer (exactly unless ``exact`` is False).
+
+    ``tolerance``: the solver's (:func:`~delayform.analysis.certificates.lmi.solve`); the re-check is the same.
+    """
     problem = interval_delays(data, fun.order, split=fun.split, outer=fun.outer)
-    sol = solve(problem)
+    sol = solve(problem, tolerance=tolerance)
     lo, hi = min(data.lo), max(data.hi)
     empty: dict[str, NDArray[np.float64]] = {}
     method = fun.describe()
