@@ -109,6 +109,16 @@ class Variables:
             out[b.name] = M
         return out
 
+    def pack(self, values: Mapping[str, NDArray[Any]]) -> NDArray[np.float64]:
+        """The vector x whose :meth:`unpack` gives ``values`` (a certificate's matrices back into the variables)."""
+        x = np.zeros(self.size)
+        for b in self.blocks:
+            M = np.asarray(values[b.name], dtype=float)
+            if M.shape != (b.rows, b.cols):
+                raise ValueError(f"block {b.name} must be {b.rows} x {b.cols}, got {M.shape}")
+            x[b.offset : b.offset + b.size] = M[np.triu_indices(b.rows)] if b.symmetric else M.ravel()
+        return x
+
     def trace_row(self) -> NDArray[np.float64]:
         """Coefficients of the summed traces of the normalized blocks."""
         row = np.zeros(self.size)

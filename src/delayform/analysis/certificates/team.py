@@ -29,7 +29,7 @@ small-gain margin covers those.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -61,16 +61,23 @@ class ModeMargin:
     centroid
         True for lam = 1 (certified with its constant solutions projected out).
     functional
-        The functional whose certificate holds (the cheapest of :data:`LEVELS` that does).
+        The functional whose certificate holds: for the mode that limits the search the richest one
+        tried, for the others the cheapest of :data:`LEVELS` that does.
     certificate
         Its certificate (re-checked exactly), on intervals at least as wide as the team's
         delta (a certificate for wider intervals covers the narrower ones); None when delta is 0.
+    options
+        The functional's options, to rebuild its LMIs from ``certificate`` (an independent re-check).
+    solved_at
+        The deviation delta its certificate was solved at (at least the team's).
     """
 
     lam: complex
     centroid: bool
     functional: str
     certificate: DelayCertificate | None = field(repr=False)
+    options: Functional | None = field(default=None, repr=False)
+    solved_at: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -157,6 +164,8 @@ class _Modes:
 
     def solve(self, i: int, delta: float, level: int) -> tuple[_Attempt | None, float]:
         """(the attempt if it holds, else None; the solver's optimum margin t) of one functional."""
+        if delta >= self.failed[i][level]:  # failed at a smaller delta already: not solved again
+            return None, -math.inf
         A0, ak, e = self.systems[i]
         data = IntervalDelays(A0, ak, tuple(max(t - delta, 0.0) for t in self.t), tuple(t + delta for t in self.t), None, e)
         att = attempt(data, self.levels[level], exact=False, tolerance=SEARCH_TOLERANCE)
@@ -221,7 +230,8 @@ class _Modes:
         """The next delta of phase 2 in (lo, hi): just below the zero of the line through the last two t's.
 
         Aimed ``rtol / 2`` below that zero, it usually holds and its step lo (1 + rtol) then
-        usually fails, which ends the search; ``capped``: hi is the cap, not a failure.
+        usually fails, which ends the search; ``capped``: hi is the cap, not a failure. With a
+        failure known, at least the bracket's middle.
         """
         guess = 1.5 * lo
         if len(held) >= 2:
@@ -234,30 +244,32 @@ class _Modes:
         width = hi - lo
         if width <= 2.0 * self.rtol * lo:  # one decisive step: if it fails the search ends, if it holds too
             return step
-        return min(max(guess, lo + 0.2 * width, step), lo + 0.8 * width)
+        # the line's zero lies below the boundary (t collapses early): at least halve the bracket
+        return min(max(guess, lo + 0.5 * width, step), lo + 0.8 * width)
 
-    def search(self, cap: float) -> tuple[float, list[_Attempt | None], int]:
-        """The team margin: (delta, each mode's attempt at delta or beyond, the limiting mode)."""
+    def search(self, cap: float) -> tuple[float, list[_Attempt | None], list[float], int]:
+        """The team margin: (delta, each mode's attempt, the delta it was solved at (>= delta), the limiting mode)."""
         found: list[_Attempt | None] = [None for _ in self.fs]
+        at = [0.0 for _ in self.fs]
         upper, found[0] = self.margin(0, cap)
+        at[0] = upper
         if found[0] is None:
-            return 0.0, found, 0
+            return 0.0, found, at, 0
         limiting = 0
         for i in range(1, len(self.fs)):  # every other mode: certified at the current margin, or searched below it
             att = self.check(i, upper)
-            if att is not None:
-                found[i] = att
-                continue
-            upper, found[i] = self.margin(i, upper)
-            limiting = i
-            if found[i] is None:
-                return 0.0, found, i
-        return upper, found, limiting
+            if att is None:
+                upper, att = self.margin(i, upper)
+                limiting = i
+            found[i], at[i] = att, upper
+            if att is None:
+                return 0.0, found, at, i
+        return upper, found, at, limiting
 
 
 @validated()
 def team_delay_margin(topology: Topology, P: float, D: float, tau1: float, tau2: float, *,
-                      rtol: float = 0.02, max_order: int = 3) -> TeamDelayMargin:  # fmt: skip
+                      rtol: float = 0.02, max_order: int = 3, upper_cuts: bool = False) -> TeamDelayMargin:  # fmt: skip
     """The certified margin of the team for delays varying together on every link (module docstring).
 
     Parameters
@@ -269,8 +281,11 @@ def team_delay_margin(topology: Topology, P: float, D: float, tau1: float, tau2:
     rtol
         Relative width at which the search on delta stops (0.005 to 0.1).
     max_order
-        The highest Bessel-Legendre order of :data:`LEVELS` tried (1 to 3): lower is
-        faster and more conservative.
+        The highest Bessel-Legendre order of :data:`LEVELS` tried (1 to 4; 4 adds an order-4
+        functional after them): lower is faster and more conservative.
+    upper_cuts
+        The richest functional also cuts its constant windows at the delays' upper ends
+        (docs/theory.md): a little tighter, its LMIs larger (about three times the CPU time).
 
     Returns
     -------
@@ -289,9 +304,13 @@ def team_delay_margin(topology: Topology, P: float, D: float, tau1: float, tau2:
     t1, t2 = check_delay("tau1", tau1), check_delay("tau2", tau2)
     if not (isinstance(rtol, (int, float)) and 0.005 <= rtol <= 0.1):
         raise InputError(f"rtol must be a number from 0.005 to 0.1, got {rtol!r}")
-    if isinstance(max_order, bool) or max_order not in (1, 2, 3):
-        raise InputError(f"max_order must be 1, 2 or 3, got {max_order!r}")
-    levels = tuple(f for f in LEVELS if f.order <= max_order)
+    if isinstance(max_order, bool) or max_order not in (1, 2, 3, 4):
+        raise InputError(f"max_order must be 1, 2, 3 or 4, got {max_order!r}")
+    if not isinstance(upper_cuts, bool):
+        raise InputError(f"upper_cuts must be True or False, got {upper_cuts!r}")
+    levels = tuple(f for f in LEVELS if f.order <= max_order) + ((Functional(4, 1, True),) if max_order == 4 else ())
+    if upper_cuts:
+        levels = levels[:-1] + (replace(levels[-1], upper=True),)
     fs = factors(topology, P, D)
     if t1 == 0.0:
         return TeamDelayMargin(0.0, None, (), reason=(
@@ -304,17 +323,19 @@ def team_delay_margin(topology: Topology, P: float, D: float, tau1: float, tau2:
     start = 0.05 * max(t1, t2, 0.2)
     modes = _Modes(fs, t1, t2, right, levels, rtol, start)
     # beyond tau1 the position delay may be 0, where the centroid's zero is double: nothing to certify
-    delta, found, limiting = modes.search(t1 * (1.0 - 1e-9))
+    delta, found, at, limiting = modes.search(t1 * (1.0 - 1e-9))
+    options = {f.describe(): f for f in levels}
     gap = rtol * delta
     while delta > 0.0:
         certs = [att.confirmed() for att in found if att is not None]
         if len(certs) == len(found) and all(c.holds for c in certs):
-            out = tuple(ModeMargin(f.lam, f.is_centroid, att.cert.method, c)
-                        for f, att, c in zip(modes.fs, found, certs, strict=True))  # fmt: skip
+            out = tuple(ModeMargin(f.lam, f.is_centroid, att.cert.method, c, options[att.cert.method], d)
+                        for f, att, c, d in zip(modes.fs, found, certs, at, strict=True))  # fmt: skip
             return TeamDelayMargin(delta, modes.fs[limiting].lam, out, tried=tuple(modes.tried), tolerance=gap)
         modes.tried.append((delta, "failed the exact re-check"))
         delta *= 0.5  # rare: step back and certify every mode again there
         found = [modes.check(i, delta) for i in range(len(modes.fs))] if delta > 1e-3 * start else []
+        at = [delta for _ in found]
         if not found or any(att is None for att in found):
             break
     return TeamDelayMargin(0.0, modes.fs[limiting].lam, (), tried=tuple(modes.tried), tolerance=gap,
