@@ -144,8 +144,8 @@ class _Modes:
     functional alone brackets the margin from below for a few hundredths of a second per solve,
     then only the richest one moves up from there. Its optimum margin t(delta) falls about
     linearly until it collapses to about 0 just before the LMI becomes infeasible, so the zero of
-    the line through the last two certified points is a good next guess (it lies slightly below
-    the boundary and is usually certified); from a certified lo the search then tries
+    the line through the last two certified points, less rtol, is a good next guess (usually
+    certified); from a certified lo the search then tries
     lo (1 + rtol), which ends it when it fails. A functional that failed at some delta is not tried
     again at a larger one (there it would fail too: it is a heuristic that costs only solves).
     """
@@ -229,7 +229,7 @@ class _Modes:
     def _next(self, lo: float, hi: float, held: list[tuple[float, float]], capped: bool) -> float:
         """The next delta of phase 2 in (lo, hi): just below the zero of the line through the last two t's.
 
-        Aimed ``rtol / 2`` below that zero, it usually holds and its step lo (1 + rtol) then
+        Aimed ``rtol`` below that zero, it usually holds and its step lo (1 + rtol) then
         usually fails, which ends the search; ``capped``: hi is the cap, not a failure. With a
         failure known, at least the bracket's middle.
         """
@@ -237,7 +237,7 @@ class _Modes:
         if len(held) >= 2:
             (d0, t0), (d1, t1) = held[-2], held[-1]
             if t1 < t0:
-                guess = (d1 + t1 * (d1 - d0) / (t0 - t1)) * (1.0 - 0.5 * self.rtol)
+                guess = (d1 + t1 * (d1 - d0) / (t0 - t1)) * (1.0 - self.rtol)
         step = lo * (1.0 + self.rtol)
         if capped:
             return min(max(guess, step), 2.0 * lo, hi)
