@@ -136,6 +136,18 @@ def test_windows_cut_at_upper_ends_certify_beyond_the_plain_functional():
     assert all(rightmost_root(f, 2 + a * d, 1 + b * d).real < 0 for a in (-1, 0, 1) for b in (-1, 0, 1))
 
 
+def test_team_margin_where_another_mode_than_the_hardest_limits():
+    # at a (0.3, 0.2) the centroid limits (not the mode with the rightmost root): searched below the
+    # hardest mode's margin; every constant pair of the certified square is stable by the exact spectrum
+    m = team_delay_margin(paper_six(), 1.0, 0.5, 0.3, 0.2, max_order=1)
+    assert m.limiting == 1 and 0.05 < m.delta < 0.3
+    assert all(md.certificate.holds and md.certificate.exact and md.solved_at >= m.delta for md in m.modes)
+    d = m.delta
+    square = [(max(0.3 + a * d, 0.0), max(0.2 + b * d, 0.0)) for a in (-1, 0, 1) for b in (-1, 0, 1)]
+    fs = factors(paper_six(), 1.0, 0.5)
+    assert all(rightmost_root(f, t1, t2).real < 0 for f in fs if not f.is_centroid for t1, t2 in square)
+
+
 def test_constant_nodes_cut_at_upper_ends():
     # lower ends 1.9, 0.9; upper ends 2.1 (beyond the last lower end: not a cut) and 1.1
     assert constant_nodes([1.9, 0.9], 1) == [0.9, 1.9]

@@ -189,8 +189,8 @@ class _Modes:
     def done(self, lo: float, hi: float) -> bool:
         return hi - lo <= self.rtol * max(lo, self.floor) * (1.0 + 1e-9)
 
-    def margin(self, i: int, hi: float) -> tuple[float, _Attempt | None]:
-        """Largest certified delta of mode i below ``hi`` (every functional failed at hi, or hi is the cap)."""
+    def margin(self, i: int, hi: float, capped: bool) -> tuple[float, _Attempt | None]:
+        """Largest certified delta of mode i below ``hi``: every functional failed at hi, or (``capped``) hi is the cap."""
         # phase 1: the cheapest functional, doubling from the start then halving, to the resolution
         lo, best, d, top = 0.0, None, min(self.start, hi), len(self.levels) - 1
         fail = hi
@@ -209,7 +209,6 @@ class _Modes:
         # phase 2: the richest functional only, from the cheap bracket up
         held: list[tuple[float, float]] = []  # (delta, t) where it holds
         d = fail if fail < hi else min(2.0 * max(lo, self.floor), hi)
-        capped = True
         while True:
             att, t = self.solve(i, d, top)
             if att is not None:
@@ -251,7 +250,7 @@ class _Modes:
         """The team margin: (delta, each mode's attempt, the delta it was solved at (>= delta), the limiting mode)."""
         found: list[_Attempt | None] = [None for _ in self.fs]
         at = [0.0 for _ in self.fs]
-        upper, found[0] = self.margin(0, cap)
+        upper, found[0] = self.margin(0, cap, True)
         at[0] = upper
         if found[0] is None:
             return 0.0, found, at, 0
@@ -259,7 +258,7 @@ class _Modes:
         for i in range(1, len(self.fs)):  # every other mode: certified at the current margin, or searched below it
             att = self.check(i, upper)
             if att is None:
-                upper, att = self.margin(i, upper)
+                upper, att = self.margin(i, upper, False)
                 limiting = i
             found[i], at[i] = att, upper
             if att is None:
