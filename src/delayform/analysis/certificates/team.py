@@ -167,7 +167,8 @@ class _Modes:
         if delta >= self.failed[i][level]:  # failed at a smaller delta already: not solved again
             return None, -math.inf
         A0, ak, e = self.systems[i]
-        data = IntervalDelays(A0, ak, tuple(max(t - delta, 0.0) for t in self.t), tuple(t + delta for t in self.t), None, e)
+        lo, hi = tuple(max(t - delta, 0.0) for t in self.t), tuple(t + delta for t in self.t)
+        data = IntervalDelays(A0, ak, lo, hi, None, e)
         att = attempt(data, self.levels[level], exact=False, tolerance=SEARCH_TOLERANCE)
         t = att.cert.solver_margin if math.isfinite(att.cert.solver_margin) else -math.inf
         if att.cert.holds:
@@ -190,7 +191,10 @@ class _Modes:
         return hi - lo <= self.rtol * max(lo, self.floor) * (1.0 + 1e-9)
 
     def margin(self, i: int, hi: float, capped: bool) -> tuple[float, _Attempt | None]:
-        """Largest certified delta of mode i below ``hi``: every functional failed at hi, or (``capped``) hi is the cap."""
+        """Largest certified delta of mode i below ``hi``.
+
+        Every functional failed at ``hi``, or (``capped``) ``hi`` is the search's cap.
+        """
         # phase 1: the cheapest functional, doubling from the start then halving, to the resolution
         lo, best, d, top = 0.0, None, min(self.start, hi), len(self.levels) - 1
         fail = hi
