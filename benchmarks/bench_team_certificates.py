@@ -6,7 +6,8 @@ h1, h2 in {tau - A, tau + A}, whichever pumps energy into the mode; own semi-imp
 dt = 0.005 s, 240 s, bisection), the same for the stronger family of weighted energies, and the smallest constant offset (2 +- d, 1 +- d) that is unstable
 by the exact spectrum of the factors (rightmost roots on the square's boundary, bisection).
 
-Run: ``OMP_NUM_THREADS=1 python benchmarks/bench_team_certificates.py [--repeat 3]``.
+Run: ``OMP_NUM_THREADS=1 python benchmarks/bench_team_certificates.py [--repeat 3] [--max-order 3]
+[--upper-cuts] [--rtol 0.02] [--no-adversary]`` (the options are those of ``team_delay_margin``).
 The machine is shared: the load average is printed, with medians and bests.
 """
 
@@ -56,20 +57,28 @@ def constant_unstable(f, d: float, m: int = 48) -> bool:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--max-order", type=int, default=3)
+    parser.add_argument("--upper-cuts", action="store_true")
+    parser.add_argument("--rtol", type=float, default=0.02)
+    parser.add_argument("--no-adversary", action="store_true", help="only the certified margin and its cost")
     args = parser.parse_args()
+    options = dict(max_order=args.max_order, upper_cuts=args.upper_cuts, rtol=args.rtol)
     print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
           f"load {os.getloadavg()[0]:.1f}, OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS')}")  # fmt: skip
     times, cpu, m = [], [], None
     for _ in range(args.repeat):
         t, c = time.perf_counter(), time.process_time()
-        m = team_delay_margin(paper_six(), P, D, T1, T2)
+        m = team_delay_margin(paper_six(), P, D, T1, T2, **options)
         times.append(time.perf_counter() - t)
         cpu.append(time.process_time() - c)
     small = jitter_margin(paper_six(), P, D, T1, T2)
+    richest = sum(m.modes[0].functional in verdict for _, verdict in m.tried)
     print(f"\nteam margin (delays varying together): {m.delta:.4f} s, limiting lam = {m.limiting:.4f}; "
           f"time median {np.median(times):.1f} s, best {min(times):.1f} s, CPU best {min(cpu):.1f} s "
-          f"({args.repeat} runs, {len(m.tried)} probes each); load now "
-          f"{os.getloadavg()[0]:.1f}")  # fmt: skip
+          f"({args.repeat} runs, {len(m.tried)} SDPs each, {richest} of them the richest functional); load now "
+          f"{os.getloadavg()[0]:.1f}; options {options}")  # fmt: skip
+    if args.no_adversary:
+        return
     print(f"small gain (per link): {small.delta:.4f} s\n")
     print("| mode lam | functional that holds | greedy switching destabilizes at | weighted family at | constant offset unstable at |")
     print("|---|---|---|---|---|")

@@ -19,7 +19,14 @@ from hypothesis import strategies as st
 pytest.importorskip("clarabel")
 
 from delayform.analysis.certificates.adversary import greedy_switching_grows, weighted_switching_grows  # noqa: E402
-from delayform.analysis.certificates.several import certify_interval_delays, interval_delay_margin  # noqa: E402
+from delayform.analysis.certificates.intervals import IntervalDelays, constant_nodes, interval_delays  # noqa: E402
+from delayform.analysis.certificates.lmi import exact_check, recheck  # noqa: E402
+from delayform.analysis.certificates.several import (  # noqa: E402
+    Functional,
+    attempt,
+    certify_interval_delays,
+    interval_delay_margin,
+)
 from delayform.analysis.certificates.team import COVERS, mode_system, team_delay_margin  # noqa: E402
 from delayform.analysis.network import jitter_margin  # noqa: E402
 from delayform.analysis.network.jitter import PER_LINK  # noqa: E402
@@ -66,8 +73,86 @@ def test_team_margin_at_b_is_below_the_constant_offset_bound_and_the_adversary(t
     assert weighted_switching_grows(hard.lam.real, 1.0, 0.5, 2.0, 1.0, 0.145)
     assert not _grows(hard.lam.real, 0.145)
     assert not weighted_switching_grows(hard.lam.real, 1.0, 0.5, 2.0, 1.0, d)
-    # the search: one mode at a time, far fewer SDPs than a bisection over every mode
-    assert len(m.tried) <= 15
+    # the certified delta is below the strongest adversary (weighted greedy switching, 0.143 s) too
+    assert d < 0.143
+    # the search: one mode at a time, and the expensive functional (N = 3) only a few times
+    assert sum("N=3" in verdict for _, verdict in m.tried) <= 6
+
+
+def _mode_problem(md, tau=(2.0, 1.0)):
+    """The LMIs of a mode's certificate, rebuilt from what the margin returned (not from the search)."""
+    f = next(g for g in factors(paper_six(), 1.0, 0.5) if g.lam == md.lam)
+    A0, ak, e = mode_system(f)
+    d = md.solved_at
+    data = IntervalDelays(A0, ak, tuple(max(t - d, 0.0) for t in tau), tuple(t + d for t in tau), None, e)
+    fun = md.options
+    return interval_delays(data, fun.order, split=fun.split, outer=fun.outer, upper=fun.upper)
+
+
+@pytest.mark.slow  # team_b
+def test_team_certificates_recheck_and_a_perturbed_one_is_rejected(team_b):
+    for md in team_b.modes:
+        problem = _mode_problem(md)
+        x = problem.variables.pack(md.certificate.variables)
+        assert md.solved_at >= team_b.delta
+        check = recheck(problem, x)
+        assert check.passed and check.exact_ok  # the same verdict from the returned matrices alone
+    # perturb the limiting mode's certificate: P loses its positive definiteness by a hair
+    md = team_b.modes[0]
+    assert md.lam == team_b.limiting
+    problem = _mode_problem(md)
+    values = dict(md.certificate.variables)
+    P = values["P"]
+    lam_min = np.linalg.eigvalsh(P)[0]
+    values["P"] = P - (lam_min + 1e-6 * np.linalg.norm(P, 2)) * np.eye(P.shape[0])
+    bad = recheck(problem, problem.variables.pack(values))
+    assert not bad.passed and bad.min_eigenvalues["P"] < 0
+    # the exact check alone rejects it too (exact rational arithmetic, no float margin)
+    assert exact_check(problem, bad.rational) is False
+    # and a negated weight of the derivative terms (the outer window of the position delay)
+    values = dict(md.certificate.variables)
+    values["R2_0"] = -values["R2_0"]
+    assert not recheck(problem, problem.variables.pack(values)).passed
+
+
+@pytest.mark.slow  # two order-3 SDPs with the larger LMIs: about 15 s of CPU
+def test_windows_cut_at_upper_ends_certify_beyond_the_plain_functional():
+    """At delta = 0.0995 the plain order-3 functional fails; cut at the upper ends it holds, re-checked exactly.
+
+    Both stay below the strongest adversary (0.143 s) and the exact constant-offset bound (0.2625 s).
+    """
+    f = next(g for g in factors(paper_six(), 1.0, 0.5) if abs(g.lam - (-0.6368889)) < 1e-6)
+    A0, ak, e = mode_system(f)
+    d = 0.0995
+    data = IntervalDelays(A0, ak, (2.0 - d, 1.0 - d), (2.0 + d, 1.0 + d), None, e)
+    assert not attempt(data, Functional(3, 1, True)).cert.holds
+    cut = attempt(data, Functional(3, 1, True, upper=True))
+    assert cut.cert.holds and cut.cert.exact
+    assert "windows cut at the upper ends" in cut.cert.method
+    # the cut windows share x(t - hi_k) with the delay's own term: one signal, not two
+    problem = interval_delays(data, 3, upper=True)
+    assert problem.build(problem.variables.unpack(np.zeros(problem.variables.size)), False)["-Phi--"].shape[0] == 56
+    # the constant-offset square of half-width d is stable by the exact spectrum (corners and edge midpoints)
+    assert all(rightmost_root(f, 2 + a * d, 1 + b * d).real < 0 for a in (-1, 0, 1) for b in (-1, 0, 1))
+
+
+def test_team_margin_where_another_mode_than_the_hardest_limits():
+    # at a (0.3, 0.2) the centroid limits (not the mode with the rightmost root): searched below the
+    # hardest mode's margin; every constant pair of the certified square is stable by the exact spectrum
+    m = team_delay_margin(paper_six(), 1.0, 0.5, 0.3, 0.2, max_order=1)
+    assert m.limiting == 1 and 0.05 < m.delta < 0.3
+    assert all(md.certificate.holds and md.certificate.exact and md.solved_at >= m.delta for md in m.modes)
+    d = m.delta
+    square = [(max(0.3 + a * d, 0.0), max(0.2 + b * d, 0.0)) for a in (-1, 0, 1) for b in (-1, 0, 1)]
+    fs = factors(paper_six(), 1.0, 0.5)
+    assert all(rightmost_root(f, t1, t2).real < 0 for f in fs if not f.is_centroid for t1, t2 in square)
+
+
+def test_constant_nodes_cut_at_upper_ends():
+    # lower ends 1.9, 0.9; upper ends 2.1 (beyond the last lower end: not a cut) and 1.1
+    assert constant_nodes([1.9, 0.9], 1) == [0.9, 1.9]
+    assert constant_nodes([1.9, 0.9], 1, [2.1, 1.1]) == [0.9, 1.1, 1.9]
+    assert constant_nodes([1.9, 0.9], 2, [2.1, 1.1]) == [0.45, 0.9, 1.0, 1.1, 1.5, 1.9]
 
 
 @pytest.mark.slow
@@ -168,7 +253,7 @@ def test_cli_best_prints_both_margins_with_what_they_cover(tmp_path, team_b, mon
     assert "does not cover independent per-link variations" in lines[2]
 
 
-@pytest.mark.parametrize("kwargs", [dict(max_order=4), dict(max_order=True), dict(rtol=0.5)])
+@pytest.mark.parametrize("kwargs", [dict(max_order=5), dict(max_order=True), dict(rtol=0.5), dict(upper_cuts=1)])
 def test_team_margin_bad_options_are_named(kwargs):
     with pytest.raises(InputError):
         team_delay_margin(paper_six(), 1.0, 0.5, 2.0, 1.0, **kwargs)

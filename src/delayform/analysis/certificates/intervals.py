@@ -97,16 +97,22 @@ def orthogonal_basis(s: NDArray[Any]) -> NDArray[Any]:
     return np.array(cols, dtype=s.dtype).T
 
 
-def constant_nodes(lo: Sequence[float], split: int) -> list[float]:
-    """The lags 0 < c_1 < ... of the constant windows: every positive lower end, each gap cut in ``split`` pieces."""
-    ends = sorted({0.0, *(v for v in lo if v > 0.0)})
+def constant_nodes(lo: Sequence[float], split: int, hi: Sequence[float] = ()) -> list[float]:
+    """The lags 0 < c_1 < ... of the constant windows: every positive lower end, each gap cut in ``split`` pieces.
+
+    Every upper end in ``hi`` below the largest lower end is an end too (the windows are then cut
+    where another delay's interval ends).
+    """
+    top = max(lo, default=0.0)
+    ends = sorted({0.0, *(v for v in lo if v > 0.0), *(v for v in hi if 0.0 < v < top)})
     out: list[float] = []
     for u, w in zip(ends[:-1], ends[1:], strict=True):
         out += [u + (w - u) * i / split for i in range(1, split)] + [w]
     return out
 
 
-def interval_delays(data: IntervalDelays, order: int, *, split: int = 1, outer: bool = True) -> LmiProblem:
+def interval_delays(data: IntervalDelays, order: int, *, split: int = 1, outer: bool = True,
+                    upper: bool = False) -> LmiProblem:  # fmt: skip
     """The LMIs of the several-delay functional (module docstring) at Bessel-Legendre order N.
 
     Parameters
@@ -121,10 +127,13 @@ def interval_delays(data: IntervalDelays, order: int, *, split: int = 1, outer: 
     outer
         With N >= 1, augment the state by each outer window's integral (its value is affine in
         h_k(t): the derivative bound is then checked at the 2^K corners of the delays).
+    upper
+        Also cut the constant windows at every upper end hi_k below the largest lower end
+        (docs/theory.md): x(t - hi_k) is then one of the windows' ends, shared with the delay's term.
     """
     n = data.A0.shape[0]
     K = len(data.delayed)
-    nodes = constant_nodes(data.lo, split)
+    nodes = constant_nodes(data.lo, split, data.hi if upper else ())
     node_name = {c: f"c{i}" for i, c in enumerate(nodes)}
     node_name[0.0] = "x"
     tops = ["x", *(node_name[c] for c in nodes[:-1])]
@@ -157,8 +166,9 @@ def interval_delays(data: IntervalDelays, order: int, *, split: int = 1, outer: 
 
     names = ["x", *(node_name[c] for c in nodes), *(w for ws in wins for w in ws)]
     aliases = {f"a{k}": node_name[data.lo[k]] for k in range(K)}
+    aliases.update({f"b{k}": node_name[data.hi[k]] for k in range(K) if data.hi[k] in node_name})
     for k in range(K):
-        names += [f"h{k}", f"b{k}", *pa[k], *qb[k]]
+        names += [f"h{k}", *([] if f"b{k}" in aliases else [f"b{k}"]), *pa[k], *qb[k]]
 
     def shift(sig: _Signals, exact: bool) -> tuple[Matrix, Matrix]:
         """The shift directions of zeta and of eta under x -> x + c e (moments Omega_0 shift, higher ones not)."""

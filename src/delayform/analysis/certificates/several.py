@@ -44,16 +44,21 @@ MAX_SPLIT = 4
 
 @dataclass(frozen=True)
 class Functional:
-    """Which functional: Bessel-Legendre order N, pieces per constant window, outer integrals (with the improved bound)."""
+    """Which functional: Bessel-Legendre order N, pieces per constant window, outer integrals (with the improved bound).
+
+    ``upper``: the constant windows are also cut at the delays' upper ends.
+    """
 
     order: int = 2
     split: int = 1
     outer: bool = True
+    upper: bool = False
 
     def describe(self) -> str:
         """One line naming the functional."""
         ineq = _INEQUALITY.get(self.order, f"Bessel-Legendre N={self.order}")
         parts = f", {self.split} pieces per constant window" if self.split > 1 else ""
+        parts += ", windows cut at the upper ends" if self.upper else ""
         rcc = "improved reciprocally convex, outer integrals" if self.outer and self.order >= 1 else "reciprocally convex"
         return f"Lyapunov-Krasovskii, several interval delays, {ineq}{parts}, {rcc}"
 
@@ -100,10 +105,13 @@ def functional_of(order: object, split: object, outer: object) -> Functional:
     return Functional(_order(order), int(split), outer)
 
 
-def attempt(data: IntervalDelays, fun: Functional, *, exact: bool = True) -> _Attempt:
-    """Solve the functional's LMIs on ``data`` and re-check the answer (exactly unless ``exact`` is False)."""
-    problem = interval_delays(data, fun.order, split=fun.split, outer=fun.outer)
-    sol = solve(problem)
+def attempt(data: IntervalDelays, fun: Functional, *, exact: bool = True, tolerance: float | None = None) -> _Attempt:
+    """Solve the functional's LMIs on ``data`` and re-check the answer (exactly unless ``exact`` is False).
+
+    ``tolerance``: the solver's (:func:`~delayform.analysis.certificates.lmi.solve`); the re-check is the same.
+    """
+    problem = interval_delays(data, fun.order, split=fun.split, outer=fun.outer, upper=fun.upper)
+    sol = solve(problem, tolerance=tolerance)
     lo, hi = min(data.lo), max(data.hi)
     empty: dict[str, NDArray[np.float64]] = {}
     method = fun.describe()

@@ -29,7 +29,7 @@ small-gain margin covers those.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -61,16 +61,23 @@ class ModeMargin:
     centroid
         True for lam = 1 (certified with its constant solutions projected out).
     functional
-        The functional whose certificate holds (the cheapest of :data:`LEVELS` that does).
+        The functional whose certificate holds: for the mode that limits the search the richest one
+        tried, for the others the cheapest of :data:`LEVELS` that does.
     certificate
         Its certificate (re-checked exactly), on intervals at least as wide as the team's
         delta (a certificate for wider intervals covers the narrower ones); None when delta is 0.
+    options
+        The functional's options, to rebuild its LMIs from ``certificate`` (an independent re-check).
+    solved_at
+        The deviation delta its certificate was solved at (at least the team's).
     """
 
     lam: complex
     centroid: bool
     functional: str
     certificate: DelayCertificate | None = field(repr=False)
+    options: Functional | None = field(default=None, repr=False)
+    solved_at: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -122,98 +129,150 @@ def mode_system(f: CharacteristicFactor) -> Mode:
     return A0, (B1, B2), None
 
 
+#: Clarabel's tolerances in the search (its defaults are 1e-8): a quarter fewer iterations, and
+#: every certificate is re-checked the same way (lmi.recheck), so only t near the boundary suffers.
+SEARCH_TOLERANCE = 1e-6
+
+
 class _Modes:
     """The team's distinct modes, hardest first, searched one at a time below the smallest margin so far.
 
     The team margin is the smallest mode margin, so a mode only needs a search when it fails at
     the current smallest margin U: the hardest mode (rightmost root nearest the axis) is searched
-    first, every other one is then usually a single cheap solve at U. Per mode the functionals of
-    ``levels`` are tried cheapest first and a mode never returns to a cheaper one (a functional
-    that fails at delta fails at every larger one: the intervals are nested). Between a certified
-    and an uncertified delta the next one is interpolated on the solver's optimum margin t(delta)
-    (regula falsi, kept inside the middle 80 % of the bracket), which takes fewer solves than halving.
+    first, every other one is then usually a single cheap solve at U (its functionals cheapest
+    first). A mode that needs a search gets it in two phases (:meth:`margin`): the cheapest
+    functional alone brackets the margin from below for a few hundredths of a second per solve,
+    then only the richest one moves up from there. Its optimum margin t(delta) falls about
+    linearly until it collapses to about 0 just before the LMI becomes infeasible, so the zero of
+    the line through the last two certified points, less rtol, is a good next guess (usually
+    certified); from a certified lo the search then tries
+    lo (1 + rtol), which ends it when it fails. A functional that failed at some delta is not tried
+    again at a larger one (there it would fail too: it is a heuristic that costs only solves).
     """
 
     def __init__(self, fs: tuple[CharacteristicFactor, ...], t1: float, t2: float, right: list[complex],
-                 levels: tuple[Functional, ...]) -> None:  # fmt: skip
+                 levels: tuple[Functional, ...], rtol: float, start: float) -> None:  # fmt: skip
         self.levels = levels
         order = sorted(range(len(fs)), key=lambda i: -right[i].real)
         self.fs = [fs[i] for i in order]
         self.systems = [mode_system(f) for f in self.fs]
         self.t = (t1, t2)
-        self.level = [0 for _ in self.fs]  # the cheapest functional not yet failed, per mode
+        self.rtol, self.start, self.floor = rtol, start, 1e-3 * start
+        # per mode and functional: the smallest delta at which it failed
+        self.failed = [[math.inf for _ in levels] for _ in self.fs]
         self.tried: list[tuple[float, str]] = []
 
-    def check(self, i: int, delta: float) -> tuple[_Attempt | None, float]:
-        """(the attempt that holds or None, the solver margin of the last functional tried) for mode i at delta."""
+    def solve(self, i: int, delta: float, level: int) -> tuple[_Attempt | None, float]:
+        """(the attempt if it holds, else None; the solver's optimum margin t) of one functional."""
+        if delta >= self.failed[i][level]:  # failed at a smaller delta already: not solved again
+            return None, -math.inf
         A0, ak, e = self.systems[i]
-        data = IntervalDelays(A0, ak, tuple(max(t - delta, 0.0) for t in self.t), tuple(t + delta for t in self.t), None, e)
-        t = -math.inf
-        while self.level[i] < len(self.levels):
-            att = attempt(data, self.levels[self.level[i]], exact=False)
-            t = att.cert.solver_margin if math.isfinite(att.cert.solver_margin) else -math.inf
-            if att.cert.holds:
-                self.tried.append((delta, f"mode {i}: holds"))
-                return att, t
-            if self.level[i] == len(self.levels) - 1:
-                break
-            self.level[i] += 1
-        self.tried.append((delta, f"mode {i}: not certified"))
+        lo, hi = tuple(max(t - delta, 0.0) for t in self.t), tuple(t + delta for t in self.t)
+        data = IntervalDelays(A0, ak, lo, hi, None, e)
+        att = attempt(data, self.levels[level], exact=False, tolerance=SEARCH_TOLERANCE)
+        t = att.cert.solver_margin if math.isfinite(att.cert.solver_margin) else -math.inf
+        if att.cert.holds:
+            self.tried.append((delta, f"mode {i}, {self.levels[level].describe()}: holds"))
+            return att, t
+        self.failed[i][level] = min(self.failed[i][level], delta)
+        self.tried.append((delta, f"mode {i}, {self.levels[level].describe()}: not certified"))
         return None, t
 
-    def margin(self, i: int, lo: float, hi: float, t_lo: float | None, t_hi: float, rtol: float,
-               floor: float) -> tuple[float, _Attempt | None]:  # fmt: skip
-        """Largest certified delta of mode i in [lo, hi): hi failed (margin t_hi), lo held (t_lo) or is 0."""
-        best: _Attempt | None = None
-        level = self.level[i]
-        while hi - lo > rtol * max(lo, floor):
-            width = hi - lo
-            mid = 0.5 * (lo + hi)
-            if t_lo is not None and t_lo > 0.0 > t_hi and self.level[i] == level:
-                mid = lo + width * min(max(t_lo / (t_lo - t_hi), 0.2), 0.8)
-            if lo == 0.0 and best is None and mid < floor:
-                break
-            att, t = self.check(i, mid)
-            if att is not None:
-                lo, t_lo, best = mid, t, att
-            else:
-                hi, t_hi = mid, t
-            level = self.level[i]
-        return lo, best
+    def check(self, i: int, delta: float) -> _Attempt | None:
+        """The first functional, cheapest first, that holds for mode i at delta (None: none does)."""
+        for level in range(len(self.levels)):
+            if delta < self.failed[i][level]:
+                att, _ = self.solve(i, delta, level)
+                if att is not None:
+                    return att
+        return None
 
-    def search(self, start: float, cap: float, rtol: float) -> tuple[float, list[_Attempt | None], int]:
-        """The team margin: (delta, each mode's attempt at delta or beyond, the limiting mode)."""
-        found: list[_Attempt | None] = [None for _ in self.fs]
-        limiting, upper = 0, cap
-        # the hardest mode: grow from ``start`` until a failure (or the cap), then narrow down
-        d, t_lo, lo = min(start, cap), None, 0.0
-        while True:
-            att, t = self.check(0, d)
-            if att is None:
-                upper, found[0] = self.margin(0, lo, d, t_lo, t, rtol, 1e-3 * start)
-                if found[0] is None:
-                    return 0.0, found, 0
-                break
-            lo, t_lo, found[0] = d, t, att
-            if d >= cap:
-                upper = d
-                break
-            d = min(2.0 * d, cap)
-        for i in range(1, len(self.fs)):  # every other mode: certified at the current margin, or searched below it
-            att, t = self.check(i, upper)
+    def done(self, lo: float, hi: float) -> bool:
+        return hi - lo <= self.rtol * max(lo, self.floor) * (1.0 + 1e-9)
+
+    def margin(self, i: int, hi: float, capped: bool) -> tuple[float, _Attempt | None]:
+        """Largest certified delta of mode i below ``hi``.
+
+        Every functional failed at ``hi``, or (``capped``) ``hi`` is the search's cap.
+        """
+        # phase 1: the cheapest functional, doubling from the start then halving, to the resolution
+        lo, best, d, top = 0.0, None, min(self.start, hi), len(self.levels) - 1
+        fail = hi
+        while not self.done(lo, fail) and d > self.floor:
+            att, _ = self.solve(i, d, 0)
             if att is not None:
-                found[i] = att
+                lo, best = d, att
+                d = min(2.0 * d, fail) if fail == hi and d < hi else 0.5 * (lo + fail)
+                if d == lo:
+                    break
+            else:
+                fail = d
+                d = 0.5 * (lo + fail)
+        if top == 0 or lo >= hi:
+            return lo, best
+        # phase 2: the richest functional only, from the cheap bracket up
+        held: list[tuple[float, float]] = []  # (delta, t) where it holds
+        d = fail if fail < hi else min(2.0 * max(lo, self.floor), hi)
+        while True:
+            att, t = self.solve(i, d, top)
+            if att is not None:
+                lo, best = d, att
+                held.append((d, t))
+            else:
+                hi, capped = d, False
+            if self.done(lo, hi) or lo >= hi:
+                return lo, best
+            if lo < self.floor:  # nothing held yet above the floor: halve
+                if d <= self.floor:
+                    return lo, best
+                d = 0.5 * d
                 continue
-            upper, found[i] = self.margin(i, 0.0, upper, None, t, rtol, 1e-3 * start)
-            limiting = i
-            if found[i] is None:
-                return 0.0, found, i
-        return upper, found, limiting
+            d = self._next(lo, hi, held, capped)
+
+    def _next(self, lo: float, hi: float, held: list[tuple[float, float]], capped: bool) -> float:
+        """The next delta of phase 2 in (lo, hi): just below the zero of the line through the last two t's.
+
+        Aimed ``rtol`` below that zero, it usually holds and its step lo (1 + rtol) then
+        usually fails, which ends the search; ``capped``: hi is the cap, not a failure. With a
+        failure known, at least the bracket's middle.
+        """
+        guess = 1.5 * lo
+        if len(held) >= 2:
+            (d0, t0), (d1, t1) = held[-2], held[-1]
+            if t1 < t0:
+                guess = (d1 + t1 * (d1 - d0) / (t0 - t1)) * (1.0 - self.rtol)
+        step = lo * (1.0 + self.rtol)
+        if capped:
+            return min(max(guess, step), 2.0 * lo, hi)
+        width = hi - lo
+        if width <= 2.0 * self.rtol * lo:  # one decisive step: if it fails the search ends, if it holds too
+            return step
+        # the line's zero lies below the boundary (t collapses early): at least halve the bracket
+        return min(max(guess, lo + 0.5 * width, step), lo + 0.8 * width)
+
+    def search(self, cap: float) -> tuple[float, list[_Attempt | None], list[float], int]:
+        """The team margin: (delta, each mode's attempt, the delta it was solved at (>= delta), the limiting mode)."""
+        found: list[_Attempt | None] = [None for _ in self.fs]
+        at = [0.0 for _ in self.fs]
+        upper, found[0] = self.margin(0, cap, True)
+        at[0] = upper
+        if found[0] is None:
+            return 0.0, found, at, 0
+        limiting = 0
+        for i in range(1, len(self.fs)):  # every other mode: certified at the current margin, or searched below it
+            att = self.check(i, upper)
+            if att is None:
+                upper, att = self.margin(i, upper, False)
+                limiting = i
+            found[i], at[i] = att, upper
+            if att is None:
+                return 0.0, found, at, i
+        return upper, found, at, limiting
 
 
 @validated()
 def team_delay_margin(topology: Topology, P: float, D: float, tau1: float, tau2: float, *,
-                      rtol: float = 0.02, max_order: int = 3) -> TeamDelayMargin:  # fmt: skip
+                      rtol: float = 0.02, max_order: int = 3, upper_cuts: bool = False) -> TeamDelayMargin:  # fmt: skip
     """The certified margin of the team for delays varying together on every link (module docstring).
 
     Parameters
@@ -225,8 +284,11 @@ def team_delay_margin(topology: Topology, P: float, D: float, tau1: float, tau2:
     rtol
         Relative width at which the search on delta stops (0.005 to 0.1).
     max_order
-        The highest Bessel-Legendre order of :data:`LEVELS` tried (1 to 3): lower is
-        faster and more conservative.
+        The highest Bessel-Legendre order of :data:`LEVELS` tried (1 to 4; 4 adds an order-4
+        functional after them): lower is faster and more conservative.
+    upper_cuts
+        The richest functional also cuts its constant windows at the delays' upper ends
+        (docs/theory.md): a little tighter, its LMIs larger (about three times the CPU time).
 
     Returns
     -------
@@ -245,9 +307,13 @@ def team_delay_margin(topology: Topology, P: float, D: float, tau1: float, tau2:
     t1, t2 = check_delay("tau1", tau1), check_delay("tau2", tau2)
     if not (isinstance(rtol, (int, float)) and 0.005 <= rtol <= 0.1):
         raise InputError(f"rtol must be a number from 0.005 to 0.1, got {rtol!r}")
-    if isinstance(max_order, bool) or max_order not in (1, 2, 3):
-        raise InputError(f"max_order must be 1, 2 or 3, got {max_order!r}")
-    levels = tuple(f for f in LEVELS if f.order <= max_order)
+    if isinstance(max_order, bool) or max_order not in (1, 2, 3, 4):
+        raise InputError(f"max_order must be 1, 2, 3 or 4, got {max_order!r}")
+    if not isinstance(upper_cuts, bool):
+        raise InputError(f"upper_cuts must be True or False, got {upper_cuts!r}")
+    levels = tuple(f for f in LEVELS if f.order <= max_order) + ((Functional(4, 1, True),) if max_order == 4 else ())
+    if upper_cuts:
+        levels = levels[:-1] + (replace(levels[-1], upper=True),)
     fs = factors(topology, P, D)
     if t1 == 0.0:
         return TeamDelayMargin(0.0, None, (), reason=(
@@ -257,20 +323,22 @@ def team_delay_margin(topology: Topology, P: float, D: float, tau1: float, tau2:
     if not worst.real < 0.0:
         return TeamDelayMargin(0.0, None, (), reason=(
             f"the nominal delays are unstable (rightmost root {worst.real:.4g} {worst.imag:+.4g}j)"))
-    modes = _Modes(fs, t1, t2, right, levels)
     start = 0.05 * max(t1, t2, 0.2)
+    modes = _Modes(fs, t1, t2, right, levels, rtol, start)
     # beyond tau1 the position delay may be 0, where the centroid's zero is double: nothing to certify
-    delta, found, limiting = modes.search(start, t1 * (1.0 - 1e-9), rtol)
+    delta, found, at, limiting = modes.search(t1 * (1.0 - 1e-9))
+    options = {f.describe(): f for f in levels}
     gap = rtol * delta
     while delta > 0.0:
         certs = [att.confirmed() for att in found if att is not None]
         if len(certs) == len(found) and all(c.holds for c in certs):
-            out = tuple(ModeMargin(f.lam, f.is_centroid, att.cert.method, c)
-                        for f, att, c in zip(modes.fs, found, certs, strict=True))  # fmt: skip
+            out = tuple(ModeMargin(f.lam, f.is_centroid, att.cert.method, c, options[att.cert.method], d)
+                        for f, att, c, d in zip(modes.fs, found, certs, at, strict=True))  # fmt: skip
             return TeamDelayMargin(delta, modes.fs[limiting].lam, out, tried=tuple(modes.tried), tolerance=gap)
         modes.tried.append((delta, "failed the exact re-check"))
         delta *= 0.5  # rare: step back and certify every mode again there
-        found = [modes.check(i, delta)[0] for i in range(len(modes.fs))] if delta > 1e-3 * start else []
+        found = [modes.check(i, delta) for i in range(len(modes.fs))] if delta > 1e-3 * start else []
+        at = [delta for _ in found]
         if not found or any(att is None for att in found):
             break
     return TeamDelayMargin(0.0, modes.fs[limiting].lam, (), tried=tuple(modes.tried), tolerance=gap,
