@@ -117,7 +117,8 @@ def test_cli_map_takes_the_actuation_delay(tmp_path, capsys) -> None:
     assert summary["actuation_delay"] == 0.2
     ref = dominant_root_map(paper_six(), 1.0, 0.5, np.linspace(0, 2, 5), np.linspace(0, 3, 4), actuation_delay=0.2)
     assert summary["stable_fraction"] == pytest.approx(float(np.mean(ref.stable)))
-    saved = np.load(out / "dominant_map.npz")
+    with np.load(out / "dominant_map.npz") as npz:
+        saved = dict(npz)
     np.testing.assert_allclose(saved["roots"], ref.roots, rtol=0, atol=1e-12)
     line = one_line_error(capsys, "map", "--out", str(tmp_path / "bad"), "--actuation-delay", "-1")
     assert "--actuation-delay" in line and not (tmp_path / "bad").exists()

@@ -217,7 +217,8 @@ def test_map_json_matches_library(tmp_path: Path) -> None:
                     "--out", str(tmp_path), cwd=tmp_path))  # fmt: skip
     t1, t2 = np.linspace(0, 4, 9), np.linspace(0, 3, 7)
     direct = np.asarray(dominant_root_map(paper_six(), 1.0, 0.5, t1, t2).real)
-    saved = np.load(tmp_path / "dominant_map.npz")
+    with np.load(tmp_path / "dominant_map.npz") as npz:
+        saved = dict(npz)
     np.testing.assert_allclose(saved["real_part"], direct, atol=1e-12)
     assert out["min_real_part"] == pytest.approx(direct.min(), abs=1e-12)
     # the CTCR chart on the same grid (issue 24: the tau1 = 0 row, the centroid's drift, is stable in both)
@@ -241,7 +242,8 @@ def test_simulate_json_matches_library(tmp_path: Path) -> None:
     assert out["settling_time"] == (None if not np.isfinite(traj.settling_time) else pytest.approx(traj.settling_time))
     assert out["final_error"] == pytest.approx(traj.formation_error[-1], rel=1e-9)
     assert out["min_distance"] == pytest.approx(traj.min_distance, rel=1e-9)
-    saved = np.load(tmp_path / "sim_operating.npz")
+    with np.load(tmp_path / "sim_operating.npz") as npz:
+        saved = dict(npz)
     np.testing.assert_allclose(saved["positions"], traj.positions, atol=1e-12)
     for name in ("sim_operating_xy.png", "sim_operating_traces.svg", "sim_operating.csv",
                  "sim_operating_commands.png", "sim_operating_commands.npz"):  # fmt: skip
@@ -264,7 +266,8 @@ def test_simulate_with_limits_from_options_and_scenario(tmp_path: Path) -> None:
                     limits=lim, duration=6.0, dt=0.02)  # fmt: skip
     assert out["robot_limits"] == lim.describe() and "the limit is 1.5" in out["limits_exceeded"]
     assert out["final_error"] == pytest.approx(traj.formation_error[-1], rel=1e-9)
-    saved = np.load(tmp_path / "sim_operating_commands.npz")
+    with np.load(tmp_path / "sim_operating_commands.npz") as npz:
+        saved = dict(npz)
     assert np.abs(saved["omega"]).max() <= 1.5 * (1 + 1e-9)
     scenario = tmp_path / "robots.toml"
     from delayform.scenario import PAPER_TOML
@@ -401,7 +404,8 @@ def test_report_on_a_scenario_file(tmp_path: Path) -> None:
     # chart, eigenvalue plane, surface, contour, x/y and paths: six figures, all embedded
     assert html.count('src="data:image/png;base64,') == html.count("<img ") == 6
     # the map grid came from the file: [0, tau1_max] x [0, tau2_max] by default
-    grid = np.load(out / "dominant_map.npz")
+    with np.load(out / "dominant_map.npz") as npz:
+        grid = dict(npz)
     assert grid["real_part"].shape == (11, 11) and grid["tau1"][-1] == 3.0
 
 

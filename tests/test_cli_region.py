@@ -41,7 +41,8 @@ def test_safe_delays_text_and_json(tmp_path: Path) -> None:
     m = safe_delays(1.0, 0.5, 4.0, 4.0, spectrum="undirected")
     assert out["safe_fraction"] == pytest.approx(m.safe_fraction(resolution=200))
     assert [p["safe"] for p in out["points"]] == [True, False]
-    data = np.load(tmp_path / "o" / "safe_delays.npz")
+    with np.load(tmp_path / "o" / "safe_delays.npz") as npz:
+        data = dict(npz)
     assert data["safe"].shape == (200, 200)
     proc = run("safe-delays", "--spectrum", "any", "--tau1-max", "4", "--tau2-max", "4", "--out", str(tmp_path / "p"),
                cwd=tmp_path)  # fmt: skip

@@ -185,7 +185,8 @@ def test_map_and_safe_delays_do_not_read_the_scenarios_delays(one_link: Path, tm
     proc = run("map", str(one_link), "--tau1-range", "0.5,2", "--tau2-range", "0.5,2", "--size", "2,2", "--json",
                "--out", str(tmp_path / "m"), cwd=tmp_path)  # fmt: skip
     assert proc.returncode == 0, proc.stderr
-    grid = np.load(tmp_path / "m" / "dominant_map.npz")
+    with np.load(tmp_path / "m" / "dominant_map.npz") as npz:
+        grid = dict(npz)
     for i, a in enumerate((0.5, 2.0)):
         for k, b in enumerate((0.5, 2.0)):  # the factorized dominant root at each grid point
             assert grid["real_part"][i, k] == pytest.approx(dominant_root(paper_six(), 1.0, 0.5, a, b).root.real, abs=1e-8)

@@ -34,7 +34,8 @@ def test_grid_cells_equal_monte_carlo_at_each_delay_pair(tmp_path: Path) -> None
     with (tmp_path / "sw" / "sweep.csv").open() as fh:
         rows = list(csv.DictReader(fh))
     assert len(rows) == 6
-    grid = np.load(tmp_path / "sw" / "sweep.npz")
+    with np.load(tmp_path / "sw" / "sweep.npz") as npz:
+        grid = dict(npz)
     assert grid["settling_median"].shape == (3, 2)
     # an independent call per cell: the library Monte Carlo at that delay pair, same seed
     topo = paper_six()

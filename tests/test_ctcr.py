@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from delayform.characteristic import TwoDelayQuasiPolynomial, factors
@@ -175,8 +175,14 @@ def test_property_three_term_curves_are_roots(qp: TwoDelayQuasiPolynomial) -> No
     _check_curves(crossing_map(qp, 5.0, 5.0))
 
 
+_TINY_TERM = TwoDelayQuasiPolynomial(  # a term at the smallest normal double: no factor to split off
+    [4.26232568e-37, 1.0], [1.0], [2.2250738585072014e-308], [], [], [1.0]
+)
+
+
 @settings(max_examples=4)
 @given(qp=retarded_qps(general=True))
+@example(qp=_TINY_TERM)
 def test_property_general_curves_are_roots(qp: TwoDelayQuasiPolynomial) -> None:
     _check_curves(crossing_map(qp, 3.0, 3.0))
 

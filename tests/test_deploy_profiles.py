@@ -141,7 +141,8 @@ def test_simulate_robot_and_mcap(tmp_path):
         speeds = [abs(m.linear.x) for _, ch, _, m in reader.iter_decoded_messages() if ch.topic.endswith("cmd_vel")]
     assert len(speeds) == 6 * 201
     assert 0.15 < max(speeds) <= 0.2
-    npz = np.load(tmp_path / "o" / "sim_operating_commands.npz")
+    with np.load(tmp_path / "o" / "sim_operating_commands.npz") as saved:
+        npz = dict(saved)
     assert float(np.abs(npz["v"]).max()) == pytest.approx(max(speeds), rel=1e-12)
 
 

@@ -23,7 +23,8 @@ def test_chart_with_the_jitter_margin(tmp_path):
                "--out", str(tmp_path / "o"), "--json", cwd=tmp_path)  # fmt: skip
     assert proc.returncode == 0, proc.stderr
     summary = json.loads(proc.stdout)["jitter_margin"]
-    data = np.load(tmp_path / "o" / "jitter_margin_map.npz")
+    with np.load(tmp_path / "o" / "jitter_margin_map.npz") as npz:
+        data = dict(npz)
     assert np.allclose(data["tau1"], [0.25, 0.75, 1.25, 1.75])  # cell centres, the axes left out
     i, j = np.unravel_index(int(np.argmax(data["delta"])), data["delta"].shape)
     assert summary["largest_delta"] == pytest.approx(data["delta"][i, j])

@@ -199,7 +199,8 @@ def test_commands_files_and_figure(tmp_path):
     # wheel speeds are the differential drive's: (v -+ omega L / 2) / r
     L, r = IROBOT_CREATE.axle_length, IROBOT_CREATE.wheel_radius
     np.testing.assert_allclose(cmd.wheel_right, (cmd.speed + cmd.turn_rate * L / 2) / r)
-    saved = np.load(cmd.to_npz(tmp_path / "c.npz"))
+    with np.load(cmd.to_npz(tmp_path / "c.npz")) as npz:
+        saved = dict(npz)
     np.testing.assert_array_equal(saved["omega"], cmd.turn_rate)
     axes = cmd.plot()
     assert len(axes) == 3 and axes[0].get_ylabel() == "v (m/s)"

@@ -339,7 +339,8 @@ def test_csv_plots_and_gif(tmp_path):
     assert np.allclose(table[:, 2:4], traj.positions.reshape(-1, 2))
     assert set(table[:, 1]) == set(range(1, 7))  # agents numbered from 1
     assert path.read_text().splitlines()[0] == "time,agent,x,y,heading,speed,dv_dt,omega"
-    saved = np.load(traj.to_npz(tmp_path / "run.npz"))
+    with np.load(traj.to_npz(tmp_path / "run.npz")) as npz:
+        saved = dict(npz)
     np.testing.assert_array_equal(saved["velocities"], traj.velocities)
     axes = traj.plot_xy()
     assert len(axes) == 2 and len(axes[0].lines) == 6

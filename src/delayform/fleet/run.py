@@ -278,7 +278,8 @@ def run_fleet(
             recorder.stop()
             say("writing the recording")
             mcap = recorder.write(out / MCAP_NAME, team, tau1, tau2, t0)
-            logs = {"world": dict(np.load(folder / "world.npz"))}
+            with np.load(folder / "world.npz") as npz:
+                logs = {"world": dict(npz)}
             for i in range(1, n + 1):
                 logs[f"robot_{i}"] = _robot_log(faulting.logs(i), period)
         finally:
@@ -362,7 +363,8 @@ def _robot_log(paths: list[Path], period: float) -> dict[str, Any]:
     parts = []
     for path in paths:
         if path.exists():
-            parts.append(dict(np.load(path)))
+            with np.load(path) as npz:
+                parts.append(dict(npz))
             continue
         j = read_journal(str(path))
         deadlines = j["ticks"][:, 0]

@@ -132,6 +132,7 @@ def factor_direction(terms: Terms) -> tuple[int, int] | None:
         ``{(k1, k2): coefficients ascending in s}``, the principal term (0, 0) among them.
     """
     terms = {k: np.asarray(c, complex) for k, c in terms.items() if np.any(np.asarray(c) != 0)}
+    terms = _negligible_dropped(terms)  # a term at rounding level of q's largest shows no factor
     if _one_line(terms):
         return None
     for a, b in _directions(terms):
@@ -146,6 +147,10 @@ def _split_once(
     terms: Terms, *, real: bool, retarded: bool
 ) -> tuple[Terms, Terms, tuple[int, int]] | None:
     """(F, G, (a, b)) for the first direction with a factor, or None."""
+    given = terms
+    # coefficients at rounding level of q's largest are zeros here, as in F and G below: a group
+    # scaled up from 1e-308 would otherwise show a common factor that is only noise
+    terms = _negligible_dropped(terms)
     direction = factor_direction(terms)
     if direction is None:
         return None
@@ -178,7 +183,7 @@ def _split_once(
             g_terms[key] = g[:, j]
     f_terms = _cleaned(f_terms, real=real, retarded=retarded)
     g_terms = _cleaned(g_terms, real=real, retarded=retarded)
-    err = _reproduction_error(terms, f_terms, g_terms)
+    err = _reproduction_error(given, f_terms, g_terms)
     if not err <= _REPRODUCE_TOL:
         raise QuasiPolynomialError(_REFUSED.format(a=a, b=b, why=f"F G reproduces q only to {err:.1e}"))
     return f_terms, g_terms, (a, b)
@@ -384,6 +389,17 @@ def _radical(f: NDArray[np.complex128]) -> tuple[NDArray[np.complex128], NDArray
 
 
 # ----------------------------------------------------------------------------- checks
+def _negligible_dropped(terms: Terms) -> Terms:
+    """Terms with every coefficient at most ``_NOISE`` times q's largest set to zero (the principal kept)."""
+    scale = max(float(np.max(np.abs(c))) for c in terms.values())
+    out: Terms = {}
+    for k, c in terms.items():
+        c = np.where(np.abs(c) <= _NOISE * scale, 0.0, c).astype(complex)
+        if k == (0, 0) or np.any(c != 0):
+            out[k] = c
+    return out
+
+
 def _cleaned(terms: Terms, *, real: bool, retarded: bool) -> Terms:
     """Rounding noise removed: real parts for a real q, exact zeros, no delayed term at the principal degree."""
     scale = max(float(np.max(np.abs(c))) for c in terms.values())
