@@ -16,7 +16,7 @@ import pytest
 from delayform import dominant_root
 from delayform.deploy import robot_profile
 from delayform.fleet.agents import TICK_COLUMNS
-from delayform.fleet.outcome import FIT_WINDOW, FLOOR_MARGIN, _fleet_saturation, linear_decay, saturated
+from delayform.fleet.outcome import FIT_WINDOW, FLOOR_MARGIN, _fleet_saturation, linear_decay, saturated, window_needed
 from delayform.formation import named_formation
 from delayform.model import Delays, Start, Team
 from delayform.scenario.parse import load_scenario
@@ -63,6 +63,12 @@ def test_the_linear_phase_skips_the_ramp_and_stops_above_the_floor() -> None:
     # a fit from the start would have taken the ramp: more than 20 % slow
     whole = -np.polyfit(t[e > FLOOR_MARGIN * floor], np.log(e[e > FLOOR_MARGIN * floor]), 1)[0]
     assert whole < 0.8 * rate
+
+
+def test_the_window_a_slope_needs_is_a_time_constant_and_half_an_oscillation() -> None:
+    assert window_needed(complex(-0.5, 0.0)) == 2.0
+    assert window_needed(complex(-2.0, 1.0)) == pytest.approx(math.pi)
+    assert window_needed(complex(0.1, 1.0)) == math.inf
 
 
 def test_a_run_that_never_leaves_its_limits_has_no_rate() -> None:
@@ -159,3 +165,9 @@ def test_the_example_as_processes_converges_10x_and_names_its_linear_phase(tmp_p
         assert w["stop_error_m"] >= FLOOR_MARGIN * w["floor_m"] * 0.99
         assert team["decay_ratio"] == pytest.approx(team["measured_decay_rate"] / team["dominant_decay_rate"])
     assert 0.005 < w["floor_m"] < 0.05  # the stall floor of the unicycles (the simulator: 0.019 m)
+    # the window a slope needs to measure the root: half the dominant pair's oscillation here (pi / 0.547 s)
+    assert team["decay_window_needed_s"] == pytest.approx(math.pi / abs(root.imag))
+    text = (tmp_path / "summary.txt").read_text()
+    assert "linear phase" in text
+    short = not w["samples"] or w["stop_s"] - w["start_s"] < team["decay_window_needed_s"]
+    assert ("the ratio does not test it" in text) == (short and bool(w["samples"]))

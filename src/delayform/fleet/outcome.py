@@ -36,7 +36,9 @@ The team
     floor (the level it holds at the end of the run: a unicycle at rest whose
     control input is across its heading neither turns nor drives, a real
     steady-state error of a few centimetres) and above ``FIT_WINDOW[1]`` of the
-    initial error. The summary names the window (``decay_window``). Beside them:
+    initial error. The summary names the window (``decay_window``) and how
+    long it would have to be for its slope to be the dominant root's
+    (``decay_window_needed_s``, :func:`window_needed`). Beside them:
     the exact CTCR chart's verdict at (tau1, tau2), the dominant root's decay
     rate ``-Re s`` of the formation modes (:func:`delayform.dominant_root`),
     and the simulator's settling time, closest approach and its own error's
@@ -63,7 +65,7 @@ from delayform.model.network import Network
 from delayform.simulation.models.robots import RobotLimits
 from delayform.simulation.runs.trajectory import Trajectory, formation_error, settling_time
 
-__all__ = ["FleetRun", "measure", "decay_rate", "linear_decay", "DecayFit", "saturated", "silent_intervals",
+__all__ = ["FleetRun", "measure", "decay_rate", "linear_decay", "DecayFit", "window_needed", "saturated", "silent_intervals",
            "FIT_WINDOW", "FLOOR_MARGIN", "FLOOR_TAIL", "SATURATION_TOLERANCE", "LATE_FRACTION"]
 
 _Array = NDArray[np.float64]
@@ -233,6 +235,22 @@ def linear_decay(times: _Array, error: _Array, *, saturated_until: float = math.
     slope = np.polyfit(t[keep], np.log(e[keep]), 1)[0]
     return DecayFit(float(-slope), float(t[0]), float(t[-1]), float(e[0]), float(e[-1]), float(saturated_until),
                     floor, int(keep.sum()))  # fmt: skip
+
+
+def window_needed(root: complex) -> float:
+    """How long (s) a fit window must be for its slope to be the decay of the dominant root ``root``.
+
+    One time constant ``1 / |Re s|`` and half an oscillation ``pi / |Im s|``,
+    whichever is longer: over a shorter window the slope of ``log e(t)`` is
+    that of the oscillation's phase and of the faster modes as much as the
+    envelope's. Infinite for a root that does not decay.
+
+    >>> round(window_needed(complex(-0.42, 0.55)), 2)
+    5.71
+    """
+    if root.real >= 0.0:
+        return math.inf
+    return max(1.0 / -root.real, math.pi / abs(root.imag) if root.imag else 0.0)
 
 
 def _last_saturated(times: _Array, flags: _Array) -> float:
@@ -517,6 +535,7 @@ def measure(*, team: Team, tau1: float, tau2: float, plan: LinkPlan, desired: _A
         "decay_window": fit.describe(),
         "simulator_decay_window": sim_fit.describe(),
         "decay_ratio": measured / float(-np.real(root)) if np.real(root) < 0 and math.isfinite(measured) else math.nan,
+        "decay_window_needed_s": window_needed(complex(root)),
         "initial_error_m": float(error[0]) if error.size else math.nan,
         "final_error_m": float(error[-1]) if error.size else math.nan,
         "error_reduction": float(error[0] / error[-1]) if error.size and error[-1] > 0 else math.inf,

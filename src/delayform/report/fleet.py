@@ -32,7 +32,17 @@ def _window_sentence(t: dict[str, Any]) -> str:
             f"changed ({after}), below {FIT_WINDOW[0]:g} of the initial error, above {FLOOR_MARGIN:g} x the floor "
             f"(the error over the run's last {FLOOR_TAIL:.0%}: {_fmt(w['floor_m'])} m) and above "
             f"{FIT_WINDOW[1]:g} of the initial error; fleet: {_window_span(w)}, simulator: "
-            f"{_window_span(t['simulator_decay_window'])}.")
+            f"{_window_span(t['simulator_decay_window'])}." + _short_window(t))
+
+
+def _short_window(t: dict[str, Any]) -> str:
+    """The warning of a fit window too short for its slope to be the dominant root's decay ('' when long enough)."""
+    w, need = t["decay_window"], t["decay_window_needed_s"]
+    if not w["samples"] or need is None or not math.isfinite(need) or w["stop_s"] - w["start_s"] >= need:
+        return ""
+    return (f" The window ({_fmt(w['stop_s'] - w['start_s'], 3)} s) is shorter than the {_fmt(need, 3)} s (one time "
+            "constant and half an oscillation of the dominant root) over which a slope measures the root: the "
+            "ratio does not test it; start nearer the shape for a measurable linear phase.")
 
 def _ms(value: float | None) -> str:
     return "n/a" if value is None else _fmt(1e3 * value, 3) + " ms"
