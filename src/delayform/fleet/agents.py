@@ -59,7 +59,8 @@ from typing import Any
 
 # only the standard library at the top: a child ties its life to its parent's before the slow imports
 
-__all__ = ["tie_to_parent", "ReceivingSide", "robot_main", "world_main", "main", "read_journal", "JOURNAL_EVERY"]
+__all__ = ["tie_to_parent", "ReceivingSide", "robot_main", "world_main", "main", "read_journal", "JOURNAL_EVERY",
+           "TICK_COLUMNS"]
 
 _PR_SET_PDEATHSIG = 1
 
@@ -203,8 +204,13 @@ class ReceivingSide:
 #: seconds between two appends of a robot's journal (what survives a SIGKILL: all but the last this many seconds)
 JOURNAL_EVERY = 0.1
 
+#: a tick's row: deadline, lateness, lag, compute time, speed sent, then what the limits did to the command
+#: (the speed the tick was computed at, the turn rate executed and wanted, the acceleration executed and wanted)
+TICK_COLUMNS = ("deadline", "lateness", "lag", "compute", "speed_sent",
+                "speed", "turn_rate", "ideal_turn_rate", "acceleration", "ideal_acceleration")  # fmt: skip
+
 #: the journal's files (suffix of the log's path) and the width of their float64 rows
-JOURNAL = {"received": 6, "ticks": 5, "sent": 1}
+JOURNAL = {"received": 6, "ticks": len(TICK_COLUMNS), "sent": 1}
 
 
 class _Journal:
@@ -306,7 +312,7 @@ def robot_main(spec: dict[str, Any]) -> None:
     # from every neighbour; until then it only publishes its state (from the world's odometry)
     rejoin = bool(spec.get("rejoin"))
     k = math.ceil((time.time() - t0 - (0.0 if rejoin else lead)) / h)
-    ticks: list[tuple[float, float, float, float, float]] = []  # deadline, lateness, lag, compute time, speed sent
+    ticks: list[tuple[float, ...]] = []  # TICK_COLUMNS
     journal = _Journal(spec["log"])
     flush_at = 0.0
     missed = 0
@@ -360,10 +366,11 @@ def robot_main(spec: dict[str, Any]) -> None:
             speed = ctrl.speed_command(cmd, h)
             accel = (speed - v) / h
             pub_cmd.put(codec.twist(speed, cmd.turn_rate))
-            ticks.append((k * h, late, cmd.lag, time.time() - woke, speed))
+            ticks.append((k * h, late, cmd.lag, time.time() - woke, speed,
+                          cmd.speed, cmd.turn_rate, cmd.ideal_turn_rate, cmd.acceleration, cmd.ideal_acceleration))
         k += 1
     rec = np.array(received, dtype=np.float64).reshape(-1, 6)
-    tk = np.array(ticks, dtype=np.float64).reshape(-1, 5)
+    tk = np.array(ticks, dtype=np.float64).reshape(-1, len(TICK_COLUMNS))
     from delayform._files import atomic_path
 
     with atomic_path(spec["log"]) as tmp:  # the parent reads the log whole or not at all

@@ -27,8 +27,18 @@ The team
     distance from the shape after removing the common offset), its settling
     time (:data:`~delayform.simulation.runs.trajectory.SETTLING_FRACTION`), the
     closest approach of two robots, and the measured decay rate: the slope of
-    a least-squares line through ``log e(t)`` where the error is between
-    :data:`FIT_WINDOW` of its initial value (:func:`decay_rate`). Beside them:
+    a least-squares line through ``log e(t)`` over the linear phase
+    (:func:`linear_decay`): after the last control tick at which a robot's
+    limits changed its command (the speed cap, the turn or acceleration
+    limits: there the error falls at what the actuators allow, not at the
+    dominant root's rate), once the error is below ``FIT_WINDOW[0]`` of its
+    initial value, and while it stays above :data:`FLOOR_MARGIN` times its
+    floor (the level it holds at the end of the run: a unicycle at rest whose
+    control input is across its heading neither turns nor drives, a real
+    steady-state error of a few centimetres) and above ``FIT_WINDOW[1]`` of the
+    initial error. The summary names the window (``decay_window``) and how
+    long it would have to be for its slope to be the dominant root's
+    (``decay_window_needed_s``, :func:`window_needed`). Beside them:
     the exact CTCR chart's verdict at (tau1, tau2), the dominant root's decay
     rate ``-Re s`` of the formation modes (:func:`delayform.dominant_root`),
     and the simulator's settling time, closest approach and its own error's
@@ -47,6 +57,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from delayform.fleet.agents import TICK_COLUMNS
 from delayform.fleet.plan import LinkPlan
 from delayform.model import Team
 from delayform.simulation.bodies.approach import closest_approach
@@ -54,12 +65,22 @@ from delayform.model.network import Network
 from delayform.simulation.models.robots import RobotLimits
 from delayform.simulation.runs.trajectory import Trajectory, formation_error, settling_time
 
-__all__ = ["FleetRun", "measure", "decay_rate", "silent_intervals", "FIT_WINDOW", "LATE_FRACTION"]
+__all__ = ["FleetRun", "measure", "decay_rate", "linear_decay", "DecayFit", "window_needed", "saturated", "silent_intervals",
+           "FIT_WINDOW", "FLOOR_MARGIN", "FLOOR_TAIL", "SATURATION_TOLERANCE", "LATE_FRACTION"]
 
 _Array = NDArray[np.float64]
 
 #: the decay is fitted where the error is between these fractions of its initial value
 FIT_WINDOW = (0.3, 0.003)
+
+#: the fit stops where the error falls to this many times its floor (the floor's own wobble stays out of the slope)
+FLOOR_MARGIN = 3.0
+
+#: the floor is the median error over this last fraction of the run
+FLOOR_TAIL = 0.1
+
+#: a command is saturated when a limit changed it by more than this fraction of what the controller asked
+SATURATION_TOLERANCE = 0.01
 
 #: messages sent in the last this many seconds are not counted as sent or lost
 _SETTLE = 0.1
@@ -106,6 +127,159 @@ def decay_rate(times: _Array, error: _Array, *, window: tuple[float, float] = FI
         return math.nan
     slope = np.polyfit(t[keep], np.log(e[keep]), 1)[0]
     return float(-slope)
+
+
+def saturated(executed: _Array, wanted: _Array) -> NDArray[np.bool_]:
+    """Where a limit changed a command: ``|executed - wanted| > SATURATION_TOLERANCE |wanted|`` (elementwise).
+
+    The absolute part (1e-9) keeps rounding of a command near zero from counting.
+
+    >>> saturated(np.array([0.5, 0.3, 0.0]), np.array([0.5, 0.9, 1e-12])).tolist()
+    [False, True, False]
+    """
+    executed, wanted = np.asarray(executed, dtype=np.float64), np.asarray(wanted, dtype=np.float64)
+    return np.abs(executed - wanted) > SATURATION_TOLERANCE * np.abs(wanted) + 1e-9
+
+
+@dataclass(frozen=True)
+class DecayFit:
+    """The decay rate fitted over the linear phase of a run, and the window it used.
+
+    Attributes
+    ----------
+    rate
+        ``-slope`` of the least-squares line through ``log e(t)`` (1/s); NaN
+        when fewer than ten samples lie in the window.
+    start_s, stop_s
+        The window (s); NaN when there is none.
+    start_error_m, stop_error_m
+        The error at its ends (m).
+    saturated_until_s
+        The last time a limit changed a command (s; NaN: never).
+    floor_m
+        The error's level over the run's last :data:`FLOOR_TAIL` (m).
+    samples
+        How many error samples the fit used.
+    """
+
+    rate: float
+    start_s: float
+    stop_s: float
+    start_error_m: float
+    stop_error_m: float
+    saturated_until_s: float
+    floor_m: float
+    samples: int
+
+    def describe(self) -> dict[str, float | int]:
+        """JSON-ready fields (the rate is the summary's own entry)."""
+        return {"start_s": self.start_s, "stop_s": self.stop_s, "start_error_m": self.start_error_m,
+                "stop_error_m": self.stop_error_m, "saturated_until_s": self.saturated_until_s,
+                "floor_m": self.floor_m, "samples": self.samples}  # fmt: skip
+
+
+def linear_decay(times: _Array, error: _Array, *, saturated_until: float = math.nan) -> DecayFit:
+    """The decay rate of ``error`` over its linear phase (module doc), with the window it used.
+
+    The window opens at the later of: the first sample after
+    ``saturated_until`` and the first sample at or below ``FIT_WINDOW[0]`` of the
+    initial error. It closes at the first later sample at or below the larger of
+    ``FIT_WINDOW[1]`` of the initial error and :data:`FLOOR_MARGIN` times the
+    floor (the median error over the last :data:`FLOOR_TAIL` of the run), or at
+    the end.
+
+    Parameters
+    ----------
+    times, error
+        ``(T,)`` times (s) and errors (m).
+    saturated_until
+        The last time a robot's limits changed its command (NaN: never).
+
+    Returns
+    -------
+    DecayFit
+        The rate is NaN when fewer than ten samples lie in the window (a run
+        that never leaves its limits, an error that does not fall).
+
+    A ramp at the speed cap, then an exponential onto a floor of 0.1 mm (the window opens at 0.3 of the
+    initial error, 0.72 s after the ramp):
+
+    >>> t = np.linspace(0, 30, 3001)
+    >>> e = np.where(t < 4, 2.0 - 0.3 * t, 0.8 * np.exp(-0.4 * (t - 4))) + 1e-4
+    >>> fit = linear_decay(t, e, saturated_until=4.0)
+    >>> round(fit.rate, 2), round(fit.start_s, 2), round(fit.floor_m, 4)
+    (0.4, 4.72, 0.0001)
+    """
+    times, error = np.asarray(times, dtype=np.float64), np.asarray(error, dtype=np.float64)
+    nan = DecayFit(math.nan, math.nan, math.nan, math.nan, math.nan, float(saturated_until), math.nan, 0)
+    if error.size == 0:
+        return nan
+    tail = times >= times[0] + (1.0 - FLOOR_TAIL) * (times[-1] - times[0])
+    floor = float(np.median(error[tail]))
+    nan = DecayFit(**{**nan.__dict__, "floor_m": floor})
+    e0 = float(error[0])
+    opened = error <= FIT_WINDOW[0] * e0
+    if math.isfinite(saturated_until):
+        opened &= times > saturated_until
+    start = np.flatnonzero(opened)
+    if start.size == 0:
+        return nan
+    a = int(start[0])
+    low = max(FIT_WINDOW[1] * e0, FLOOR_MARGIN * floor)
+    stop = np.flatnonzero(error[a:] <= low)
+    b = a + int(stop[0]) if stop.size else error.size
+    t, e = times[a:b], error[a:b]
+    keep = e > 0
+    if keep.sum() < 10:
+        return nan
+    slope = np.polyfit(t[keep], np.log(e[keep]), 1)[0]
+    return DecayFit(float(-slope), float(t[0]), float(t[-1]), float(e[0]), float(e[-1]), float(saturated_until),
+                    floor, int(keep.sum()))  # fmt: skip
+
+
+def window_needed(root: complex) -> float:
+    """How long (s) a fit window must be for its slope to be the decay of the dominant root ``root``.
+
+    One time constant ``1 / |Re s|`` and half an oscillation ``pi / |Im s|``,
+    whichever is longer: over a shorter window the slope of ``log e(t)`` is
+    that of the oscillation's phase and of the faster modes as much as the
+    envelope's. Infinite for a root that does not decay.
+
+    >>> round(window_needed(complex(-0.42, 0.55)), 2)
+    5.71
+    """
+    if root.real >= 0.0:
+        return math.inf
+    return max(1.0 / -root.real, math.pi / abs(root.imag) if root.imag else 0.0)
+
+
+def _last_saturated(times: _Array, flags: _Array) -> float:
+    """The last time (s) any robot's command was saturated (``flags``: ``(T, ...)`` booleans); NaN: never."""
+    hit = np.flatnonzero(np.asarray(flags).reshape(times.size, -1).any(axis=1))
+    return float(times[hit[-1]]) if hit.size else math.nan
+
+
+def _fleet_saturation(ticks: _Array, cap: float | None) -> NDArray[np.bool_]:
+    """Per tick row (:data:`~delayform.fleet.agents.TICK_COLUMNS`): did a limit change the command?
+
+    The turn rate and the acceleration against the controller's wish, and the
+    speed set-point sent against the one the acceleration asked (``v + a h``
+    within the speed cap ``cap``).
+    """
+    turn, want_turn, accel, want_accel = (ticks[:, c] for c in range(6, 10))
+    flags = saturated(turn, want_turn) | saturated(accel, want_accel)
+    if cap is not None:
+        flags |= np.abs(ticks[:, 4]) >= cap * (1.0 - 1e-9)
+    return flags
+
+
+def _simulator_saturated_until(simulation: Trajectory) -> float:
+    """The last time a limit changed one of the simulator's commands (NaN: never, or ideal robots)."""
+    c = simulation.commands
+    if c is None or not c.limited:
+        return math.nan
+    flags = saturated(c.turn_rate, c.ideal_turn_rate) | saturated(c.acceleration, c.ideal_acceleration)
+    return _last_saturated(np.asarray(c.times), flags)
 
 
 def _stats(values: _Array) -> dict[str, float]:
@@ -276,9 +450,13 @@ def measure(*, team: Team, tau1: float, tau2: float, plan: LinkPlan, desired: _A
     # --- robots: ticks
     robots = []
     tick_times: dict[int, _Array] = {}
+    saturated_until = -math.inf
     for i in range(1, n + 1):
         log = logs[f"robot_{i}"]
-        ticks = np.asarray(log["ticks"]).reshape(-1, 5)
+        ticks = np.asarray(log["ticks"]).reshape(-1, len(TICK_COLUMNS))
+        hit = _fleet_saturation(ticks, None if limits is None else limits.speed_cap)
+        if hit.any():
+            saturated_until = max(saturated_until, float(ticks[hit, 0].max()))
         late = ticks[:, 1]
         tick_times[i] = ticks[:, 0] + late
         expected = math.ceil(duration / h - 1e-9)
@@ -338,8 +516,10 @@ def measure(*, team: Team, tau1: float, tau2: float, plan: LinkPlan, desired: _A
     smap = stability_map(topology, team.P, team.D, max(8.0, 1.25 * tau1), max(8.0, 1.25 * tau2))
     chart_stable = bool(np.asarray(smap.is_stable(np.array([tau1]), np.array([tau2])))[0])
     sim_error = simulation.formation_error
-    measured = decay_rate(times, error) if times.size else math.nan
-    sim_rate = decay_rate(simulation.times, sim_error)
+    fit = linear_decay(times, error, saturated_until=saturated_until if saturated_until > -math.inf else math.nan)
+    measured = fit.rate
+    sim_fit = linear_decay(simulation.times, sim_error, saturated_until=_simulator_saturated_until(simulation))
+    sim_rate = sim_fit.rate
     fleet_settling = settling_time(times, error, scale) if times.size else math.inf
     sent = sum(link["sent"] for link in links)
     dropped = sum(link["dropped_by_network"] for link in links)
@@ -352,7 +532,10 @@ def measure(*, team: Team, tau1: float, tau2: float, plan: LinkPlan, desired: _A
         "dominant_decay_rate": float(-np.real(root)),
         "measured_decay_rate": measured,
         "simulator_decay_rate": sim_rate,
+        "decay_window": fit.describe(),
+        "simulator_decay_window": sim_fit.describe(),
         "decay_ratio": measured / float(-np.real(root)) if np.real(root) < 0 and math.isfinite(measured) else math.nan,
+        "decay_window_needed_s": window_needed(complex(root)),
         "initial_error_m": float(error[0]) if error.size else math.nan,
         "final_error_m": float(error[-1]) if error.size else math.nan,
         "error_reduction": float(error[0] / error[-1]) if error.size and error[-1] > 0 else math.inf,

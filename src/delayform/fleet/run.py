@@ -358,7 +358,7 @@ def _robot_log(paths: list[Path], period: float) -> dict[str, Any]:
     A killed process's missed ticks are the deadlines missing between the
     ones it ran (its counter died with it).
     """
-    from delayform.fleet.agents import read_journal
+    from delayform.fleet.agents import TICK_COLUMNS, read_journal
 
     parts = []
     for path in paths:
@@ -372,12 +372,12 @@ def _robot_log(paths: list[Path], period: float) -> dict[str, Any]:
         parts.append({**j, "missed": int(np.sum(np.maximum(gaps, 0))), "error": ""})
     return {
         "received": np.concatenate([np.asarray(p["received"]).reshape(-1, 6) for p in parts]),
-        "ticks": np.concatenate([np.asarray(p["ticks"]).reshape(-1, 5) for p in parts]),
+        "ticks": np.concatenate([np.asarray(p["ticks"]).reshape(-1, len(TICK_COLUMNS)) for p in parts]),
         "sent": np.concatenate([np.asarray(p["sent"]).reshape(-1) for p in parts]),
         "missed": sum(int(p["missed"]) for p in parts),
         "waiting": np.asarray(parts[-1].get("waiting", np.zeros(0)), dtype=np.int64),
         "error": "; ".join(str(p["error"]) for p in parts if str(p["error"])),
-        "starts": np.array([np.asarray(p["ticks"]).reshape(-1, 5)[0, 0] if np.size(p["ticks"]) else math.nan
+        "starts": np.array([np.asarray(p["ticks"]).reshape(-1, len(TICK_COLUMNS))[0, 0] if np.size(p["ticks"]) else math.nan
                             for p in parts]),  # fmt: skip
     }
 

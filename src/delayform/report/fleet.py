@@ -3,15 +3,46 @@
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 from typing import Any
 
 from delayform._files import write_text
-from delayform.fleet.outcome import FIT_WINDOW, LATE_FRACTION, FleetRun
+from delayform.fleet.outcome import FIT_WINDOW, FLOOR_MARGIN, FLOOR_TAIL, LATE_FRACTION, FleetRun
 from delayform.report._common import Figure, Section, _fmt, _pyplot, _save, jsonable
 
 __all__ = ["fleet_section", "fleet_text"]
 
+
+def _window_span(w: dict[str, Any]) -> str:
+    """A fit window as ``t0-t1 s (e0 -> e1 m)``, or why there is none."""
+    if not w["samples"]:
+        return "none: the error never fell in the linear phase above its floor"
+    return (f"{_fmt(w['start_s'])}-{_fmt(w['stop_s'])} s ({_fmt(w['start_error_m'])} -> "
+            f"{_fmt(w['stop_error_m'])} m)")
+
+
+def _window_sentence(t: dict[str, Any]) -> str:
+    """How the decay was fitted, with the fleet's window."""
+    w = t["decay_window"]
+    sat = w["saturated_until_s"]
+    after = "no command was ever saturated" if sat is None or not math.isfinite(sat) else \
+        f"the last saturated command at {_fmt(sat)} s"
+    return (f"The decay is fitted to log error over the linear phase: after the last control tick a robot's limits "
+            f"changed ({after}), below {FIT_WINDOW[0]:g} of the initial error, above {FLOOR_MARGIN:g} x the floor "
+            f"(the error over the run's last {FLOOR_TAIL:.0%}: {_fmt(w['floor_m'])} m) and above "
+            f"{FIT_WINDOW[1]:g} of the initial error; fleet: {_window_span(w)}, simulator: "
+            f"{_window_span(t['simulator_decay_window'])}." + _short_window(t))
+
+
+def _short_window(t: dict[str, Any]) -> str:
+    """The warning of a fit window too short for its slope to be the dominant root's decay ('' when long enough)."""
+    w, need = t["decay_window"], t["decay_window_needed_s"]
+    if not w["samples"] or need is None or not math.isfinite(need) or w["stop_s"] - w["start_s"] >= need:
+        return ""
+    return (f" The window ({_fmt(w['stop_s'] - w['start_s'], 3)} s) is shorter than the {_fmt(need, 3)} s (one time "
+            "constant and half an oscillation of the dominant root) over which a slope measures the root: the "
+            "ratio does not test it; start nearer the shape for a measurable linear phase.")
 
 def _ms(value: float | None) -> str:
     return "n/a" if value is None else _fmt(1e3 * value, 3) + " ms"
@@ -39,7 +70,8 @@ def fleet_text(run: FleetRun, name: str) -> str:
     nominal = " (nominal pair; the links have their own delays)" if t.get("per_link_delays") else ""
     rows = [("chart's verdict at (tau1, tau2)", t["chart_verdict"] + nominal, ""),
             ("decay rate of the formation error (1/s)", _fmt(t["dominant_decay_rate"]) + " (dominant root)",
-             _fmt(t["measured_decay_rate"]) + f" (fleet); simulator {_fmt(t['simulator_decay_rate'])}"),
+             _fmt(t["measured_decay_rate"]) + f" (fleet, linear phase; ratio {_fmt(t['decay_ratio'])}); "
+             f"simulator {_fmt(t['simulator_decay_rate'])}"),
             ("formation error (m)", f"from {_fmt(t['initial_error_m'])}", f"to {_fmt(t['final_error_m'])}"),
             ("settling time (s)", _fmt(t["simulator_settling_time_s"]) + " (simulator)", _fmt(t["settling_time_s"])),
             ("closest approach (m)", _fmt(t["simulator_closest_approach_m"]) + " (simulator)", _fmt(t["closest_approach_m"])),
@@ -49,8 +81,7 @@ def fleet_text(run: FleetRun, name: str) -> str:
             ("state messages lost in transport", "0", str(t["messages_lost_in_transport"]))]  # fmt: skip
     width = max(len(a) for a, _, _ in rows)
     lines += [f"  {a:<{width}}  {b:<28}  {c}" for a, b, c in rows]
-    lines += ["", f"The decay is fitted to log error where the error is between {FIT_WINDOW[0]:g} and "
-                  f"{FIT_WINDOW[1]:g} of its start; a tick is late when it wakes more than {LATE_FRACTION:g} period after its deadline.", "",
+    lines += ["", _window_sentence(t), f"A tick is late when it wakes more than {LATE_FRACTION:g} period after its deadline.", "",
               "Per link (receiver <- informer): network latency, delays applied by the playout buffer "
               "(median / max), messages sent, received, dropped", ""]  # fmt: skip
     for link in s["links"]:
@@ -123,6 +154,7 @@ def fleet_section(run: FleetRun, name: str, out: Path) -> Section:
     table = (("chart's verdict", t["chart_verdict"]),
              ("decay rate: dominant root / fleet / simulator", f"{_fmt(t['dominant_decay_rate'])} / "
               f"{_fmt(t['measured_decay_rate'])} / {_fmt(t['simulator_decay_rate'])} 1/s"),
+             ("decay fitted over (linear phase)", _window_span(t["decay_window"])),
              ("formation error", f"{_fmt(t['initial_error_m'])} m -> {_fmt(t['final_error_m'])} m"),
              ("settling time: fleet / simulator", f"{_fmt(t['settling_time_s'])} / {_fmt(t['simulator_settling_time_s'])} s"),
              ("closest approach: fleet / simulator", f"{_fmt(t['closest_approach_m'])} / {_fmt(t['simulator_closest_approach_m'])} m"),
