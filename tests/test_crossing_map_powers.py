@@ -50,6 +50,7 @@ from hypothesis import Phase, assume, example, given, settings
 from hypothesis import strategies as st
 
 from delayform import QuasiPolynomial, count_roots_right_of, crossing_map, rightmost_root
+from delayform.characteristic import TwoDelayQuasiPolynomial
 from delayform.analysis.ctcr.stability_map import curve_residual
 from delayform.analysis.ctcr.general import unit_roots_single
 from delayform.errors import NotConvergedError
@@ -380,3 +381,32 @@ def test_map_in_one_monomial(terms: dict, points: list) -> None:
     m = crossing_map(QuasiPolynomial(terms), WINDOW, WINDOW)
     assert m.curves  # every case crosses inside the window
     assert _check_map(terms, points) >= len(points) - 1
+
+
+#: the rest G of the long run's product (seed 15, example 468; the factor in z2 split off): q in z1^2
+#: and z2^2 alone, so the torus elimination in z1 was a square
+EVEN_IN_BOTH: dict[tuple[int, int], list[float]] = {
+    (0, 0): [-1.0039220659070245, 0.9999999999999997], (2, 0): [-0.027222014336073668], (0, 2): [5.613841575732451]}
+
+
+def test_map_of_a_qp_even_in_both_delays():
+    """Found by the long run of the map property: no odd power of z1 (nor of z2), and no map within a minute.
+
+    Eliminated in z1 its resultant was the square of the one in z1^2, whose double unit roots rounding
+    split: the number of solutions flickered from frequency to frequency and the bisection ran its 40
+    rounds. NU is checked against the certified count, and against the closed-form (triangle) map of the
+    three-term qp in (z1^2, z2^2) read at (2 tau1, 2 tau2), an independent path of the map.
+    """
+    points = [(0.2, 0.3), (0.5, 0.5), (0.9, 0.1), (0.1, 0.9), (0.7, 0.8), (0.3, 0.05), (0.0, 0.6), (0.6, 0.0)]
+    m = crossing_map(QuasiPolynomial(EVEN_IN_BOTH), WINDOW, WINDOW)
+    assert _check_map(EVEN_IN_BOTH, points, m) >= len(points) - 1
+    assert {int(m.unstable_count(*p)) for p in points} >= {0, 2, 4}  # crossings inside the window, not a flat map
+    three = TwoDelayQuasiPolynomial(EVEN_IN_BOTH[(0, 0)], EVEN_IN_BOTH[(2, 0)], EVEN_IN_BOTH[(0, 2)])
+    m3 = crossing_map(three, 2.0 * WINDOW, 2.0 * WINDOW)
+    x, y = np.meshgrid(np.linspace(0.01, 0.99, 15), np.linspace(0.01, 0.99, 15))
+    qp = QuasiPolynomial(EVEN_IN_BOTH)
+    clear = [(a, b) for a, b in zip(x.ravel(), y.ravel(), strict=True) if _judged_count(qp, a, b) is not None]
+    a, b = np.array(clear).T
+    np.testing.assert_array_equal(m.unstable_count(a, b), m3.unstable_count(2.0 * a, 2.0 * b))
+    for c in m.curves:
+        assert curve_residual(m.traced[c.source], c).max() <= 1e-9
