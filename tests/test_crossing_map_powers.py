@@ -31,7 +31,7 @@ and its grazing crossing lost to a squared axis eliminant; both fixed, regressio
 tests in ``tests/test_crossing_map_factored.py``); seed 15 stopped at its 468th, a rest
 ``s - 1.0039 - 0.0272 z1^2 + 5.614 z2^2`` taking minutes (a squared torus resultant;
 fixed, ``test_map_of_a_qp_even_in_both_delays``). On the final code seeds 14, 15, 16
-passed 505 each at load 4-6 (4-6 minutes each); seeds
+and 19 passed 505 each at load 3-6 (3-6 minutes each); seeds
 17 and 18 were stopped at their 48th and 439th examples on slow maps (the solution count
 flickering near the end of a narrow frequency band keeps the bisection going; a strict
 expected failure, ``test_solution_count_next_to_the_end_of_a_narrow_band``, open). The old
