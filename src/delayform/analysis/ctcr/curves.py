@@ -417,7 +417,20 @@ def _unit_roots(qp: TwoDelayQuasiPolynomial, delay: int) -> tuple[NDArray, NDArr
 
 
 def _one_delay_roots(h: list[NDArray[np.complex128]]) -> tuple[NDArray, NDArray]:
-    """(omega, theta) of ``sum_j h_j(j omega) e^{-j j theta} = 0`` (see :func:`_unit_roots`)."""
+    """(omega, theta) of ``sum_j h_j(j omega) e^{-j j theta} = 0`` (see :func:`_unit_roots`).
+
+    A problem in ``z^g`` alone (``h_j = 0`` unless g divides j; e.g. ``h0 + h2 z^2``) is solved in
+    ``w = z^g`` and each solution rotated g ways: eliminated in z, its unit-circle condition is the
+    g-th power of the one in w, and a near-double root of that (a pair tangent to the axis, grazing
+    it at a tiny delay) became a near-4-fold root that rounding spread off the real line, so the
+    crossing was lost (found by the map property: a pair 1e-11 right of the axis at zero delay).
+    """
+    powers = [j for j, c in enumerate(h) if j and c.size and np.any(c != 0.0)]
+    g = int(np.gcd.reduce(powers)) if powers else 1
+    if g > 1:
+        om, th = _one_delay_roots(h[::g])
+        k = np.arange(g)
+        return np.repeat(om, g), np.mod((th[:, None] + TWO_PI * k[None, :]) / g, TWO_PI).ravel()
     if len(h) <= 3:
         h = h + [np.zeros(0, complex)] * (3 - len(h))
         return _single_delay_roots(h[0], h[1], h[2])
