@@ -342,9 +342,9 @@ def _kantorovich_ok(
     frequencies *past* the end, where no solution exists, and Newton stalls there on a near-solution;
     the solution count then flickered from sample to sample. Kantorovich's theorem decides instead:
     with beta >= |J^-1|, eta the Newton step and L = sum_k |g_k| |(a_k, b_k)|^2 a Lipschitz constant
-    of J, ``beta L eta <= 1/2`` proves a zero within 2 eta. Twins so close that rounding hides them
-    (J singular to working precision) fail it, so a band end loses its solutions at one frequency,
-    once, instead of dropping and regaining them at random.
+    of J, ``beta L eta <= 1/2`` proves a zero within 2 eta. Past a band's end nothing passes it; twins
+    so close that rounding hides them (J singular to working precision) fail it too, and the sweep
+    does not chase the count's changes among those (:func:`near_fold`).
     """
     h, f = _kantorovich_ratio(g, mult, t1, t2)
     ok = h <= 0.5
