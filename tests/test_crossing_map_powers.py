@@ -454,3 +454,27 @@ def test_map_next_to_the_end_of_a_narrow_band():
     for t1, t2 in inside + outside:
         assert int(m.unstable_count(t1, t2)) == count_roots_right_of(qp, t1, t2, 0.0), (t1, t2)
     assert count_roots_right_of(qp, *inside[0], 1e-6) == 0
+
+
+#: the shape of the long run's seed 18 example 439 (coefficients rounded): its eliminant in z2 has a
+#: double unit root (two torus solutions sharing z2) that rounding splits up to 1e-4 off the circle
+SHARED_Z2: dict[tuple[int, int], list[float]] = {
+    (0, 0): [0.01, 10.0, 1.0], (4, 3): [-1.0], (3, 4): [0.0698], (0, 1): [-9.05, -1.85]}
+
+
+def test_solutions_sharing_their_z2_are_all_found():
+    """Every frequency near the split double root finds the same solutions (they flickered 0, 1, 2)."""
+    from delayform.analysis.ctcr.general import as_traced, resultant_solutions
+
+    qp = as_traced(QuasiPolynomial(SHARED_Z2))
+    terms = qp.terms()
+    mult = np.array([(a, b) for _, a, b in terms], float)
+    for centre, count in ((0.80941764, 2), (1.01592108, 4)):
+        w = centre + np.linspace(-1e-5, 1e-5, 41)
+        sols = resultant_solutions(qp, w)
+        assert [len(x) for x in sols] == [count] * w.size
+        for x, th in zip(w, sols, strict=True):  # each a zero of q itself
+            g = np.array([npoly.polyval(1j * x, c) for c, _, _ in terms])
+            assert np.abs(np.exp(-1j * th @ mult.T) @ g).max() <= 1e-12
+    points = [(0.2, 0.3), (0.7, 0.9), (0.5, 0.05)]
+    assert _check_map(SHARED_Z2, points) == len(points)

@@ -270,7 +270,7 @@ def resultant_solutions(qp: TermsQP, omega: NDArray[np.float64]) -> list[NDArray
     idx: list[int] = []
     starts: list[tuple[float, float]] = []
     for row, w in _poly_roots(poly1):
-        if abs(abs(w) - 1.0) > 1e-3:
+        if abs(abs(w) - 1.0) > 1e-2:  # a start only: Newton and the certificate decide
             continue
         for k in range(g):  # the g phases theta1 with e^{-j g theta1} = w
             idx.append(int(at[row]))
@@ -385,17 +385,22 @@ def near_fold(qp: TwoDelayQuasiPolynomial | TermsQP, omega: float, th: NDArray[n
 
 
 def unit_circle_roots(poly: NDArray[np.complex128], rel_tol: float) -> NDArray[np.complex128]:
-    """Roots within 1e-4 of the unit circle of a polynomial (ascending coefficients).
+    """Roots within 1e-2 of the unit circle of a polynomial (ascending coefficients).
 
     Coefficients below ``rel_tol`` of the largest are rounding noise of the
     elimination and are dropped at both ends (a root at 0 or at infinity).
+    They are only Newton's starting points, each solution certified on q
+    itself: a double unit root of the eliminant (two torus solutions sharing
+    their z2) comes out split by rounding as far as 1e-4 off the circle, and
+    the narrower window of before dropped one, both or neither of the pair at
+    random from one frequency to the next.
     """
     scale = np.max(np.abs(poly)) if poly.size else 0.0
     nz = np.flatnonzero(np.abs(poly) > rel_tol * scale) if scale > 0 else np.zeros(0, int)
     if nz.size < 2:
         return np.zeros(0, complex)
     roots = np.roots(poly[nz[0] : nz[-1] + 1][::-1])
-    return roots[np.abs(np.abs(roots) - 1.0) < 1e-4]
+    return roots[np.abs(np.abs(roots) - 1.0) < 1e-2]
 
 
 def newton_phases(g: NDArray[np.complex128], mult: NDArray[np.float64], t1: float, t2: float) -> tuple[float, float] | None:
