@@ -15,7 +15,7 @@ import numpy as np
 import numpy.polynomial.polynomial as npoly
 from numpy.typing import ArrayLike, NDArray
 
-from delayform.analysis.ctcr.general import TermsQP, newton_phases, resultant_solutions, unit_circle_roots
+from delayform.analysis.ctcr.general import TermsQP, near_fold, newton_phases, resultant_solutions, unit_circle_roots
 from delayform.analysis.ctcr.single import line_frequencies
 from delayform.characteristic import DELAY_MULTIPLES, TwoDelayQuasiPolynomial
 
@@ -384,7 +384,10 @@ def _general_paths(qp: TwoDelayQuasiPolynomial, window: tuple[float, float]) -> 
     omega = np.unique(np.concatenate([np.linspace(bound * 1e-3, bound, 600),
                                       bound * np.geomspace(_OMEGA_FLOOR, 1e-3, 12), seeds]))
     sols = _general_solutions(qp, omega)
-    # Bisect wherever the number of solutions changes or neighbours are far apart.
+    fold = [near_fold(qp, w, th) for w, th in zip(omega, sols, strict=True)]
+    # Bisect wherever the number of solutions changes or neighbours are far apart. A change of the
+    # count next to a sample whose solutions are at the limit of certification (a turning point
+    # resolved as far as rounding allows: which twins are found there is chance) is not chased.
     for _ in range(40):
         extra = []
         for i in range(omega.size - 1):
@@ -393,7 +396,7 @@ def _general_paths(qp: TwoDelayQuasiPolynomial, window: tuple[float, float]) -> 
             if gap <= 1e-12 * omega[i + 1]:
                 continue
             far = na == nb and na > 0 and _max_match_dist(sols[i], sols[i + 1]) > 0.05
-            if na != nb or (far and gap > 1e-9 * omega[i + 1]):
+            if (na != nb and not (fold[i] or fold[i + 1])) or (far and gap > 1e-9 * omega[i + 1]):
                 extra.append(0.5 * (omega[i] + omega[i + 1]))
         if not extra:
             break
@@ -402,8 +405,10 @@ def _general_paths(qp: TwoDelayQuasiPolynomial, window: tuple[float, float]) -> 
         allw = np.concatenate([omega, new])
         order = np.argsort(allw)
         merged = sols + new_sols
+        merged_fold = fold + [near_fold(qp, w, th) for w, th in zip(new, new_sols, strict=True)]
         omega = allw[order]
         sols = [merged[k] for k in order]
+        fold = [merged_fold[k] for k in order]
     # Graph: nodes (sample, index); edges by assignment; turning points pair the leftovers.
     nodes = [(i, j) for i in range(omega.size) for j in range(len(sols[i]))]
     adj: dict[tuple[int, int], list[tuple[int, int]]] = {v: [] for v in nodes}
