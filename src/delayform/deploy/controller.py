@@ -537,10 +537,7 @@ class FormationController:
         accel = min(max(along, -amax), amax)
         if accel * v > 0.0:
             accel = accel * max(1.0 - (speed / lim.speed_cap) ** 8, 0.0)
-        size2 = ux * ux + uy * uy
-        vs = math.sqrt(lim.slow_speed**2 + lim.turn_time_constant**2 * size2)
-        toward = along / math.sqrt(size2 + 1e-24)
-        demand = across * (v + toward * vs) / (v * v + vs * vs)
+        demand = lim.turn_demand(v, along, across, ux * ux + uy * uy)
         wmax = lim.max_turn_rate
         wanted = min(max(demand, -wmax), wmax)
         rim = lim.wheel_radius * lim.max_wheel_speed

@@ -14,13 +14,19 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields
+from typing import Any
 
 import numpy as np
 
 from delayform._validation import validated
 from delayform.errors import SimulationInputError
 
-__all__ = ["RobotLimits", "IROBOT_CREATE"]
+__all__ = ["RobotLimits", "IROBOT_CREATE", "FORWARD_BIAS"]
+
+#: the softened turn law's preference for driving forward at rest (:meth:`RobotLimits.turn_demand`): where u
+#: lies exactly across the heading a robot at rest turns towards u's forward direction at this fraction of
+#: its full turn rate, instead of standing still (docs/theory.md)
+FORWARD_BIAS = 0.2
 
 
 @validated(SimulationInputError)
@@ -43,11 +49,17 @@ class RobotLimits:
     max_acceleration
         Largest linear acceleration |dv/dt| (m/s^2).
     slow_speed
-        Speed scale (m/s) below which the turn command of the paper's eq. 19 is
-        softened (``e_perp . u (v + s slow_speed) / (v^2 + slow_speed^2)``
-        instead of ``e_perp . u / v``; s turns the robot's axis towards the
-        line of u at rest): the robot turns on the spot when it must, and the
-        heading loop stays smooth through v = 0 (docs/theory.md).
+        Speed (m/s) the controller treats as standing still: the floor of the
+        softening speed of the paper's eq. 19,
+        ``v_s = sqrt(slow_speed^2 + (turn_time_constant |u|)^2)``, below which the
+        turn command ``e_perp . u / v`` is softened to
+        ``e_perp . u (v + s v_s) / (v^2 + v_s^2)`` (:meth:`turn_demand`; s turns
+        the robot's axis towards the line of u at rest, preferring forward):
+        the robot turns on the spot when it must, and the heading loop stays
+        smooth through v = 0 (docs/theory.md). 1 mm/s, the resolution of the
+        Create's speed commands: a larger floor slows the heading loop at rest to
+        ``|u| / slow_speed`` and leaves a steady formation error of the order of
+        ``slow_speed`` times a second.
     turn_time_constant
         Fastest heading response (s) the controller asks for: the softening
         speed grows to ``|u| turn_time_constant`` when the demanded
@@ -67,7 +79,7 @@ class RobotLimits:
     max_speed: float = 0.5
     max_turn_rate: float = 2 * 0.5 / 0.258
     max_acceleration: float = 0.5
-    slow_speed: float = 0.05
+    slow_speed: float = 0.001
     turn_time_constant: float = 0.05
     radius: float = 0.17
 
@@ -79,6 +91,31 @@ class RobotLimits:
             if not (math.isfinite(value) and value > 0):
                 raise SimulationInputError(f"limits.{f.name} must be finite and positive, got {value!r}")
             object.__setattr__(self, f.name, float(value))
+
+    def turn_demand(self, v: Any, along: Any, across: Any, size2: Any) -> Any:
+        """The turn rate (rad/s) the controller asks for: the paper's eq. 19, second row, softened near rest.
+
+        ``across (v + s v_s) / (v^2 + v_s^2)`` with
+        ``v_s = sqrt(slow_speed^2 + (turn_time_constant |u|)^2)`` and
+        ``s = e . u / |u| + FORWARD_BIAS``: for ``|v| >> v_s`` it is
+        ``e_perp . u / v`` (the paper's eq. 19); at rest the robot turns its axis
+        towards the line of u, forward or backward, and turns towards the forward
+        direction of u where u is across its heading (docs/theory.md). Works
+        elementwise on floats and on numpy arrays alike (the simulator and the
+        deployed controller compute it here, so they agree to the last bit).
+
+        Parameters
+        ----------
+        v
+            Signed speed along the heading (m/s).
+        along, across
+            ``e . u`` and ``e_perp . u`` (m/s^2), e the heading's unit vector.
+        size2
+            ``|u|^2``.
+        """
+        vs = np.sqrt(self.slow_speed**2 + self.turn_time_constant**2 * size2)
+        toward = along / np.sqrt(size2 + 1e-24) + FORWARD_BIAS
+        return across * (v + toward * vs) / (v * v + vs * vs)
 
     @property
     def speed_cap(self) -> float:

@@ -190,11 +190,7 @@ class LimitedUnicycle:
         ux, uy = u[:, 0], u[:, 1]
         along = c * ux + s * uy  # the paper's eq. 19, first row
         across = c * uy - s * ux
-        size2 = ux * ux + uy * uy
-        vs = np.sqrt(lim.slow_speed**2 + lim.turn_time_constant**2 * size2)
-        # towards the line of u at rest: +1 when u is ahead, -1 when behind (then reverse)
-        toward = along / np.sqrt(size2 + 1e-24)
-        demand = across * (v + toward * vs) / (v * v + vs * vs)  # the paper's eq. 19, second row, softened
+        demand = lim.turn_demand(v, along, across, ux * ux + uy * uy)  # the paper's eq. 19, second row, softened
         return np.column_stack([along, demand])
 
     def apply(self, state: _Array, command: _Array) -> tuple[_Array, _Array, tuple[_Array, ...]]:
