@@ -44,6 +44,8 @@ def test_at_rest_with_u_across_the_robot_turns_towards_u_s_forward_direction() -
         ctrl.receive(NeighbourMessage(2, 0.0, ux, uy, 0.0, 0.0))
         cmd = ctrl.tick(0.0, 0.0, 0.0, 0.0, 0.0)
         assert cmd.ideal_turn_rate == demand
+        # plain floats: a numpy scalar fed back as the next speed broke the robots' processes
+        assert all(type(x) is float for x in (cmd.turn_rate, cmd.acceleration, cmd.ideal_turn_rate))
 
 
 def test_far_from_rest_the_law_is_the_paper_s_eq_19() -> None:
