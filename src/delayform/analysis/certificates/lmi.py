@@ -230,7 +230,6 @@ def solve(problem: LmiProblem, *, tolerance: float | None = None) -> SdpSolution
     settings = clarabel.DefaultSettings()
     settings.verbose = False
     settings.max_iter = 200
-    settings.iterative_refinement_enable = False
     # faer's supernodal LDL^T: the PSD cones make dense KKT blocks, where it is 4-5x faster than qdldl
     settings.direct_solve_method = "faer"
     if tolerance is not None:
