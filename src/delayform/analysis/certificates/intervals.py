@@ -170,6 +170,25 @@ def interval_delays(data: IntervalDelays, order: int, *, split: int = 1, outer: 
     for k in range(K):
         names += [f"h{k}", *([] if f"b{k}" in aliases else [f"b{k}"]), *pa[k], *qb[k]]
 
+    # rows of the system without delayed terms: x_r' = A0[r] x, so over a constant window of length L
+    # e_r' Gamma_j = L A0[r] Omega_j (j < N), a linear relation among the entries of zeta
+    free_rows, free_cols = _delay_free(data)
+    window_rows = [(i, j, r) for i in range(len(nodes)) for j in range(order) for r in free_rows]
+
+    def _relations(sig: _Signals, A0: Matrix, exact: bool) -> Matrix | None:
+        if not window_rows:
+            return None
+        rows = []
+        for i, j, r in window_rows:
+            gamma = sig.legendre(tops[i], node_name[nodes[i]], wins[i], j)[r]
+            rows.append(gamma - _num(lengths[i], exact) * (A0[r] @ sig.e(wins[i][j])))
+        return np.array(rows, dtype=sig.dtype)
+
+    def pivots(sig: _Signals) -> list[int]:
+        """One entry of zeta per relation, solved for: a component of its Omega_j (:func:`_delay_free`)."""
+        col = dict(zip(free_rows, free_cols, strict=True))
+        return [sig.index[wins[i][j]] * n + col[r] for i, j, r in window_rows]
+
     def shift(sig: _Signals, exact: bool) -> tuple[Matrix, Matrix]:
         """The shift directions of zeta and of eta under x -> x + c e (moments Omega_0 shift, higher ones not)."""
         ev = np.array([Fraction(v) for v in e], dtype=object) if exact else np.asarray(e, dtype=float)  # type: ignore[union-attr]
@@ -185,7 +204,16 @@ def interval_delays(data: IntervalDelays, order: int, *, split: int = 1, outer: 
 
     def build(v: Mapping[str, Matrix], exact: bool) -> dict[str, Matrix]:
         A0, Ak = data.matrices(exact)
-        sig = _Signals(names, n, exact, aliases)
+        full = _Signals(names, n, exact, aliases)
+        # zeta lies in the kernel of the delay-free rows' relations (module docstring), and with an
+        # invariant only a complement of its shift direction matters: zeta = B z, the signals in z
+        B = _relation_basis(_relations(full, A0, exact), pivots(full), exact)
+        zdir = ydir = None
+        if e is not None:
+            zdir, ydir = shift(full, exact)
+            # zdir is in the kernel (a constant has Gamma_j = 0): its coordinates are its free entries
+            B = _complement(B, zdir if B is None else zdir[_free(full.size, pivots(full))])
+        sig = full if B is None else _Signals(names, n, exact, aliases, basis=B)
         e0 = sig.e("x")
         F = A0 @ e0
         for k in range(K):
@@ -201,9 +229,8 @@ def interval_delays(data: IntervalDelays, order: int, *, split: int = 1, outer: 
         if outer:
             H += [sig.e(f"a{k}") - sig.e(f"b{k}") for k in range(K)]
         Hm = np.vstack(H)
-        Pm, Wr, zdir = v["P"], None, None
-        if e is not None:
-            zdir, ydir = shift(sig, exact)
+        Pm, Wr = v["P"], None
+        if ydir is not None:
             Pm = orthogonal_basis(ydir) @ v["P"] @ _t(orthogonal_basis(ydir))
             Wr = orthogonal_basis(ydir[:n])
 
@@ -241,7 +268,6 @@ def interval_delays(data: IntervalDelays, order: int, *, split: int = 1, outer: 
                 Q = lift(v[f"Q_{k}"])
                 Phi = Phi + _quad(e0, Q) - (1 - _num(data.mu, exact)) * _quad(eh, Q)
         out: dict[str, Matrix] = {}
-        N = None if zdir is None else orthogonal_basis(zdir)
         # eta is affine in h(t) (the outer integrals), so Phi is: negative on the box of delays
         # when negative at its corners (one matrix without the outer integrals)
         for corner in itertools.product(*[(0, 1)] * (K if outer else 0)):
@@ -254,7 +280,7 @@ def interval_delays(data: IntervalDelays, order: int, *, split: int = 1, outer: 
             for k in range(K):  # the reciprocal-convexity bound at h_k = a_k (alpha 0) or b_k (alpha 1)
                 Phv = Phv - _quad(psi[k], rcc[k][corner[k] if outer else 0])
             label = "".join("+" if up else "-" for up in corner)
-            out[f"-Phi{label}"] = -Phv if N is None else -(N.T @ Phv @ N)
+            out[f"-Phi{label}"] = -Phv
         out["P"] = v["P"]
         out.update(side)
         for name in v:
@@ -263,6 +289,73 @@ def interval_delays(data: IntervalDelays, order: int, *, split: int = 1, outer: 
         return out
 
     return LmiProblem(var, build)
+
+
+def _delay_free(data: IntervalDelays) -> tuple[list[int], list[int]]:
+    """The rows r of the system without delayed terms (x_r' = A0[r] x), independent, and a column for each.
+
+    Row reduction of those rows of A0 with the largest remaining entry as pivot: the columns make
+    the square submatrix A0[rows, cols] non-singular (a row left without a clear pivot is dropped).
+    """
+    n = data.A0.shape[0]
+    cand = [r for r in range(n) if all(not np.any(A[r] != 0.0) for A in data.delayed) and np.any(data.A0[r] != 0.0)]
+    M = data.A0[cand].astype(float).copy()
+    scale = float(np.abs(data.A0).max()) if data.A0.size else 1.0
+    rows: list[int] = []
+    cols: list[int] = []
+    for k, r in enumerate(cand):
+        c = int(np.argmax(np.abs(M[k])))
+        if abs(M[k, c]) <= 1e-9 * scale:
+            continue
+        rows.append(r)
+        cols.append(c)
+        M[k + 1 :] -= np.outer(M[k + 1 :, c] / M[k, c], M[k])
+    return rows, cols
+
+
+def _complement(T: Matrix | None, u: Matrix) -> Matrix:
+    """T @ orthogonal_basis(u) (T None: the identity), formed column by column: e_j - (u_j / u_p) e_p."""
+    W = orthogonal_basis(u)
+    if T is None:
+        return W
+    p = int(np.argmax([abs(float(v)) for v in u]))
+    others = [j for j in range(u.shape[0]) if j != p]
+    return T[:, others] + np.outer(T[:, p], W[p, :])
+
+
+def _free(size: int, pivots: list[int]) -> NDArray[np.intp]:
+    """The entries of zeta not solved for by a relation."""
+    return np.array([i for i in range(size) if i not in set(pivots)], dtype=np.intp)
+
+
+def _relation_basis(C: Matrix | None, pivots: list[int], exact: bool) -> Matrix | None:
+    """A basis T of the kernel of C: identity on the free entries, the pivot entries solved for.
+
+    C z = 0 with the pivot entries z_p gives z_p = -C_p^-1 C_f z_f; C_p (square, one pivot per row)
+    is inverted by Gauss-Jordan elimination, exactly in Fractions when ``exact``.
+    """
+    if C is None:
+        return None
+    size = C.shape[1]
+    free = _free(size, pivots)
+    Cp, Cf = C[:, pivots], C[:, free]
+    k = len(pivots)
+    if exact:
+        aug = np.concatenate([Cp, -Cf], axis=1)
+        for col in range(k):  # Gauss-Jordan: the pivot rows are independent by construction
+            piv = next(r for r in range(col, k) if aug[r, col] != 0)
+            aug[[col, piv]] = aug[[piv, col]]
+            aug[col] = aug[col] / aug[col, col]
+            for r in range(k):
+                if r != col and aug[r, col] != 0:
+                    aug[r] = aug[r] - aug[r, col] * aug[col]
+        solved = aug[:, k:]
+    else:
+        solved = np.linalg.solve(Cp, -Cf)
+    T = np.zeros((size, free.size), dtype=C.dtype)
+    T[free, np.arange(free.size)] = 1
+    T[pivots, :] = solved
+    return T
 
 
 def _rtilde(R2: Matrix, order: int, n: int, dtype: Any) -> Matrix:

@@ -28,6 +28,7 @@ same formulas (see :class:`~delayform.analysis.certificates.lmi.LmiProblem`).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from fractions import Fraction
@@ -68,18 +69,25 @@ class SystemData:
 class _Signals:
     """The blocks of the vector zeta the derivative bound is a quadratic form in (aliases allowed)."""
 
-    def __init__(self, names: Sequence[str], n: int, exact: bool, aliases: Mapping[str, str] | None = None) -> None:
+    def __init__(self, names: Sequence[str], n: int, exact: bool, aliases: Mapping[str, str] | None = None,
+                 basis: Matrix | None = None) -> None:  # fmt: skip
         self.index = {name: i for i, name in enumerate(names)}
         for alias, target in (aliases or {}).items():
             self.index[alias] = self.index[target]
         self.n = n
-        self.size = n * len(names)
+        self.basis = basis
+        self.size = n * len(names) if basis is None else basis.shape[1]
         self.dtype: Any = object if exact else float
 
     def e(self, name: str) -> Matrix:
-        """The n x size matrix picking the block ``name`` of zeta."""
-        E = np.zeros((self.n, self.size), dtype=self.dtype)
+        """The n x size matrix picking the block ``name`` of zeta.
+
+        With a ``basis`` B (zeta = B z, zeta confined to its range), the block of zeta in terms of z: rows of B.
+        """
         i = self.index[name]
+        if self.basis is not None:
+            return np.array(self.basis[i * self.n : (i + 1) * self.n, :], dtype=self.dtype)
+        E = np.zeros((self.n, self.size), dtype=self.dtype)
         for r in range(self.n):
             E[r, i * self.n + r] = 1
         return E
@@ -117,8 +125,20 @@ def _cross(G: Matrix, W: Matrix, H: Matrix) -> Matrix:
         return G.T @ W @ H
     gi, hi = np.flatnonzero(np.any(G != 0, axis=0)), np.flatnonzero(np.any(H != 0, axis=0))
     out = np.zeros((G.shape[1], H.shape[1]), dtype=object)
-    out[np.ix_(gi, hi)] = G[:, gi].T @ W @ H[:, hi]
+    # in integers over common denominators (no gcd at every step), back to Fractions at the end
+    (g, dg), (w, dw), (h, dh) = _integer(G[:, gi]), _integer(W), _integer(H[:, hi])
+    den = dg * dw * dh
+    out[np.ix_(gi, hi)] = np.frompyfunc(lambda v: Fraction(v, den), 1, 1)(g.T @ w @ h)
     return out
+
+
+def _integer(M: Matrix) -> tuple[Matrix, int]:
+    """(Z, d) with M = Z / d exactly: Z Python ints, d the least common denominator of M's Fractions."""
+    flat = [Fraction(v) for v in M.ravel()]
+    den = math.lcm(1, *(v.denominator for v in flat))
+    Z = np.empty(M.shape, dtype=object)
+    Z.ravel()[:] = [v.numerator * (den // v.denominator) for v in flat]
+    return Z, den
 
 
 def _bessel(sig: _Signals, top: str, bottom: str, moments: Sequence[str], R: Matrix, order: int) -> Matrix:
