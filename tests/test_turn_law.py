@@ -8,23 +8,17 @@ turned nor drove, and the Create 3 example stopped 1.9 cm from its shape.
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-from delayform import dominant_root
 from delayform.deploy import FormationController, NeighbourMessage, robot_profile
-from delayform.fleet.outcome import linear_decay, saturated, window_needed
 from delayform.model import Delays, Start, Team
 from delayform.model.limits import FORWARD_BIAS
-from delayform.scenario.parse import load_scenario
 from delayform.simulation import simulate
 from delayform.simulation.models.robots import LimitedUnicycle, Robot
 from delayform.topology import complete
 
-ROOT = Path(__file__).resolve().parents[1]
-EXAMPLE = ROOT / "examples" / "create3_hexagon.toml"
 LIMITS = robot_profile("create3").limits
 
 
@@ -79,30 +73,4 @@ def test_two_robots_at_rest_with_their_inputs_exactly_across_their_headings_conv
     assert e[-1] < 1e-3 * e[0]
 
 
-@pytest.fixture(scope="module")
-def example_run() -> object:
-    s = load_scenario(EXAMPLE)
-    start = Start(np.array(s.initial.positions), np.array(s.initial.headings), speed=s.initial.speed)
-    return simulate(Team(s.topology, s.P, s.D), Delays(s.tau1, s.tau2), s.desired_positions(),
-                    robot=Robot(model="unicycle", limits=LIMITS), start=start, duration=40.0, dt=0.01)  # fmt: skip
-
-
-def test_the_example_s_error_falls_far_below_the_earlier_floor(example_run: object) -> None:
-    """The earlier law stopped the example at 1.9 cm for good (every robot at rest, u across its heading)."""
-    t, e = example_run.times, example_run.formation_error
-    assert e[np.searchsorted(t, 24.0)] < 1e-3
-    assert e[-40:].max() < 2e-4  # 100 times below the earlier floor
-
-
-def test_the_example_s_linear_phase_measures_the_dominant_root(example_run: object) -> None:
-    """Fitted as the fleet fits it: the window is long enough and the rate is the root's within 30 %."""
-    run = example_run
-    c = run.commands
-    flags = saturated(c.turn_rate, c.ideal_turn_rate) | saturated(c.acceleration, c.ideal_acceleration)
-    last = float(c.times[np.flatnonzero(flags.any(axis=1))[-1]])
-    fit = linear_decay(run.times, run.formation_error, saturated_until=last)
-    s = load_scenario(EXAMPLE)
-    root = dominant_root(s.topology, s.P, s.D, s.tau1, s.tau2).formation_root
-    assert 8.0 < last < 11.0
-    assert fit.stop_s - fit.start_s >= window_needed(root)
-    assert fit.rate == pytest.approx(-root.real, rel=0.3)
+# the example's error far below the earlier floor, and its linear phase: tests/test_fleet_decay.py
