@@ -33,9 +33,9 @@ The team
     limits: there the error falls at what the actuators allow, not at the
     dominant root's rate), once the error is below ``FIT_WINDOW[0]`` of its
     initial value, and while it stays above :data:`FLOOR_MARGIN` times its
-    floor (the level it holds at the end of the run: a unicycle at rest whose
-    control input is across its heading neither turns nor drives, a real
-    steady-state error of a few centimetres) and above ``FIT_WINDOW[1]`` of the
+    floor (the level it holds at the end of the run: the wobble left by the
+    ticks' timing and the turn law's softening at rest, docs/theory.md; below
+    a millimetre on the Create 3 example) and above ``FIT_WINDOW[1]`` of the
     initial error. The summary names the window (``decay_window``) and how
     long it would have to be for its slope to be the dominant root's
     (``decay_window_needed_s``, :func:`window_needed`). Beside them:
