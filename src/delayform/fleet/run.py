@@ -23,8 +23,8 @@ draws for packet m of each stream; a stream the simulator loses is never
 used (loss, Bernoulli or bursty), and each stream carries the noise the
 simulator adds to it. A state message carries both streams, as one packet
 does on a real robot; each becomes usable at its own time. Delays that vary
-smoothly in time are refused (:class:`~delayform.errors.FleetError`) rather
-than run without them.
+smoothly in time delay each message as the simulator's variation delays the
+value it hears (:mod:`delayform.fleet.plan`, Variation).
 """
 
 from __future__ import annotations
@@ -79,18 +79,8 @@ def check_network(network: Network | None) -> Network | None:
     network
         The scenario's network, or None.
 
-    Raises
-    ------
-    FleetError
-        For delays that vary smoothly in time (the one part not applied to real messages).
     """
-    if network is None or network.is_ideal:
-        return None
-    if network.variation is not None and not network.variation.is_off:
-        raise FleetError("the scenario's [network] has delay variation: a fleet run applies per-link delays, jitter, "
-                         "loss, sampling and noise to real messages, not delays that vary in time; remove it, or run "
-                         "simulate for the whole network")  # fmt: skip
-    return network
+    return None if network is None or network.is_ideal else network
 
 
 def _limits_dict(limits: RobotLimits | None) -> dict[str, float] | None:
@@ -383,19 +373,22 @@ def _robot_log(paths: list[Path], period: float) -> dict[str, Any]:
 
 
 def _step(plan: LinkPlan, network: Network | None, period: float) -> float:
-    """The simulator's step: the control period, or the largest period / k under every delay less its jitter.
+    """The simulator's step: the control period, or the largest period / k under every delay less its jitter and variation.
 
     A packet stream is heard at the earliest one step after it is sent (the
     simulator's rule): a link delay shorter than the period needs a finer step.
     """
-    bounds = (0.0, 0.0)
+    bounds = np.zeros(2)
     if network is not None and network.jitter is not None:
-        bounds = (network.jitter.bound1, network.jitter.bound2)
+        bounds += (network.jitter.bound1, network.jitter.bound2)
+    if network is not None and network.variation is not None:
+        bounds += (network.variation.amplitude1, network.variation.amplitude2)
     packets = network is not None and network.packets
     shortest = [float(d.min()) - b for d, b in ((plan.tau1, bounds[0]), (plan.tau2, bounds[1]))]
-    floor = min([d for d in shortest if d > 0.0 or packets], default=period)
+    floor = min([d for d, b in zip(shortest, bounds) if d > 0.0 or packets or b > 0.0], default=period)
     if floor <= 0.0:
-        raise FleetError(f"a delay less its jitter reaches {floor:g} s: every packet must take some time to arrive")
+        raise FleetError(f"a delay less its jitter and variation reaches {floor:g} s: every message must take "
+                         "some time to arrive")  # fmt: skip
     return period / max(1, math.ceil(period / floor - 1e-9))
 
 
