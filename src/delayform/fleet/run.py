@@ -1,7 +1,9 @@
 """A fleet run: the team as one process per robot and a world process, over Zenoh on the loopback.
 
 :func:`run_fleet` checks everything it can before any process starts (the
-team, the delays, the network parts, the endpoint and its port), simulates
+team, the delays, the network parts, the endpoint and its port, whether
+this machine has the cores and memory to keep the control period,
+:mod:`delayform.fleet.budget`), simulates
 the same team at the same delays (the promise the run is measured against,
 and the initial states both start from), then starts the world and the
 robots (:mod:`delayform.fleet.agents`, :mod:`delayform.fleet.lifecycle`),
@@ -46,6 +48,7 @@ from delayform.deploy.profiles import RobotProfile
 from delayform.errors import FleetError, FleetRunError
 from delayform.fleet.lifecycle import Children, terminate_as_exit
 from delayform.fleet.outcome import FleetRun, measure
+from delayform.fleet.budget import check_machine
 from delayform.fleet.faults import Fault, check_faults
 from delayform.fleet.live import LIVE_EVERY, LiveView, check_live_port
 from delayform.fleet.wire import DEFAULT_ENDPOINT, Codec, Odometry, check_endpoint, key, open_session, port_free
@@ -154,9 +157,14 @@ def run_fleet(
     ------
     FleetError
         Before any process starts: delay matrices in ``delays`` (they go in
-        the network), an actuation delay, delays varying in time, an endpoint off the loopback or a port in use,
+        the network), an actuation delay, a delay its jitter and variation
+        could bring to zero, an endpoint off the loopback or a port in use,
         a period or duration that is not positive, an unknown world, faults
-        that do not fit the team or the run, a Foxglove port that is invalid or taken.
+        that do not fit the team or the run, a Foxglove port that is invalid
+        or taken, a team whose processes would need more cores than this
+        machine has to keep the period (:mod:`delayform.fleet.budget`).
+    ResourceLimitError
+        Before any process starts: processes that would need more memory than the budget.
     MissingExtraError
         For ``foxglove`` without the Foxglove SDK.
     FleetRunError
@@ -183,6 +191,7 @@ def run_fleet(
     if not port_free(host, port):
         raise FleetError(f"the endpoint {endpoint} cannot be used: port {port} is already taken on {host}")
     faults = check_faults(faults, team.n, duration)
+    check_machine(team.n, int(team.topology.C_sparse.nnz), period)
     if foxglove is not None:
         check_live_port(foxglove, taken=port)
     out = Path(out)
