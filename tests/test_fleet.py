@@ -116,13 +116,12 @@ def test_endpoint_checks() -> None:
             check_endpoint(bad)
 
 
-def test_network_parts_not_applied_are_refused() -> None:
+def test_every_part_of_a_network_is_applied() -> None:
     assert check_network(Network()) is None
     assert check_network(Network(loss=BernoulliLoss(0.1))) is not None
     assert check_network(Network(sampling=Sampling(20.0), noise=MeasurementNoise(0.01, 0.01))) is not None
     assert check_network(Network(jitter=Jitter(0.01, 0.01))) is not None  # applied per message (test_fleet_links)
-    with pytest.raises(FleetError, match="variation"):
-        check_network(Network(variation=SmoothVariation(0.05, 0.05, 5.0)))
+    assert check_network(Network(variation=SmoothVariation(0.05, 0.05, 5.0))) is not None  # test_fleet_links
 
 
 def test_packet_draws_are_the_simulator_s() -> None:
@@ -298,9 +297,9 @@ def test_the_command_writes_its_page_and_prints_json(tmp_path: Path) -> None:
 
 
 def test_a_bad_scenario_exits_2_with_one_line_before_any_process(tmp_path: Path) -> None:
-    bad = tmp_path / "variation.toml"
+    bad = tmp_path / "variation.toml"  # the velocity delay 0.2 s less its variation 0.25 s: messages from the future
     bad.write_text((ROOT / "examples" / "paper.toml").read_text()
-                   + "\n[network]\nvariation = { amplitude = [0.05, 0.05], period = 5.0 }\n")
+                   + "\n[network]\nvariation = { amplitude = [0.05, 0.25], period = 5.0 }\n")
     for args in ([str(bad)], ["--endpoint", "tcp/10.1.2.3:7447"], ["--tau1", "-1"]):
         proc = _cli(*args, "--duration", "5", "--out", str(tmp_path / "out"))
         stdout, stderr = proc.communicate(timeout=120)

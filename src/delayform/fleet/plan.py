@@ -21,6 +21,15 @@ Delays
     around them with the spread. With jitter, packet m of stream s is
     delayed by the link's delay plus ``bound_s U(-1, 1)``. The position and
     the velocity of a message travel as two streams, each with its own delay.
+Variation
+    Delays that vary smoothly in time (:class:`~delayform.model.network.SmoothVariation`),
+    each link with the phase the simulator draws for it. With packets, packet m
+    is delayed by ``amplitude sin(2 pi m p / period + phase)`` more, as the
+    simulator delays it. Without packets the simulator hears ``x(t - d(t))``
+    at every time t: the value sent at s is heard when ``t - d(t) = s``, one
+    time since the delay changes at a rate below 1, found by Newton's method;
+    packet m is delayed by that ``t - s`` (``tests/test_fleet_links.py`` checks
+    the value heard at every stage time against the simulator's).
 Loss
     A stream's packet the network loses never becomes usable: its delay is
     infinite (the message may still carry the other stream).
@@ -35,7 +44,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from delayform.errors import FleetError
-from delayform.model.network import Network, check_link_matrix
+from delayform.model.network import Network, SmoothVariation, check_link_matrix
 from delayform.simulation.delayed.reception import packet_draws
 from delayform.topology import Topology
 
@@ -45,7 +54,7 @@ _Array = NDArray[np.float64]
 
 #: the simulator's random streams, in the order it splits its seed (module doc)
 _STREAMS = 5
-_DELAY_STREAM, _JITTER_STREAM = 0, 2
+_DELAY_STREAM, _PHASE_STREAM, _JITTER_STREAM = 0, 1, 2
 
 
 def packet_count(duration: float, dt: float, period: float) -> int:
@@ -73,7 +82,8 @@ class LinkPlan:
     period
         Packet period (s): the sampling period, or the simulator's step.
     jitter
-        ``(2, packets, E)`` the jitter (s) of packet m of stream s on link e, or None.
+        ``(2, packets, E)`` what packet m of stream s on link e takes beyond
+        the link's delay (s): its jitter and the delays' variation; or None.
     lost
         ``(2, packets, E)`` True where the network loses that packet, or None.
     noise
@@ -138,14 +148,7 @@ def link_plan(network: Network, topology: Topology, tau1: float, tau2: float, *,
     duration
         The run's duration (s).
 
-    Raises
-    ------
-    FleetError
-        For a network whose delays vary smoothly in time (not applied to real messages).
     """
-    if network.variation is not None and not network.variation.is_off:
-        raise FleetError("the scenario's [network] varies the delays in time; a fleet run applies per-link delays, "
-                         "jitter, loss, sampling and noise; remove the variation or run simulate")  # fmt: skip
     C = topology.C_sparse.tocoo()
     order = np.lexsort((C.col, C.row))  # the simulator's link order: by receiver, then informer
     rows, cols = C.row[order].astype(np.intp), C.col[order].astype(np.intp)
@@ -163,4 +166,44 @@ def link_plan(network: Network, topology: Topology, tau1: float, tau2: float, *,
         if not (np.array_equal(draws.receivers, rows) and np.array_equal(draws.informers, cols)):
             raise FleetError("internal: the simulator's link order changed")  # a guard, checked by the tests
         lost, noise = draws.lost, draws.noise
+    variation = network.variation
+    if variation is not None and not variation.is_off:
+        extra = _variation(variation, network.seed, (d1, d2), period, packets, packets_on=network.packets)
+        jitter = extra if jitter is None else jitter + extra
     return LinkPlan(receivers=rows, informers=cols, tau1=d1, tau2=d2, period=period, jitter=jitter, lost=lost, noise=noise)
+
+
+def _variation(variation: SmoothVariation, seed: int | None, delays: tuple[_Array, _Array], period: float,
+               packets: int, *, packets_on: bool) -> _Array:  # fmt: skip
+    """``(2, packets, E)``: what the smooth variation adds to packet m's delay on each link (module doc, Variation)."""
+    E = delays[0].size
+    phases = np.random.default_rng(np.random.SeedSequence(seed).spawn(_STREAMS)[_PHASE_STREAM]).uniform(
+        0.0, 2.0 * math.pi, size=(2, E))  # the simulator's draw, in its shape
+    sent = np.arange(packets, dtype=np.float64)[:, None] * period
+    omega = 2.0 * math.pi / variation.period
+    out = np.zeros((2, packets, E))
+    for s, amp in enumerate((variation.amplitude1, variation.amplitude2)):
+        if amp == 0.0:
+            continue
+        if packets_on:  # the simulator delays packet m by the variation at its sampling time
+            out[s] = amp * np.sin(omega * sent + phases[s])
+            continue
+        # heard at t with t - d(t) = sent: f(t) = t - base - amp sin(omega t + phase) - sent increases
+        # (slope 1 - amp omega cos(.) >= 1 - amp omega > 0) and changes sign on [sent + base -+ amp]:
+        # Newton's method kept inside that bracket (a step out of it bisects), to steps below 1e-13 s
+        base = np.broadcast_to(delays[s][None, :], (packets, E))
+        lo, hi = sent + base - amp, sent + base + amp
+        t = sent + base
+        for _ in range(200):
+            f = t - base - amp * np.sin(omega * t + phases[s]) - sent
+            lo, hi = np.where(f < 0.0, t, lo), np.where(f > 0.0, t, hi)
+            newton = t - f / (1.0 - amp * omega * np.cos(omega * t + phases[s]))
+            nxt = np.where((newton > lo) & (newton < hi), newton, 0.5 * (lo + hi))
+            done = np.max(np.abs(nxt - t)) < 1e-13
+            t = nxt
+            if done:
+                break
+        else:  # not reached: a bracket halves at the least at every step
+            raise FleetError("internal: the varying delays' reception times did not converge")
+        out[s] = t - sent - base
+    return out

@@ -1,7 +1,9 @@
 """A fleet run: the team as one process per robot and a world process, over Zenoh on the loopback.
 
 :func:`run_fleet` checks everything it can before any process starts (the
-team, the delays, the network parts, the endpoint and its port), simulates
+team, the delays, the network parts, the endpoint and its port, whether
+this machine has the cores and memory to keep the control period,
+:mod:`delayform.fleet.budget`), simulates
 the same team at the same delays (the promise the run is measured against,
 and the initial states both start from), then starts the world and the
 robots (:mod:`delayform.fleet.agents`, :mod:`delayform.fleet.lifecycle`),
@@ -23,8 +25,8 @@ draws for packet m of each stream; a stream the simulator loses is never
 used (loss, Bernoulli or bursty), and each stream carries the noise the
 simulator adds to it. A state message carries both streams, as one packet
 does on a real robot; each becomes usable at its own time. Delays that vary
-smoothly in time are refused (:class:`~delayform.errors.FleetError`) rather
-than run without them.
+smoothly in time delay each message as the simulator's variation delays the
+value it hears (:mod:`delayform.fleet.plan`, Variation).
 """
 
 from __future__ import annotations
@@ -46,6 +48,7 @@ from delayform.deploy.profiles import RobotProfile
 from delayform.errors import FleetError, FleetRunError
 from delayform.fleet.lifecycle import Children, terminate_as_exit
 from delayform.fleet.outcome import FleetRun, measure
+from delayform.fleet.budget import check_machine
 from delayform.fleet.faults import Fault, check_faults
 from delayform.fleet.live import LIVE_EVERY, LiveView, check_live_port
 from delayform.fleet.wire import DEFAULT_ENDPOINT, Codec, Odometry, check_endpoint, key, open_session, port_free
@@ -79,18 +82,8 @@ def check_network(network: Network | None) -> Network | None:
     network
         The scenario's network, or None.
 
-    Raises
-    ------
-    FleetError
-        For delays that vary smoothly in time (the one part not applied to real messages).
     """
-    if network is None or network.is_ideal:
-        return None
-    if network.variation is not None and not network.variation.is_off:
-        raise FleetError("the scenario's [network] has delay variation: a fleet run applies per-link delays, jitter, "
-                         "loss, sampling and noise to real messages, not delays that vary in time; remove it, or run "
-                         "simulate for the whole network")  # fmt: skip
-    return network
+    return None if network is None or network.is_ideal else network
 
 
 def _limits_dict(limits: RobotLimits | None) -> dict[str, float] | None:
@@ -164,9 +157,14 @@ def run_fleet(
     ------
     FleetError
         Before any process starts: delay matrices in ``delays`` (they go in
-        the network), an actuation delay, delays varying in time, an endpoint off the loopback or a port in use,
+        the network), an actuation delay, a delay its jitter and variation
+        could bring to zero, an endpoint off the loopback or a port in use,
         a period or duration that is not positive, an unknown world, faults
-        that do not fit the team or the run, a Foxglove port that is invalid or taken.
+        that do not fit the team or the run, a Foxglove port that is invalid
+        or taken, a team whose processes would need more cores than this
+        machine has to keep the period (:mod:`delayform.fleet.budget`).
+    ResourceLimitError
+        Before any process starts: processes that would need more memory than the budget.
     MissingExtraError
         For ``foxglove`` without the Foxglove SDK.
     FleetRunError
@@ -193,6 +191,7 @@ def run_fleet(
     if not port_free(host, port):
         raise FleetError(f"the endpoint {endpoint} cannot be used: port {port} is already taken on {host}")
     faults = check_faults(faults, team.n, duration)
+    check_machine(team.n, int(team.topology.C_sparse.nnz), period)
     if foxglove is not None:
         check_live_port(foxglove, taken=port)
     out = Path(out)
@@ -383,19 +382,22 @@ def _robot_log(paths: list[Path], period: float) -> dict[str, Any]:
 
 
 def _step(plan: LinkPlan, network: Network | None, period: float) -> float:
-    """The simulator's step: the control period, or the largest period / k under every delay less its jitter.
+    """The simulator's step: the control period, or the largest period / k under every delay less its jitter and variation.
 
     A packet stream is heard at the earliest one step after it is sent (the
     simulator's rule): a link delay shorter than the period needs a finer step.
     """
-    bounds = (0.0, 0.0)
+    bounds = np.zeros(2)
     if network is not None and network.jitter is not None:
-        bounds = (network.jitter.bound1, network.jitter.bound2)
+        bounds += (network.jitter.bound1, network.jitter.bound2)
+    if network is not None and network.variation is not None:
+        bounds += (network.variation.amplitude1, network.variation.amplitude2)
     packets = network is not None and network.packets
     shortest = [float(d.min()) - b for d, b in ((plan.tau1, bounds[0]), (plan.tau2, bounds[1]))]
-    floor = min([d for d in shortest if d > 0.0 or packets], default=period)
+    floor = min([d for d, b in zip(shortest, bounds) if d > 0.0 or packets or b > 0.0], default=period)
     if floor <= 0.0:
-        raise FleetError(f"a delay less its jitter reaches {floor:g} s: every packet must take some time to arrive")
+        raise FleetError(f"a delay less its jitter and variation reaches {floor:g} s: every message must take "
+                         "some time to arrive")  # fmt: skip
     return period / max(1, math.ceil(period / floor - 1e-9))
 
 
