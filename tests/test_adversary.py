@@ -72,3 +72,20 @@ def test_rejects_bad_input():
     s = SwitchingSignal(LAM, P, D, T1, T2, 0.1, 0.01, np.full(10, 2.0), np.full(10, 1.0), 0.9 + 0j)
     with pytest.raises(InputError):
         replay_growth_rate(s, periods=2)
+
+
+def test_refined_signal_is_a_local_maximum():
+    # the maximum principle stops at an extremal: flipping the delay at any single step lowers |mu|
+    s = periodic_switching_adversary(LAM, P, D, T1, T2, 0.14, dt=0.01, members=1, iterations=4)
+    rng = np.random.default_rng(7)
+    for k in rng.integers(0, s.h1.size, 3):
+        for h, other, tau in ((s.h1.copy(), s.h2, T1), (s.h2.copy(), s.h1, T2)):
+            h[k] = tau - 0.14 if h[k] > tau else tau + 0.14
+            pair = (h, other) if tau == T1 else (other, h)
+            assert abs(floquet_multiplier(LAM, P, D, *pair, 0.01)) < abs(s.multiplier)
+
+
+def test_deterministic():
+    a = periodic_switching_adversary(LAM, P, D, T1, T2, 0.15, dt=0.01, members=1, iterations=2)
+    b = periodic_switching_adversary(LAM, P, D, T1, T2, 0.15, dt=0.01, members=1, iterations=2)
+    assert a.multiplier == b.multiplier and np.array_equal(a.h1, b.h1)

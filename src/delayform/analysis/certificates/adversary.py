@@ -235,11 +235,12 @@ def _dominant(M: NDArray[np.float64], *, vectors: bool) -> tuple[complex, NDArra
         mu, vec = np.linalg.eig(M)
         q = int(np.argmax(np.abs(mu)))
         return complex(mu[q]), (vec[:, q].astype(complex) if vectors else None)
+    start = np.ones(M.shape[0])  # a fixed start: the same answer every run
     if vectors:
-        mu, vec = eigs(M, k=4, which="LM", tol=1e-12)
+        mu, vec = eigs(M, k=4, which="LM", tol=1e-12, v0=start)
         q = int(np.argmax(np.abs(mu)))
         return complex(mu[q]), vec[:, q]
-    mu = eigs(M, k=4, which="LM", tol=1e-12, return_eigenvectors=False)
+    mu = eigs(M, k=4, which="LM", tol=1e-12, v0=start, return_eigenvectors=False)
     return complex(mu[int(np.argmax(np.abs(mu)))]), None
 
 
