@@ -85,7 +85,10 @@ def test_refined_signal_is_a_local_maximum():
             assert abs(floquet_multiplier(LAM, P, D, *pair, 0.01)) < abs(s.multiplier)
 
 
-def test_deterministic():
-    a = periodic_switching_adversary(LAM, P, D, T1, T2, 0.15, dt=0.01, members=1, iterations=2)
-    b = periodic_switching_adversary(LAM, P, D, T1, T2, 0.15, dt=0.01, members=1, iterations=2)
+def test_deterministic_and_inside_the_interval_off_the_grid():
+    # 0.153 is not a multiple of dt: the delays are rounded into [tau - 0.153, tau + 0.153], never out
+    a = periodic_switching_adversary(LAM, P, D, T1, T2, 0.153, dt=0.01, members=1, iterations=2)
+    b = periodic_switching_adversary(LAM, P, D, T1, T2, 0.153, dt=0.01, members=1, iterations=2)
     assert a.multiplier == b.multiplier and np.array_equal(a.h1, b.h1)
+    assert a.h1.min() >= T1 - 0.153 and a.h1.max() <= T1 + 0.153
+    assert a.h2.min() >= T2 - 0.153 and a.h2.max() <= T2 + 0.153
