@@ -66,6 +66,8 @@ def test_rejects_bad_input():
     with pytest.raises(InputError):
         periodic_switching_adversary(LAM, P, D, T1, T2, 0.1, dt=0.0)
     with pytest.raises(InputError):
+        periodic_switching_adversary(1.0, P, D, T1, T2, 0.1)
+    with pytest.raises(InputError):
         floquet_multiplier(LAM, P, D, np.full(10, 2.0), np.full(9, 1.0), 0.01)
     with pytest.raises(InputError):
         floquet_multiplier(LAM, P, D, np.full(10, -2.0), np.full(10, 1.0), 0.01)

@@ -353,6 +353,8 @@ def periodic_switching_adversary(lam: float, P: float, D: float, tau1: float, ta
     """
     if not (dt > 0 and delta >= 0 and duration > 20.0 and members >= 1 and iterations >= 0):
         raise InputError("need dt > 0, delta >= 0, duration > 20 s, members >= 1 and iterations >= 0")
+    if lam == 1.0:
+        raise InputError("lam = 1 is the centroid's mode: it settles at any constant, so it has no growth to find")
     bounds = _lags(tau1, tau2, delta, dt, inward=True)
     depth = max(bounds) + 1
     late, j1, j2 = _greedy_family(lam, P, D, tau1, tau2, delta, weights, dt, duration, record=True, inward=True)
