@@ -3,8 +3,13 @@
 Beside it: the small-gain margin (per link, ``jitter_margin``), the smallest deviation at which a
 greedy bang-bang switching adversary destabilizes each mode (delays varying together: each step
 h1, h2 in {tau - A, tau + A}, whichever pumps energy into the mode; own semi-implicit Euler,
-dt = 0.005 s, 240 s, bisection), the same for the stronger family of weighted energies, and the smallest constant offset (2 +- d, 1 +- d) that is unstable
-by the exact spectrum of the factors (rightmost roots on the square's boundary, bisection).
+dt = 0.005 s, 240 s, bisection), the same for the stronger family of weighted energies, the smallest
+deviation (on the grid of dt = 0.005 s, every delay inside the interval) at which a periodic signal is
+proved destabilizing by its Floquet multiplier (the greedy signals' periods refined by the maximum
+principle, ``periodic_switching_adversary``; its growth rate re-checked by Runge-Kutta at dt / 4,
+``replay_growth_rate``; for the limiting mode also the grid point below at dt = 0.0025 s), and the
+smallest constant offset (2 +- d, 1 +- d) that is unstable by the exact spectrum of the factors
+(rightmost roots on the square's boundary, bisection).
 
 Run: ``OMP_NUM_THREADS=1 python benchmarks/bench_team_certificates.py [--repeat 3] [--max-order 3]
 [--upper-cuts] [--rtol 0.02] [--no-adversary]`` (the options are those of ``team_delay_margin``).
@@ -20,7 +25,13 @@ import time
 
 import numpy as np
 
-from delayform.analysis.certificates.adversary import greedy_switching_grows, weighted_switching_grows
+from delayform.analysis.certificates.adversary import (
+    SwitchingSignal,
+    greedy_switching_grows,
+    periodic_switching_adversary,
+    replay_growth_rate,
+    weighted_switching_grows,
+)
 from delayform.analysis.certificates.team import team_delay_margin
 from delayform.analysis.network import jitter_margin
 from delayform.analysis.roots.single import rightmost_root
@@ -36,6 +47,23 @@ def grows(lam: float, A: float) -> bool:
 
 def grows_weighted(lam: float, A: float) -> bool:
     return weighted_switching_grows(lam, P, D, T1, T2, A)
+
+
+def periodic_threshold(lam: float, dt: float = 0.005, cap: float = 0.6) -> tuple[float, SwitchingSignal] | None:
+    """The smallest deviation on the grid of dt at which the periodic adversary proves growth (bisection)."""
+    found: dict[int, SwitchingSignal] = {}
+
+    def grows(m: int) -> bool:
+        found[m] = periodic_switching_adversary(lam, P, D, T1, T2, m * dt, dt=dt)
+        return found[m].grows
+
+    lo, hi = 0, int(round(cap / dt))
+    if not grows(hi):
+        return None
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        lo, hi = (lo, mid) if grows(mid) else (mid, hi)
+    return hi * dt, found[hi]
 
 
 def bisect(bad, hi: float, steps: int = 9) -> float | None:
@@ -80,18 +108,29 @@ def main() -> None:
     if args.no_adversary:
         return
     print(f"small gain (per link): {small.delta:.4f} s\n")
-    print("| mode lam | functional that holds | greedy switching destabilizes at | weighted family at | constant offset unstable at |")
-    print("|---|---|---|---|---|")
+    print("| mode lam | functional that holds | greedy switching destabilizes at | weighted family at | periodic signal (Floquet) at "
+          "| its rate, replayed (1/s) | constant offset unstable at |")  # fmt: skip
+    print("|---|---|---|---|---|---|---|")
     for md, f in zip(m.modes, [next(g for g in factors(paper_six(), P, D) if g.lam == md.lam) for md in m.modes], strict=True):
         # the adversary's growth test needs a mode that decays to 0: not the centroid (it settles anywhere)
         skip = "n/a (pair)" if f.group.is_complex_pair else ("n/a (centroid)" if f.is_centroid else None)
         adv = bisect(lambda A: grows(f.lam.real, A), 0.6) if skip is None else None
         wadv = bisect(lambda A: grows_weighted(f.lam.real, A), 0.6) if skip is None else None
+        c = time.process_time()
+        per = periodic_threshold(f.lam.real) if skip is None else None
+        per_cpu = time.process_time() - c
         const = bisect(lambda d: constant_unstable(f, d), 0.6)
         adv_s = skip or ("none up to 0.6" if adv is None else f"{adv:.4f}")
         wadv_s = skip or ("none up to 0.6" if wadv is None else f"{wadv:.4f}")
         const_s = "none up to 0.6" if const is None else f"{const:.4f}"
-        print(f"| {md.lam:.4f} | {md.functional} | {adv_s} | {wadv_s} | {const_s} |")
+        per_s = skip or ("none up to 0.6" if per is None else f"{per[0]:.4f} ({per_cpu:.0f} CPU s)")
+        rate_s = "" if per is None else f"{per[1].rate:.2e}, {replay_growth_rate(per[1], periods=60):.2e}"
+        print(f"| {md.lam:.4f} | {md.functional} | {adv_s} | {wadv_s} | {per_s} | {rate_s} | {const_s} |")
+        if md.lam == m.limiting and per is not None:
+            below = periodic_switching_adversary(f.lam.real, P, D, T1, T2, per[0] - 0.0025, dt=0.0025)
+            print(f"  limiting mode at {per[0] - 0.0025:.4f} (dt = 0.0025 s): multiplier {abs(below.multiplier):.6f}, "
+                  f"rate {below.rate:.2e} per s; at the certified {m.delta:.4f}: "
+                  f"{periodic_switching_adversary(f.lam.real, P, D, T1, T2, m.delta).rate:.2e} per s")  # fmt: skip
 
 
 if __name__ == "__main__":

@@ -16,6 +16,10 @@
 ``team``
     The team's margin for delays varying together on every link, one
     certificate per mode of eq. factorized: :func:`team_delay_margin`.
+``adversary``
+    The other side: delay signals that destabilize one mode (greedy switching rules, and
+    periodic signals proved destabilizing by their Floquet multiplier), to measure how far
+    below the truth a certified margin lies.
 """
 
 from delayform.analysis.certificates.margin import (
