@@ -53,6 +53,11 @@ def test_destabilizing_signal_replays_with_growth():
     assert np.all(np.abs(s.h1 - T1) <= 0.16 + 1e-12) and np.all(np.abs(s.h2 - T2) <= 0.16 + 1e-12)
     replay = replay_growth_rate(s, periods=30)
     assert replay > 0 and replay == pytest.approx(s.rate, rel=0.25)
+    ax = s.plot()  # the two delays over one period, inside their bands
+    assert len(ax.lines) == 2 and ax.lines[0].get_xdata()[-1] < s.period
+    import matplotlib.pyplot as plt
+
+    plt.close(ax.figure)
 
 
 def test_no_growth_inside_the_certified_margin():

@@ -38,12 +38,16 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.sparse.linalg import eigs
 
 from delayform.errors import InputError
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
 
 __all__ = ["greedy_switching_grows", "weighted_switching_grows", "WEIGHTS", "SwitchingSignal",
            "floquet_multiplier", "periodic_switching_adversary", "replay_growth_rate"]
@@ -186,6 +190,22 @@ class SwitchingSignal:
     def grows(self) -> bool:
         """True when the dominant multiplier lies outside the unit circle."""
         return abs(self.multiplier) > 1.0
+
+    def plot(self, ax: Axes | None = None) -> Axes:
+        """The two delays over one period of the signal, inside their interval tau +- delta."""
+        import matplotlib.pyplot as plt
+
+        if ax is None:
+            ax = plt.figure().add_subplot()
+        t = np.arange(self.h1.size) * self.dt
+        for h, tau, name in ((self.h1, self.tau1, "h1 (positions)"), (self.h2, self.tau2, "h2 (velocities)")):
+            line = ax.step(t, h, where="post", label=name)[0]
+            ax.fill_between(t, tau - self.delta, tau + self.delta, color=line.get_color(), alpha=0.1)
+        ax.set_xlabel("t within one period (s)")
+        ax.set_ylabel("delay (s)")
+        ax.set_title(f"lam = {self.lam:g}: multiplier {abs(self.multiplier):.4f} per {self.period:.3g} s")
+        ax.legend(loc="best", fontsize="small")
+        return ax
 
 
 def _march(lam: float, P: float, D: float, j1: NDArray[np.int_], j2: NDArray[np.int_], depth: int, dt: float,
