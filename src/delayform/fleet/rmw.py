@@ -115,6 +115,15 @@ def _type(msgtype: str) -> tuple[str, str]:
 def data_key(domain: int, topic: str, msgtype: str) -> str:
     """The key expression rmw_zenoh publishes topic ``topic`` of type ``msgtype`` on (module doc).
 
+    Parameters
+    ----------
+    domain
+        The ROS domain id.
+    topic
+        The ROS 2 topic name (``/robot_1/odom``; the leading slash is optional).
+    msgtype
+        Its ROS 2 type, one of :data:`TYPES` (``nav_msgs/msg/Odometry``).
+
     >>> data_key(0, "/robot_1/cmd_vel", "geometry_msgs/msg/Twist")[:51]
     '0/robot_1/cmd_vel/geometry_msgs::msg::dds_::Twist_/'
     """
@@ -126,6 +135,17 @@ def node_token(domain: int, zid: str, node_id: int, name: str) -> str:
     """The liveliness token of a node in the root namespace and enclave.
 
     ``@ros2_lv/<domain>/<zid>/<nid>/<nid>/NN/<enclave>/<namespace>/<name>``.
+
+    Parameters
+    ----------
+    domain
+        The ROS domain id.
+    zid
+        The Zenoh session's id as text (``str(session.info.zid())``).
+    node_id
+        The node's id within its session (0 for the first).
+    name
+        The node's name.
     """
     return f"@ros2_lv/{domain}/{zid}/{node_id}/{node_id}/NN/%/%/{mangle(name)}"
 
@@ -135,6 +155,19 @@ def publisher_token(domain: int, zid: str, node_id: int, entity_id: int, node: s
     """The liveliness token of a publisher of node ``node`` (module doc).
 
     ``@ros2_lv/<domain>/<zid>/<nid>/<eid>/MP/<enclave>/<namespace>/<node>/<topic>/<type>/<hash>/<qos>``.
+
+    Parameters
+    ----------
+    domain, zid, node_id
+        As for :func:`node_token`.
+    entity_id
+        The publisher's id within its session (after the node's).
+    node
+        The name of the node it belongs to.
+    topic, msgtype
+        As for :func:`data_key`.
+    qos
+        The QoS chunk (:data:`QOS`).
     """
     dds, rihs = _type(msgtype)
     name = "/" + topic.strip("/")
@@ -143,6 +176,15 @@ def publisher_token(domain: int, zid: str, node_id: int, entity_id: int, node: s
 
 def attachment(sequence: int, stamp_ns: int, gid: bytes) -> bytes:
     """The 33 bytes rmw_zenoh attaches to a sample: sequence number, source timestamp (ns), GID (module doc).
+
+    Parameters
+    ----------
+    sequence
+        The publisher's count of its samples, from 1.
+    stamp_ns
+        When it was published (ns since 1970).
+    gid
+        The publisher's 16-byte GID.
 
     >>> len(attachment(1, 0, bytes(16)))
     33
