@@ -241,4 +241,7 @@ def test_a_run_on_ros_domain_7_is_heard_as_rmw_zenoh_publishes(tmp_path: Path) -
     assert len({bytes(d[2]) for d in decoded}) == 1
     # the run itself: the fleet's own keys only in its recording, the domain in its summary
     assert run.summary["run"]["ros_domain"] == 7
+    from delayform.report.fleet import fleet_text
+
+    assert "also as rmw_zenoh on ROS domain 7" in fleet_text(run, "three")
     assert all(k.startswith("robot_") for k in run.summary["run"]["messages_recorded"])
