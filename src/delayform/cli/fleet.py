@@ -43,9 +43,12 @@ DEFAULT_PERIOD = 0.015
               help="Start a killed robot's process again at T s: it rejoins from the world's odometry (repeatable).")
 @click.option("--foxglove", type=int, metavar="PORT",
               help="Serve the running team to Foxglove (WebSocket) on 127.0.0.1:PORT.")
+@click.option("--ros-domain", type=click.IntRange(0, 232), metavar="N",
+              help="Also publish every topic as rmw_zenoh (ROS 2 Jazzy) does on ROS domain N (0..232), with "
+                   "liveliness tokens, so that a ROS 2 node on rmw_zenoh connected to --endpoint hears the run.")
 def fleet_command(scenario: Path | None, seed: int | None, use_limits: bool | None, duration: float,
                   period: float | None, endpoint: str, world: str, kills: tuple[str, ...], restarts: tuple[str, ...],
-                  foxglove: int | None, out: Path | None, as_json: bool, **overrides: Any) -> None:  # fmt: skip
+                  foxglove: int | None, ros_domain: int | None, out: Path | None, as_json: bool, **overrides: Any) -> None:  # fmt: skip
     """Run the team as processes: one per robot, a world, Zenoh messages.
 
     Each robot's process runs the on-robot controller (its playout buffer
@@ -67,6 +70,9 @@ def fleet_command(scenario: Path | None, seed: int | None, use_limits: bool | No
     names it and how long it was silent; a restarted robot rejoins from the
     world's odometry. --foxglove PORT serves the robots, their bodies, the
     formation's slots and the communication graph to Foxglove while the team runs.
+    --ros-domain N also publishes every message as rmw_zenoh does on ROS
+    domain N (key, attachment, liveliness tokens): `ros2 topic echo
+    /robot_1/odom` on rmw_zenoh_cpp with its router connected to --endpoint.
     """
     from delayform._extras import require_extra
     from delayform.deploy import robot_profile
@@ -102,7 +108,7 @@ def fleet_command(scenario: Path | None, seed: int | None, use_limits: bool | No
         check_live_port(foxglove, taken=port)
     directory = _out_dir(out, sc)
     run = _run(sc, desired, network, h, duration, endpoint, world, directory, quiet=as_json,
-               faults=faults, foxglove=foxglove)  # fmt: skip
+               faults=faults, foxglove=foxglove, ros_domain=ros_domain)  # fmt: skip
     from delayform.report.fleet import fleet_section
 
     section = fleet_section(run, sc.name, directory)
@@ -121,7 +127,7 @@ def fleet_command(scenario: Path | None, seed: int | None, use_limits: bool | No
 
 
 def _run(sc: Any, desired: Any, network: Any, h: float, duration: float, endpoint: str, world: str,
-         directory: Path, *, quiet: bool, faults: Any, foxglove: int | None) -> Any:  # fmt: skip
+         directory: Path, *, quiet: bool, faults: Any, foxglove: int | None, ros_domain: int | None) -> Any:  # fmt: skip
     from delayform.fleet import run_fleet
     from delayform.model import Delays, Start, Team
 
@@ -133,4 +139,4 @@ def _run(sc: Any, desired: Any, network: Any, h: float, duration: float, endpoin
                      duration=duration, period=h, robot=sc.robot,
                      start=Start(sc.initial_positions(), sc.initial_headings(), sc.initial.speed, sc.initial.seed),
                      network=network, endpoint=endpoint, world=world, faults=faults, foxglove=foxglove,
-                     progress=say)  # fmt: skip
+                     ros_domain=ros_domain, progress=say)  # fmt: skip

@@ -7,7 +7,8 @@ robots (:mod:`~delayform.fleet.world`), CDR-encoded ROS 2 messages on
 ROS 2 key expressions (:mod:`~delayform.fleet.wire`), the scenario's network
 (per-link delays, jitter, loss, sampling, noise) on reception with the
 simulator's draws (:mod:`~delayform.fleet.plan`), robots killed and restarted
-(:mod:`~delayform.fleet.faults`), a live view for Foxglove (:mod:`~delayform.fleet.live`), and measures what happened against the analysis
+(:mod:`~delayform.fleet.faults`), a live view for Foxglove (:mod:`~delayform.fleet.live`), the topics also
+published as rmw_zenoh does for ROS 2 nodes (:mod:`~delayform.fleet.rmw`), and measures what happened against the analysis
 (:mod:`~delayform.fleet.outcome`). Needs the ``fleet`` extra.
 
 The names are imported on first use: the robot and world processes start

@@ -28,6 +28,10 @@ has heard from every neighbour (its playout buffers start with their next
 messages): with a neighbour that stays silent (dead too) it never ticks, and
 its log names the neighbours it waited for.
 
+With a ROS domain in its spec a process is also an rmw_zenoh node and
+publishes each message a second time, on its rmw_zenoh key with an
+attachment (:mod:`delayform.fleet.rmw`): same payload, same moment.
+
 Every process takes its messages from Zenoh channels in its own thread, looking
 every millisecond while it waits for its next deadline (:func:`_wait_until`):
 no Python code runs on Zenoh's threads, and a message's receipt time is when the
@@ -303,6 +307,13 @@ def robot_main(spec: dict[str, Any]) -> None:
     subs.append((_subscribe(session, key(me, "odom")), on_odom))
     pub_state = session.declare_publisher(key(me, "state"))
     pub_cmd = session.declare_publisher(key(me, "cmd_vel"))
+    put_state, put_cmd = [pub_state.put], [pub_cmd.put]
+    if spec.get("ros_domain") is not None:  # also as rmw_zenoh publishes them (delayform.fleet.rmw)
+        from delayform.fleet.rmw import RosNode, robot_node
+
+        node = RosNode(session, int(spec["ros_domain"]), robot_node(me))
+        put_state.append(node.publisher(f"/{key(me, 'state')}").put)
+        put_cmd.append(node.publisher(f"/{key(me, 'cmd_vel')}").put)
     _say("ready")
     t0 = _start_time()
     t0_box[0] = t0
@@ -345,7 +356,9 @@ def robot_main(spec: dict[str, Any]) -> None:
         mid, vm = 0.5 * (o.theta + th), 0.5 * (o.v + v)
         x, y = o.x + vm * math.cos(mid) * age, o.y + vm * math.sin(mid) * age
         if rate is None or k < 0 or t >= sent * packet - 1e-9:  # sampled: the first tick at or after m / rate
-            pub_state.put(codec.odometry(me, Odometry(woke, x, y, th, v, o.omega)))
+            payload = codec.odometry(me, Odometry(woke, x, y, th, v, o.omega))
+            for put in put_state:
+                put(payload)
             if k >= 0:
                 sent = math.floor(t / packet + 1e-9) + 1
                 stamps.append(t)
@@ -365,7 +378,9 @@ def robot_main(spec: dict[str, Any]) -> None:
                 break
             speed = ctrl.speed_command(cmd, h)
             accel = (speed - v) / h
-            pub_cmd.put(codec.twist(speed, cmd.turn_rate))
+            payload = codec.twist(speed, cmd.turn_rate)
+            for put in put_cmd:
+                put(payload)
             ticks.append((k * h, late, cmd.lag, time.time() - woke, speed,
                           cmd.speed, cmd.turn_rate, cmd.ideal_turn_rate, cmd.acceleration, cmd.ideal_acceleration))
         k += 1
@@ -426,7 +441,13 @@ def world_main(spec: dict[str, Any]) -> None:
                 last_cmd[i] = math.inf  # until its next command
 
     subs = [(_subscribe(session, key(i, "cmd_vel")), on_cmd) for i in range(1, n + 1)]
-    pubs = [session.declare_publisher(key(i, "odom")) for i in range(1, n + 1)]
+    puts = [[session.declare_publisher(key(i, "odom")).put] for i in range(1, n + 1)]
+    if spec.get("ros_domain") is not None:  # also as rmw_zenoh publishes them (delayform.fleet.rmw)
+        from delayform.fleet.rmw import WORLD_NODE, RosNode
+
+        node = RosNode(session, int(spec["ros_domain"]), WORLD_NODE)
+        for i in range(1, n + 1):
+            puts[i - 1].append(node.publisher(f"/{key(i, 'odom')}").put)
     _say("ready")
     t0 = _start_time()
     t0_box[0] = t0
@@ -450,7 +471,9 @@ def world_main(spec: dict[str, Any]) -> None:
         s = world.state
         stamp = t0 + world.time if now >= t0 else now  # before t = 0 the robots stand still at their start
         for i in range(n):
-            pubs[i].put(codec.odometry(i + 1, Odometry(stamp, s[i, 0], s[i, 1], s[i, 2], s[i, 3], world.omega[i])))
+            payload = codec.odometry(i + 1, Odometry(stamp, s[i, 0], s[i, 1], s[i, 2], s[i, 3], world.omega[i]))
+            for put in puts[i]:
+                put(payload)
         if now >= t0:
             times.append(world.time)
             states.append(s.copy())

@@ -8,7 +8,9 @@ publishes its odometry. Their CPU demand, in cores::
 
     (n + 2) POLL_CORES + (n TICK_SECONDS + E MESSAGE_SECONDS) / period
 
-with E the links (state messages received per period). The constants are
+with E the links (state messages received per period). With a ROS domain
+(:mod:`delayform.fleet.rmw`) every robot's state, command and odometry is
+published a second time on its rmw_zenoh key: ``n ROS_TICK_SECONDS`` more per period. The constants are
 CPU seconds measured on the reference machine (2 cores, Python 3.11, Zenoh on
 the loopback; docs/benchmarks.md, the team as processes): fitted to the paper's
 six Create 3 robots at 10 and 40 ms and the complete graph of six at 10 ms,
@@ -31,7 +33,7 @@ import time
 from delayform.errors import FleetError
 from delayform.resources import require
 
-__all__ = ["POLL_CORES", "TICK_SECONDS", "MESSAGE_SECONDS", "PROCESS_BYTES", "HEADROOM",
+__all__ = ["POLL_CORES", "TICK_SECONDS", "MESSAGE_SECONDS", "ROS_TICK_SECONDS", "PROCESS_BYTES", "HEADROOM",
            "fleet_demand", "speed_factor", "check_machine"]  # fmt: skip
 
 #: cores one process spends taking its messages from its channels every millisecond
@@ -40,6 +42,9 @@ POLL_CORES = 0.03
 TICK_SECONDS = 2.0e-4
 #: CPU seconds per state message: published, delivered, decoded, held in the playout buffer
 MESSAGE_SECONDS = 7.4e-5
+#: CPU seconds per robot and control tick for the rmw_zenoh copies of its state, command and odometry: three
+#: puts at 19 us each when a ROS 2 node subscribes to them (2.3 us when none does), measured at one put a millisecond
+ROS_TICK_SECONDS = 6.0e-5
 #: resident memory of one process (robot or world: Python, NumPy, Zenoh), 98 MB measured; the parent's too
 PROCESS_BYTES = 100 * 2**20
 #: the share of the cores a run may plan to use
@@ -48,7 +53,7 @@ HEADROOM = 0.8
 REFERENCE_TICKS_SECONDS = 0.0071
 
 
-def fleet_demand(n: int, links: int, period: float, *, factor: float = 1.0) -> float:
+def fleet_demand(n: int, links: int, period: float, *, factor: float = 1.0, ros: bool = False) -> float:
     """Cores a run of ``n`` robots with ``links`` links at ``period`` seconds keeps busy (module doc).
 
     Parameters
@@ -59,11 +64,14 @@ def fleet_demand(n: int, links: int, period: float, *, factor: float = 1.0) -> f
         The control period (s).
     factor
         This machine's CPU time for the same work against the reference machine's (:func:`speed_factor`).
+    ros
+        Whether the processes also publish as rmw_zenoh does (a ROS domain, module doc).
 
     >>> round(fleet_demand(6, 13, 0.01), 2)
     0.46
     """
-    return factor * ((n + 2) * POLL_CORES + (n * TICK_SECONDS + links * MESSAGE_SECONDS) / period)
+    tick = TICK_SECONDS + (ROS_TICK_SECONDS if ros else 0.0)
+    return factor * ((n + 2) * POLL_CORES + (n * tick + links * MESSAGE_SECONDS) / period)
 
 
 def _reference_ticks() -> float:
@@ -89,12 +97,12 @@ def speed_factor() -> float:
 
 
 def check_machine(n: int, links: int, period: float, *, cores: int | None = None,
-                  factor: float | None = None) -> float:  # fmt: skip
+                  factor: float | None = None, ros: bool = False) -> float:  # fmt: skip
     """The run's demand in cores; :class:`~delayform.errors.FleetError` when this machine cannot keep the period.
 
     Parameters
     ----------
-    n, links, period
+    n, links, period, ros
         As for :func:`fleet_demand`.
     cores
         The cores available (default: those this process may run on).
@@ -112,10 +120,11 @@ def check_machine(n: int, links: int, period: float, *, cores: int | None = None
             setting="the number of robots")  # fmt: skip
     cores = cores or len(os.sched_getaffinity(0))
     factor = speed_factor() if factor is None else factor
-    demand = fleet_demand(n, links, period, factor=factor)
+    demand = fleet_demand(n, links, period, factor=factor, ros=ros)
     if demand > HEADROOM * cores:
-        need = fleet_demand(n, links, period, factor=factor) / HEADROOM
-        longest = factor * (n * TICK_SECONDS + links * MESSAGE_SECONDS) / (HEADROOM * cores - factor * (n + 2) * POLL_CORES)
+        need = demand / HEADROOM
+        tick = TICK_SECONDS + (ROS_TICK_SECONDS if ros else 0.0)
+        longest = factor * (n * tick + links * MESSAGE_SECONDS) / (HEADROOM * cores - factor * (n + 2) * POLL_CORES)
         hint = (f"a control period of at least {longest * 1e3:.3g} ms" if longest > 0
                 else "fewer robots (their processes' polling alone fills the cores)")
         raise FleetError(f"{n} robot processes at a {period * 1e3:g} ms control period would keep {demand:.2g} cores busy "

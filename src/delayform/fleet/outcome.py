@@ -412,7 +412,8 @@ class FleetRun:
 def measure(*, team: Team, tau1: float, tau2: float, plan: LinkPlan, desired: _Array, limits: RobotLimits | None, period: float,
             duration: float, network: Network | None, simulation: Trajectory, logs: dict[str, dict[str, Any]],
             recording: dict[str, int], pids: dict[str, int], mcap: Any, world: str, endpoint: str,
-            faults: list[dict[str, Any]] | None = None, heard: dict[int, _Array] | None = None) -> FleetRun:  # fmt: skip
+            faults: list[dict[str, Any]] | None = None, heard: dict[int, _Array] | None = None,
+            ros_domain: int | None = None) -> FleetRun:  # fmt: skip
     """Measure a run from its logs (module doc); the comparison with the analysis included.
 
     Parameters
@@ -432,6 +433,8 @@ def measure(*, team: Team, tau1: float, tau2: float, plan: LinkPlan, desired: _A
     heard
         Robot (from 1) -> when its state messages were taken by the recording
         process (s): the silent intervals are measured on them (:func:`silent_intervals`).
+    ros_domain
+        The ROS domain the processes also published on as rmw_zenoh does, or None.
     """
     from delayform.analysis.ctcr import stability_map
     from delayform.analysis.roots.dominant import dominant_root
@@ -557,7 +560,7 @@ def measure(*, team: Team, tau1: float, tau2: float, plan: LinkPlan, desired: _A
     }  # fmt: skip
     run = {
         "robots": n, "P": team.P, "D": team.D, "tau1": tau1, "tau2": tau2, "period": h, "duration": duration,
-        "world": world, "world_step": 0.001, "endpoint": endpoint,
+        "world": world, "world_step": 0.001, "endpoint": endpoint, "ros_domain": ros_domain,
         "network": "ideal" if network is None else network.describe(topology.adjacency),
         "limits": None if limits is None else limits.describe(), "pids": pids, "recording": str(mcap),
         "messages_recorded": recording,

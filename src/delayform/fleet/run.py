@@ -51,6 +51,7 @@ from delayform.fleet.outcome import FleetRun, measure
 from delayform.fleet.budget import check_machine
 from delayform.fleet.faults import Fault, check_faults
 from delayform.fleet.live import LIVE_EVERY, LiveView, check_live_port
+from delayform.fleet.rmw import check_domain
 from delayform.fleet.wire import DEFAULT_ENDPOINT, Codec, Odometry, check_endpoint, key, open_session, port_free
 from delayform.fleet.world import WORLDS
 from delayform.formation import check_formation, formation_forcing
@@ -108,6 +109,7 @@ def run_fleet(
     world: str = "kinematic",
     faults: Iterable[Fault] = (),
     foxglove: int | None = None,
+    ros_domain: int | None = None,
     progress: Callable[[str], None] | None = None,
 ) -> FleetRun:
     """Run the team as processes on this machine and measure it against the analysis (module doc).
@@ -146,6 +148,11 @@ def run_fleet(
     foxglove
         A port on 127.0.0.1 where the running team is served to Foxglove
         (:mod:`delayform.fleet.live`), or None.
+    ros_domain
+        A ROS domain id (0..232): every process also publishes its topics as
+        rmw_zenoh does on that domain, with liveliness tokens for its node and
+        publishers, so that a ROS 2 node on rmw_zenoh connected to ``endpoint``
+        hears the run (:mod:`delayform.fleet.rmw`); None: the plain keys only.
     progress
         Optional callback with a few words at each stage.
 
@@ -161,7 +168,7 @@ def run_fleet(
         could bring to zero, an endpoint off the loopback or a port in use,
         a period or duration that is not positive, an unknown world, faults
         that do not fit the team or the run, a Foxglove port that is invalid
-        or taken, a team whose processes would need more cores than this
+        or taken, a ROS domain that is not a whole number in 0..232, a team whose processes would need more cores than this
         machine has to keep the period (:mod:`delayform.fleet.budget`).
     ResourceLimitError
         Before any process starts: processes that would need more memory than the budget.
@@ -191,7 +198,9 @@ def run_fleet(
     if not port_free(host, port):
         raise FleetError(f"the endpoint {endpoint} cannot be used: port {port} is already taken on {host}")
     faults = check_faults(faults, team.n, duration)
-    check_machine(team.n, int(team.topology.C_sparse.nnz), period)
+    if ros_domain is not None:
+        check_domain(ros_domain)
+    check_machine(team.n, int(team.topology.C_sparse.nnz), period, ros=ros_domain is not None)
     if foxglove is not None:
         check_live_port(foxglove, taken=port)
     out = Path(out)
@@ -226,7 +235,7 @@ def run_fleet(
         try:
             recorder = _Recorder(session, n)
             common = {"n": n, "endpoint": endpoint, "period": period, "duration": duration, "lead": LEAD,
-                      "limits": _limits_dict(limits), "rate": rate}  # fmt: skip
+                      "limits": _limits_dict(limits), "rate": rate, "ros_domain": ros_domain}  # fmt: skip
             specs = {}
             for i in range(n):
                 lo, hi = C.indptr[i], C.indptr[i + 1]
@@ -288,7 +297,7 @@ def run_fleet(
     return measure(team=team, tau1=tau1, tau2=tau2, plan=plan, desired=desired, limits=limits, period=period,
                    duration=duration, network=network, simulation=sim, logs=logs, recording=recorder.counts(),
                    pids=pids, mcap=mcap, world=world, endpoint=endpoint, faults=faulting.done,
-                   heard=heard)  # fmt: skip
+                   heard=heard, ros_domain=ros_domain)  # fmt: skip
 
 
 class _Faults:
@@ -429,8 +438,9 @@ class _Recorder:
         self._messages: list[tuple[str, int, bytes]] = []
         self._odom: dict[str, bytes] = {}
         self._codec = Codec(n)
-        # taken by drain() in the parent's own loop: no Python callback on Zenoh's threads (agents._subscribe)
-        self._sub = session.declare_subscriber("**", zenoh.handlers.FifoChannel(_RECORDER_CAPACITY))
+        # taken by drain() in the parent's own loop: no Python callback on Zenoh's threads (agents._subscribe);
+        # the fleet's own keys only (not their rmw_zenoh copies, delayform.fleet.rmw)
+        self._sub = session.declare_subscriber("robot_$*/*", zenoh.handlers.FifoChannel(_RECORDER_CAPACITY))
 
     def drain(self) -> None:
         """Take every message waiting (log time: when taken, within the parent's polling interval)."""

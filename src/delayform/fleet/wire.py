@@ -1,7 +1,7 @@
 """What travels between the processes of a fleet run: key expressions, CDR messages, the Zenoh session.
 
-Key expressions follow the ROS 2 topic names (rmw_zenoh maps ``/robot_1/odom``
-to a key expression ending in ``robot_1/odom``), robots numbered from 1:
+Key expressions follow the ROS 2 topic names without the domain, type and hash
+rmw_zenoh adds (:mod:`delayform.fleet.rmw` publishes those copies), robots numbered from 1:
 
 ``robot_<i>/odom`` ``nav_msgs/msg/Odometry``, from the world
     The robot's true pose and motion at the stamp: position (x, y, 0), the

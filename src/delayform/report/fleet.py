@@ -62,7 +62,9 @@ def fleet_text(run: FleetRun, name: str) -> str:
     r, t = s["run"], s["team"]
     h = r["period"]
     lines = [f"delayform fleet: {name}", "",
-             f"{r['robots']} robot processes and a {r['world']} world over Zenoh ({r['endpoint']}), "
+             f"{r['robots']} robot processes and a {r['world']} world over Zenoh ({r['endpoint']}"
+             + (f"; also as rmw_zenoh on ROS domain {r['ros_domain']}" if r.get("ros_domain") is not None else "")
+             + "), "
              f"P = {r['P']:g}, D = {r['D']:g}, (tau1, tau2) = ({r['tau1']:g}, {r['tau2']:g}) s, "
              f"control period {h:g} s, {r['duration']:g} s of wall clock; network: {r['network']}; "
              f"robots: {r['limits'] or 'ideal'}.", "",
