@@ -166,6 +166,8 @@ class _Modes:
         # per mode and functional: the smallest delta at which it failed
         self.failed = [[math.inf for _ in levels] for _ in self.fs]
         self.tried: list[tuple[float, str]] = []
+        # per mode: every (delta, attempt) that held, for a step back when an answer fails the exact re-check
+        self.history: list[list[tuple[float, _Attempt]]] = [[] for _ in self.fs]
 
     def solve(self, i: int, delta: float, level: int, slope: bool = False) -> tuple[_Attempt | None, float, float]:
         """(the attempt if it holds, else None; the solver's optimum margin t; dt/d delta or nan) of one functional.
@@ -184,6 +186,7 @@ class _Modes:
         t = att.cert.solver_margin if math.isfinite(att.cert.solver_margin) else -math.inf
         if att.cert.holds:
             self.tried.append((delta, f"mode {i}, {fun.describe()}: holds"))
+            self.history[i].append((delta, att))
             ds = math.nan
             if slope and att.solution is not None:
                 step = 1e-4 * delta
@@ -211,8 +214,8 @@ class _Modes:
                     return att
         return None
 
-    def done(self, lo: float, hi: float) -> bool:
-        return hi - lo <= self.rtol * max(lo, self.floor) * (1.0 + 1e-9)
+    def done(self, lo: float, hi: float, rtol: float | None = None) -> bool:
+        return hi - lo <= (self.rtol if rtol is None else rtol) * max(lo, self.floor) * (1.0 + 1e-9)
 
     def margin(self, i: int, hi: float, capped: bool) -> tuple[float, _Attempt | None]:
         """Largest certified delta of mode i below ``hi``.
@@ -220,9 +223,10 @@ class _Modes:
         Every functional failed at ``hi``, or (``capped``) ``hi`` is the search's cap.
         """
         # phase 1: the cheapest functional, doubling from the start then halving, to the resolution
+        # (to 5 % when a richer one follows: phase 2 starts from its bracket, a finer one gains nothing)
         lo, best, d, top = 0.0, None, min(self.start, hi), len(self.levels) - 1
-        fail = hi
-        while not self.done(lo, fail) and d > self.floor:
+        fail, res = hi, self.rtol if top == 0 else max(self.rtol, 0.05)
+        while not self.done(lo, fail, res) and d > self.floor:
             att, _, _ = self.solve(i, d, 0)
             if att is not None:
                 lo, best = d, att
@@ -379,13 +383,21 @@ def team_delay_margin(topology: Topology, P: float, D: float, tau1: float, tau2:
     delta, found, at, limiting = modes.search(t1 * (1.0 - 1e-9))
     options = {f.describe(): f for f in levels}
     gap = rtol * delta
+    confirmed: dict[int, DelayCertificate] = {}
     while delta > 0.0:
-        certs = [att.confirmed() for att in found if att is not None]
+        certs = [confirmed.setdefault(id(att), att.confirmed()) for att in found if att is not None]
         if len(certs) == len(found) and all(c.holds for c in certs):
             out = tuple(ModeMargin(f.lam, f.is_centroid, att.cert.method, c, options[att.cert.method], d)
                         for f, att, c, d in zip(modes.fs, found, certs, at, strict=True))  # fmt: skip
             return TeamDelayMargin(delta, modes.fs[limiting].lam, out, tried=tuple(modes.tried), tolerance=gap)
         modes.tried.append((delta, "failed the exact re-check"))
+        lower = [(d, att) for d, att in modes.history[limiting] if d < delta]
+        if len(certs) == len(found) and [k for k, c in enumerate(certs) if not c.holds] == [limiting] and lower:
+            # the limiting mode's largest certified delta below: every other mode holds there too (wider intervals)
+            delta, found[limiting] = max(lower, key=lambda pair: pair[0])
+            at[limiting] = delta
+            gap = rtol * delta
+            continue
         delta *= 0.5  # rare: step back and certify every mode again there
         found = [modes.check(i, delta) for i in range(len(modes.fs))] if delta > 1e-3 * start else []
         at = [delta for _ in found]
