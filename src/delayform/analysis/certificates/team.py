@@ -286,22 +286,23 @@ class _Modes:
         return 1.5 * lo
 
     def _next(self, lo: float, hi: float, zero: float, capped: bool, misses: int) -> float:
-        """The next delta of phase 2 in (lo, hi): rtol below the predicted zero of t (``zero``), inside the bracket.
+        """The next delta of phase 2 in (lo, hi): rtol (at least 2 %) below the predicted zero of t (``zero``), inside the bracket.
 
         That step usually holds and ends the search (:meth:`margin`: its next prediction then lies
         within rtol, or a failure does). When the prediction
-        lies beyond a failure (t bends down far from the boundary) the step is rtol below that
+        lies beyond a failure (t bends down far from the boundary) the step is as far below that
         failure, and after a second failure in a row the bracket is halved. ``capped``: hi is the
         search's cap, not a failure: at most a doubling.
         """
-        aim = zero * (1.0 - self.rtol)
+        below = max(self.rtol, 0.02)  # the prediction's own accuracy: a smaller rtol does not make it sharper
+        aim = zero * (1.0 - below)
         if capped:
             return min(max(aim, lo * (1.0 + self.rtol)), 2.0 * lo, hi)
         width = hi - lo
         if misses >= 2:
             return lo + 0.5 * width
         if zero >= hi:
-            return max(hi * (1.0 - self.rtol), lo + 0.5 * width)
+            return max(hi * (1.0 - below), lo + 0.5 * width)
         return min(max(aim, lo * (1.0 + 0.25 * self.rtol)), lo + 0.9 * width)
 
     def search(self, cap: float) -> tuple[float, list[_Attempt | None], list[float], int]:
