@@ -102,7 +102,9 @@ class TeamDelayMargin:
     tried
         Every (delta, verdict) of the search.
     tolerance
-        Bound on the gap to the first uncertified delta (the search's relative width times delta).
+        The search's resolution, rtol times delta: within it above delta lies a failure of the
+        richest functional, or the zero of its optimum margin predicted from its slope (a guess,
+        not a bound).
     reason
         Why delta is 0 without a search (unstable nominal delays, tau1 = 0); empty otherwise.
     """
@@ -147,12 +149,12 @@ class _Modes:
     first, every other one is then usually a single cheap solve at U (its functionals cheapest
     first). A mode that needs a search gets it in two phases (:meth:`margin`): the cheapest
     functional alone brackets the margin from below for a few hundredths of a second per solve,
-    then only the richest one moves up from there. Its optimum margin t(delta) falls about
-    linearly until it collapses to about 0 just before the LMI becomes infeasible, so the zero of
-    the line through the last two certified points, less rtol, is a good next guess (usually
-    certified); from a certified lo the search then tries
-    lo (1 + rtol), which ends it when it fails. A functional that failed at some delta is not tried
-    again at a larger one (there it would fail too: it is a heuristic that costs only solves).
+    then only the richest one moves up from there. Each of its certified points gives the optimum
+    margin t(delta) and its slope (from the solver's dual matrices); near the boundary t behaves
+    like c (delta* - delta)^p, so two points predict delta* (:meth:`_zero`) and the next delta is
+    a little below it (:meth:`_next`), which usually holds and ends the search. A functional that
+    failed at some delta is not tried again at a larger one (there it would fail too: it is a
+    heuristic that costs only solves).
     """
 
     def __init__(self, fs: tuple[CharacteristicFactor, ...], t1: float, t2: float, right: list[complex],
@@ -286,7 +288,7 @@ class _Modes:
         return 1.5 * lo
 
     def _next(self, lo: float, hi: float, zero: float, capped: bool, misses: int) -> float:
-        """The next delta of phase 2 in (lo, hi): rtol (at least 2 %) below the predicted zero of t (``zero``), inside the bracket.
+        """The next delta of phase 2 in (lo, hi): rtol (at least 2 %) below the predicted zero of t, inside the bracket.
 
         That step usually holds and ends the search (:meth:`margin`: its next prediction then lies
         within rtol, or a failure does). When the prediction
