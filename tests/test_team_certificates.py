@@ -173,6 +173,32 @@ def test_dual_slope_of_the_optimum_margin_matches_the_secant_of_two_solves():
     assert abs(slope - secant) < 0.05 * abs(secant)
 
 
+def test_compressed_linearization_equals_the_full_one(monkeypatch):
+    """A second problem of the same structure is linearized on combined columns: the J of unit vectors.
+
+    A poisoned pattern (one column's rows dropped) fails the random-point check and the full batch runs.
+    """
+    import delayform.analysis.certificates.lmi as lmi
+
+    monkeypatch.setattr(lmi, "_PATTERNS", {})
+    first, second = (interval_delays(_hard_mode_data(d), 2) for d in (0.05, 0.09))
+    lmi._linearize(first)
+    (key, (color, ncolors, masks)), = lmi._PATTERNS.items()
+    assert ncolors < first.variables.size // 3
+    const, cols = lmi._linearize(second)
+    nv = second.variables.size
+    units = second.build(second.variables.unpack(np.eye(nv)), False)  # the full batch, by hand
+    for name, c in const.items():
+        full = lmi.svec(np.asarray(units[name])).T - c[:, None]
+        assert np.allclose(cols[name], full, rtol=0.0, atol=1e-13 * (1.0 + np.abs(full).max()))  # sums of columns: rounding
+    poisoned = {k: m.copy() for k, m in masks.items()}
+    poisoned["-Phi--"][:, 0] = False
+    lmi._PATTERNS[key] = (color, ncolors, poisoned)
+    _, again = lmi._linearize(second)
+    assert np.allclose(again["-Phi--"], cols["-Phi--"], rtol=0.0, atol=1e-12) and np.any(again["-Phi--"][:, 0] != 0)
+    assert lmi._PATTERNS[key][2]["-Phi--"][:, 0].any()  # the full batch ran and the pattern was refreshed
+
+
 def test_predicted_zero_of_the_optimum_margin():
     # t = c (z - delta)^p: r = t / |t'| = (z - delta) / p, and two points give p and z exactly
     z, c = 0.1, 3.0

@@ -174,18 +174,65 @@ def svec(M: NDArray[np.float64]) -> NDArray[np.float64]:
     return np.where(rows == cols, v, math.sqrt(2.0) * v)
 
 
+#: Column patterns of linearizations done, per structure (the variables' blocks, the matrices' names and
+#: orders): the next problem with that structure is linearized on a few combined columns (below).
+_PATTERNS: dict[tuple[Any, ...], tuple[NDArray[np.intp], int, dict[str, NDArray[np.bool_]]]] = {}
+_MAX_PATTERNS = 32
+
+
+def _colors(masks: Mapping[str, NDArray[np.bool_]], nv: int) -> tuple[NDArray[np.intp], int]:
+    """Greedy colouring of the columns: two columns with a common non-zero row never share a colour."""
+    support = np.vstack(list(masks.values())) if masks else np.zeros((0, nv), dtype=bool)
+    used = np.zeros((0, support.shape[0]), dtype=bool)
+    color = np.zeros(nv, dtype=np.intp)
+    for j in range(nv):
+        rows = np.flatnonzero(support[:, j])
+        free = np.flatnonzero(~used[:, rows].any(axis=1)) if used.shape[0] else np.zeros(0, dtype=np.intp)
+        c = int(free[0]) if free.size else used.shape[0]
+        if c == used.shape[0]:
+            used = np.vstack([used, np.zeros((1, support.shape[0]), dtype=bool)])
+        used[c, rows] = True
+        color[j] = c
+    return color, used.shape[0]
+
+
 def _linearize(problem: LmiProblem) -> tuple[dict[str, NDArray[np.float64]], dict[str, NDArray[np.float64]]]:
     """Constant svec and column matrix of each LMI: svec(M(x)) = c + J x (the map is affine).
 
     The builder is evaluated once at x = 0 and once on the batch of all unit
-    vectors (the formulas broadcast over the batch axis).
+    vectors (the formulas broadcast over the batch axis). When a problem of the
+    same structure was linearized before, its columns' non-zero rows are reused:
+    columns without a common row are evaluated together (one sum of unit vectors
+    per colour, Curtis, Powell and Reid's compression), each read back on its own
+    rows, and the result is accepted only if it reproduces the builder at a random
+    point (otherwise the full batch runs). Either way only the solver sees J; every
+    answer is re-checked from the builder itself (:func:`recheck`).
     """
     nv = problem.variables.size
     unpack = problem.variables.unpack
     base = problem.build(unpack(np.zeros(nv)), False)
     const = {k: svec(np.asarray(v, dtype=float)) for k, v in base.items()}
+    key = (tuple((b.name, b.rows, b.cols, b.symmetric) for b in problem.variables.blocks),
+           tuple((k, c.size) for k, c in const.items()))  # fmt: skip
+    known = _PATTERNS.get(key)
+    if known is not None:
+        color, ncolors, masks = known
+        seeds = np.zeros((ncolors, nv))
+        seeds[color, np.arange(nv)] = 1.0
+        combined = problem.build(unpack(seeds), False)
+        cols = {k: np.where(masks[k], (svec(np.asarray(combined[k], dtype=float)) - c)[color].T, 0.0)
+                for k, c in const.items()}  # fmt: skip
+        x = np.random.default_rng(nv).standard_normal(nv)
+        probe = problem.build(unpack(x), False)
+        if all(np.allclose(svec(np.asarray(probe[k], dtype=float)), c + cols[k] @ x, rtol=1e-9,
+                           atol=1e-9 * (1.0 + float(np.abs(cols[k]).max(initial=0.0)))) for k, c in const.items()):  # fmt: skip
+            return const, cols
     units = problem.build(unpack(np.eye(nv)), False)
     cols = {k: (svec(np.asarray(units[k], dtype=float)) - c).T for k, c in const.items()}
+    masks = {k: J != 0.0 for k, J in cols.items()}
+    if len(_PATTERNS) >= _MAX_PATTERNS:
+        _PATTERNS.pop(next(iter(_PATTERNS)))
+    _PATTERNS[key] = (*_colors(masks, nv), masks)
     return const, cols
 
 
