@@ -102,7 +102,7 @@ def main() -> None:
     small = jitter_margin(paper_six(), P, D, T1, T2)
     richest = sum(m.modes[0].functional in verdict for _, verdict in m.tried)
     print(f"\nteam margin (delays varying together): {m.delta:.4f} s, limiting lam = {m.limiting:.4f}; "
-          f"time median {np.median(times):.1f} s, best {min(times):.1f} s, CPU best {min(cpu):.1f} s "
+          f"time median {np.median(times):.1f} s, best {min(times):.1f} s, CPU median {np.median(cpu):.2f} s, best {min(cpu):.2f} s "
           f"({args.repeat} runs, {len(m.tried)} SDPs each, {richest} of them the richest functional); load now "
           f"{os.getloadavg()[0]:.1f}; options {options}")  # fmt: skip
     if args.no_adversary:

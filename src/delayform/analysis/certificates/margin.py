@@ -26,7 +26,15 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from delayform.analysis.certificates.krasovskii import SystemData, constant_delay, time_varying
-from delayform.analysis.certificates.lmi import LmiProblem, Recheck, exact_check, recheck, solve, solver_says_infeasible
+from delayform.analysis.certificates.lmi import (
+    LmiProblem,
+    Recheck,
+    SdpSolution,
+    exact_check,
+    recheck,
+    solve,
+    solver_says_infeasible,
+)
 from delayform._validation import validated
 from delayform.resources import require
 from delayform.errors import DelayError, InputError
@@ -217,6 +225,7 @@ class _Attempt:
     cert: DelayCertificate
     problem: LmiProblem | None
     check: Recheck | None
+    solution: SdpSolution | None = field(default=None, repr=False)
 
     def confirmed(self) -> DelayCertificate:
         """The certificate after the exact re-check ("undecided" when it fails)."""

@@ -105,24 +105,26 @@ def functional_of(order: object, split: object, outer: object) -> Functional:
     return Functional(_order(order), int(split), outer)
 
 
-def attempt(data: IntervalDelays, fun: Functional, *, exact: bool = True, tolerance: float | None = None) -> _Attempt:
+def attempt(data: IntervalDelays, fun: Functional, *, exact: bool = True, tolerance: float | None = None,
+            quick: bool = False) -> _Attempt:  # fmt: skip
     """Solve the functional's LMIs on ``data`` and re-check the answer (exactly unless ``exact`` is False).
 
-    ``tolerance``: the solver's (:func:`~delayform.analysis.certificates.lmi.solve`); the re-check is the same.
+    ``tolerance``, ``quick``: the solver's (:func:`~delayform.analysis.certificates.lmi.solve`); the
+    re-check is the same.
     """
     problem = interval_delays(data, fun.order, split=fun.split, outer=fun.outer, upper=fun.upper)
-    sol = solve(problem, tolerance=tolerance)
+    sol = solve(problem, tolerance=tolerance, quick=quick)
     lo, hi = min(data.lo), max(data.hi)
     empty: dict[str, NDArray[np.float64]] = {}
     method = fun.describe()
     if not (math.isfinite(sol.t) and sol.t > 0.0):
         status = "does not hold" if solver_says_infeasible(sol) else "undecided"
         return _Attempt(DelayCertificate(status, method, fun.order, lo, hi, data.mu, empty, empty, {}, None, sol.status,
-                                         sol.t), None, None)  # fmt: skip
+                                         sol.t), None, None, sol)  # fmt: skip
     check = recheck(problem, sol.x, exact=exact)
     cert = DelayCertificate("holds" if check.passed else "undecided", method, fun.order, lo, hi, data.mu, check.values,
                             check.matrices, check.min_eigenvalues, check.exact_ok, sol.status, sol.t)  # fmt: skip
-    return _Attempt(cert, problem, check)
+    return _Attempt(cert, problem, check, sol)
 
 
 def _intervals(lo: Sequence[float], hi: Sequence[float], k: int) -> tuple[tuple[float, ...], tuple[float, ...]]:

@@ -34,7 +34,8 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from delayform.analysis.certificates.intervals import IntervalDelays
+from delayform.analysis.certificates.intervals import IntervalDelays, interval_delays
+from delayform.analysis.certificates.lmi import margin_slope
 from delayform.analysis.certificates.margin import DelayCertificate, _Attempt
 from delayform.analysis.certificates.several import Functional, attempt
 from delayform._validation import check_delay, validated
@@ -101,7 +102,9 @@ class TeamDelayMargin:
     tried
         Every (delta, verdict) of the search.
     tolerance
-        Bound on the gap to the first uncertified delta (the search's relative width times delta).
+        The search's resolution, rtol times delta: within it above delta lies a failure of the
+        richest functional, or the zero of its optimum margin predicted from its slope (a guess,
+        not a bound).
     reason
         Why delta is 0 without a search (unstable nominal delays, tau1 = 0); empty otherwise.
     """
@@ -132,6 +135,10 @@ def mode_system(f: CharacteristicFactor) -> Mode:
 #: Clarabel's tolerances in the search (its defaults are 1e-8): a quarter fewer iterations, and
 #: every certificate is re-checked the same way (lmi.recheck), so only t near the boundary suffers.
 SEARCH_TOLERANCE = 1e-6
+#: The first solve of every step is ``quick`` (lmi.solve: no iterative refinement or equilibration)
+#: at this looser tolerance, about half the CPU; an answer with t > 0 that fails the re-check, or a
+#: solver that stalled, is solved again the careful way at SEARCH_TOLERANCE (the margin does not suffer).
+QUICK_TOLERANCE = 1e-5
 
 
 class _Modes:
@@ -142,12 +149,12 @@ class _Modes:
     first, every other one is then usually a single cheap solve at U (its functionals cheapest
     first). A mode that needs a search gets it in two phases (:meth:`margin`): the cheapest
     functional alone brackets the margin from below for a few hundredths of a second per solve,
-    then only the richest one moves up from there. Its optimum margin t(delta) falls about
-    linearly until it collapses to about 0 just before the LMI becomes infeasible, so the zero of
-    the line through the last two certified points, less rtol, is a good next guess (usually
-    certified); from a certified lo the search then tries
-    lo (1 + rtol), which ends it when it fails. A functional that failed at some delta is not tried
-    again at a larger one (there it would fail too: it is a heuristic that costs only solves).
+    then only the richest one moves up from there. Each of its certified points gives the optimum
+    margin t(delta) and its slope (from the solver's dual matrices); near the boundary t behaves
+    like c (delta* - delta)^p, so two points predict delta* (:meth:`_zero`) and the next delta is
+    a little below it (:meth:`_next`), which usually holds and ends the search. A functional that
+    failed at some delta is not tried again at a larger one (there it would fail too: it is a
+    heuristic that costs only solves).
     """
 
     def __init__(self, fs: tuple[CharacteristicFactor, ...], t1: float, t2: float, right: list[complex],
@@ -161,34 +168,56 @@ class _Modes:
         # per mode and functional: the smallest delta at which it failed
         self.failed = [[math.inf for _ in levels] for _ in self.fs]
         self.tried: list[tuple[float, str]] = []
+        # per mode: every (delta, attempt) that held, for a step back when an answer fails the exact re-check
+        self.history: list[list[tuple[float, _Attempt]]] = [[] for _ in self.fs]
 
-    def solve(self, i: int, delta: float, level: int) -> tuple[_Attempt | None, float]:
-        """(the attempt if it holds, else None; the solver's optimum margin t) of one functional."""
+    def solve(self, i: int, delta: float, level: int, slope: bool = False) -> tuple[_Attempt | None, float, float]:
+        """(the attempt if it holds, else None; the solver's optimum margin t; dt/d delta or nan) of one functional.
+
+        ``slope``: when it holds, also the derivative of the optimum t in delta from the solver's dual
+        matrices (:func:`~delayform.analysis.certificates.lmi.margin_slope`): a guess for the search.
+        """
         if delta >= self.failed[i][level]:  # failed at a smaller delta already: not solved again
-            return None, -math.inf
-        A0, ak, e = self.systems[i]
-        lo, hi = tuple(max(t - delta, 0.0) for t in self.t), tuple(t + delta for t in self.t)
-        data = IntervalDelays(A0, ak, lo, hi, None, e)
-        att = attempt(data, self.levels[level], exact=False, tolerance=SEARCH_TOLERANCE)
+            return None, -math.inf, math.nan
+        fun = self.levels[level]
+        data = self._data(i, delta)
+        att = attempt(data, fun, exact=False, tolerance=QUICK_TOLERANCE, quick=True)
+        rough = att.cert.solver_margin > 0.0 or att.cert.solver_status not in ("Solved", "AlmostSolved")
+        if not att.cert.holds and rough:  # failed the re-check, or the solver stalled: the careful solve
+            att = attempt(data, fun, exact=False, tolerance=SEARCH_TOLERANCE)
         t = att.cert.solver_margin if math.isfinite(att.cert.solver_margin) else -math.inf
         if att.cert.holds:
-            self.tried.append((delta, f"mode {i}, {self.levels[level].describe()}: holds"))
-            return att, t
+            self.tried.append((delta, f"mode {i}, {fun.describe()}: holds"))
+            self.history[i].append((delta, att))
+            ds = math.nan
+            if slope and att.solution is not None:
+                step = 1e-4 * delta
+                below = interval_delays(self._data(i, delta - step), fun.order, split=fun.split, outer=fun.outer,
+                                        upper=fun.upper)  # fmt: skip
+                above = interval_delays(self._data(i, delta + step), fun.order, split=fun.split, outer=fun.outer,
+                                        upper=fun.upper)  # fmt: skip
+                ds = margin_slope(att.solution, below, above, step)
+            return att, t, ds
         self.failed[i][level] = min(self.failed[i][level], delta)
-        self.tried.append((delta, f"mode {i}, {self.levels[level].describe()}: not certified"))
-        return None, t
+        self.tried.append((delta, f"mode {i}, {fun.describe()}: not certified"))
+        return None, t, math.nan
+
+    def _data(self, i: int, delta: float) -> IntervalDelays:
+        A0, ak, e = self.systems[i]
+        lo, hi = tuple(max(t - delta, 0.0) for t in self.t), tuple(t + delta for t in self.t)
+        return IntervalDelays(A0, ak, lo, hi, None, e)
 
     def check(self, i: int, delta: float) -> _Attempt | None:
         """The first functional, cheapest first, that holds for mode i at delta (None: none does)."""
         for level in range(len(self.levels)):
             if delta < self.failed[i][level]:
-                att, _ = self.solve(i, delta, level)
+                att, _, _ = self.solve(i, delta, level)
                 if att is not None:
                     return att
         return None
 
-    def done(self, lo: float, hi: float) -> bool:
-        return hi - lo <= self.rtol * max(lo, self.floor) * (1.0 + 1e-9)
+    def done(self, lo: float, hi: float, rtol: float | None = None) -> bool:
+        return hi - lo <= (self.rtol if rtol is None else rtol) * max(lo, self.floor) * (1.0 + 1e-9)
 
     def margin(self, i: int, hi: float, capped: bool) -> tuple[float, _Attempt | None]:
         """Largest certified delta of mode i below ``hi``.
@@ -196,10 +225,11 @@ class _Modes:
         Every functional failed at ``hi``, or (``capped``) ``hi`` is the search's cap.
         """
         # phase 1: the cheapest functional, doubling from the start then halving, to the resolution
+        # (to 5 % when a richer one follows: phase 2 starts from its bracket, a finer one gains nothing)
         lo, best, d, top = 0.0, None, min(self.start, hi), len(self.levels) - 1
-        fail = hi
-        while not self.done(lo, fail) and d > self.floor:
-            att, _ = self.solve(i, d, 0)
+        fail, res = hi, self.rtol if top == 0 else max(self.rtol, 0.05)
+        while not self.done(lo, fail, res) and d > self.floor:
+            att, _, _ = self.solve(i, d, 0)
             if att is not None:
                 lo, best = d, att
                 d = min(2.0 * d, fail) if fail == hi and d < hi else 0.5 * (lo + fail)
@@ -211,15 +241,16 @@ class _Modes:
         if top == 0 or lo >= hi:
             return lo, best
         # phase 2: the richest functional only, from the cheap bracket up
-        held: list[tuple[float, float]] = []  # (delta, t) where it holds
+        held: list[tuple[float, float, float]] = []  # (delta, t, dt/d delta) where it holds
         d = fail if fail < hi else min(2.0 * max(lo, self.floor), hi)
+        misses = 0  # failures in a row
         while True:
-            att, t = self.solve(i, d, top)
+            att, t, ds = self.solve(i, d, top, slope=True)
             if att is not None:
-                lo, best = d, att
-                held.append((d, t))
+                lo, best, misses = d, att, 0
+                held.append((d, t, ds))
             else:
-                hi, capped = d, False
+                hi, capped, misses = d, False, misses + 1
             if self.done(lo, hi) or lo >= hi:
                 return lo, best
             if lo < self.floor:  # nothing held yet above the floor: halve
@@ -227,28 +258,54 @@ class _Modes:
                     return lo, best
                 d = 0.5 * d
                 continue
-            d = self._next(lo, hi, held, capped)
+            zero = self._zero(held)
+            if att is not None and zero - lo <= self.rtol * lo:  # the predicted boundary is within rtol
+                return lo, best
+            d = self._next(lo, hi, zero, capped, misses)
 
-    def _next(self, lo: float, hi: float, held: list[tuple[float, float]], capped: bool) -> float:
-        """The next delta of phase 2 in (lo, hi): just below the zero of the line through the last two t's.
+    @staticmethod
+    def _zero(held: list[tuple[float, float, float]]) -> float:
+        """Where the optimum margin t(delta) is predicted to reach 0, from the certified points' t and slope.
 
-        Aimed ``rtol`` below that zero, it usually holds and its step lo (1 + rtol) then
-        usually fails, which ends the search; ``capped``: hi is the cap, not a failure. With a
-        failure known, at least the bracket's middle.
+        Near the boundary t behaves like c (delta* - delta)^p with p about 1.4 (t then convex, and a Newton
+        step from a certified point stays below delta*); with r = t / |dt/d delta| = (delta* - delta) / p at
+        two points, p is their difference in delta over their difference in r (kept in [1, 3]). One point:
+        Newton (p = 1). Without slopes (nan): the zero of the line through the last two t's, or 1.5 lo.
         """
-        guess = 1.5 * lo
+        slopes = [(d, t / -s) for d, t, s in held if math.isfinite(s) and s < 0.0 and t > 0.0]
+        if slopes and slopes[-1][0] == held[-1][0]:
+            d1, r1 = slopes[-1]
+            p = 1.0
+            if len(slopes) >= 2 and slopes[-2][1] > r1:
+                d0, r0 = slopes[-2]
+                p = min(max((d1 - d0) / (r0 - r1), 1.0), 3.0)
+            return d1 + p * r1
+        lo = held[-1][0] if held else 0.0
         if len(held) >= 2:
-            (d0, t0), (d1, t1) = held[-2], held[-1]
+            (d0, t0, _), (d1, t1, _) = held[-2], held[-1]
             if t1 < t0:
-                guess = (d1 + t1 * (d1 - d0) / (t0 - t1)) * (1.0 - self.rtol)
-        step = lo * (1.0 + self.rtol)
+                return d1 + t1 * (d1 - d0) / (t0 - t1)
+        return 1.5 * lo
+
+    def _next(self, lo: float, hi: float, zero: float, capped: bool, misses: int) -> float:
+        """The next delta of phase 2 in (lo, hi): rtol (at least 2 %) below the predicted zero of t, inside the bracket.
+
+        That step usually holds and ends the search (:meth:`margin`: its next prediction then lies
+        within rtol, or a failure does). When the prediction
+        lies beyond a failure (t bends down far from the boundary) the step is as far below that
+        failure, and after a second failure in a row the bracket is halved. ``capped``: hi is the
+        search's cap, not a failure: at most a doubling.
+        """
+        below = max(self.rtol, 0.02)  # the prediction's own accuracy: a smaller rtol does not make it sharper
+        aim = zero * (1.0 - below)
         if capped:
-            return min(max(guess, step), 2.0 * lo, hi)
+            return min(max(aim, lo * (1.0 + self.rtol)), 2.0 * lo, hi)
         width = hi - lo
-        if width <= 2.0 * self.rtol * lo:  # one decisive step: if it fails the search ends, if it holds too
-            return step
-        # the line's zero lies below the boundary (t collapses early): at least halve the bracket
-        return min(max(guess, lo + 0.5 * width, step), lo + 0.8 * width)
+        if misses >= 2:
+            return lo + 0.5 * width
+        if zero >= hi:
+            return max(hi * (1.0 - below), lo + 0.5 * width)
+        return min(max(aim, lo * (1.0 + 0.25 * self.rtol)), lo + 0.9 * width)
 
     def search(self, cap: float) -> tuple[float, list[_Attempt | None], list[float], int]:
         """The team margin: (delta, each mode's attempt, the delta it was solved at (>= delta), the limiting mode)."""
@@ -329,13 +386,21 @@ def team_delay_margin(topology: Topology, P: float, D: float, tau1: float, tau2:
     delta, found, at, limiting = modes.search(t1 * (1.0 - 1e-9))
     options = {f.describe(): f for f in levels}
     gap = rtol * delta
+    confirmed: dict[int, DelayCertificate] = {}
     while delta > 0.0:
-        certs = [att.confirmed() for att in found if att is not None]
+        certs = [confirmed.setdefault(id(att), att.confirmed()) for att in found if att is not None]
         if len(certs) == len(found) and all(c.holds for c in certs):
             out = tuple(ModeMargin(f.lam, f.is_centroid, att.cert.method, c, options[att.cert.method], d)
                         for f, att, c, d in zip(modes.fs, found, certs, at, strict=True))  # fmt: skip
             return TeamDelayMargin(delta, modes.fs[limiting].lam, out, tried=tuple(modes.tried), tolerance=gap)
         modes.tried.append((delta, "failed the exact re-check"))
+        lower = [(d, att) for d, att in modes.history[limiting] if d < delta]
+        if len(certs) == len(found) and [k for k, c in enumerate(certs) if not c.holds] == [limiting] and lower:
+            # the limiting mode's largest certified delta below: every other mode holds there too (wider intervals)
+            delta, found[limiting] = max(lower, key=lambda pair: pair[0])
+            at[limiting] = delta
+            gap = rtol * delta
+            continue
         delta *= 0.5  # rare: step back and certify every mode again there
         found = [modes.check(i, delta) for i in range(len(modes.fs))] if delta > 1e-3 * start else []
         at = [delta for _ in found]
