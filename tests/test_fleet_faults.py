@@ -142,11 +142,13 @@ def test_a_killed_robot_is_named_and_a_restarted_one_ticks_again(tmp_path: Path)
     stamps = _state_stamps(out / "fleet.mcap", t0)
     s3, s2 = stamps["/robot_3/state"], stamps["/robot_2/state"]
     assert 1.5 - 3 * h <= s3.max() <= 1.5 + 0.05
-    assert s3.max() == pytest.approx(gap3["last_heard_s"], abs=0.05)
+    # last_heard_s is when the recorder took the last state, the stamp is when it was sent: the stamp is
+    # earlier by the transport's and the recorder's latency (70 ms seen once with three workers on 2 cores)
+    assert gap3["last_heard_s"] - 0.15 <= s3.max() <= gap3["last_heard_s"] + 0.05
     gaps = np.diff(s2)
     big = int(np.argmax(gaps))
-    assert s2[big] == pytest.approx(gap2["last_heard_s"], abs=0.05)
-    assert s2[big + 1] == pytest.approx(gap2["heard_again_s"], abs=0.05)
+    assert gap2["last_heard_s"] - 0.15 <= s2[big] <= gap2["last_heard_s"] + 0.05
+    assert gap2["heard_again_s"] - 0.15 <= s2[big + 1] <= gap2["heard_again_s"] + 0.05
     assert np.sort(gaps)[-2] < 0.2  # one silence only
     # no process left behind: every PID the run started (the restarted one too) has ended
     pids = summary["run"]["pids"]
