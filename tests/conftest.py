@@ -95,9 +95,9 @@ def _yield_to_realtime(request: pytest.FixtureRequest) -> None:
     raises its worker's niceness (for good: lowering it needs privileges), so the kernel gives the
     fleet's processes about nine times the CPU share of a CPU-bound test whenever both want it.
     """
-    # (a worker's own options say --dist no: the condition is being a worker; under another --dist the
-    # realtime tests spread and may find their worker niced too, which costs them only this advantage)
-    if ("PYTEST_XDIST_WORKER" in os.environ and request.node.get_closest_marker("realtime") is None
+    config = request.config
+    if ("PYTEST_XDIST_WORKER" in os.environ and config.getvalue("dist") == "loadgroup"
+            and request.node.get_closest_marker("realtime") is None
             and os.getpriority(os.PRIO_PROCESS, 0) < CPU_BOUND_NICENESS):  # fmt: skip
         os.setpriority(os.PRIO_PROCESS, 0, CPU_BOUND_NICENESS)
 
