@@ -55,8 +55,6 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     """
 
     def rank(item: pytest.Item) -> int:
-        if item.nodeid.split("::", 1)[0] in REALTIME_MODULES:
-            return -1
         if item.get_closest_marker("slow") is not None:
             return 0
         shared = item.nodeid.split("::", 1)[0] in SHARED_FIXTURE_MODULES or item.nodeid in SHARED_RUN_TESTS
@@ -73,35 +71,6 @@ SHARED_FIXTURE_MODULES = frozenset(
 )
 
 
-#: the test modules marked ``realtime`` (the fleet: processes on the wall clock, judged by their timing)
-_REALTIME = re.compile(r"^pytestmark = pytest\.mark\.realtime$", re.M)
-REALTIME_MODULES = frozenset(
-    f"tests/{p.name}" for p in Path(__file__).parent.glob("test_*.py") if _REALTIME.search(p.read_text("utf-8"))
-)
-
-#: the niceness the workers take for everything but the realtime tests (tests/conftest.py, _yield_to_realtime)
-CPU_BOUND_NICENESS = 10
-
-
-@pytest.fixture(autouse=True)
-def _yield_to_realtime(request: pytest.FixtureRequest) -> None:
-    """Under ``make test`` a worker runs the CPU-bound tests at niceness 10, the fleet's at 0.
-
-    One worker more than the cores (Makefile) keeps the cores busy while the fleet's processes wait
-    on the wall clock, but then two CPU-bound workers took the cores from a fleet run's eight
-    processes often enough to bend what it measures (a decay rate 30 % low, a recorder 70 ms late).
-    All realtime modules are one unit of work handed out first (``pytest_xdist_make_scheduler``),
-    so one worker runs them before anything else at the niceness it started with; every other test
-    raises its worker's niceness (for good: lowering it needs privileges), so the kernel gives the
-    fleet's processes about nine times the CPU share of a CPU-bound test whenever both want it.
-    """
-    config = request.config
-    if ("PYTEST_XDIST_WORKER" in os.environ and config.getvalue("dist") == "loadgroup"
-            and request.node.get_closest_marker("realtime") is None
-            and os.getpriority(os.PRIO_PROCESS, 0) < CPU_BOUND_NICENESS):  # fmt: skip
-        os.setpriority(os.PRIO_PROCESS, 0, CPU_BOUND_NICENESS)
-
-
 #: tests that read a run another module's tests share (tests/test_cli.py's ``paper_output``), with the
 #: unit of work they join so that the run is made once, on one worker, and nobody waits for it
 SHARED_RUN_TESTS = {"tests/test_cli.py::test_paper_writes_every_file_it_lists": "tests/test_report_browser.py"}
@@ -115,8 +84,7 @@ def pytest_xdist_make_scheduler(config: pytest.Config, log: object) -> object | 
     pytest-xdist's per-test scheduling both workers built the slow ones (the team's certified
     margin, three gain designs, a 100 x 100 dominant-root map, three running explorers). Here
     such a module is one unit of work, every other test its own unit, handed out one at a time
-    in collection order (the realtime modules first, as one unit, then the slow tests;
-    ``--no-loadscope-reorder`` keeps that order), a test of
+    in collection order (slow tests first; ``--no-loadscope-reorder`` keeps that order), a test of
     ``SHARED_RUN_TESTS`` joins the unit it names, and an explicit ``xdist_group`` mark still groups
     as pytest-xdist documents it.
     """
@@ -131,8 +99,6 @@ def pytest_xdist_make_scheduler(config: pytest.Config, log: object) -> object | 
             if nodeid in SHARED_RUN_TESTS:
                 return SHARED_RUN_TESTS[nodeid]
             module = nodeid.split("::", 1)[0]
-            if module in REALTIME_MODULES:
-                return "realtime"
             return module if module in SHARED_FIXTURE_MODULES else nodeid
 
     return SharedFixtureScheduling(config, log)

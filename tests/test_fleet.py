@@ -34,9 +34,6 @@ from delayform.model.network import BernoulliLoss, Jitter, MeasurementNoise, Net
 from delayform.simulation.delayed.reception import packet_draws, reception
 from delayform.topology import complete, paper_six
 
-#: processes on the wall clock: one worker runs this module first, ahead of the CPU-bound tests (tests/conftest.py)
-pytestmark = pytest.mark.realtime
-
 ROOT = Path(__file__).resolve().parents[1]
 
 

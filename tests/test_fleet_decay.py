@@ -23,9 +23,6 @@ from delayform.scenario.parse import load_scenario
 from delayform.simulation import simulate
 from delayform.simulation.models.robots import Robot
 
-#: processes on the wall clock: one worker runs this module first, ahead of the CPU-bound tests (tests/conftest.py)
-pytestmark = pytest.mark.realtime
-
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "create3_hexagon.toml"
 

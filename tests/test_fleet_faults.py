@@ -24,9 +24,6 @@ from delayform.errors import FleetError
 from delayform.fleet.faults import Fault, check_faults, parse_fault
 from delayform.fleet.outcome import silent_intervals
 
-#: processes on the wall clock: one worker runs this module first, ahead of the CPU-bound tests (tests/conftest.py)
-pytestmark = pytest.mark.realtime
-
 FOUR = ('name = "four"\n[topology]\nname = "star"\nn = 4\n[gains]\nP = 1.0\nD = 1.5\n'
         '[delays]\ntau1 = 0.3\ntau2 = 0.2\n[formation]\nshape = "polygon"\n[robot]\nprofile = "create3"\n')  # fmt: skip
 

@@ -23,9 +23,6 @@ from delayform.model.network import BernoulliLoss, Jitter, LinkDelays, Measureme
 from delayform.simulation.delayed.reception import reception
 from delayform.topology import complete, paper_six
 
-#: processes on the wall clock: one worker runs this module first, ahead of the CPU-bound tests (tests/conftest.py)
-pytestmark = pytest.mark.realtime
-
 # per-link delays of three robots, row i what robot i receives (diagonal unused)
 TAU1 = np.array([[0.0, 0.25, 0.40], [0.30, 0.0, 0.20], [0.35, 0.45, 0.0]])
 TAU2 = np.array([[0.0, 0.15, 0.30], [0.20, 0.0, 0.10], [0.25, 0.30, 0.0]])

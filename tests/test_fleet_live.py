@@ -32,9 +32,6 @@ from test_fleet_faults import FOUR, _t0_of
 from delayform.errors import FleetError
 from delayform.fleet.live import check_live_port
 
-#: processes on the wall clock: one worker runs this module first, ahead of the CPU-bound tests (tests/conftest.py)
-pytestmark = pytest.mark.realtime
-
 #: the protocol the SDK's server speaks (it refuses a client offering only the older foxglove.websocket.v1)
 SUBPROTOCOLS = ["foxglove.sdk.v1", "foxglove.websocket.v1"]
 

@@ -40,9 +40,6 @@ from delayform.formation import named_formation
 from delayform.model import Delays, Start, Team
 from delayform.topology import complete
 
-#: processes on the wall clock: one worker runs this module first, ahead of the CPU-bound tests (tests/conftest.py)
-pytestmark = pytest.mark.realtime
-
 ROOT = Path(__file__).resolve().parents[1]
 
 #: rmw_zenoh's docs/design.md (jazzy): the String type's hash, a node's token and a publisher's
