@@ -47,8 +47,14 @@ def test_the_memory_budget_refuses_too_many_processes(monkeypatch: pytest.Monkey
         check_machine(6, 13, 0.01, cores=2, factor=1.0)
 
 
-def test_the_machine_s_speed_is_measured_within_its_bounds() -> None:
-    assert 0.25 <= speed_factor() <= 4.0
+def test_the_machine_s_measured_speed_scales_the_demand(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A machine whose controller ticks take twice the reference's CPU is planned at twice the demand, within [0.25, 4]."""
+    import delayform.fleet.budget as budget
+
+    for ratio, factor in ((2.0, 2.0), (10.0, 4.0), (0.1, 0.25)):
+        monkeypatch.setattr(budget, "_reference_ticks", lambda r=ratio: r * budget.REFERENCE_TICKS_SECONDS)
+        assert speed_factor() == pytest.approx(factor)
+        assert check_machine(6, 13, 0.04, cores=64) == pytest.approx(fleet_demand(6, 13, 0.04, factor=factor))
 
 
 def test_the_command_refuses_a_period_this_machine_cannot_keep_in_one_line_before_any_process(tmp_path: Path) -> None:

@@ -70,8 +70,14 @@ def fleet_demand(n: int, links: int, period: float, *, factor: float = 1.0, ros:
     >>> round(fleet_demand(6, 13, 0.01), 2)
     0.46
     """
+    poll, work = _demand_parts(n, links, factor=factor, ros=ros)
+    return poll + work / period
+
+
+def _demand_parts(n: int, links: int, *, factor: float, ros: bool) -> tuple[float, float]:
+    """(cores the polling keeps busy, CPU seconds of work per control period): demand = poll + work / period."""
     tick = TICK_SECONDS + (ROS_TICK_SECONDS if ros else 0.0)
-    return factor * ((n + 2) * POLL_CORES + (n * tick + links * MESSAGE_SECONDS) / period)
+    return factor * (n + 2) * POLL_CORES, factor * (n * tick + links * MESSAGE_SECONDS)
 
 
 def _reference_ticks() -> float:
@@ -120,13 +126,12 @@ def check_machine(n: int, links: int, period: float, *, cores: int | None = None
             setting="the number of robots")  # fmt: skip
     cores = cores or len(os.sched_getaffinity(0))
     factor = speed_factor() if factor is None else factor
-    demand = fleet_demand(n, links, period, factor=factor, ros=ros)
+    poll, work = _demand_parts(n, links, factor=factor, ros=ros)
+    demand = poll + work / period
     if demand > HEADROOM * cores:
-        need = demand / HEADROOM
-        tick = TICK_SECONDS + (ROS_TICK_SECONDS if ros else 0.0)
-        longest = factor * (n * tick + links * MESSAGE_SECONDS) / (HEADROOM * cores - factor * (n + 2) * POLL_CORES)
-        hint = (f"a control period of at least {longest * 1e3:.3g} ms" if longest > 0
+        spare = HEADROOM * cores - poll  # what the polling leaves for the ticks and messages
+        hint = (f"a control period of at least {work / spare * 1e3:.3g} ms, or fewer robots" if spare > 0
                 else "fewer robots (their processes' polling alone fills the cores)")
         raise FleetError(f"{n} robot processes at a {period * 1e3:g} ms control period would keep {demand:.2g} cores busy "
-                         f"and need about {need:.2g} to hold it; this machine has {cores}: choose {hint}, or fewer robots")  # fmt: skip
+                         f"and need about {demand / HEADROOM:.2g} to hold it; this machine has {cores}: choose {hint}")  # fmt: skip
     return demand

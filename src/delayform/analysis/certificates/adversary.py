@@ -249,6 +249,12 @@ def _monodromy(lam: float, P: float, D: float, j1: NDArray[np.int_], j2: NDArray
     return np.vstack([X[-depth:], V[-depth:]])
 
 
+def _multiplier(lam: float, P: float, D: float, j1: NDArray[np.int_], j2: NDArray[np.int_], depth: int,
+                dt: float) -> complex:  # fmt: skip
+    """The dominant Floquet multiplier of the discretized mode under the periodic lags j1, j2 (steps)."""
+    return _dominant(_monodromy(lam, P, D, j1, j2, depth, dt), vectors=False)[0]
+
+
 def _dominant(M: NDArray[np.float64], *, vectors: bool) -> tuple[complex, NDArray[np.complex128] | None]:
     """The eigenvalue of largest modulus (Arnoldi; dense for small matrices) and, when asked, its eigenvector."""
     if M.shape[0] < 16:
@@ -293,7 +299,7 @@ def floquet_multiplier(lam: float, P: float, D: float, h1: NDArray[np.float64], 
     if j1.size != j2.size or j1.size == 0:
         raise InputError("h1 and h2 must be non-empty and of the same length (one value per step)")
     depth = int(max(j1.max(), j2.max())) + 1
-    return _dominant(_monodromy(lam, P, D, j1, j2, depth, dt), vectors=False)[0]
+    return _multiplier(lam, P, D, j1, j2, depth, dt)
 
 
 def _steps(h: NDArray[np.float64], dt: float) -> NDArray[np.int_]:
@@ -383,7 +389,7 @@ def periodic_switching_adversary(lam: float, P: float, D: float, tau1: float, ta
     for m in np.argsort(late)[::-1][:members]:
         for n in sorted(set(_periods(j1[:, m]) + _periods(j2[:, m]))) or [int(round(tau1 / dt))]:
             s1, s2 = j1[-n:, m].astype(int), j2[-n:, m].astype(int)
-            mu = _dominant(_monodromy(lam, P, D, s1, s2, depth, dt), vectors=False)[0]
+            mu = _multiplier(lam, P, D, s1, s2, depth, dt)
             if best is None or math.log(abs(mu)) / n > best[0]:
                 best = (math.log(abs(mu)) / n, mu, s1, s2)
     assert best is not None
@@ -392,7 +398,7 @@ def periodic_switching_adversary(lam: float, P: float, D: float, tau1: float, ta
         n1, n2 = _improve(lam, P, D, s1, s2, bounds, dt)
         if np.array_equal(n1, s1) and np.array_equal(n2, s2):
             break
-        trial = _dominant(_monodromy(lam, P, D, n1, n2, depth, dt), vectors=False)[0]
+        trial = _multiplier(lam, P, D, n1, n2, depth, dt)
         if abs(trial) <= abs(mu):
             break
         s1, s2, mu = n1, n2, trial

@@ -388,7 +388,10 @@ def team_delay_margin(topology: Topology, P: float, D: float, tau1: float, tau2:
     gap = rtol * delta
     confirmed: dict[int, DelayCertificate] = {}
     while delta > 0.0:
-        certs = [confirmed.setdefault(id(att), att.confirmed()) for att in found if att is not None]
+        for att in found:  # the exact re-check once per attempt, not again after a step back
+            if att is not None and id(att) not in confirmed:
+                confirmed[id(att)] = att.confirmed()
+        certs = [confirmed[id(att)] for att in found if att is not None]
         if len(certs) == len(found) and all(c.holds for c in certs):
             out = tuple(ModeMargin(f.lam, f.is_centroid, att.cert.method, c, options[att.cert.method], d)
                         for f, att, c, d in zip(modes.fs, found, certs, at, strict=True))  # fmt: skip
