@@ -19,6 +19,8 @@ import pytest
 pytest.importorskip("zenoh")
 pytest.importorskip("mcap_ros2")
 
+from cli_runner import run_in_process
+
 from delayform import dominant_root
 from delayform.cli.fleet import WORLD_NAMES
 from delayform.deploy import robot_profile
@@ -301,10 +303,10 @@ def test_a_bad_scenario_exits_2_with_one_line_before_any_process(tmp_path: Path)
     bad.write_text((ROOT / "examples" / "paper.toml").read_text()
                    + "\n[network]\nvariation = { amplitude = [0.05, 0.25], period = 5.0 }\n")
     for args in ([str(bad)], ["--endpoint", "tcp/10.1.2.3:7447"], ["--tau1", "-1"]):
-        proc = _cli(*args, "--duration", "5", "--out", str(tmp_path / "out"))
-        stdout, stderr = proc.communicate(timeout=120)
-        lines = stderr.decode().strip().splitlines()
-        assert proc.returncode == 2, stderr
+        # in this process (a fresh interpreter per case cost a second each): the refusal is the CLI's own
+        proc = run_in_process("fleet", *args, "--duration", "5", "--out", str(tmp_path / "out"), cwd=tmp_path, timeout=120)
+        lines = proc.stderr.strip().splitlines()
+        assert proc.returncode == 2, proc.stderr
         assert len(lines) == 1 and lines[0].startswith("delayform: error:"), lines
         assert not _children_of(tmp_path)
     assert not (tmp_path / "out" / "fleet.mcap").exists()
@@ -315,10 +317,10 @@ def test_a_port_in_use_exits_2(tmp_path: Path) -> None:
         taken.bind(("127.0.0.1", 0))
         taken.listen()
         port = taken.getsockname()[1]
-        proc = _cli("--duration", "5", "--endpoint", f"tcp/127.0.0.1:{port}", "--out", str(tmp_path))
-        _, stderr = proc.communicate(timeout=120)
+        proc = run_in_process("fleet", "--duration", "5", "--endpoint", f"tcp/127.0.0.1:{port}", "--out", str(tmp_path),
+                              cwd=tmp_path, timeout=120)  # fmt: skip
     assert proc.returncode == 2
-    assert "already taken" in stderr.decode() and len(stderr.decode().strip().splitlines()) == 1
+    assert "already taken" in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
 
 
 @pytest.mark.slow

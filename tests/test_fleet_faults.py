@@ -18,6 +18,7 @@ import pytest
 pytest.importorskip("zenoh")
 pytest.importorskip("mcap_ros2")
 
+from cli_runner import run_in_process
 from test_fleet import _alive, _children_of, _cli, _free_port
 
 from delayform.errors import FleetError
@@ -69,11 +70,10 @@ def test_bad_faults_exit_2_with_one_line_before_any_process(tmp_path: Path) -> N
     cases = (["--kill", "5@1"], ["--kill", "1@9"], ["--restart", "1@2"], ["--kill", "1@3", "--restart", "1@2"],
              ["--kill", "one"], ["--foxglove", "70000"])  # fmt: skip
     for args in cases:
-        proc = _cli(str(scenario), *args, "--duration", "5", "--out", str(tmp_path / "out"),
-                    "--endpoint", f"tcp/127.0.0.1:{_free_port()}")  # fmt: skip
-        _, stderr = proc.communicate(timeout=120)
-        lines = stderr.decode().strip().splitlines()
-        assert proc.returncode == 2, (args, stderr)
+        proc = run_in_process("fleet", str(scenario), *args, "--duration", "5", "--out", str(tmp_path / "out"),
+                              "--endpoint", f"tcp/127.0.0.1:{_free_port()}", cwd=tmp_path, timeout=120)  # fmt: skip
+        lines = proc.stderr.strip().splitlines()
+        assert proc.returncode == 2, (args, proc.stderr)
         assert len(lines) == 1 and lines[0].startswith("delayform: error:"), (args, lines)
         assert not _children_of(tmp_path)
     assert not (tmp_path / "out" / "fleet.mcap").exists()

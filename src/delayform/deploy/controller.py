@@ -57,7 +57,7 @@ from __future__ import annotations
 import math
 from bisect import bisect_right, insort
 from collections.abc import Iterable, Mapping
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -65,9 +65,11 @@ from numpy.typing import ArrayLike
 from delayform._validation import check_delay, check_delay_array, check_gains, validated
 from delayform.deploy.profiles import RobotProfile
 from delayform.errors import ControllerInputError
-from delayform.formation import check_formation, formation_forcing
-from delayform.simulation.models.robots import IROBOT_CREATE, REST_SPEED, RobotLimits
-from delayform.topology import Topology
+from delayform.model.limits import IROBOT_CREATE, RobotLimits
+from delayform.model.robot import REST_SPEED
+
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    from delayform.topology import Topology
 
 __all__ = ["FormationController", "NeighbourMessage", "Command"]
 
@@ -325,6 +327,11 @@ class FormationController:
         limits, rest_speed
             As for the constructor.
         """
+        # here, not at the top: a robot's process builds its controller from weights alone and
+        # starts without the team's sparse algebra (SciPy), a third of a second per process
+        from delayform.formation import check_formation, formation_forcing
+        from delayform.topology import Topology
+
         if not isinstance(topology, Topology):
             raise ControllerInputError(f"topology must be a Topology, got {type(topology).__name__}")
         n = topology.n

@@ -267,7 +267,7 @@ def robot_main(spec: dict[str, Any]) -> None:
 
     from delayform.deploy.controller import FormationController, NeighbourMessage
     from delayform.fleet.wire import Codec, Odometry, key, open_session
-    from delayform.simulation.models.robots import RobotLimits
+    from delayform.model.limits import RobotLimits
 
     me, n, h = int(spec["robot"]), int(spec["n"]), float(spec["period"])
     limits = None if spec["limits"] is None else RobotLimits(**spec["limits"])
@@ -408,7 +408,7 @@ def world_main(spec: dict[str, Any]) -> None:
 
     from delayform.fleet.wire import Codec, Odometry, key, open_session
     from delayform.fleet.world import COMMAND_TIMEOUT, world_model
-    from delayform.simulation.models.robots import RobotLimits
+    from delayform.model.limits import RobotLimits
 
     n, h = int(spec["n"]), float(spec["period"])
     limits = None if spec["limits"] is None else RobotLimits(**spec["limits"])

@@ -34,7 +34,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from delayform.errors import FleetError
-from delayform.simulation.models.robots import RobotLimits
+from delayform.model.limits import RobotLimits
 
 __all__ = ["WorldModel", "KinematicWorld", "WORLDS", "world_model", "WORLD_STEP", "COMMAND_TIMEOUT"]
 

@@ -11,23 +11,74 @@ fields once, when it is built, so the layers above take it whole and never
 check or rename its parts again.
 """
 
-from delayform.model.chassis import CREATE_CHASSIS, Chassis
-from delayform.model.delays import Delays
-from delayform.model.limits import IROBOT_CREATE, RobotLimits
-from delayform.model.network import (
-    BernoulliLoss,
-    GilbertElliott,
-    Jitter,
-    LinkDelays,
-    MeasurementNoise,
-    Network,
-    Sampling,
-    SmoothVariation,
-)
-from delayform.model.profiles import PROFILES, Arena, RobotProfile, profile_names, robot_profile
-from delayform.model.robot import MODELS, REST_SPEED, SAFETY_FILTERS, BarrierFilter, Robot, check_safety
-from delayform.model.start import PAPER_SPEED, Start
-from delayform.model.team import Team
+from __future__ import annotations
+
+from importlib import import_module
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:  # pragma: no cover - the names, for type checkers and IDEs
+    from delayform.model.chassis import CREATE_CHASSIS, Chassis
+    from delayform.model.delays import Delays
+    from delayform.model.limits import IROBOT_CREATE, RobotLimits
+    from delayform.model.network import (
+        BernoulliLoss,
+        GilbertElliott,
+        Jitter,
+        LinkDelays,
+        MeasurementNoise,
+        Network,
+        Sampling,
+        SmoothVariation,
+    )
+    from delayform.model.profiles import PROFILES, Arena, RobotProfile, profile_names, robot_profile
+    from delayform.model.robot import MODELS, REST_SPEED, SAFETY_FILTERS, BarrierFilter, Robot, check_safety
+    from delayform.model.start import PAPER_SPEED, Start
+    from delayform.model.team import Team
+
+#: Where each name lives: imported on first use, so that a process that needs one noun (a robot's
+#: controller needs its limits) does not import the team's sparse algebra and SciPy with it
+_WHERE = {
+    "CREATE_CHASSIS": "delayform.model.chassis",
+    "Chassis": "delayform.model.chassis",
+    "Delays": "delayform.model.delays",
+    "IROBOT_CREATE": "delayform.model.limits",
+    "RobotLimits": "delayform.model.limits",
+    "BernoulliLoss": "delayform.model.network",
+    "GilbertElliott": "delayform.model.network",
+    "Jitter": "delayform.model.network",
+    "LinkDelays": "delayform.model.network",
+    "MeasurementNoise": "delayform.model.network",
+    "Network": "delayform.model.network",
+    "Sampling": "delayform.model.network",
+    "SmoothVariation": "delayform.model.network",
+    "PROFILES": "delayform.model.profiles",
+    "Arena": "delayform.model.profiles",
+    "RobotProfile": "delayform.model.profiles",
+    "profile_names": "delayform.model.profiles",
+    "robot_profile": "delayform.model.profiles",
+    "MODELS": "delayform.model.robot",
+    "REST_SPEED": "delayform.model.robot",
+    "SAFETY_FILTERS": "delayform.model.robot",
+    "BarrierFilter": "delayform.model.robot",
+    "Robot": "delayform.model.robot",
+    "check_safety": "delayform.model.robot",
+    "PAPER_SPEED": "delayform.model.start",
+    "Start": "delayform.model.start",
+    "Team": "delayform.model.team",
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _WHERE:
+        value = getattr(import_module(_WHERE[name]), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'delayform.model' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_WHERE))
+
 
 __all__ = [
     "Team",
