@@ -69,7 +69,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from fractions import Fraction
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -79,10 +79,11 @@ from delayform._validation import validated
 from delayform.deploy._cdr import Layout, Slot
 from delayform.deploy.markers import body_markers, link_marker, link_pairs, slot_markers
 from delayform.errors import RecordingError
-from delayform.formation import centroid_weights, formation_forcing
-from delayform.model.network import Network
-from delayform.simulation.runs.trajectory import Trajectory
-from delayform.topology import Topology
+
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    from delayform.model.network import Network
+    from delayform.simulation.runs.trajectory import Trajectory
+    from delayform.topology import Topology
 
 __all__ = ["write_mcap", "check_mcap_path", "recording_start", "odometry_layout", "twist_layout",
            "MCAP_TOPICS", "LINK_RATE", "LINK_LIMIT"]
@@ -265,6 +266,12 @@ def write_mcap(
     from mcap.writer import CompressionType, Writer
     from rosbags.typesys import Stores, get_typestore
 
+    # here, not at the top: the fleet's robot processes import this module for the message layouts
+    # alone (delayform.fleet.wire) and start without the simulator, the formation's algebra and SciPy
+    from delayform.model.network import Network
+    from delayform.simulation.runs.trajectory import Trajectory
+    from delayform.topology import Topology
+
     if not isinstance(trajectory, Trajectory):
         raise RecordingError(f"write_mcap takes a Trajectory, got {type(trajectory).__name__}")
     if trajectory.commands is None:
@@ -325,6 +332,8 @@ def _replay_note(traj: Trajectory, network: Network | None) -> str:
 
 def _run_record(traj: Trajectory, topology: Topology | None, start: int, network: Network | None) -> dict[str, str]:
     """The ``delayform/run`` metadata: the design, the frames, and what each robot's controller needs."""
+    from delayform.formation import formation_forcing
+
     record = {
         "model": traj.model + (" with limits" if traj.limits is not None else " (ideal robots)"),
         "robots": str(traj.n), "P": repr(traj.P), "D": repr(traj.D), "tau1": repr(traj.tau1), "tau2": repr(traj.tau2),
@@ -470,6 +479,8 @@ def _write_messages(writer: Any, store: Any, traj: Trajectory, topology: Topolog
     if topology is not None:
         transforms.append(_transform(T, ODOM_FRAME, FORMATION_FRAME))
         # the offset the weighted centroid gives the formation (paper, eq. 4): where the slots are
+        from delayform.formation import centroid_weights
+
         w = centroid_weights(topology)
         offset = np.einsum("i,tij->tj", w, traj.positions - traj.desired[None])
     tf_slots: list[Slot] = []
