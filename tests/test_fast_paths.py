@@ -303,3 +303,35 @@ def test_reduced_generator_has_the_full_discretizations_eigenvalues(
             both = np.concatenate([got, spurious])
             miss = np.abs(full[:, None] - both[None, :]).min(axis=1)
             assert full.size == both.size and np.all(miss <= 1e-6 * (1.0 + np.abs(full))), (f, miss.max())
+
+
+@settings(max_examples=40)
+@given(st.lists(st.tuples(st.lists(st.complex_numbers(max_magnitude=5.0, allow_nan=False, allow_infinity=False),
+                                   min_size=1, max_size=5),
+                          st.integers(0, 2), st.integers(0, 2)), min_size=1, max_size=4),
+       st.integers(0, 11), st.floats(0.0, 2.0), st.floats(0.0, 2.0))
+def test_all_derivatives_at_once_equal_each_derivative(raw, kmax: int, t1: float, t2: float) -> None:
+    """The argument principle's Taylor test reads q, q', ..., q^(K-1) in one pass: the same floats as one at a time."""
+    from delayform.analysis.roots.problem import _derivatives_up_to, _nth_derivative
+
+    terms = [(np.array(c, dtype=np.complex128), a, b) for c, a, b in raw]
+    s = np.array([0.3 + 1.1j, -0.7 + 2.5j, 1.9 - 0.4j, 0.0])
+    vals, mags = _derivatives_up_to(terms, s, t1, t2, kmax)
+    for k in range(kmax + 1):
+        val, mag = _nth_derivative(terms, s, t1, t2, k)
+        np.testing.assert_array_equal(vals[k], val)
+        np.testing.assert_array_equal(mags[k], mag)
+
+
+def test_all_derivatives_at_once_against_the_closed_form() -> None:
+    """q(s) = (s^2 + 1) e^{-2 s}: d^k/ds^k by the Leibniz rule written out, at a few points."""
+    from math import comb
+
+    from delayform.analysis.roots.problem import _derivatives_up_to
+
+    s = np.array([0.5 + 0.5j, -1.0 + 3.0j])
+    vals, _ = _derivatives_up_to([(np.array([1.0, 0.0, 1.0], dtype=np.complex128), 1, 0)], s, 2.0, 0.0, 5)
+    p = [s**2 + 1, 2 * s, 2 + 0 * s]
+    for k in range(6):
+        want = sum(comb(k, j) * p[j] * (-2.0) ** (k - j) for j in range(min(k, 2) + 1)) * np.exp(-2.0 * s)
+        np.testing.assert_allclose(vals[k], want, rtol=1e-13)

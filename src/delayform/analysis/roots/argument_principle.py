@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 
 from delayform.analysis.roots.problem import (
     Region,
-    _nth_derivative,
+    _derivatives_up_to,
     _abs_poly,
     _abs_poly_der,
     evaluate,
@@ -111,13 +111,12 @@ def _taylor_passes(
     """
     K = _taylor_order(terms)
     # q(a) itself carries rounding (large terms cancelling near a root): only its certain part counts
-    _, mag0 = _nth_derivative(terms, a, t1, t2, 0)
-    bound = 64 * np.finfo(float).eps * mag0
+    vals, mags = _derivatives_up_to(terms, a, t1, t2, K - 1)
+    bound = 64 * np.finfo(float).eps * mags[0]
     fact = 1.0
     for j in range(1, K):
         fact *= j
-        val, mag = _nth_derivative(terms, a, t1, t2, j)
-        bound += (np.abs(val) + 64 * np.finfo(float).eps * mag) * delta**j / fact
+        bound += (np.abs(vals[j]) + 64 * np.finfo(float).eps * mags[j]) * delta**j / fact
     fact *= K
     M = np.zeros(a.shape)
     for c, ka, kb in terms:

@@ -398,6 +398,45 @@ def _nth_derivative(
     return val, mag
 
 
+def _derivatives_up_to(
+    terms: Terms, s: NDArray[np.complex128], t1: float, t2: float, kmax: int
+) -> tuple[list[NDArray[np.complex128]], list[NDArray[np.float64]]]:
+    """:func:`_nth_derivative` for every k = 0..kmax at once, each p^(j)(s) of a term evaluated once.
+
+    The same sums in the same order as ``_nth_derivative(terms, s, t1, t2, k)`` for each k (so
+    the same floats); a pass of the argument principle's Taylor test needs all of them, and
+    recomputing the polynomial derivatives per k cost (kmax + 1)^2 / 2 of them per term.
+    """
+    vals = [np.zeros(s.shape, dtype=np.complex128) for _ in range(kmax + 1)]
+    mags = [np.zeros(s.shape) for _ in range(kmax + 1)]
+    rho = np.maximum(np.abs(s), 1.0)
+    for c, a, b in terms:
+        h = a * t1 + b * t2
+        e = np.exp(-h * s)
+        abs_e = np.abs(e)
+        p: list[NDArray[np.complex128] | None] = []
+        bound: list[NDArray[np.float64] | None] = []
+        for j in range(kmax + 1):
+            dj = npoly.polyder(c, j) if j else c
+            if dj.size == 0:
+                p.append(None)
+                bound.append(None)
+                continue
+            p.append(_horner(dj, s))
+            bound.append(_abs_poly(dj, rho))
+        for k in range(kmax + 1):
+            for j in range(k + 1):
+                pj, bj = p[j], bound[j]
+                if pj is None or bj is None:
+                    continue
+                w = math.comb(k, j) * (-h) ** (k - j)
+                if w == 0.0:
+                    continue
+                vals[k] = vals[k] + w * pj * e
+                mags[k] = mags[k] + abs(w) * bj * abs_e
+    return vals, mags
+
+
 def _multiplicity(
     prob: _Problem, roots: NDArray[np.complex128], t1: float, t2: float
 ) -> NDArray[np.int64]:
