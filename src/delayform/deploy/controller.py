@@ -544,7 +544,7 @@ class FormationController:
         accel = min(max(along, -amax), amax)
         if accel * v > 0.0:
             accel = accel * max(1.0 - (speed / lim.speed_cap) ** 8, 0.0)
-        demand = float(lim.turn_demand(v, along, across, ux * ux + uy * uy))  # a float: numpy scalars would spread
+        demand = float(lim._turn_demand(v, along, across, ux * ux + uy * uy))  # a float: numpy scalars would spread
         wmax = lim.max_turn_rate
         wanted = min(max(demand, -wmax), wmax)
         rim = lim.wheel_radius * lim.max_wheel_speed

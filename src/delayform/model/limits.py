@@ -113,6 +113,11 @@ class RobotLimits:
         size2
             ``|u|^2``.
         """
+        return self._turn_demand(v, along, across, size2)
+
+    def _turn_demand(self, v: Any, along: Any, across: Any, size2: Any) -> Any:
+        # the body of turn_demand without the argument check of the public method: the simulator and
+        # the controller call it at every stage of every step, where that check cost more than the formula
         vs = np.sqrt(self.slow_speed**2 + self.turn_time_constant**2 * size2)
         toward = along / np.sqrt(size2 + 1e-24) + FORWARD_BIAS
         return across * (v + toward * vs) / (v * v + vs * vs)

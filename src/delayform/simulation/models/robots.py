@@ -190,7 +190,7 @@ class LimitedUnicycle:
         ux, uy = u[:, 0], u[:, 1]
         along = c * ux + s * uy  # the paper's eq. 19, first row
         across = c * uy - s * ux
-        demand = lim.turn_demand(v, along, across, ux * ux + uy * uy)  # the paper's eq. 19, second row, softened
+        demand = lim._turn_demand(v, along, across, ux * ux + uy * uy)  # the paper's eq. 19, second row, softened
         return np.column_stack([along, demand])
 
     def apply(self, state: _Array, command: _Array) -> tuple[_Array, _Array, tuple[_Array, ...]]:
