@@ -236,7 +236,7 @@ def _linearize(problem: LmiProblem) -> tuple[dict[str, NDArray[np.float64]], dic
     return const, cols
 
 
-def solve(problem: LmiProblem, *, tolerance: float | None = None, quick: bool = False) -> SdpSolution:
+def solve(problem: LmiProblem, *, tolerance: float | None = None, quick: bool = False, balance: bool = False) -> SdpSolution:
     """Maximize the common margin t of the LMIs with Clarabel (module docstring).
 
     Parameters
@@ -253,6 +253,15 @@ def solve(problem: LmiProblem, *, tolerance: float | None = None, quick: bool = 
         CPU, and fewer iterations). The answer is a little
         less accurate near the boundary of the feasible set, where it may then fail the re-check:
         a caller that wants the most from a solve re-solves without ``quick``.
+    balance
+        Pose each LMI to the solver as the congruent D M(x) D, D diagonal with powers of two that
+        bring its diagonal's coefficients near 1 (:func:`_balance`). D M D and M are positive
+        definite together (Sylvester's law of inertia), so the feasible x are the same, but the
+        margin t is then that of D M D (its scale differs: about 300 times smaller on the team's
+        order-3 LMIs, so pass a tighter ``tolerance``) and the dual matrices returned are
+        D Z D, those of the LMIs as built. Near the boundary of the feasible set it needs fewer
+        iterations (measured on the team's order-3 LMIs: 16-18 against 31). The re-check is of
+        M itself, as always.
 
     Raises
     ------
@@ -274,11 +283,16 @@ def solve(problem: LmiProblem, *, tolerance: float | None = None, quick: bool = 
     norm[1, nv] = 1.0
     blocks_A.append(sp.csc_matrix(norm))
     b_parts.append(np.ones(2))
+    weights: dict[str, NDArray[np.float64]] = {}
     for name, c in const.items():
         m = int(round((math.sqrt(8 * c.size + 1) - 1) / 2))
         eye = svec(np.eye(m))
+        J = cols[name]
+        if balance:
+            weights[name] = w = _balance(c, J, m)
+            c, J = c * w, J * w[:, None]
         # s = c + J x - t svec(I) = b - A z with A = [-J, svec(I)], b = c
-        blocks_A.append(sp.csc_matrix(np.hstack([-cols[name], eye[:, None]])))
+        blocks_A.append(sp.csc_matrix(np.hstack([-J, eye[:, None]])))
         b_parts.append(c)
         cones.append(clarabel.PSDTriangleConeT(m))
     A = sp.vstack(blocks_A, format="csc")
@@ -309,9 +323,25 @@ def solve(problem: LmiProblem, *, tolerance: float | None = None, quick: bool = 
     if y.size == b.size and np.all(np.isfinite(y)):
         start = 2
         for name, c in const.items():
-            duals[name] = y[start : start + c.size]
+            duals[name] = y[start : start + c.size] * weights.get(name, 1.0)
             start += c.size
     return SdpSolution(z[:nv] if z.size == nv + 1 else np.zeros(nv), t, str(sol.status), duals)
+
+
+def _balance(c: NDArray[np.float64], J: NDArray[np.float64], m: int) -> NDArray[np.float64]:
+    """The svec weights d_i d_j of the congruence D M D, D = diag(d), that :func:`solve` poses with ``balance``.
+
+    d_i = 2^-round(log2(s_i) / 2), s_i the largest coefficient of the diagonal entry M_ii (its
+    constant or any column of J): D M D's diagonal coefficients are then within a factor 2 of 1.
+    Powers of two: the scaled coefficients are the same floats, only their exponents move.
+    """
+    rows, cols = _svec_order(m)
+    diag = rows == cols
+    size = np.maximum(np.abs(J[diag]).max(axis=1, initial=0.0), np.abs(c[diag]))
+    d = np.ones(m)
+    pos = size > 0.0
+    d[pos] = np.exp2(-np.round(0.5 * np.log2(size[pos])))
+    return d[rows] * d[cols]
 
 
 def margin_slope(sol: SdpSolution, below: LmiProblem, above: LmiProblem, step: float) -> float:

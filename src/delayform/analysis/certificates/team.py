@@ -139,6 +139,9 @@ SEARCH_TOLERANCE = 1e-6
 #: at this looser tolerance, about half the CPU; an answer with t > 0 that fails the re-check, or a
 #: solver that stalled, is solved again the careful way at SEARCH_TOLERANCE (the margin does not suffer).
 QUICK_TOLERANCE = 1e-5
+#: The tolerance of a balanced quick solve (lmi.solve's ``balance``: its margin t is about 300 times
+#: smaller on the order-3 LMIs, so the same relative accuracy needs a tighter one).
+BALANCED_TOLERANCE = 1e-7
 
 
 class _Modes:
@@ -171,7 +174,8 @@ class _Modes:
         # per mode: every (delta, attempt) that held, for a step back when an answer fails the exact re-check
         self.history: list[list[tuple[float, _Attempt]]] = [[] for _ in self.fs]
 
-    def solve(self, i: int, delta: float, level: int, slope: bool = False) -> tuple[_Attempt | None, float, float]:
+    def solve(self, i: int, delta: float, level: int, slope: bool = False,
+              balance: bool = False) -> tuple[_Attempt | None, float, float]:  # fmt: skip
         """(the attempt if it holds, else None; the solver's optimum margin t; dt/d delta or nan) of one functional.
 
         ``slope``: when it holds, also the derivative of the optimum t in delta from the solver's dual
@@ -181,7 +185,8 @@ class _Modes:
             return None, -math.inf, math.nan
         fun = self.levels[level]
         data = self._data(i, delta)
-        att = attempt(data, fun, exact=False, tolerance=QUICK_TOLERANCE, quick=True)
+        att = attempt(data, fun, exact=False, tolerance=BALANCED_TOLERANCE if balance else QUICK_TOLERANCE, quick=True,
+                      balance=balance)  # fmt: skip
         rough = att.cert.solver_margin > 0.0 or att.cert.solver_status not in ("Solved", "AlmostSolved")
         if not att.cert.holds and rough:  # failed the re-check, or the solver stalled: the careful solve
             att = attempt(data, fun, exact=False, tolerance=SEARCH_TOLERANCE)
@@ -245,7 +250,7 @@ class _Modes:
         d = fail if fail < hi else min(2.0 * max(lo, self.floor), hi)
         misses = 0  # failures in a row
         while True:
-            att, t, ds = self.solve(i, d, top, slope=True)
+            att, t, ds = self.solve(i, d, top, slope=True, balance=bool(held))
             if att is not None:
                 lo, best, misses = d, att, 0
                 held.append((d, t, ds))
