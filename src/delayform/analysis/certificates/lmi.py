@@ -456,12 +456,16 @@ def exact_check(problem: LmiProblem, rational: tuple[Fraction, ...]) -> bool | N
 
 def _integers(M: NDArray[Any]) -> NDArray[Any]:
     """The rational matrix ``M`` times the least common denominator of its entries: Python ints, same signs."""
-    ratios = [[Fraction(v).as_integer_ratio() for v in row] for row in M]
-    den = 1
-    for row in ratios:
-        for _, d in row:
-            den = den * d // math.gcd(den, d)
-    return np.array([[n * (den // d) for n, d in row] for row in ratios], dtype=object)
+    flat = M.ravel().tolist()  # Python floats, ints or Fractions
+    if M.dtype != object:
+        ratios = [v.as_integer_ratio() for v in flat]
+    else:
+        ratios = [(v.numerator, v.denominator) if isinstance(v, (int, Fraction)) else Fraction(v).as_integer_ratio()
+                  for v in flat]  # fmt: skip
+    den = math.lcm(1, *(d for _, d in ratios))
+    out = np.empty(M.shape, dtype=object)
+    out.ravel()[:] = [n * (den // d) for n, d in ratios]
+    return out
 
 
 def dominant_after_congruence(M: NDArray[Any]) -> bool:
