@@ -273,29 +273,38 @@ def solve(problem: LmiProblem, *, tolerance: float | None = None, quick: bool = 
 
     const, cols = _linearize(problem)
     nv = problem.variables.size
-    blocks_A: list[sp.spmatrix] = []
+    # A in coordinates (rows, columns, values), assembled once: the LMIs' columns are mostly zeros
+    A_rows: list[NDArray[np.intp]] = []
+    A_cols: list[NDArray[np.intp]] = []
+    A_vals: list[NDArray[np.float64]] = []
     b_parts: list[NDArray[np.float64]] = []
     cones: list[Any] = [clarabel.ZeroConeT(1), clarabel.NonnegativeConeT(1)]
     # the normalization rows first: sum of traces = 1 (excludes x = 0, so an infeasible
     # problem has a negative optimum t) and t <= 1
-    norm = np.zeros((2, nv + 1))
-    norm[0, :nv] = problem.variables.trace_row()
-    norm[1, nv] = 1.0
-    blocks_A.append(sp.csc_matrix(norm))
+    trace = np.flatnonzero(problem.variables.trace_row())
+    A_rows += [np.zeros(trace.size, dtype=np.intp), np.ones(1, dtype=np.intp)]
+    A_cols += [trace, np.full(1, nv)]
+    A_vals += [np.ones(trace.size), np.ones(1)]
     b_parts.append(np.ones(2))
+    start = 2
     weights: dict[str, NDArray[np.float64]] = {}
     for name, c in const.items():
         m = int(round((math.sqrt(8 * c.size + 1) - 1) / 2))
-        eye = svec(np.eye(m))
         J = cols[name]
         if balance:
             weights[name] = w = _balance(c, J, m)
             c, J = c * w, J * w[:, None]
         # s = c + J x - t svec(I) = b - A z with A = [-J, svec(I)], b = c
-        blocks_A.append(sp.csc_matrix(np.hstack([-J, eye[:, None]])))
+        r, k = np.nonzero(J)
+        rows, cols_ = _svec_order(m)
+        diag = np.flatnonzero(rows == cols_)
+        A_rows += [start + r, start + diag]
+        A_cols += [k, np.full(m, nv)]
+        A_vals += [-J[r, k], np.ones(m)]
         b_parts.append(c)
         cones.append(clarabel.PSDTriangleConeT(m))
-    A = sp.vstack(blocks_A, format="csc")
+        start += c.size
+    A = sp.csc_matrix((np.concatenate(A_vals), (np.concatenate(A_rows), np.concatenate(A_cols))), shape=(start, nv + 1))
     b = np.concatenate(b_parts)
     q = np.zeros(nv + 1)
     q[nv] = -1.0
