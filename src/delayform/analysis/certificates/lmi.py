@@ -220,12 +220,17 @@ def _linearize(problem: LmiProblem) -> tuple[dict[str, NDArray[np.float64]], dic
         seeds = np.zeros((ncolors, nv))
         seeds[color, np.arange(nv)] = 1.0
         combined = problem.build(unpack(seeds), False)
-        cols = {k: np.where(masks[k], (svec(np.asarray(combined[k], dtype=float)) - c)[color].T, 0.0)
-                for k, c in const.items()}  # fmt: skip
+        cols, largest = {}, {}
+        for k, c in const.items():  # column j read back on its rows from its colour's combined svec
+            r, j = np.nonzero(masks[k])
+            vals = (svec(np.asarray(combined[k], dtype=float)) - c)[color[j], r]
+            cols[k] = np.zeros(masks[k].shape)
+            cols[k][r, j] = vals
+            largest[k] = float(np.abs(vals).max(initial=0.0))
         x = np.random.default_rng(nv).standard_normal(nv)
         probe = problem.build(unpack(x), False)
         if all(np.allclose(svec(np.asarray(probe[k], dtype=float)), c + cols[k] @ x, rtol=1e-9,
-                           atol=1e-9 * (1.0 + float(np.abs(cols[k]).max(initial=0.0)))) for k, c in const.items()):  # fmt: skip
+                           atol=1e-9 * (1.0 + largest[k])) for k, c in const.items()):  # fmt: skip
             return const, cols
     units = problem.build(unpack(np.eye(nv)), False)
     cols = {k: (svec(np.asarray(units[k], dtype=float)) - c).T for k, c in const.items()}
