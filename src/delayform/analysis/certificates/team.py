@@ -180,6 +180,8 @@ class _Modes:
 
         ``slope``: when it holds, also the derivative of the optimum t in delta from the solver's dual
         matrices (:func:`~delayform.analysis.certificates.lmi.margin_slope`): a guess for the search.
+        ``balance``: the quick solve poses the LMIs balanced (``lmi.solve``), at :data:`BALANCED_TOLERANCE`;
+        t and its slope are then those of the balanced LMIs (the careful solve, if any, is plain).
         """
         if delta >= self.failed[i][level]:  # failed at a smaller delta already: not solved again
             return None, -math.inf, math.nan
@@ -250,6 +252,8 @@ class _Modes:
         d = fail if fail < hi else min(2.0 * max(lo, self.floor), hi)
         misses = 0  # failures in a row
         while True:
+            # balanced after the first: fewer iterations next to the boundary; the first stays plain, its
+            # Newton step sets where the search lands (the balanced margin's lands lower; docs/theory.md)
             att, t, ds = self.solve(i, d, top, slope=True, balance=bool(held))
             if att is not None:
                 lo, best, misses = d, att, 0
