@@ -180,18 +180,26 @@ class _Modes:
 
         ``slope``: when it holds, also the derivative of the optimum t in delta from the solver's dual
         matrices (:func:`~delayform.analysis.certificates.lmi.margin_slope`): a guess for the search.
-        ``balance``: the quick solve poses the LMIs balanced (``lmi.solve``), at :data:`BALANCED_TOLERANCE`;
-        t and its slope are then those of the balanced LMIs (the careful solve, if any, is plain).
+        ``balance``: first a quick solve of the LMIs balanced (``lmi.solve``), at :data:`BALANCED_TOLERANCE`;
+        when its answer holds, t and its slope are those of the balanced LMIs. When it fails the re-check
+        (its LMIs' smallest eigenvalues need not be balanced relative to their norms), stalls or finds t
+        within the tolerance of 0, the plain quick solve follows (and the careful one if needed), as without.
         """
         if delta >= self.failed[i][level]:  # failed at a smaller delta already: not solved again
             return None, -math.inf, math.nan
         fun = self.levels[level]
         data = self._data(i, delta)
-        att = attempt(data, fun, exact=False, tolerance=BALANCED_TOLERANCE if balance else QUICK_TOLERANCE, quick=True,
-                      balance=balance)  # fmt: skip
-        rough = att.cert.solver_margin > 0.0 or att.cert.solver_status not in ("Solved", "AlmostSolved")
-        if not att.cert.holds and rough:  # failed the re-check, or the solver stalled: the careful solve
-            att = attempt(data, fun, exact=False, tolerance=SEARCH_TOLERANCE)
+        att = None
+        if balance:  # a shortcut to a certificate only: whatever else it answers, the plain solves follow
+            att = attempt(data, fun, exact=False, tolerance=BALANCED_TOLERANCE, quick=True, balance=True)
+            solved = att.cert.solver_status in ("Solved", "AlmostSolved")
+            if not att.cert.holds and (att.cert.solver_margin > -BALANCED_TOLERANCE or not solved):
+                att = None
+        if att is None:
+            att = attempt(data, fun, exact=False, tolerance=QUICK_TOLERANCE, quick=True)
+            rough = att.cert.solver_margin > 0.0 or att.cert.solver_status not in ("Solved", "AlmostSolved")
+            if not att.cert.holds and rough:  # failed the re-check, or the solver stalled: the careful solve
+                att = attempt(data, fun, exact=False, tolerance=SEARCH_TOLERANCE)
         t = att.cert.solver_margin if math.isfinite(att.cert.solver_margin) else -math.inf
         if att.cert.holds:
             self.tried.append((delta, f"mode {i}, {fun.describe()}: holds"))
