@@ -54,6 +54,12 @@ EXACT_LIMIT = 400
 _INFEASIBLE_T = 1e-7
 
 
+@functools.lru_cache(maxsize=64)
+def _triu(n: int) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """np.triu_indices(n), computed once per order (the arrays are never written)."""
+    return np.triu_indices(n)
+
+
 @dataclass(frozen=True)
 class _Block:
     name: str
@@ -101,7 +107,7 @@ class Variables:
             v = x[..., b.offset : b.offset + b.size]
             if b.symmetric:
                 M = np.zeros(batch + (b.rows, b.rows), dtype=x.dtype)
-                iu = np.triu_indices(b.rows)
+                iu = _triu(b.rows)
                 M[..., iu[0], iu[1]] = v
                 M[..., iu[1], iu[0]] = v
             else:
@@ -116,7 +122,7 @@ class Variables:
             M = np.asarray(values[b.name], dtype=float)
             if M.shape != (b.rows, b.cols):
                 raise ValueError(f"block {b.name} must be {b.rows} x {b.cols}, got {M.shape}")
-            x[b.offset : b.offset + b.size] = M[np.triu_indices(b.rows)] if b.symmetric else M.ravel()
+            x[b.offset : b.offset + b.size] = M[_triu(b.rows)] if b.symmetric else M.ravel()
         return x
 
     def trace_row(self) -> NDArray[np.float64]:
@@ -124,7 +130,7 @@ class Variables:
         row = np.zeros(self.size)
         for b in self.blocks:
             if b.name in self.normalized:
-                r, c = np.triu_indices(b.rows)
+                r, c = _triu(b.rows)
                 row[b.offset + np.flatnonzero(r == c)] = 1.0
         return row
 
@@ -178,6 +184,8 @@ def svec(M: NDArray[np.float64]) -> NDArray[np.float64]:
 #: orders): the next problem with that structure is linearized on a few combined columns (below).
 _PATTERNS: dict[tuple[Any, ...], tuple[NDArray[np.intp], int, dict[str, NDArray[np.bool_]]]] = {}
 _MAX_PATTERNS = 32
+#: Per structure: the masks of _PATTERNS and their non-zero (row, column) pairs (recomputed when the masks change).
+_NONZEROS: dict[tuple[Any, ...], tuple[dict[str, NDArray[np.bool_]], dict[str, tuple[NDArray[np.intp], NDArray[np.intp]]]]] = {}
 
 
 def _colors(masks: Mapping[str, NDArray[np.bool_]], nv: int) -> tuple[NDArray[np.intp], int]:
@@ -221,8 +229,12 @@ def _linearize(problem: LmiProblem) -> tuple[dict[str, NDArray[np.float64]], dic
         seeds[color, np.arange(nv)] = 1.0
         combined = problem.build(unpack(seeds), False)
         cols, largest = {}, {}
+        cached = _NONZEROS.get(key)
+        if cached is None or cached[0] is not masks:  # the masks' non-zero (row, column) pairs, once per pattern
+            cached = _NONZEROS[key] = (masks, {k: np.nonzero(M) for k, M in masks.items()})
+        nonzeros = cached[1]
         for k, c in const.items():  # column j read back on its rows from its colour's combined svec
-            r, j = np.nonzero(masks[k])
+            r, j = nonzeros[k]
             vals = (svec(np.asarray(combined[k], dtype=float)) - c)[color[j], r]
             cols[k] = np.zeros(masks[k].shape)
             cols[k][r, j] = vals
@@ -236,7 +248,9 @@ def _linearize(problem: LmiProblem) -> tuple[dict[str, NDArray[np.float64]], dic
     cols = {k: (svec(np.asarray(units[k], dtype=float)) - c).T for k, c in const.items()}
     masks = {k: J != 0.0 for k, J in cols.items()}
     if len(_PATTERNS) >= _MAX_PATTERNS:
-        _PATTERNS.pop(next(iter(_PATTERNS)))
+        oldest = next(iter(_PATTERNS))
+        _PATTERNS.pop(oldest)
+        _NONZEROS.pop(oldest, None)
     _PATTERNS[key] = (*_colors(masks, nv), masks)
     return const, cols
 
