@@ -93,7 +93,8 @@ def test_interval_functional_in_integers_equals_its_fraction_build(monkeypatch, 
     f = next(g for g in fs if g.is_centroid) if centroid else next(g for g in fs if abs(g.lam + 0.6368889) < 1e-6)
     A0, ak, e = mode_system(f)
     d = 0.0984
-    problem = interval_delays(IntervalDelays(A0, ak, (2.0 - d, 1.0 - d), (2.0 + d, 1.0 + d), None, e), order, outer=outer)
+    data = IntervalDelays(A0, ak, (2.0 - d, 1.0 - d), (2.0 + d, 1.0 + d), None, e)
+    problem = interval_delays(data, order, outer=outer)
     rng = np.random.default_rng(order)
     x = np.round(rng.standard_normal(problem.variables.size) * 2**40) / 2**40
     rational = np.array([Fraction(v) for v in x], dtype=object)

@@ -185,7 +185,8 @@ def svec(M: NDArray[np.float64]) -> NDArray[np.float64]:
 _PATTERNS: dict[tuple[Any, ...], tuple[NDArray[np.intp], int, dict[str, NDArray[np.bool_]]]] = {}
 _MAX_PATTERNS = 32
 #: Per structure: the masks of _PATTERNS and their non-zero (row, column) pairs (recomputed when the masks change).
-_NONZEROS: dict[tuple[Any, ...], tuple[dict[str, NDArray[np.bool_]], dict[str, tuple[NDArray[np.intp], NDArray[np.intp]]]]] = {}
+_Pairs = dict[str, tuple[NDArray[np.intp], NDArray[np.intp]]]
+_NONZEROS: dict[tuple[Any, ...], tuple[dict[str, NDArray[np.bool_]], _Pairs]] = {}
 
 
 def _colors(masks: Mapping[str, NDArray[np.bool_]], nv: int) -> tuple[NDArray[np.intp], int]:
@@ -255,7 +256,8 @@ def _linearize(problem: LmiProblem) -> tuple[dict[str, NDArray[np.float64]], dic
     return const, cols
 
 
-def solve(problem: LmiProblem, *, tolerance: float | None = None, quick: bool = False, balance: bool = False) -> SdpSolution:
+def solve(problem: LmiProblem, *, tolerance: float | None = None, quick: bool = False,
+          balance: bool = False) -> SdpSolution:  # fmt: skip
     """Maximize the common margin t of the LMIs with Clarabel (module docstring).
 
     Parameters
