@@ -158,19 +158,44 @@ def _hard_mode_data(d):
     return IntervalDelays(A0, ak, (2.0 - d, 1.0 - d), (2.0 + d, 1.0 + d), None, e)
 
 
-def test_dual_slope_of_the_optimum_margin_matches_the_secant_of_two_solves():
+@pytest.mark.parametrize("balance", [False, True])
+def test_dual_slope_of_the_optimum_margin_matches_the_secant_of_two_solves(balance):
     """dt/d delta from one solve's dual matrices (envelope theorem) against the secant of t at delta +- h.
 
     The limiting mode at b with the Wirtinger functional (no outer integrals): small LMIs, solved at
-    Clarabel's default tolerance; t is smooth in delta away from the boundary (0.068).
+    Clarabel's default tolerance; t is smooth in delta away from the boundary (0.068). Balanced
+    (the LMIs posed as D M D), t is another function of delta, and the duals returned (D Z D, for
+    the LMIs as built) give its slope.
     """
     d, h = 0.04, 1e-3
     problem = lambda x: interval_delays(_hard_mode_data(x), 1, outer=False)  # noqa: E731
-    sol = solve(problem(d))
+    sol = solve(problem(d), balance=balance)
     slope = margin_slope(sol, problem(d - 1e-6), problem(d + 1e-6), 1e-6)
-    secant = (solve(problem(d + h)).t - solve(problem(d - h)).t) / (2 * h)
+    secant = (solve(problem(d + h), balance=balance).t - solve(problem(d - h), balance=balance).t) / (2 * h)
     assert slope < 0 and secant < 0
     assert abs(slope - secant) < 0.05 * abs(secant)
+
+
+def test_a_balanced_solve_certifies_the_same_points_near_the_boundary():
+    """The order-3 functional at 0.0984, next to its boundary: the balanced quick solve (D M D, D powers
+    of two) returns variables whose LMIs, as built, pass the re-check, exactly too; its margin t is that
+    of D M D, smaller than the plain one's. The balance leaves the powers of two it scales by exact."""
+    from delayform.analysis.certificates.lmi import _balance, _linearize, _svec_order  # noqa: PLC0415
+
+    problem = interval_delays(_hard_mode_data(0.0984), 3, outer=True)
+    sol = solve(problem, tolerance=1e-7, quick=True, balance=True)
+    check = recheck(problem, sol.x)
+    assert sol.t > 0.0 and check.passed and check.exact_ok is True
+    const, cols = _linearize(problem)
+    for name, c in const.items():
+        m = int(round((np.sqrt(8 * c.size + 1) - 1) / 2))
+        rows, cs = _svec_order(m)
+        w = _balance(c, cols[name], m)
+        d = np.sqrt(w[rows == cs])  # the diagonal's weights are d_i^2
+        assert np.all(np.frexp(d)[0] == 0.5)  # powers of two
+        assert np.array_equal(w, d[rows] * d[cs])  # D M D entry by entry
+        size = np.maximum(np.abs(cols[name][rows == cs]).max(axis=1), np.abs(c[rows == cs]))
+        assert np.all((size == 0) | ((0.5 <= size * d**2) & (size * d**2 <= 2.0)))  # the diagonal's coefficients near 1
 
 
 def test_compressed_linearization_equals_the_full_one(monkeypatch):

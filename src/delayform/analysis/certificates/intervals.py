@@ -45,7 +45,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from delayform.analysis.certificates.krasovskii import _bessel, _cross, _he, _moments, _quad, _Signals, _t
+from delayform.analysis.certificates.krasovskii import _bessel_terms, _moments, _Signals, _Sum, _t
 from delayform.analysis.certificates.lmi import LmiProblem, Variables
 
 __all__ = ["IntervalDelays", "interval_delays", "orthogonal_basis", "constant_nodes"]
@@ -237,12 +237,15 @@ def interval_delays(data: IntervalDelays, order: int, *, split: int = 1, outer: 
         def lift(M: Matrix) -> Matrix:
             return M if Wr is None else Wr @ M @ _t(Wr)
 
-        Phi = np.zeros((sig.size, sig.size), dtype=sig.dtype)
+        # Phi, a sum of quadratic forms (in exact arithmetic summed in integers: krasovskii._Sum)
+        Phi = _Sum(sig.size, exact)
         for i, c in enumerate(nodes):  # int S1 and L int int R1 over each constant window
             S1, R1, L = lift(v[f"S1_{i}"]), v[f"R1_{i}"], _num(lengths[i], exact)
             top, bottom = sig.e(tops[i]), sig.e(node_name[c])
-            Phi = Phi + _quad(top, S1) - _quad(bottom, S1) + L * L * _quad(F, R1)
-            Phi = Phi - _bessel(sig, tops[i], node_name[c], wins[i], R1, order)
+            Phi.add(1, top, S1)
+            Phi.add(-1, bottom, S1)
+            Phi.add(L * L, F, R1)
+            Phi.add_terms(-1, _bessel_terms(sig, tops[i], node_name[c], wins[i], order), R1)
         rcc: dict[int, tuple[Matrix, Matrix]] = {}
         psi: dict[int, Matrix] = {}
         side: dict[str, Matrix] = {}
@@ -250,7 +253,9 @@ def interval_delays(data: IntervalDelays, order: int, *, split: int = 1, outer: 
             ea, eh, eb = sig.e(f"a{k}"), sig.e(f"h{k}"), sig.e(f"b{k}")
             d = _num(data.hi[k], exact) - _num(data.lo[k], exact)
             S2, R2 = lift(v[f"S2_{k}"]), v[f"R2_{k}"]
-            Phi = Phi + _quad(ea, S2) - _quad(eb, S2) + d * d * _quad(F, R2)
+            Phi.add(1, ea, S2)
+            Phi.add(-1, eb, S2)
+            Phi.add(d * d, F, R2)
             # the R2 integral split at t - h_k(t), each part bounded, recombined by reciprocal convexity
             Psi = np.vstack([sig.legendre(f"a{k}", f"h{k}", pa[k], i) for i in range(order + 1)]
                             + [sig.legendre(f"h{k}", f"b{k}", qb[k], i) for i in range(order + 1)])  # fmt: skip
@@ -266,7 +271,8 @@ def interval_delays(data: IntervalDelays, order: int, *, split: int = 1, outer: 
                 side[f"RCC_{k}"] = rcc[k][0]
             if data.mu is not None:  # d/dt int_{t-h_k(t)}^t x'Qx <= x'Qx - (1 - mu) xh'Q xh
                 Q = lift(v[f"Q_{k}"])
-                Phi = Phi + _quad(e0, Q) - (1 - _num(data.mu, exact)) * _quad(eh, Q)
+                Phi.add(1, e0, Q)
+                Phi.add(-(1 - _num(data.mu, exact)), eh, Q)
         out: dict[str, Matrix] = {}
         # eta is affine in h(t) (the outer integrals), so Phi is: negative on the box of delays
         # when negative at its corners (one matrix without the outer integrals)
@@ -276,11 +282,12 @@ def interval_delays(data: IntervalDelays, order: int, *, split: int = 1, outer: 
                 a, b = _num(data.lo[k], exact), _num(data.hi[k], exact)
                 hv = b if up else a
                 rows.append((hv - a) * sig.e(pa[k][0]) + (b - hv) * sig.e(qb[k][0]))
-            Phv = Phi + _he(_cross(np.vstack(rows), Pm, Hm))
+            Phv = Phi.copy()
+            Phv.add(1, np.vstack(rows), Pm, Hm, sym=True)
             for k in range(K):  # the reciprocal-convexity bound at h_k = a_k (alpha 0) or b_k (alpha 1)
-                Phv = Phv - _quad(psi[k], rcc[k][corner[k] if outer else 0])
+                Phv.add(-1, psi[k], rcc[k][corner[k] if outer else 0])
             label = "".join("+" if up else "-" for up in corner)
-            out[f"-Phi{label}"] = -Phv
+            out[f"-Phi{label}"] = Phv.value(-1)
         out["P"] = v["P"]
         out.update(side)
         for name in v:

@@ -123,30 +123,122 @@ def _cross(G: Matrix, W: Matrix, H: Matrix) -> Matrix:
     """G' W H; in exact arithmetic only over the non-zero columns (selections: most of zeta is not involved)."""
     if G.dtype != object:
         return G.T @ W @ H
-    gi, hi = np.flatnonzero(np.any(G != 0, axis=0)), np.flatnonzero(np.any(H != 0, axis=0))
+    gi, hi, Z, den = _cross_integer(G, W, H)
     out = np.zeros((G.shape[1], H.shape[1]), dtype=object)
-    # in integers over common denominators (no gcd at every step), back to Fractions at the end
-    (g, dg), (w, dw), (h, dh) = _integer(G[:, gi]), _integer(W), _integer(H[:, hi])
-    den = dg * dw * dh
-    out[np.ix_(gi, hi)] = np.frompyfunc(lambda v: Fraction(v, den), 1, 1)(g.T @ w @ h)
+    out[np.ix_(gi, hi)] = np.frompyfunc(lambda v: Fraction(v, den), 1, 1)(Z)
     return out
 
 
+def _cross_integer(G: Matrix, W: Matrix, H: Matrix) -> tuple[NDArray[np.intp], NDArray[np.intp], Matrix, int]:
+    """(gi, hi, Z, d): G' W H restricted to the rows gi and columns hi outside which it is 0, equal to Z / d.
+
+    In integers over common denominators (no gcd at every step): Z holds Python ints.
+    """
+    gi, hi = np.flatnonzero(np.any(G != 0, axis=0)), np.flatnonzero(np.any(H != 0, axis=0))
+    (g, dg), (w, dw), (h, dh) = _integer(G[:, gi]), _integer(W), _integer(H[:, hi])
+    return gi, hi, g.T @ w @ h, dg * dw * dh
+
+
 def _integer(M: Matrix) -> tuple[Matrix, int]:
-    """(Z, d) with M = Z / d exactly: Z Python ints, d the least common denominator of M's Fractions."""
-    flat = [Fraction(v) for v in M.ravel()]
-    den = math.lcm(1, *(v.denominator for v in flat))
+    """(Z, d) with M = Z / d exactly: Z Python ints, d the least common denominator of M's entries.
+
+    The entries must be ints or Fractions (both carry ``numerator`` and ``denominator``).
+    """
+    flat = M.ravel().tolist()
+    try:
+        den = math.lcm(1, *(v.denominator for v in flat))
+    except AttributeError:  # a float or a NumPy scalar among them: converted exactly
+        flat = [Fraction(v) for v in flat]
+        den = math.lcm(1, *(v.denominator for v in flat))
     Z = np.empty(M.shape, dtype=object)
     Z.ravel()[:] = [v.numerator * (den // v.denominator) for v in flat]
     return Z, den
 
 
+class _Sum:
+    """A symmetric matrix built as a sum of terms c G' W H, the same way in both arithmetics.
+
+    In floating point each term is added in turn as the builders always did (the same operations,
+    so the same float result); in exact arithmetic the terms are accumulated as Python integers
+    over one common denominator (an addition of two Fraction matrices costs a gcd per entry) and
+    turned into Fractions once, by :meth:`value`.
+    """
+
+    def __init__(self, size: int, exact: bool) -> None:
+        self.exact = exact
+        self.M: Matrix = np.zeros((size, size), dtype=object if exact else float)
+        self.den = 1
+
+    def copy(self) -> _Sum:
+        """An independent copy (the corners of a box share a common part)."""
+        out = _Sum.__new__(_Sum)
+        out.exact, out.M, out.den = self.exact, self.M.copy(), self.den
+        return out
+
+    def _scaled(self, Z: Matrix, den: int, coef: Any) -> tuple[Matrix, int]:
+        c = Fraction(coef)
+        return Z * c.numerator, den * c.denominator
+
+    def _merge(self, rows: NDArray[np.intp], cols: NDArray[np.intp], Z: Matrix, den: int, transpose: bool) -> None:
+        common = self.den * den // math.gcd(self.den, den)
+        if common != self.den:
+            self.M = self.M * (common // self.den)
+            self.den = common
+        Z = Z * (common // den) if common != den else Z
+        self.M[np.ix_(rows, cols)] += Z
+        if transpose:
+            self.M[np.ix_(cols, rows)] += Z.T
+
+    def add(self, coef: Any, G: Matrix, W: Matrix, H: Matrix | None = None, *, sym: bool = False) -> None:
+        """Add coef G' W H (H None: G), plus its transpose when ``sym``."""
+        H = G if H is None else H
+        if not self.exact:
+            term = _cross(G, W, H)
+            term = _he(term) if sym else term
+            if coef == 1:
+                self.M = self.M + term
+            elif coef == -1:
+                self.M = self.M - term
+            else:
+                self.M = self.M + coef * term
+            return
+        gi, hi, Z, den = _cross_integer(G, W, H)
+        Z, den = self._scaled(Z, den, coef)
+        self._merge(gi, hi, Z, den, sym)
+
+    def add_terms(self, sign: int, terms: Sequence[tuple[int, Matrix]], W: Matrix) -> None:
+        """Add sign * sum c G' W G over ``terms`` (c, G) (in floats summed first, as :func:`_bessel` does)."""
+        if not self.exact:
+            out: Matrix = np.zeros(self.M.shape, dtype=float)
+            for c, G in terms:
+                out = out + c * _quad(G, W)
+            self.M = self.M + out if sign == 1 else self.M - out
+            return
+        for c, G in terms:
+            self.add(sign * c, G, W)
+
+    def value(self, sign: int = 1) -> Matrix:
+        """sign times the sum: float64, or Fractions."""
+        if not self.exact:
+            return self.M if sign == 1 else -self.M
+        den = self.den
+        flat = [Fraction(sign * v, den) for v in self.M.ravel().tolist()]
+        out = np.empty(self.M.shape, dtype=object)
+        out.ravel()[:] = flat
+        return out
+
+
 def _bessel(sig: _Signals, top: str, bottom: str, moments: Sequence[str], R: Matrix, order: int) -> Matrix:
     """sum_{k<=N} (2k+1) Gamma_k' R Gamma_k: the Bessel-Legendre lower bound of len * int x' R x'."""
     out: Matrix = np.zeros((sig.size, sig.size), dtype=sig.dtype)
-    for k in range(order + 1):
-        out = out + (2 * k + 1) * _quad(sig.legendre(top, bottom, moments, k), R)
+    for c, G in _bessel_terms(sig, top, bottom, moments, order):
+        out = out + c * _quad(G, R)
     return out
+
+
+def _bessel_terms(sig: _Signals, top: str, bottom: str, moments: Sequence[str], order: int) -> list[tuple[int, Matrix]]:
+    """The terms (2k + 1, Gamma_k) of :func:`_bessel`."""
+    return [(2 * k + 1, sig.legendre(top, bottom, moments, k)) for k in range(order + 1)]
 
 
 def _moments(prefix: str, order: int) -> list[str]:

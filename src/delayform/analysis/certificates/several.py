@@ -106,14 +106,14 @@ def functional_of(order: object, split: object, outer: object) -> Functional:
 
 
 def attempt(data: IntervalDelays, fun: Functional, *, exact: bool = True, tolerance: float | None = None,
-            quick: bool = False) -> _Attempt:  # fmt: skip
+            quick: bool = False, balance: bool = False) -> _Attempt:  # fmt: skip
     """Solve the functional's LMIs on ``data`` and re-check the answer (exactly unless ``exact`` is False).
 
-    ``tolerance``, ``quick``: the solver's (:func:`~delayform.analysis.certificates.lmi.solve`); the
+    ``tolerance``, ``quick``, ``balance``: the solver's (:func:`~delayform.analysis.certificates.lmi.solve`); the
     re-check is the same.
     """
     problem = interval_delays(data, fun.order, split=fun.split, outer=fun.outer, upper=fun.upper)
-    sol = solve(problem, tolerance=tolerance, quick=quick)
+    sol = solve(problem, tolerance=tolerance, quick=quick, balance=balance)
     lo, hi = min(data.lo), max(data.hi)
     empty: dict[str, NDArray[np.float64]] = {}
     method = fun.describe()
