@@ -26,7 +26,8 @@ import pytest
 pytest.importorskip("zenoh")
 pytest.importorskip("mcap_ros2")
 
-from test_fleet import ROOT, _alive, _children_of, _cli, _free_port
+from cli_runner import run_in_process
+from test_fleet import ROOT, _alive, _children_of, _free_port
 from test_fleet_faults import FOUR, _t0_of
 
 from delayform.errors import FleetError
@@ -55,10 +56,10 @@ def test_a_live_port_in_use_exits_2_before_the_team_starts(tmp_path: Path) -> No
     with socket.socket() as taken:
         taken.bind(("127.0.0.1", 0))
         taken.listen()
-        proc = _cli(str(scenario), "--duration", "5", "--foxglove", str(taken.getsockname()[1]),
-                    "--out", str(tmp_path / "out"), "--endpoint", f"tcp/127.0.0.1:{_free_port()}")  # fmt: skip
-        _, stderr = proc.communicate(timeout=120)
-    lines = stderr.decode().strip().splitlines()
+        proc = run_in_process("fleet", str(scenario), "--duration", "5", "--foxglove", str(taken.getsockname()[1]),
+                              "--out", str(tmp_path / "out"), "--endpoint", f"tcp/127.0.0.1:{_free_port()}",
+                              cwd=tmp_path, timeout=120)  # fmt: skip
+    lines = proc.stderr.strip().splitlines()
     assert proc.returncode == 2 and len(lines) == 1 and "already taken" in lines[0], lines
     assert not _children_of(tmp_path)
     assert not (tmp_path / "out" / "fleet.mcap").exists()
