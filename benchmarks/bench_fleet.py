@@ -1,6 +1,7 @@
 """Benchmark: the paper's six robots as seven processes over Zenoh for 60 s (delayform fleet).
 
-Run with ``PYTHONPATH=src .venv/bin/python benchmarks/bench_fleet.py [--duration 60] [--period 0.015 0.01]``.
+Run with ``PYTHONPATH=src .venv/bin/python benchmarks/bench_fleet.py [--duration 60] [--period 0.015 0.01]``,
+or ``--startup 5`` for the start-up alone (starting the seven processes until every one is ready).
 Prints markdown for docs/benchmarks.md.
 
 For each control period (default: the Create's 15 ms, then the Create 3's
@@ -113,13 +114,44 @@ def bench_fleet(duration: float, period: float) -> dict[str, object]:
     }  # fmt: skip
 
 
+#: what a robot's process imports before it says 'ready' (delayform.fleet.agents.robot_main), timed alone
+_CHILD_IMPORTS = (
+    "import time; t = time.perf_counter()\n"
+    "from delayform.deploy.controller import FormationController\n"
+    "from delayform.fleet.wire import Codec, open_session\n"
+    "Codec(6)\n"
+    "print(time.perf_counter() - t)\n"
+)
+
+
+def bench_startup(repeat: int) -> None:
+    """Seconds from starting the seven processes to the run's start (every one 'ready'), median and best."""
+    waits = []
+    for _ in range(repeat):
+        marks: dict[str, float] = {}
+        with tempfile.TemporaryDirectory() as out:
+            run_fleet(Team(paper_six(), 1.0, 0.5), Delays(0.3, 0.2), "hexagon", out=Path(out), duration=1.0,
+                      period=0.01, robot=robot_profile("create3"), endpoint=f"tcp/127.0.0.1:{_free_port()}",
+                      progress=lambda text: marks.setdefault(text.split()[0], time.perf_counter()))  # fmt: skip
+        waits.append(marks["running"] - marks["starting"])
+    imports = [float(subprocess.run([sys.executable, "-c", _CHILD_IMPORTS], capture_output=True, text=True,
+                                    check=True).stdout) for _ in range(repeat)]  # fmt: skip
+    print(f"Start-up of the paper's six (seven processes, Create 3), {repeat} runs, load avg "
+          f"{os.getloadavg()[0]:.2f}: median {np.median(waits):.2f} s, best {min(waits):.2f} s; one robot "
+          f"process's imports alone: median {np.median(imports):.3f} s")  # fmt: skip
+
+
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--duration", type=float, default=60.0)
     parser.add_argument("--period", type=float, nargs="+", default=[0.015, 0.01])
+    parser.add_argument("--startup", type=int, default=0, help="only the start-up, this many runs")
     args = parser.parse_args()
     print(f"Machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
           f"Python {platform.python_version()}, {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}\n")  # fmt: skip
+    if args.startup:
+        bench_startup(args.startup)
+        return
     print("| period | load avg | ticks run | missed | late (>0.2 h) | lateness median / p99 / max | "
           "state latency median / p99 | world odometry p99 | wall |")
     print("|---|---|---|---|---|---|---|---|---|")
