@@ -21,6 +21,7 @@ average is printed beside each figure: 2 cores are shared.
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import platform
 import subprocess
@@ -117,9 +118,10 @@ def bench_fleet(duration: float, period: float) -> dict[str, object]:
 #: what a robot's process imports before it says 'ready' (delayform.fleet.agents.robot_main), timed alone
 _CHILD_IMPORTS = (
     "import time; t = time.perf_counter()\n"
+    "import json, sys\n"
     "from delayform.deploy.controller import FormationController\n"
     "from delayform.fleet.wire import Codec, open_session\n"
-    "Codec(6)\n"
+    "Codec.from_spec(json.loads(sys.argv[1]))\n"
     "print(time.perf_counter() - t)\n"
 )
 
@@ -134,7 +136,10 @@ def bench_startup(repeat: int) -> None:
                       period=0.01, robot=robot_profile("create3"), endpoint=f"tcp/127.0.0.1:{_free_port()}",
                       progress=lambda text: marks.setdefault(text.split()[0], time.perf_counter()))  # fmt: skip
         waits.append(marks["running"] - marks["starting"])
-    imports = [float(subprocess.run([sys.executable, "-c", _CHILD_IMPORTS], capture_output=True, text=True,
+    from delayform.fleet.wire import Codec
+
+    spec = json.dumps(Codec(6).spec())  # what the parent hands each process
+    imports = [float(subprocess.run([sys.executable, "-c", _CHILD_IMPORTS, spec], capture_output=True, text=True,
                                     check=True).stdout) for _ in range(repeat)]  # fmt: skip
     print(f"Start-up of the paper's six (seven processes, Create 3), {repeat} runs, load avg "
           f"{os.getloadavg()[0]:.2f}: median {np.median(waits):.2f} s, best {min(waits):.2f} s; one robot "

@@ -354,7 +354,7 @@ def test_no_orphan_when_the_command_is_interrupted_or_killed(tmp_path: Path, how
 
 
 def test_a_robot_and_the_world_start_without_scipy_or_the_simulator() -> None:
-    """What a robot's and the world's process import to reach 'ready': no SciPy, no simulator, no formation algebra.
+    """What a robot's and the world's process import to reach 'ready': no SciPy, simulator, formation algebra or rosbags.
 
     Seven processes start at once on the machine that runs the team; each used to import SciPy
     (half a second of CPU), which held the start of a six-robot run by about 3.5 s on two cores.
@@ -367,11 +367,29 @@ def test_a_robot_and_the_world_start_without_scipy_or_the_simulator() -> None:
         "from delayform.fleet.world import COMMAND_TIMEOUT, world_model\n"
         "from delayform.model.limits import RobotLimits\n"
         "FormationController(robot=1, P=1.0, D=1.5, tau1=0.3, tau2=0.2, weights={2: 1.0}, forcing=[0.0, 0.0])\n"
-        "Codec(3).odometry(2, Odometry(1.5, 0.1, 0.2, 0.3, 0.4, 0.5))\n"
-        "print(sorted({m.split('.')[0] for m in sys.modules} & {'scipy', 'matplotlib', 'networkx'}),"
+        "import json\n"
+        "Codec.from_spec(json.loads(sys.argv[1])).odometry(2, Odometry(1.5, 0.1, 0.2, 0.3, 0.4, 0.5))\n"
+        "print(sorted({m.split('.')[0] for m in sys.modules} & {'scipy', 'matplotlib', 'networkx', 'rosbags'}),"
         " sorted(m for m in sys.modules if m.startswith(('delayform.simulation.', 'delayform.formation', 'delayform.topology'))))\n"
     )
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=False,
+    done = subprocess.run([sys.executable, "-c", code, json.dumps(Codec(3).spec())], capture_output=True, text=True,
+                          timeout=120, check=False,
                           env={**os.environ, "PYTHONPATH": str(ROOT / "src")})  # fmt: skip
     assert done.returncode == 0, done.stderr[-2000:]
     assert done.stdout.strip() == "[] []", done.stdout
+
+
+def test_a_codec_rebuilt_from_its_spec_encodes_the_same_bytes() -> None:
+    """The parent's layouts, as the JSON each process gets, give rosbags' bytes back (the codec's own check above)."""
+    codec = Codec(4)
+    copy = Codec.from_spec(json.loads(json.dumps(codec.spec())))
+    rng = np.random.default_rng(8)
+    for i in range(1, 5):
+        odom = Odometry(1.7e9 + rng.uniform(0, 100), *rng.normal(size=5))
+        assert copy.odometry(i, odom) == codec.odometry(i, odom)
+        assert copy.read_odometry(i, codec.odometry(i, odom)) == codec.read_odometry(i, codec.odometry(i, odom))
+    assert copy.twist(0.3, -0.2) == codec.twist(0.3, -0.2)
+    spec = codec.spec()
+    spec["twist"]["offsets"] = [10_000] * len(spec["twist"]["offsets"])  # a field outside its template: refused
+    with pytest.raises(FleetError, match="do not fit"):
+        Codec.from_spec(spec)

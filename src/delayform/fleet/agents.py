@@ -278,7 +278,7 @@ def robot_main(spec: dict[str, Any]) -> None:
     network = ReceivingSide(links, float(spec["packet_period"]), spec.get("draws"))
     rate = spec.get("rate")
     packet = network.period
-    codec = Codec(n)
+    codec = Codec.from_spec(spec["codec"])  # the parent's layouts: no rosbags here
     session = open_session(listen=["tcp/127.0.0.1:0"], connect=[spec["endpoint"]])
     odom: list[Odometry | None] = [None]
     t0_box = [math.inf]
@@ -413,7 +413,7 @@ def world_main(spec: dict[str, Any]) -> None:
     n, h = int(spec["n"]), float(spec["period"])
     limits = None if spec["limits"] is None else RobotLimits(**spec["limits"])
     world = world_model(spec["world"], np.asarray(spec["state0"], dtype=np.float64), period=h, limits=limits)
-    codec = Codec(n)
+    codec = Codec.from_spec(spec["codec"])  # the parent's layouts: no rosbags here
     session = open_session(listen=["tcp/127.0.0.1:0"], connect=[spec["endpoint"]])
     applied = 0
     t0_box = [math.inf]

@@ -235,6 +235,7 @@ def run_fleet(
         try:
             recorder = _Recorder(session, n)
             common = {"n": n, "endpoint": endpoint, "period": period, "duration": duration, "lead": LEAD,
+                      "codec": recorder.codec_spec(),
                       "limits": _limits_dict(limits), "rate": rate, "ros_domain": ros_domain}  # fmt: skip
             specs = {}
             for i in range(n):
@@ -441,6 +442,10 @@ class _Recorder:
         # taken by drain() in the parent's own loop: no Python callback on Zenoh's threads (agents._subscribe);
         # the fleet's own keys only (not their rmw_zenoh copies, delayform.fleet.rmw)
         self._sub = session.declare_subscriber("robot_$*/*", zenoh.handlers.FifoChannel(_RECORDER_CAPACITY))
+
+    def codec_spec(self) -> dict[str, Any]:
+        """The message layouts every process of the run encodes with (:meth:`Codec.spec`)."""
+        return self._codec.spec()
 
     def drain(self) -> None:
         """Take every message waiting (log time: when taken, within the parent's polling interval)."""

@@ -59,13 +59,23 @@ class Odometry(NamedTuple):
 class _Packer:
     """One layout's template, filled by ``struct.pack_into`` at the layout's offsets."""
 
-    def __init__(self, layout: Any) -> None:
-        self.template = bytes(layout.template)
+    def __init__(self, template: bytes, offsets: list[int], codes: list[str]) -> None:
+        self.template, self.offsets, self.codes = bytes(template), [int(o) for o in offsets], [str(c) for c in codes]
+        self.size = len(self.template)
+        if len(self.offsets) != len(self.codes) or any(
+                not 0 <= o <= self.size - struct.calcsize(c) for o, c in zip(self.offsets, self.codes)):  # fmt: skip
+            raise FleetError("internal: a message layout whose fields do not fit its template")
+
+    @classmethod
+    def of(cls, layout: Any) -> _Packer:
+        """The packer of a :class:`~delayform.deploy._cdr.Layout` (rosbags' encoding, found once)."""
         fields = sorted(layout.dtype.fields.values(), key=lambda f: f[1])
-        self.offsets = [off for _, off in fields]
-        self.codes = ["<" + dt.str[1:].replace("f8", "d").replace("i4", "i").replace("u4", "I") for dt, _ in fields]
-        self.dtype = layout.dtype
-        self.size = layout.size
+        codes = ["<" + dt.str[1:].replace("f8", "d").replace("i4", "i").replace("u4", "I") for dt, _ in fields]
+        return cls(bytes(layout.template), [off for _, off in fields], codes)
+
+    def spec(self) -> dict[str, Any]:
+        """Plain data (JSON) to build the same packer in another process without rosbags."""
+        return {"template": self.template.hex(), "offsets": self.offsets, "codes": self.codes}
 
     def pack(self, values: tuple[float | int, ...]) -> bytes:
         buf = bytearray(self.template)
@@ -94,8 +104,29 @@ class Codec:
         from delayform.deploy.recording import odometry_layout, twist_layout
 
         store = get_typestore(Stores.ROS2_HUMBLE)
-        self._odom = {i: _Packer(odometry_layout(store, i)) for i in range(1, n + 1)}
-        self._twist = _Packer(twist_layout(store))
+        self._odom = {i: _Packer.of(odometry_layout(store, i)) for i in range(1, n + 1)}
+        self._twist = _Packer.of(twist_layout(store))
+
+    def spec(self) -> dict[str, Any]:
+        """The layouts as plain data (JSON): :meth:`from_spec` builds the same codec from them.
+
+        The parent of a fleet run finds the layouts once, with rosbags' type store (its ROS 2
+        message definitions take a seventh of a second to load); each robot's and the world's
+        process rebuilds the codec from its spec and never imports rosbags.
+        """
+        return {"odometry": {str(i): p.spec() for i, p in self._odom.items()}, "twist": self._twist.spec()}
+
+    @classmethod
+    def from_spec(cls, spec: dict[str, Any]) -> Codec:
+        """The codec whose :meth:`spec` this is."""
+
+        def packer(d: dict[str, Any]) -> _Packer:
+            return _Packer(bytes.fromhex(d["template"]), d["offsets"], d["codes"])
+
+        codec = cls.__new__(cls)
+        codec._odom = {int(i): packer(d) for i, d in spec["odometry"].items()}
+        codec._twist = packer(spec["twist"])
+        return codec
 
     def odometry(self, robot: int, odom: Odometry) -> bytes:
         """The CDR bytes of robot ``robot``'s odometry."""
