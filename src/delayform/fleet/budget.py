@@ -45,7 +45,8 @@ MESSAGE_SECONDS = 7.4e-5
 #: CPU seconds per robot and control tick for the rmw_zenoh copies of its state, command and odometry: three
 #: puts at 19 us each when a ROS 2 node subscribes to them (2.3 us when none does), measured at one put a millisecond
 ROS_TICK_SECONDS = 6.0e-5
-#: resident memory of one process (robot or world: Python, NumPy, Zenoh), 98 MB measured; the parent's too
+#: resident memory planned per process: a running robot or world holds 43 MB (Python, NumPy, Zenoh; 98 MB while
+#: they imported SciPy), the recording parent more (the run's messages, the simulator): 100 MB each keeps room
 PROCESS_BYTES = 100 * 2**20
 #: the share of the cores a run may plan to use
 HEADROOM = 0.8
