@@ -175,7 +175,8 @@ class _Sum:
         out.exact, out.M, out.den = self.exact, self.M.copy(), self.den
         return out
 
-    def _scaled(self, Z: Matrix, den: int, coef: Any) -> tuple[Matrix, int]:
+    @staticmethod
+    def _scaled(Z: Matrix, den: int, coef: Any) -> tuple[Matrix, int]:
         c = Fraction(coef)
         return Z * c.numerator, den * c.denominator
 
@@ -207,11 +208,9 @@ class _Sum:
         self._merge(gi, hi, Z, den, sym)
 
     def add_terms(self, sign: int, terms: Sequence[tuple[int, Matrix]], W: Matrix) -> None:
-        """Add sign * sum c G' W G over ``terms`` (c, G) (in floats summed first, as :func:`_bessel` does)."""
+        """Add sign * sum c G' W G over ``terms`` (c, G) (in floats summed first by :func:`_quads`, as :func:`_bessel`)."""
         if not self.exact:
-            out: Matrix = np.zeros(self.M.shape, dtype=float)
-            for c, G in terms:
-                out = out + c * _quad(G, W)
+            out = _quads(terms, W, self.M.shape[-1], float)
             self.M = self.M + out if sign == 1 else self.M - out
             return
         for c, G in terms:
@@ -230,9 +229,14 @@ class _Sum:
 
 def _bessel(sig: _Signals, top: str, bottom: str, moments: Sequence[str], R: Matrix, order: int) -> Matrix:
     """sum_{k<=N} (2k+1) Gamma_k' R Gamma_k: the Bessel-Legendre lower bound of len * int x' R x'."""
-    out: Matrix = np.zeros((sig.size, sig.size), dtype=sig.dtype)
-    for c, G in _bessel_terms(sig, top, bottom, moments, order):
-        out = out + c * _quad(G, R)
+    return _quads(_bessel_terms(sig, top, bottom, moments, order), R, sig.size, sig.dtype)
+
+
+def _quads(terms: Sequence[tuple[int, Matrix]], W: Matrix, size: int, dtype: Any) -> Matrix:
+    """sum c G' W G over ``terms`` (c, G), added in turn (the order fixes the float result)."""
+    out: Matrix = np.zeros((size, size), dtype=dtype)
+    for c, G in terms:
+        out = out + c * _quad(G, W)
     return out
 
 

@@ -379,33 +379,19 @@ def _nth_derivative(
     terms: Terms, s: NDArray[np.complex128], t1: float, t2: float, k: int
 ) -> tuple[NDArray[np.complex128], NDArray[np.float64]]:
     """d^k q / ds^k and the sum of the moduli of its terms (Leibniz rule on p(s) e^{-h s})."""
-    val = np.zeros(s.shape, dtype=np.complex128)
-    mag = np.zeros(s.shape)
-    for c, a, b in terms:
-        h = a * t1 + b * t2
-        e = np.exp(-h * s)
-        for j in range(k + 1):
-            dj = npoly.polyder(c, j) if j else c
-            if dj.size == 0:
-                continue
-            w = math.comb(k, j) * (-h) ** (k - j)
-            if w == 0.0:
-                continue
-            p = _horner(dj, s)
-            val = val + w * p * e
-            # scale at |s| >= 1: near s = 0 a derivative like 2 s is "small" only against 1
-            mag = mag + abs(w) * _abs_poly(dj, np.maximum(np.abs(s), 1.0)) * np.abs(e)
-    return val, mag
+    vals, mags = _derivatives_up_to(terms, s, t1, t2, k)
+    return vals[k], mags[k]
 
 
 def _derivatives_up_to(
     terms: Terms, s: NDArray[np.complex128], t1: float, t2: float, kmax: int
 ) -> tuple[list[NDArray[np.complex128]], list[NDArray[np.float64]]]:
-    """:func:`_nth_derivative` for every k = 0..kmax at once, each p^(j)(s) of a term evaluated once.
+    """d^k q / ds^k and the sum of the moduli of its terms for every k = 0..kmax (Leibniz rule on p(s) e^{-h s}).
 
-    The same sums in the same order as ``_nth_derivative(terms, s, t1, t2, k)`` for each k (so
-    the same floats); a pass of the argument principle's Taylor test needs all of them, and
-    recomputing the polynomial derivatives per k cost (kmax + 1)^2 / 2 of them per term.
+    Each p^(j)(s) of a term is evaluated once: a pass of the argument principle's Taylor test
+    needs every order, and recomputing the polynomial derivatives per order cost
+    (kmax + 1)^2 / 2 of them per term. The moduli are taken at |s| floored at 1: near s = 0 a
+    derivative like 2 s is "small" only against 1.
     """
     vals = [np.zeros(s.shape, dtype=np.complex128) for _ in range(kmax + 1)]
     mags = [np.zeros(s.shape) for _ in range(kmax + 1)]
