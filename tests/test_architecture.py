@@ -26,6 +26,7 @@ STAGES: dict[str, float] = {
     "_validation": 0,
     "resources": 0,  # a leaf: memory and time budget guard
     "_files": 0,  # a leaf: complete-or-absent output files
+    "_lazy": 0,  # a leaf: a package's names imported on first use, imports no delayform module
     "plots": 0,  # a leaf: draws results by their attributes, imports only the file helper _files
     "_display": 0,  # a leaf: Jupyter's _repr_png_ mixin, imports no delayform module
     "packaged": 0,  # a leaf: paths of the shipped example scenarios

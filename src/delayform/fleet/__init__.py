@@ -17,16 +17,11 @@ from :mod:`delayform.fleet.agents` and must not pay for the rest.
 
 from __future__ import annotations
 
-from importlib import import_module
-from typing import Any
+from delayform._lazy import lazy_names
 
 __all__ = ["run_fleet", "FleetRun", "decay_rate", "Fault"]
 
 _WHERE = {"run_fleet": "delayform.fleet.run", "FleetRun": "delayform.fleet.outcome", "decay_rate": "delayform.fleet.outcome",
           "Fault": "delayform.fleet.faults"}
 
-
-def __getattr__(name: str) -> Any:
-    if name in _WHERE:
-        return getattr(import_module(_WHERE[name]), name)
-    raise AttributeError(f"module 'delayform.fleet' has no attribute {name!r}")
+__getattr__, __dir__ = lazy_names(__name__, _WHERE)

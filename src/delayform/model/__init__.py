@@ -13,8 +13,9 @@ check or rename its parts again.
 
 from __future__ import annotations
 
-from importlib import import_module
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from delayform._lazy import lazy_names
 
 if TYPE_CHECKING:  # pragma: no cover - the names, for type checkers and IDEs
     from delayform.model.chassis import CREATE_CHASSIS, Chassis
@@ -68,17 +69,7 @@ _WHERE = {
 }
 
 
-def __getattr__(name: str) -> Any:
-    if name in _WHERE:
-        value = getattr(import_module(_WHERE[name]), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module 'delayform.model' has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_WHERE))
-
+__getattr__, __dir__ = lazy_names(__name__, _WHERE)
 
 __all__ = [
     "Team",
