@@ -12,7 +12,7 @@ smallest constant offset (2 +- d, 1 +- d) that is unstable by the exact spectrum
 (rightmost roots on the square's boundary, bisection).
 
 Run: ``OMP_NUM_THREADS=1 python benchmarks/bench_team_certificates.py [--repeat 3] [--max-order 3]
-[--upper-cuts] [--rtol 0.02] [--no-adversary]`` (the options are those of ``team_delay_margin``).
+[--upper-cuts] [--cover-intervals] [--rtol 0.02] [--no-adversary]`` (the options are those of ``team_delay_margin``).
 The machine is shared: the load average is printed, with medians and bests.
 """
 
@@ -87,10 +87,12 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--max-order", type=int, default=3)
     parser.add_argument("--upper-cuts", action="store_true")
+    parser.add_argument("--cover-intervals", action="store_true")
     parser.add_argument("--rtol", type=float, default=0.02)
     parser.add_argument("--no-adversary", action="store_true", help="only the certified margin and its cost")
     args = parser.parse_args()
-    options = dict(max_order=args.max_order, upper_cuts=args.upper_cuts, rtol=args.rtol)
+    options = dict(max_order=args.max_order, upper_cuts=args.upper_cuts, cover_intervals=args.cover_intervals,
+                   rtol=args.rtol)
     print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
           f"load {os.getloadavg()[0]:.1f}, OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS')}")  # fmt: skip
     times, cpu, m = [], [], None

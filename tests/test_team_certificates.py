@@ -89,8 +89,7 @@ def _mode_problem(md, tau=(2.0, 1.0)):
     A0, ak, e = mode_system(f)
     d = md.solved_at
     data = IntervalDelays(A0, ak, tuple(max(t - d, 0.0) for t in tau), tuple(t + d for t in tau), None, e)
-    fun = md.options
-    return interval_delays(data, fun.order, split=fun.split, outer=fun.outer, upper=fun.upper)
+    return md.options.problem(data)
 
 
 @pytest.mark.slow  # team_b
@@ -372,3 +371,15 @@ def test_cli_best_prints_both_margins_with_what_they_cover(tmp_path, team_b, mon
 def test_team_margin_bad_options_are_named(kwargs):
     with pytest.raises(InputError):
         team_delay_margin(paper_six(), 1.0, 0.5, 2.0, 1.0, **kwargs)
+
+
+def test_agreeing_predictions_bring_the_next_step_closer_to_the_zero():
+    """Phase 2's step: 2 % below the predicted zero, or (two predictions agreeing) twice their spread, at least rtol."""
+    modes = object.__new__(_Modes)
+    modes.rtol = 0.001
+    lo, hi, zero = 0.0990, 0.1010, 0.1000
+    assert modes._next(lo, hi, zero, False, 0) == pytest.approx(lo + 0.25 * 0.001 * lo)  # 0.098 < lo: a small step up
+    assert modes._next(lo, hi, zero, False, 0, spread=2e-3) == pytest.approx(zero * (1 - 4e-3))
+    assert modes._next(lo, hi, zero, False, 0, spread=1e-6) == pytest.approx(zero * (1 - 0.001))  # not below rtol
+    modes.rtol = 0.02  # the default: unchanged by the spread
+    assert modes._next(0.09, 0.11, zero, False, 0, spread=1e-6) == pytest.approx(zero * 0.98)

@@ -15,7 +15,8 @@
     :func:`certify_interval_delays` and :func:`interval_delay_margin`.
 ``team``
     The team's margin for delays varying together on every link, one
-    certificate per mode of eq. factorized: :func:`team_delay_margin`.
+    certificate per mode of eq. factorized: :func:`team_delay_margin`, and the
+    same certificates at a given deviation: :func:`certify_team_delays`.
 ``adversary``
     The other side: delay signals that destabilize one mode (greedy switching rules, and
     periodic signals proved destabilizing by their Floquet multiplier), to measure how far
@@ -31,7 +32,8 @@ from delayform.analysis.certificates.margin import (
 )
 
 from delayform.analysis.certificates.several import IntervalMargin, certify_interval_delays, interval_delay_margin
-from delayform.analysis.certificates.team import TeamDelayMargin, team_delay_margin
+from delayform.analysis.certificates.team import TeamDelayMargin, certify_team_delays, team_delay_margin
 
 __all__ = ["MAX_ORDER", "DelayCertificate", "TimeVaryingMargin", "certify_time_varying", "time_varying_delay_margin",
-           "IntervalMargin", "certify_interval_delays", "interval_delay_margin", "TeamDelayMargin", "team_delay_margin"]
+           "IntervalMargin", "certify_interval_delays", "interval_delay_margin", "TeamDelayMargin", "team_delay_margin",
+           "certify_team_delays"]

@@ -17,7 +17,10 @@ integral split at t - h_k(t), each part bounded, the two recombined by
 reciprocal convexity); with ``outer`` its whole integral joins the state too
 (derivative free of h_k', value affine in h_k(t)) and the recombination is the
 improved reciprocally convex inequality, both affine in h_k(t), so the
-derivative bound is checked at the 2^K corners of the delays. Derivation in
+derivative bound is checked at the 2^K corners of the delays. With ``cover`` the
+constant windows go on over the delays' intervals, and the integral of x over
+each interval, both the sum of its windows' and that of its two parts', ties the
+two descriptions together (Finsler's lemma, affine in h_k(t)). Derivation in
 docs/theory.md, "Several delays varying in intervals, and the team's delays varying together".
 
 Constant solutions (the centroid's zero)
@@ -48,7 +51,7 @@ from numpy.typing import NDArray
 from delayform.analysis.certificates.krasovskii import _bessel_terms, _moments, _Signals, _Sum, _t
 from delayform.analysis.certificates.lmi import LmiProblem, Variables
 
-__all__ = ["IntervalDelays", "interval_delays", "orthogonal_basis", "constant_nodes"]
+__all__ = ["IntervalDelays", "interval_delays", "orthogonal_basis", "constant_nodes", "integral_tie"]
 
 Matrix = NDArray[Any]
 
@@ -97,14 +100,15 @@ def orthogonal_basis(s: NDArray[Any]) -> NDArray[Any]:
     return np.array(cols, dtype=s.dtype).T
 
 
-def constant_nodes(lo: Sequence[float], split: int, hi: Sequence[float] = ()) -> list[float]:
+def constant_nodes(lo: Sequence[float], split: int, hi: Sequence[float] = (), cover: bool = False) -> list[float]:
     """The lags 0 < c_1 < ... of the constant windows: every positive lower end, each gap cut in ``split`` pieces.
 
     Every upper end in ``hi`` below the largest lower end is an end too (the windows are then cut
-    where another delay's interval ends).
+    where another delay's interval ends). With ``cover`` the windows go on to the largest upper
+    end, every upper end cutting them: they then also cover the delays' intervals.
     """
-    top = max(lo, default=0.0)
-    ends = sorted({0.0, *(v for v in lo if v > 0.0), *(v for v in hi if 0.0 < v < top)})
+    top = max((*lo, *(hi if cover else ())), default=0.0)
+    ends = sorted({0.0, *(v for v in lo if v > 0.0), *(v for v in hi if 0.0 < v <= top)})
     out: list[float] = []
     for u, w in zip(ends[:-1], ends[1:], strict=True):
         out += [u + (w - u) * i / split for i in range(1, split)] + [w]
@@ -112,7 +116,7 @@ def constant_nodes(lo: Sequence[float], split: int, hi: Sequence[float] = ()) ->
 
 
 def interval_delays(data: IntervalDelays, order: int, *, split: int = 1, outer: bool = True,
-                    upper: bool = False) -> LmiProblem:  # fmt: skip
+                    upper: bool = False, cover: bool = False) -> LmiProblem:  # fmt: skip
     """The LMIs of the several-delay functional (module docstring) at Bessel-Legendre order N.
 
     Parameters
@@ -130,10 +134,14 @@ def interval_delays(data: IntervalDelays, order: int, *, split: int = 1, outer: 
     upper
         Also cut the constant windows at every upper end hi_k below the largest lower end
         (docs/theory.md): x(t - hi_k) is then one of the windows' ends, shared with the delay's term.
+    cover
+        The constant windows go on to the largest upper end, cut at every upper end, so that they
+        also cover the delays' intervals (implies ``upper``); with ``outer``, the mean of x over a
+        delay's interval that is one window is tied to the means over its two parts (docs/theory.md).
     """
     n = data.A0.shape[0]
     K = len(data.delayed)
-    nodes = constant_nodes(data.lo, split, data.hi if upper else ())
+    nodes = constant_nodes(data.lo, split, data.hi if upper or cover else (), cover)
     node_name = {c: f"c{i}" for i, c in enumerate(nodes)}
     node_name[0.0] = "x"
     tops = ["x", *(node_name[c] for c in nodes[:-1])]
@@ -165,6 +173,12 @@ def interval_delays(data: IntervalDelays, order: int, *, split: int = 1, outer: 
             var.full(f"X_{k}", m, m)
 
     names = ["x", *(node_name[c] for c in nodes), *(w for ws in wins for w in ws)]
+    # with ``cover`` the windows inside a delay's interval tile it: the integral of x over the interval
+    # is both the sum of theirs and the sum of its two parts' (at t - h_k(t)), a relation affine in
+    # h_k(t) imposed at the corners by Finsler's lemma (docs/theory.md)
+    starts = [0.0, *nodes[:-1]]
+    ties = {k: [i for i in range(len(nodes)) if data.lo[k] <= starts[i] and nodes[i] <= data.hi[k]]
+            for k in range(K) if cover and outer}
     aliases = {f"a{k}": node_name[data.lo[k]] for k in range(K)}
     aliases.update({f"b{k}": node_name[data.hi[k]] for k in range(K) if data.hi[k] in node_name})
     for k in range(K):
@@ -174,6 +188,9 @@ def interval_delays(data: IntervalDelays, order: int, *, split: int = 1, outer: 
     # e_r' Gamma_j = L A0[r] Omega_j (j < N), a linear relation among the entries of zeta
     free_rows, free_cols = _delay_free(data)
     window_rows = [(i, j, r) for i in range(len(nodes)) for j in range(order) for r in free_rows]
+    zsize = n * len(names) - len(window_rows) - (0 if e is None else 1)
+    for k in ties:
+        var.full(f"Y_{k}", zsize, n)
 
     def _relations(sig: _Signals, A0: Matrix, exact: bool) -> Matrix | None:
         if not window_rows:
@@ -284,6 +301,11 @@ def interval_delays(data: IntervalDelays, order: int, *, split: int = 1, outer: 
                 rows.append((hv - a) * sig.e(pa[k][0]) + (b - hv) * sig.e(qb[k][0]))
             Phv = Phi.copy()
             Phv.add(1, np.vstack(rows), Pm, Hm, sym=True)
+            for k, inside in ties.items():  # Finsler: + Y C(h) + C(h)' Y' where C(h) zeta = 0, affine in h_k
+                a, b = _num(data.lo[k], exact), _num(data.hi[k], exact)
+                C = integral_tie(sig, a, b, b if corner[k] else a, (pa[k][0], qb[k][0]),
+                                 [(_num(lengths[i], exact), wins[i][0]) for i in inside])  # fmt: skip
+                Phv.add(1, np.eye(sig.size, dtype=sig.dtype), v[f"Y_{k}"], C, sym=True)
             for k in range(K):  # the reciprocal-convexity bound at h_k = a_k (alpha 0) or b_k (alpha 1)
                 Phv.add(-1, psi[k], rcc[k][corner[k] if outer else 0])
             label = "".join("+" if up else "-" for up in corner)
@@ -296,6 +318,19 @@ def interval_delays(data: IntervalDelays, order: int, *, split: int = 1, outer: 
         return out
 
     return LmiProblem(var, build)
+
+
+def integral_tie(sig: _Signals, a: Any, b: Any, h: Any, parts: tuple[str, str], windows: Sequence[tuple[Any, str]]) -> Matrix:
+    """C with C zeta = 0 on every history: the integral of x over [t - b, t - a] summed two ways.
+
+    Over the constant windows that tile the interval, sum L_i Omega^i_0; over its two parts at
+    t - h (means ``parts``), (h - a) Omega^p_0 + (b - h) Omega^q_0. Affine in h, so one Finsler
+    multiplier serves every h in [a, b] when the derivative bound is checked at the corners.
+    """
+    C = -(h - a) * sig.e(parts[0]) - (b - h) * sig.e(parts[1])
+    for length, mean in windows:
+        C = C + length * sig.e(mean)
+    return C
 
 
 def _delay_free(data: IntervalDelays) -> tuple[list[int], list[int]]:

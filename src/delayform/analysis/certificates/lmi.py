@@ -440,7 +440,8 @@ class Recheck:
     matrices
         Each LMI matrix rebuilt from them in floating point.
     min_eigenvalues
-        Smallest eigenvalue of each, relative to its 2-norm.
+        Smallest eigenvalue of each, relative to its 2-norm; where the exact check can run (total
+        size within :data:`EXACT_LIMIT`), of the matrix scaled to a unit diagonal.
     eigenvalues_ok
         Every relative smallest eigenvalue above :data:`EIG_MARGIN`.
     exact_ok
@@ -463,6 +464,24 @@ class Recheck:
 def _dyadic(x: NDArray[np.float64]) -> list[Fraction]:
     scale = 2**_GRID_BITS
     return [Fraction(round(float(v) * scale), scale) for v in x]
+
+
+def _relative_min_eigenvalue(M: NDArray[np.float64], scaled: bool) -> float:
+    """The smallest eigenvalue of the symmetric M relative to its 2-norm; ``scaled``: of D M D, D = diag(M)^(-1/2).
+
+    D M D and M are positive definite together (Sylvester's law of inertia), and the scaled matrix's
+    relative eigenvalue is not made small by rows of very different sizes (the team's LMIs mix
+    windows of 0.2 s and 1 s, their diagonals spanning five decades). A diagonal entry that is not
+    positive already shows M is not positive definite: its value relative to the largest is returned.
+    """
+    d = np.diag(M)
+    if scaled:
+        if not np.all(d > 0.0):
+            return float(d.min() / max(np.abs(d).max(), np.finfo(float).tiny))
+        inv = 1.0 / np.sqrt(d)
+        M = inv[:, None] * M * inv[None, :]
+    norm = float(np.linalg.norm(M, 2))
+    return float(np.linalg.eigvalsh(M)[0]) / norm if norm > 0 else -math.inf
 
 
 def exact_check(problem: LmiProblem, rational: tuple[Fraction, ...]) -> bool | None:
@@ -567,14 +586,15 @@ def recheck(problem: LmiProblem, x: NDArray[np.float64], *, exact: bool = True) 
     mats = {k: np.asarray(v, dtype=float) for k, v in problem.build(values, False).items()}
     rel: dict[str, float] = {}
     ok = True
+    # the exact check follows wherever it can run: there the matrices are judged after scaling to a unit
+    # diagonal (a filter only: the proof is exact); where it cannot, by the plain relative eigenvalue
+    scaled = sum(M.shape[0] for M in mats.values()) <= EXACT_LIMIT
     for k, M in mats.items():
         if not np.all(np.isfinite(M)) or not np.allclose(M, M.T, rtol=0.0, atol=1e-12 * max(1.0, np.abs(M).max())):
             rel[k] = -math.inf
             ok = False
             continue
-        norm = float(np.linalg.norm(M, 2))
-        lam = float(np.linalg.eigvalsh(0.5 * (M + M.T))[0])
-        rel[k] = lam / norm if norm > 0 else -math.inf
+        rel[k] = _relative_min_eigenvalue(0.5 * (M + M.T), scaled)
         ok = ok and rel[k] > EIG_MARGIN
     done = exact_check(problem, rational) if ok and exact else None
     return Recheck(values, rational, mats, rel, ok, done)

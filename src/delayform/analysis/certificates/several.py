@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from delayform.analysis.certificates.intervals import IntervalDelays, interval_delays
-from delayform.analysis.certificates.lmi import recheck, solve, solver_says_infeasible
+from delayform.analysis.certificates.lmi import LmiProblem, recheck, solve, solver_says_infeasible
 from delayform.analysis.certificates.margin import (
     _INEQUALITY,
     MAX_STATES,
@@ -46,21 +46,28 @@ MAX_SPLIT = 4
 class Functional:
     """Which functional: Bessel-Legendre order N, pieces per constant window, outer integrals (with the improved bound).
 
-    ``upper``: the constant windows are also cut at the delays' upper ends.
+    ``upper``: the constant windows are also cut at the delays' upper ends. ``cover``: they go on over
+    the delays' intervals (cut at every upper end), the integral over each interval tied to its parts'.
     """
 
     order: int = 2
     split: int = 1
     outer: bool = True
     upper: bool = False
+    cover: bool = False
 
     def describe(self) -> str:
         """One line naming the functional."""
         ineq = _INEQUALITY.get(self.order, f"Bessel-Legendre N={self.order}")
         parts = f", {self.split} pieces per constant window" if self.split > 1 else ""
-        parts += ", windows cut at the upper ends" if self.upper else ""
+        parts += ", windows cut at the upper ends" if self.upper and not self.cover else ""
+        parts += ", windows over the delays' intervals" if self.cover else ""
         rcc = "improved reciprocally convex, outer integrals" if self.outer and self.order >= 1 else "reciprocally convex"
         return f"Lyapunov-Krasovskii, several interval delays, {ineq}{parts}, {rcc}"
+
+    def problem(self, data: IntervalDelays) -> LmiProblem:
+        """This functional's LMIs on ``data``."""
+        return interval_delays(data, self.order, split=self.split, outer=self.outer, upper=self.upper, cover=self.cover)
 
 
 def system_of(A0: ArrayLike, delayed: Sequence[ArrayLike]) -> tuple[NDArray[np.float64], tuple[NDArray[np.float64], ...]]:
@@ -96,13 +103,15 @@ def invariant_of(a0: NDArray[np.float64], delayed: tuple[NDArray[np.float64], ..
     return v
 
 
-def functional_of(order: object, split: object, outer: object) -> Functional:
+def functional_of(order: object, split: object, outer: object, cover: object = False) -> Functional:
     """The functional's options, checked."""
     if isinstance(split, bool) or not isinstance(split, (int, np.integer)) or not 1 <= int(split) <= MAX_SPLIT:
         raise InputError(f"split must be an integer from 1 to {MAX_SPLIT}, got {split!r}")
     if not isinstance(outer, bool):
         raise InputError(f"outer must be True or False, got {outer!r}")
-    return Functional(_order(order), int(split), outer)
+    if not isinstance(cover, bool):
+        raise InputError(f"cover must be True or False, got {cover!r}")
+    return Functional(_order(order), int(split), outer, cover=cover)
 
 
 def attempt(data: IntervalDelays, fun: Functional, *, exact: bool = True, tolerance: float | None = None,
@@ -112,7 +121,7 @@ def attempt(data: IntervalDelays, fun: Functional, *, exact: bool = True, tolera
     ``tolerance``, ``quick``, ``balance``: the solver's (:func:`~delayform.analysis.certificates.lmi.solve`); the
     re-check is the same.
     """
-    problem = interval_delays(data, fun.order, split=fun.split, outer=fun.outer, upper=fun.upper)
+    problem = fun.problem(data)
     sol = solve(problem, tolerance=tolerance, quick=quick, balance=balance)
     lo, hi = min(data.lo), max(data.hi)
     empty: dict[str, NDArray[np.float64]] = {}
@@ -140,7 +149,7 @@ def _intervals(lo: Sequence[float], hi: Sequence[float], k: int) -> tuple[tuple[
 
 def certify_interval_delays(A0: ArrayLike, delayed: Sequence[ArrayLike], lo: Sequence[float], hi: Sequence[float], *,
                             mu: float | None = None, order: int = 2, split: int = 1, outer: bool = True,
-                            invariant: ArrayLike | None = None) -> DelayCertificate:  # fmt: skip
+                            cover: bool = False, invariant: ArrayLike | None = None) -> DelayCertificate:  # fmt: skip
     """Certify x' = A0 x + sum_k A_k x(t - h_k(t)) stable for every h_k(t) in [lo_k, hi_k].
 
     Parameters
@@ -151,9 +160,10 @@ def certify_interval_delays(A0: ArrayLike, delayed: Sequence[ArrayLike], lo: Seq
         The interval of each delay (hi_k > lo_k >= 0).
     mu
         Bound on every |dh_k/dt|; None (default) for any variation.
-    order, split, outer
+    order, split, outer, cover
         The functional (:class:`Functional`): Bessel-Legendre order N, pieces per
-        constant window, outer-window integrals with the improved reciprocally convex bound.
+        constant window, outer-window integrals with the improved reciprocally convex bound,
+        constant windows also over the delays' intervals (tighter, larger LMIs; docs/theory.md).
     invariant
         A vector e with (A0 + sum A_k) e = 0 exactly: constants along e are solutions
         for any delays, and what is certified is the rest (the solution converges to
@@ -175,7 +185,7 @@ def certify_interval_delays(A0: ArrayLike, delayed: Sequence[ArrayLike], lo: Seq
     """
     a0, ak = system_of(A0, delayed)
     a, b = _intervals(lo, hi, len(ak))
-    fun = functional_of(order, split, outer)
+    fun = functional_of(order, split, outer, cover)
     data = IntervalDelays(a0, ak, a, b, _rate(mu), invariant_of(a0, ak, invariant))
     return attempt(data, fun).cert
 
@@ -245,13 +255,13 @@ def search_delta(holds: Callable[[float], _Attempt | None], start: float, cap: f
 
 def interval_delay_margin(A0: ArrayLike, delayed: Sequence[ArrayLike], nominal: Sequence[float], *,
                           mu: float | None = None, order: int = 2, split: int = 1, outer: bool = True,
-                          invariant: ArrayLike | None = None, rtol: float = 0.01,
+                          cover: bool = False, invariant: ArrayLike | None = None, rtol: float = 0.01,
                           max_delta: float | None = None) -> IntervalMargin:  # fmt: skip
     """The largest delta such that every h_k(t) in [h_k - delta, h_k + delta] (clipped at 0) is certified.
 
     Parameters
     ----------
-    A0, delayed, mu, order, split, outer, invariant
+    A0, delayed, mu, order, split, outer, cover, invariant
         As for :func:`certify_interval_delays`.
     nominal
         The nominal delays h_k, one per delayed matrix.
@@ -275,7 +285,7 @@ def interval_delay_margin(A0: ArrayLike, delayed: Sequence[ArrayLike], nominal: 
     cap = _delay("max_delta", max_delta) if max_delta is not None else max(max(hs), 1.0)
     if not cap > 0.0:
         raise DelayError("max_delta must be positive")
-    fun = functional_of(order, split, outer)
+    fun = functional_of(order, split, outer, cover)
     rate, e = _rate(mu), invariant_of(a0, ak, invariant)
 
     def holds(d: float) -> _Attempt | None:

@@ -34,7 +34,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from delayform.analysis.certificates.intervals import IntervalDelays, interval_delays
+from delayform.analysis.certificates.intervals import IntervalDelays
 from delayform.analysis.certificates.lmi import margin_slope
 from delayform.analysis.certificates.margin import DelayCertificate, _Attempt
 from delayform.analysis.certificates.several import Functional, attempt
@@ -43,7 +43,7 @@ from delayform.characteristic import CharacteristicFactor, factors
 from delayform.errors import InputError
 from delayform.topology import Topology
 
-__all__ = ["COVERS", "LEVELS", "ModeMargin", "TeamDelayMargin", "team_delay_margin"]
+__all__ = ["COVERS", "LEVELS", "ModeMargin", "TeamDelayMargin", "team_delay_margin", "certify_team_delays"]
 
 #: What the per-mode margin covers, in words.
 COVERS = "the same time-varying delays h1(t), h2(t) on every link (all links varying together), arbitrarily fast"
@@ -212,11 +212,8 @@ class _Modes:
             ds = math.nan
             if slope and att.solution is not None:
                 step = 1e-4 * delta
-                below = interval_delays(self._data(i, delta - step), fun.order, split=fun.split, outer=fun.outer,
-                                        upper=fun.upper)  # fmt: skip
-                above = interval_delays(self._data(i, delta + step), fun.order, split=fun.split, outer=fun.outer,
-                                        upper=fun.upper)  # fmt: skip
-                ds = margin_slope(att.solution, below, above, step)
+                ds = margin_slope(att.solution, fun.problem(self._data(i, delta - step)),
+                                  fun.problem(self._data(i, delta + step)), step)  # fmt: skip
             return att, t, ds
         self.failed[i][level] = min(self.failed[i][level], delta)
         self.tried.append((delta, f"mode {i}, {fun.describe()}: not certified"))
@@ -264,6 +261,7 @@ class _Modes:
         held: list[tuple[float, float, float]] = []  # (delta, t, dt/d delta) where it holds
         d = fail if fail < hi else min(2.0 * max(lo, self.floor), hi)
         misses = 0  # failures in a row
+        zeros: list[float] = []  # the predicted zeros of t, one per certified point
         while True:
             # balanced after the first: fewer iterations next to the boundary; the first stays plain, its
             # Newton step sets where the search lands (the balanced margin's lands lower; docs/theory.md)
@@ -283,7 +281,10 @@ class _Modes:
             zero = self._zero(held)
             if att is not None and zero - lo <= self.rtol * lo:  # the predicted boundary is within rtol
                 return lo, best
-            d = self._next(lo, hi, zero, capped, misses)
+            spread = abs(zero - zeros[-1]) / zero if att is not None and zeros else 1.0
+            if att is not None:
+                zeros.append(zero)
+            d = self._next(lo, hi, zero, capped, misses, spread)
 
     @staticmethod
     def _zero(held: list[tuple[float, float, float]]) -> float:
@@ -309,16 +310,19 @@ class _Modes:
                 return d1 + t1 * (d1 - d0) / (t0 - t1)
         return 1.5 * lo
 
-    def _next(self, lo: float, hi: float, zero: float, capped: bool, misses: int) -> float:
+    def _next(self, lo: float, hi: float, zero: float, capped: bool, misses: int, spread: float = 1.0) -> float:
         """The next delta of phase 2 in (lo, hi): rtol (at least 2 %) below the predicted zero of t, inside the bracket.
 
         That step usually holds and ends the search (:meth:`margin`: its next prediction then lies
-        within rtol, or a failure does). When the prediction
+        within rtol, or a failure does). Once two certified points predict zeros that agree (their
+        relative ``spread`` below 1 %), the step is only twice that spread (at least rtol) below
+        the prediction: a fine rtol is then reached in a step or two instead of creeping up. When the prediction
         lies beyond a failure (t bends down far from the boundary) the step is as far below that
         failure, and after a second failure in a row the bracket is halved. ``capped``: hi is the
         search's cap, not a failure: at most a doubling.
         """
-        below = max(self.rtol, 0.02)  # the prediction's own accuracy: a smaller rtol does not make it sharper
+        # the prediction's own accuracy (a smaller rtol does not make it sharper), unless two agree
+        below = max(self.rtol, min(0.02, 2.0 * spread))
         aim = zero * (1.0 - below)
         if capped:
             return min(max(aim, lo * (1.0 + self.rtol)), 2.0 * lo, hi)
@@ -349,9 +353,37 @@ class _Modes:
         return upper, found, at, limiting
 
 
+def _setup(topology: Topology, P: float, D: float, tau1: float, tau2: float, max_order: object, upper_cuts: object,
+           cover_intervals: object) -> tuple[float, float, tuple[Functional, ...], tuple[CharacteristicFactor, ...], list[complex]] | TeamDelayMargin:  # fmt: skip
+    """The delays, the functionals, the factors and their rightmost roots; or the answer without a search (its reason)."""
+    from delayform.analysis.roots.single import rightmost_root  # roots import the network layer: not at the top
+
+    t1, t2 = check_delay("tau1", tau1), check_delay("tau2", tau2)
+    if isinstance(max_order, bool) or max_order not in (1, 2, 3, 4):
+        raise InputError(f"max_order must be 1, 2, 3 or 4, got {max_order!r}")
+    if not isinstance(upper_cuts, bool):
+        raise InputError(f"upper_cuts must be True or False, got {upper_cuts!r}")
+    if not isinstance(cover_intervals, bool):
+        raise InputError(f"cover_intervals must be True or False, got {cover_intervals!r}")
+    levels = tuple(f for f in LEVELS if f.order <= max_order) + ((Functional(4, 1, True),) if max_order == 4 else ())
+    if upper_cuts or cover_intervals:
+        levels = levels[:-1] + (replace(levels[-1], upper=True, cover=cover_intervals),)
+    fs = tuple(factors(topology, P, D))
+    if t1 == 0.0:
+        return TeamDelayMargin(0.0, None, (), reason=(
+            "tau1 = 0: the centroid's zero is double (the team drifts) and no variation of the delays is certified"))
+    right = [complex(rightmost_root(f, t1, t2)) for f in fs]
+    worst = max(right, key=lambda z: z.real)
+    if not worst.real < 0.0:
+        return TeamDelayMargin(0.0, None, (), reason=(
+            f"the nominal delays are unstable (rightmost root {worst.real:.4g} {worst.imag:+.4g}j)"))
+    return t1, t2, levels, fs, right
+
+
 @validated()
 def team_delay_margin(topology: Topology, P: float, D: float, tau1: float, tau2: float, *,
-                      rtol: float = 0.02, max_order: int = 3, upper_cuts: bool = False) -> TeamDelayMargin:  # fmt: skip
+                      rtol: float = 0.02, max_order: int = 3, upper_cuts: bool = False,
+                      cover_intervals: bool = False) -> TeamDelayMargin:  # fmt: skip
     """The certified margin of the team for delays varying together on every link (module docstring).
 
     Parameters
@@ -361,13 +393,17 @@ def team_delay_margin(topology: Topology, P: float, D: float, tau1: float, tau2:
     tau1, tau2
         The nominal delays, the same on every link.
     rtol
-        Relative width at which the search on delta stops (0.005 to 0.1).
+        Relative width at which the search on delta stops (0.001 to 0.1).
     max_order
         The highest Bessel-Legendre order of :data:`LEVELS` tried (1 to 4; 4 adds an order-4
         functional after them): lower is faster and more conservative.
     upper_cuts
         The richest functional also cuts its constant windows at the delays' upper ends
         (docs/theory.md): a little tighter, its LMIs larger (about three times the CPU time).
+    cover_intervals
+        The richest functional's constant windows also cover the delays' intervals, the mean over
+        each tied to the means over its two parts (docs/theory.md; includes ``upper_cuts``): the
+        tightest, each of its SDPs about five times the CPU time of an uncut one.
 
     Returns
     -------
@@ -381,27 +417,12 @@ def team_delay_margin(topology: Topology, P: float, D: float, tau1: float, tau2:
     >>> 0.035 < m.delta < 0.2622, m.covers.startswith("the same")  # above small gain, below constant offsets
     (True, True)
     """
-    from delayform.analysis.roots.single import rightmost_root  # roots import the network layer: not at the top
-
-    t1, t2 = check_delay("tau1", tau1), check_delay("tau2", tau2)
-    if not (isinstance(rtol, (int, float)) and 0.005 <= rtol <= 0.1):
-        raise InputError(f"rtol must be a number from 0.005 to 0.1, got {rtol!r}")
-    if isinstance(max_order, bool) or max_order not in (1, 2, 3, 4):
-        raise InputError(f"max_order must be 1, 2, 3 or 4, got {max_order!r}")
-    if not isinstance(upper_cuts, bool):
-        raise InputError(f"upper_cuts must be True or False, got {upper_cuts!r}")
-    levels = tuple(f for f in LEVELS if f.order <= max_order) + ((Functional(4, 1, True),) if max_order == 4 else ())
-    if upper_cuts:
-        levels = levels[:-1] + (replace(levels[-1], upper=True),)
-    fs = factors(topology, P, D)
-    if t1 == 0.0:
-        return TeamDelayMargin(0.0, None, (), reason=(
-            "tau1 = 0: the centroid's zero is double (the team drifts) and no variation of the delays is certified"))
-    right = [complex(rightmost_root(f, t1, t2)) for f in fs]
-    worst = max(right, key=lambda z: z.real)
-    if not worst.real < 0.0:
-        return TeamDelayMargin(0.0, None, (), reason=(
-            f"the nominal delays are unstable (rightmost root {worst.real:.4g} {worst.imag:+.4g}j)"))
+    if not (isinstance(rtol, (int, float)) and 0.001 <= rtol <= 0.1):
+        raise InputError(f"rtol must be a number from 0.001 to 0.1, got {rtol!r}")
+    setup = _setup(topology, P, D, tau1, tau2, max_order, upper_cuts, cover_intervals)
+    if isinstance(setup, TeamDelayMargin):
+        return setup
+    t1, t2, levels, fs, right = setup
     start = 0.05 * max(t1, t2, 0.2)
     modes = _Modes(fs, t1, t2, right, levels, rtol, start)
     # beyond tau1 the position delay may be 0, where the centroid's zero is double: nothing to certify
@@ -433,3 +454,69 @@ def team_delay_margin(topology: Topology, P: float, D: float, tau1: float, tau2:
             break
     return TeamDelayMargin(0.0, modes.fs[limiting].lam, (), tried=tuple(modes.tried), tolerance=gap,
                            reason="no deviation of the delays could be certified")  # fmt: skip
+
+
+#: Clarabel's own tolerances (1e-8): the last solve of a certificate asked for at a given delta.
+CAREFUL_TOLERANCE = 1e-8
+
+
+@validated()
+def certify_team_delays(topology: Topology, P: float, D: float, tau1: float, tau2: float, delta: float, *,
+                        max_order: int = 3, upper_cuts: bool = False,
+                        cover_intervals: bool = False) -> TeamDelayMargin:  # fmt: skip
+    """Certify the team for every h1(t) in [tau1 - delta, tau1 + delta], h2(t) in [tau2 - delta, tau2 + delta].
+
+    The question a known jitter bound asks (is +-delta safe?), answered without a search: every mode
+    is certified at ``delta`` by the cheapest functional of :data:`LEVELS` that holds, the richest one
+    last, solved again at Clarabel's own tolerances when the search's looser ones do not suffice;
+    every certificate is re-checked exactly. Coverage as :func:`team_delay_margin` (the same delays
+    on every link, varying arbitrarily fast).
+
+    Parameters
+    ----------
+    topology, P, D, tau1, tau2
+        As for :func:`team_delay_margin`.
+    delta
+        The deviation to certify, positive and below tau1.
+    max_order, upper_cuts, cover_intervals
+        As for :func:`team_delay_margin`.
+
+    Returns
+    -------
+    TeamDelayMargin
+        ``delta`` itself when every mode holds; otherwise 0, with ``limiting`` the first mode that
+        was not certified and ``reason`` saying so.
+
+    Examples
+    --------
+    >>> from delayform.topology import paper_six
+    >>> certify_team_delays(paper_six(), 1.0, 0.5, 2.0, 1.0, 0.05, max_order=1).delta  # point b, Wirtinger
+    0.05
+    """
+    setup = _setup(topology, P, D, tau1, tau2, max_order, upper_cuts, cover_intervals)
+    d = check_delay("delta", delta)
+    if isinstance(setup, TeamDelayMargin):
+        return setup
+    t1, t2, levels, fs, right = setup
+    if not 0.0 < d < t1:
+        raise InputError(f"delta must be positive and below tau1 = {t1:g} (the position delay may not reach 0), got {d:g}")
+    modes = _Modes(fs, t1, t2, right, levels, 0.02, 0.05 * max(t1, t2, 0.2))
+    options = {f.describe(): f for f in levels}
+    out: list[ModeMargin] = []
+    for i, f in enumerate(modes.fs):
+        att = modes.check(i, d)
+        if att is None:  # the richest functional once more, at the solver's own tolerances
+            att = attempt(modes._data(i, d), levels[-1], exact=False, tolerance=CAREFUL_TOLERANCE)
+            modes.tried.append((d, f"mode {i}, {levels[-1].describe()}, tolerance {CAREFUL_TOLERANCE:g}: "
+                                   + ("holds" if att.cert.holds else "not certified")))  # fmt: skip
+            if not att.cert.holds:
+                return TeamDelayMargin(0.0, f.lam, (), tried=tuple(modes.tried),
+                                       reason=f"mode lam = {f.lam:.4g} is not certified at delta = {d:g}")  # fmt: skip
+        cert = att.confirmed()
+        if not cert.holds:
+            modes.tried.append((d, f"mode {i}: failed the exact re-check"))
+            return TeamDelayMargin(0.0, f.lam, (), tried=tuple(modes.tried),
+                                   reason=f"mode lam = {f.lam:.4g}: its certificate failed the exact re-check")  # fmt: skip
+        out.append(ModeMargin(f.lam, f.is_centroid, att.cert.method, cert, options[att.cert.method], d))
+    limiting = modes.fs[0].lam  # the hardest mode (rightmost constant-delay root nearest the axis)
+    return TeamDelayMargin(d, limiting, tuple(out), tried=tuple(modes.tried))
