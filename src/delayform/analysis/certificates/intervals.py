@@ -326,6 +326,17 @@ def integral_tie(sig: _Signals, a: Any, b: Any, h: Any, parts: tuple[str, str], 
     Over the constant windows that tile the interval, sum L_i Omega^i_0; over its two parts at
     t - h (means ``parts``), (h - a) Omega^p_0 + (b - h) Omega^q_0. Affine in h, so one Finsler
     multiplier serves every h in [a, b] when the derivative bound is checked at the corners.
+
+    Parameters
+    ----------
+    sig
+        The blocks of zeta (the signals' names).
+    a, b, h
+        The interval's ends and the delay in it (floats, or Fractions for the exact re-check).
+    parts
+        The names of the means of x over [t - h, t - a] and over [t - b, t - h].
+    windows
+        (length L_i, name of the mean Omega^i_0) of each constant window tiling the interval.
     """
     C = -(h - a) * sig.e(parts[0]) - (b - h) * sig.e(parts[1])
     for length, mean in windows:
