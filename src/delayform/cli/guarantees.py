@@ -159,14 +159,24 @@ def _require_inside(sc: Any, tau1_box: tuple[float, float], tau2_box: tuple[floa
 @click.option("--method", type=click.Choice(["small-gain", "per-mode", "best"]), default="small-gain", show_default=True,
               help="small-gain: every link's delays varying on their own; per-mode: the same delays on every link "
                    "varying together (Lyapunov-Krasovskii per mode, slower); best: the larger of the two.")  # fmt: skip
-def jitter_command(scenario: Path | None, as_json: bool, tau1_file: Path | None, tau2_file: Path | None, method: str,
-                   **overrides: Any) -> None:  # fmt: skip
+@click.option("--certify", "certify", type=float, default=None, metavar="DELTA",
+              help="Instead of the margin, certify this deviation (s): is every delay in [tau - DELTA, tau + DELTA], "
+                   "varying arbitrarily fast, safe? Answered per link (small gain) and for the same delays on every "
+                   "link (per mode, the richest certificate). One delay pair on every link.")  # fmt: skip
+@click.pass_context
+def jitter_command(ctx: click.Context, scenario: Path | None, as_json: bool, tau1_file: Path | None,
+                   tau2_file: Path | None, method: str, certify: float | None, **overrides: Any) -> None:  # fmt: skip
     """The certified jitter margin: every delay may vary in [tau - delta, tau + delta], arbitrarily fast."""
     from delayform.analysis.certificates.team import COVERS
     from delayform.analysis.network import jitter_margin
     from delayform.errors import DelayError, InputError
 
+    if certify is not None and ctx.get_parameter_source("method") is not click.core.ParameterSource.DEFAULT:
+        raise click.UsageError("--certify answers for both kinds of variation: --method chooses a margin's search, give one")
     sc, t1, t2 = _delays({"scenario": scenario, **overrides}, tau1_file, tau2_file)
+    if certify is not None:
+        _certify_jitter(sc, t1, t2, certify, as_json)
+        return
     if method != "small-gain" and (np.ndim(t1) or np.ndim(t2)):
         raise InputError(f"--method {method} needs one delay pair on every link (--tau1, --tau2): per-link delays "
                          "have the small-gain margin only")  # fmt: skip
@@ -194,3 +204,54 @@ def jitter_command(scenario: Path | None, as_json: bool, tau1_file: Path | None,
                    f"<= {m.gain:.4g}); the per-mode margin does not cover independent per-link variations")  # fmt: skip
     if extra is not None:
         click.echo(f"the margin is around the constant per-link delays; the scenario's network has {extra}")
+
+
+def _certify_jitter(sc: Any, t1: Any, t2: Any, delta: float, as_json: bool) -> None:
+    """``jitter --certify``: the deviation checked per link (small gain) and per mode (the same delays on every link).
+
+    Per link the small-gain margin is computed and compared (its certificate covers every smaller
+    deviation); per mode :func:`~delayform.analysis.certificates.team.certify_team_delays` certifies
+    delta itself with the richest functional (the windows over the delays' intervals, used only for
+    a mode the cheaper ones do not certify).
+    """
+    import math
+
+    from delayform.analysis.certificates.team import COVERS, certify_team_delays
+    from delayform.analysis.network import jitter_margin
+    from delayform.analysis.network.jitter import PER_LINK
+    from delayform.errors import DelayError, InputError
+
+    if np.ndim(t1) or np.ndim(t2):
+        raise InputError("--certify needs one delay pair on every link (--tau1, --tau2): per-link delays have the "
+                         "small-gain margin only (delayform jitter without --certify)")  # fmt: skip
+    if not (math.isfinite(delta) and 0.0 < delta < float(t1)):
+        raise DelayError(f"--certify must be a deviation in (0, tau1 = {float(t1):g}) s, got {delta:g}")
+    small = jitter_margin(sc.topology, sc.P, sc.D, t1, t2)
+    if not small.nominal_stable:
+        raise DelayError(f"the nominal delays are unstable (dominant root {small.nominal_root.real:.4g} "
+                         f"{small.nominal_root.imag:+.4g}j): no deviation of them is safe")  # fmt: skip
+    per_link = small.delta >= delta
+    together = per_link or None
+    team = None
+    if not per_link:  # the same delays on every link: a smaller class, per mode
+        team = certify_team_delays(sc.topology, sc.P, sc.D, float(t1), float(t2), delta, cover_intervals=True)
+        together = team.delta == delta
+    limiting = None if team is None or team.limiting is None else next(
+        (md.functional for md in team.modes if md.lam == team.limiting), None)  # fmt: skip
+    if as_json:
+        click.echo(json.dumps({"delta_s": delta, "per_link": per_link, "per_link_margin_s": small.delta,
+                               "together": together, "together_method": limiting,
+                               "together_reason": None if team is None else team.reason,
+                               "covers": {"per_link": PER_LINK, "together": COVERS}}, indent=2))  # fmt: skip
+        return
+    verdict = "certified" if per_link else "not certified"
+    click.echo(f"+-{delta:g} s per link, each delay varying on its own: {verdict} "
+               f"(small-gain margin {small.delta:.4g} s)")  # fmt: skip
+    if per_link:
+        click.echo(f"+-{delta:g} s with the same delays on every link: certified (a special case)")
+    elif together:
+        click.echo(f"+-{delta:g} s with the same delays on every link, varying together: certified, every mode "
+                   f"re-checked exactly (the limiting mode by {limiting})")  # fmt: skip
+    else:
+        click.echo(f"+-{delta:g} s with the same delays on every link, varying together: not certified "
+                   f"({team.reason}); a certificate is a sufficient condition, so not unsafe either")  # type: ignore[union-attr]  # fmt: skip
