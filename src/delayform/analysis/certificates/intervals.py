@@ -100,15 +100,25 @@ def orthogonal_basis(s: NDArray[Any]) -> NDArray[Any]:
     return np.array(cols, dtype=s.dtype).T
 
 
+#: An upper end that would leave a constant window shorter than this fraction of the longest is not a cut.
+SHORTEST_WINDOW = 0.1
+
+
 def constant_nodes(lo: Sequence[float], split: int, hi: Sequence[float] = (), cover: bool = False) -> list[float]:
     """The lags 0 < c_1 < ... of the constant windows: every positive lower end, each gap cut in ``split`` pieces.
 
     Every upper end in ``hi`` below the largest lower end is an end too (the windows are then cut
     where another delay's interval ends). With ``cover`` the windows go on to the largest upper
-    end, every upper end cutting them: they then also cover the delays' intervals.
+    end, every upper end cutting them: they then also cover the delays' intervals. An upper end
+    within :data:`SHORTEST_WINDOW` of the longest window from another end is left out.
     """
     top = max((*lo, *(hi if cover else ())), default=0.0)
     ends = sorted({0.0, *(v for v in lo if v > 0.0), *(v for v in hi if 0.0 < v <= top)})
+    # an upper end closer than SHORTEST_WINDOW times the longest window to another end is not a cut: so
+    # short a window only makes the LMIs ill-conditioned (that delay's interval is then not tied)
+    longest = max((w - u for u, w in zip(ends[:-1], ends[1:], strict=True)), default=0.0)
+    fixed = {0.0, *lo}
+    ends = [v for v in ends if v in fixed or min(abs(v - u) for u in ends if u != v) >= SHORTEST_WINDOW * longest]
     out: list[float] = []
     for u, w in zip(ends[:-1], ends[1:], strict=True):
         out += [u + (w - u) * i / split for i in range(1, split)] + [w]
@@ -136,8 +146,9 @@ def interval_delays(data: IntervalDelays, order: int, *, split: int = 1, outer: 
         (docs/theory.md): x(t - hi_k) is then one of the windows' ends, shared with the delay's term.
     cover
         The constant windows go on to the largest upper end, cut at every upper end, so that they
-        also cover the delays' intervals (implies ``upper``); with ``outer``, the mean of x over a
-        delay's interval that is one window is tied to the means over its two parts (docs/theory.md).
+        also cover the delays' intervals (implies ``upper``); with ``outer``, the integral of x over
+        each delay's interval, summed over the windows that tile it, is tied to the sum over its two
+        parts at t - h_k(t) (:func:`integral_tie`, docs/theory.md).
     """
     n = data.A0.shape[0]
     K = len(data.delayed)
@@ -178,7 +189,7 @@ def interval_delays(data: IntervalDelays, order: int, *, split: int = 1, outer: 
     # h_k(t) imposed at the corners by Finsler's lemma (docs/theory.md)
     starts = [0.0, *nodes[:-1]]
     ties = {k: [i for i in range(len(nodes)) if data.lo[k] <= starts[i] and nodes[i] <= data.hi[k]]
-            for k in range(K) if cover and outer}
+            for k in range(K) if cover and outer and data.hi[k] in nodes}  # tiled: both ends are nodes
     aliases = {f"a{k}": node_name[data.lo[k]] for k in range(K)}
     aliases.update({f"b{k}": node_name[data.hi[k]] for k in range(K) if data.hi[k] in node_name})
     for k in range(K):

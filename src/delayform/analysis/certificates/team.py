@@ -166,6 +166,10 @@ class _Modes:
         order = sorted(range(len(fs)), key=lambda i: -right[i].real)
         self.fs = [fs[i] for i in order]
         self.systems = [mode_system(f) for f in self.fs]
+        # per mode: a conjugate pair (4 states) never gets the windows over the intervals, whose
+        # order-3 LMIs for it take minutes and gigabytes per SDP (the cut windows instead)
+        self.mode_levels = [tuple(replace(f, cover=False) if A0.shape[0] > 2 else f for f in levels)
+                            for A0, _, _ in self.systems]  # fmt: skip
         self.t = (t1, t2)
         self.rtol, self.start, self.floor = rtol, start, 1e-3 * start
         # per mode and functional: the smallest delta at which it failed
@@ -191,7 +195,7 @@ class _Modes:
         """
         if delta >= self.failed[i][level]:  # failed at a smaller delta already: not solved again
             return None, -math.inf, math.nan
-        fun = self.levels[level]
+        fun = self.mode_levels[i][level]
         data = self._data(i, delta)
         att = None
         if balance and (i, level) not in self.unbalanced:  # a shortcut to a certificate only
@@ -401,9 +405,11 @@ def team_delay_margin(topology: Topology, P: float, D: float, tau1: float, tau2:
         The richest functional also cuts its constant windows at the delays' upper ends
         (docs/theory.md): a little tighter, its LMIs larger (about three times the CPU time).
     cover_intervals
-        The richest functional's constant windows also cover the delays' intervals, the mean over
-        each tied to the means over its two parts (docs/theory.md; includes ``upper_cuts``): the
-        tightest, each of its SDPs about five times the CPU time of an uncut one.
+        The richest functional's constant windows also cover the delays' intervals, the integral
+        over each tied to its two parts' (docs/theory.md; includes ``upper_cuts``): the tightest,
+        each of its SDPs about four times the CPU time of an uncut one. Worth it with a fine
+        ``rtol`` (0.001: 0.0999 s at b) or through :func:`certify_team_delays` at a given delta.
+        Real modes only: a conjugate pair keeps the windows cut at the upper ends.
 
     Returns
     -------
@@ -427,7 +433,7 @@ def team_delay_margin(topology: Topology, P: float, D: float, tau1: float, tau2:
     modes = _Modes(fs, t1, t2, right, levels, rtol, start)
     # beyond tau1 the position delay may be 0, where the centroid's zero is double: nothing to certify
     delta, found, at, limiting = modes.search(t1 * (1.0 - 1e-9))
-    options = {f.describe(): f for f in levels}
+    options = {f.describe(): f for fl in modes.mode_levels for f in fl}
     gap = rtol * delta
     confirmed: dict[int, DelayCertificate] = {}
     while delta > 0.0:
@@ -501,13 +507,14 @@ def certify_team_delays(topology: Topology, P: float, D: float, tau1: float, tau
     if not 0.0 < d < t1:
         raise InputError(f"delta must be positive and below tau1 = {t1:g} (the position delay may not reach 0), got {d:g}")
     modes = _Modes(fs, t1, t2, right, levels, 0.02, 0.05 * max(t1, t2, 0.2))
-    options = {f.describe(): f for f in levels}
+    options = {f.describe(): f for fl in modes.mode_levels for f in fl}
     out: list[ModeMargin] = []
     for i, f in enumerate(modes.fs):
         att = modes.check(i, d)
         if att is None:  # the richest functional once more, at the solver's own tolerances
-            att = attempt(modes._data(i, d), levels[-1], exact=False, tolerance=CAREFUL_TOLERANCE)
-            modes.tried.append((d, f"mode {i}, {levels[-1].describe()}, tolerance {CAREFUL_TOLERANCE:g}: "
+            richest = modes.mode_levels[i][-1]
+            att = attempt(modes._data(i, d), richest, exact=False, tolerance=CAREFUL_TOLERANCE)
+            modes.tried.append((d, f"mode {i}, {richest.describe()}, tolerance {CAREFUL_TOLERANCE:g}: "
                                    + ("holds" if att.cert.holds else "not certified")))  # fmt: skip
             if not att.cert.holds:
                 return TeamDelayMargin(0.0, f.lam, (), tried=tuple(modes.tried),
