@@ -182,8 +182,8 @@ def test_the_team_is_certified_at_the_goal_with_the_covered_windows_only():
     values = dict(hard.certificate.variables)
     values["Y_0"] = values["Y_0"] * 1.5  # a multiplier of the tie perturbed: the bound no longer negative
     assert not recheck(problem, problem.variables.pack(values)).passed
-    for richest in (Functional(3, 1, True), Functional(3, 1, True, upper=True)):  # without the covered windows
-        assert not attempt(_hard_mode(0.1), richest, exact=False).cert.holds
+    # without the covered windows: the richest default functional (the cut one fails at 0.1 too, docs/theory.md)
+    assert not attempt(_hard_mode(0.1), Functional(3, 1, True), exact=False).cert.holds
     wirtinger = certify_team_delays(paper_six(), 1.0, 0.5, 2.0, 1.0, 0.1, max_order=1)  # refused, and named
     assert wirtinger.delta == 0.0 and wirtinger.limiting == hard.lam and "not certified at delta = 0.1" in wirtinger.reason
     f = next(g for g in factors(paper_six(), 1.0, 0.5) if g.lam == hard.lam)
