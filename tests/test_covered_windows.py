@@ -17,6 +17,7 @@ from hypothesis import strategies as st
 pytest.importorskip("clarabel")
 
 from delayform.analysis.certificates.adversary import greedy_switching_grows  # noqa: E402
+from test_team_certificates import _hard_mode_data  # noqa: E402
 from delayform.analysis.certificates.intervals import (  # noqa: E402
     IntervalDelays,
     constant_nodes,
@@ -87,13 +88,7 @@ def test_only_a_tiled_interval_is_tied():
     names = lambda p: {b.name for b in p.variables.blocks}  # noqa: E731
     near = interval_delays(IntervalDelays(A0, ak, (0.26, 0.76), (0.74, 1.24), None, e), 1, cover=True)
     assert "Y_1" in names(near) and "Y_0" not in names(near)
-    assert {"Y_0", "Y_1"} <= names(interval_delays(_hard_mode(0.1), 1, cover=True))
-
-
-def _hard_mode(d: float) -> IntervalDelays:
-    f = next(g for g in factors(paper_six(), 1.0, 0.5) if abs(g.lam - (-0.6368889)) < 1e-6)
-    A0, ak, e = mode_system(f)
-    return IntervalDelays(A0, ak, (2.0 - d, 1.0 - d), (2.0 + d, 1.0 + d), None, e)
+    assert {"Y_0", "Y_1"} <= names(interval_delays(_hard_mode_data(0.1), 1, cover=True))
 
 
 entries = st.floats(-2.0, 2.0, allow_nan=False).map(lambda v: round(v, 2))
@@ -155,7 +150,7 @@ def test_certify_refuses_a_cover_that_is_not_a_boolean():
 
 
 def test_covered_windows_add_the_interval_windows_to_the_state():
-    data = _hard_mode(0.1)
+    data = _hard_mode_data(0.1)
     plain, covered = interval_delays(data, 2), interval_delays(data, 2, cover=True)
     zero = lambda p: p.build(p.variables.unpack(np.zeros(p.variables.size)), False)  # noqa: E731
     # windows [0, 0.9], [0.9, 1.9] become [0, 0.9], [0.9, 1.1], [1.1, 1.9], [1.9, 2.1]: eta gains 2 x 2 moments of 2 states
@@ -177,13 +172,13 @@ def test_the_team_is_certified_at_the_goal_with_the_covered_windows_only():
     assert all(md.certificate.holds and md.certificate.exact and md.solved_at == 0.1 for md in m.modes)
     hard = next(md for md in m.modes if abs(md.lam - (-0.6368889)) < 1e-6)
     assert "windows over the delays' intervals" in hard.functional
-    problem = hard.options.problem(_hard_mode(0.1))
+    problem = hard.options.problem(_hard_mode_data(0.1))
     assert recheck(problem, problem.variables.pack(hard.certificate.variables)).passed
     values = dict(hard.certificate.variables)
     values["Y_0"] = values["Y_0"] * 1.5  # a multiplier of the tie perturbed: the bound no longer negative
     assert not recheck(problem, problem.variables.pack(values)).passed
     # without the covered windows: the richest default functional (the cut one fails at 0.1 too, docs/theory.md)
-    assert not attempt(_hard_mode(0.1), Functional(3, 1, True), exact=False).cert.holds
+    assert not attempt(_hard_mode_data(0.1), Functional(3, 1, True), exact=False).cert.holds
     wirtinger = certify_team_delays(paper_six(), 1.0, 0.5, 2.0, 1.0, 0.1, max_order=1)  # refused, and named
     assert wirtinger.delta == 0.0 and wirtinger.limiting == hard.lam and "not certified at delta = 0.1" in wirtinger.reason
     f = next(g for g in factors(paper_six(), 1.0, 0.5) if g.lam == hard.lam)

@@ -231,11 +231,10 @@ def _certify_jitter(sc: Any, t1: Any, t2: Any, delta: float, as_json: bool) -> N
         raise DelayError(f"the nominal delays are unstable (dominant root {small.nominal_root.real:.4g} "
                          f"{small.nominal_root.imag:+.4g}j): no deviation of them is safe")  # fmt: skip
     per_link = small.delta >= delta
-    together = per_link or None
     team = None
     if not per_link:  # the same delays on every link: a smaller class, per mode
         team = certify_team_delays(sc.topology, sc.P, sc.D, float(t1), float(t2), delta, cover_intervals=True)
-        together = team.delta == delta
+    together = per_link or (team is not None and team.delta == delta)
     limiting = None if team is None or team.limiting is None else next(
         (md.functional for md in team.modes if md.lam == team.limiting), None)  # fmt: skip
     if as_json:

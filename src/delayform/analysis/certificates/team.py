@@ -499,13 +499,13 @@ def certify_team_delays(topology: Topology, P: float, D: float, tau1: float, tau
     >>> certify_team_delays(paper_six(), 1.0, 0.5, 2.0, 1.0, 0.05, max_order=1).delta  # point b, Wirtinger
     0.05
     """
+    d, t1 = check_delay("delta", delta), check_delay("tau1", tau1)
+    if not 0.0 < d < t1:  # refused before any root or SDP, whatever the nominal delays
+        raise InputError(f"delta must be positive and below tau1 = {t1:g} (the position delay may not reach 0), got {d:g}")
     setup = _setup(topology, P, D, tau1, tau2, max_order, upper_cuts, cover_intervals)
-    d = check_delay("delta", delta)
     if isinstance(setup, TeamDelayMargin):
         return setup
     t1, t2, levels, fs, right = setup
-    if not 0.0 < d < t1:
-        raise InputError(f"delta must be positive and below tau1 = {t1:g} (the position delay may not reach 0), got {d:g}")
     modes = _Modes(fs, t1, t2, right, levels, 0.02, 0.05 * max(t1, t2, 0.2))
     options = {f.describe(): f for fl in modes.mode_levels for f in fl}
     out: list[ModeMargin] = []
